@@ -1,0 +1,43 @@
+# flex-twin developer entry points. Every target that runs project code first makes sure
+# .venv exists and is current (scripts/bootstrap.sh is a no-op when its stamp matches).
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+.DEFAULT_GOAL := help
+
+ROOT := $(patsubst %/,%,$(dir $(abspath $(lastword $(MAKEFILE_LIST)))))
+ENV := source $(ROOT)/scripts/env.sh
+# Test roots that exist right now (src/*/test are optional per package).
+TEST_DIRS = $(wildcard test src/*/test)
+PYTEST_ARGS ?=
+DEMO_ARGS ?=
+
+.PHONY: help venv test demo bench clean distclean
+
+help:
+	@echo "make venv    create/refresh .venv (pinned by constraints.txt)"
+	@echo "make test    run the test suite (PYTEST_ARGS='-k foo' to narrow)"
+	@echo "make demo    run 'flex-twin demo' (DEMO_ARGS='...' to pass options)"
+	@echo "make bench   run bench/run_all.py if present"
+	@echo "make clean   remove build/test artefacts (keeps .venv); distclean also removes .venv"
+
+venv:
+	bash $(ROOT)/scripts/bootstrap.sh
+
+test: venv
+	cd $(ROOT) && $(ENV) && ROS_PYTHON_CHECK_FIELDS=1 python -m pytest $(PYTEST_ARGS) $(TEST_DIRS)
+
+demo: venv
+	cd $(ROOT) && $(ENV) && flex-twin demo $(DEMO_ARGS)
+
+bench: venv
+	@cd $(ROOT) && if [ -f bench/run_all.py ]; then $(ENV) && python bench/run_all.py; \
+	else echo "bench/run_all.py not present; nothing to run"; fi
+
+clean:
+	cd $(ROOT) && rm -rf build install log ros2_ws/build ros2_ws/install ros2_ws/log \
+	    .pytest_cache src/*/*.egg-info src/*/build
+	cd $(ROOT) && find . \( -name .git -o -name '.venv*' -o -name ros2_ws \) -prune -o \
+	    -type d -name __pycache__ -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(ROOT)/.venv $(ROOT)/.venv.lock

@@ -1,0 +1,107 @@
+#!/usr/bin/env bash
+# Create/refresh .venv (python3.11) with every dependency pinned by constraints.txt, then
+# install src/flex_model, src/flex_control and src/flex_planner as editable packages.
+#
+# Fast path: a stamp file (.venv/.bootstrap-stamp) holds a hash of constraints.txt, the three
+# setup.py files, this script and the interpreter version; if it matches, nothing is done.
+# If it does not match, .venv is rebuilt from scratch (so no unpinned leftovers survive).
+#
+# Env: PYTHON=/path/to/python3.11 to choose the interpreter; FORCE=1 to rebuild regardless.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="$ROOT/.venv"
+STAMP="$VENV/.bootstrap-stamp"
+CONSTRAINTS="$ROOT/constraints.txt"
+PACKAGES=(src/flex_model src/flex_control src/flex_planner)
+# Top-level requirements; every version (and every transitive one) comes from constraints.txt.
+REQUIREMENTS=(
+  "ros-jazzy-rclpy[fastrtps]"
+  ros-jazzy-common-interfaces
+  numpy scipy numba pyyaml matplotlib
+  mcap mcap-ros2-support rosbags
+  pytest
+)
+
+log() { printf '[bootstrap] %s\n' "$*" >&2; }
+
+find_python() {
+  local cand
+  for cand in "${PYTHON:-}" python3.11 python3; do
+    [ -n "$cand" ] || continue
+    command -v "$cand" >/dev/null 2>&1 || continue
+    if "$cand" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; then
+      command -v "$cand"
+      return 0
+    fi
+  done
+  log "error: Python 3.11 not found (tried \$PYTHON, python3.11, python3)"
+  return 1
+}
+
+PY="$(find_python)"
+PYVER="$("$PY" -c 'import sys; print(sys.version.split()[0])')"
+
+stamp_value() {
+  {
+    echo "python=$PYVER"
+    cat "$CONSTRAINTS" "$ROOT/scripts/bootstrap.sh"
+    local p
+    for p in "${PACKAGES[@]}"; do cat "$ROOT/$p/setup.py"; done
+  } | sha256sum | cut -d' ' -f1
+}
+
+# One bootstrap at a time (e.g. `make -j test demo`).
+exec 9>"$ROOT/.venv.lock"
+if command -v flock >/dev/null 2>&1; then flock 9; fi
+
+WANT="$(stamp_value)"
+if [ "${FORCE:-0}" != 1 ] && [ -f "$STAMP" ] && [ "$(cat "$STAMP")" = "$WANT" ] \
+   && "$VENV/bin/python" -c 'import sys' >/dev/null 2>&1; then
+  log ".venv is up to date ($VENV)"
+  exit 0
+fi
+
+start=$(date +%s)
+if [ -e "$VENV" ]; then
+  log "rebuilding stale .venv"
+  rm -rf "$VENV"
+fi
+log "creating .venv with $PY ($PYVER)"
+"$PY" -m venv "$VENV"
+# Keep colcon (run from the repo root by mistake) from discovering the ROS packages that the
+# ros-* wheels put under .venv/share.
+touch "$VENV/COLCON_IGNORE"
+
+export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_NO_INPUT=1
+[ "${CI:-}" = "true" ] && export PIP_PROGRESS_BAR=off
+# The ros-* wheels ship a .pth hook (ros_wheels_bootstrapper) that re-execs every Python
+# started from this venv with LD_LIBRARY_PATH extended; harmless here, just noted.
+pip_install() { "$VENV/bin/python" -m pip install -c "$CONSTRAINTS" "$@"; }
+
+cd "$ROOT"
+# 1) build tooling at the pinned versions (the venv's bundled pip 23.2 is replaced).
+pip_install pip setuptools wheel
+# 2) pinned runtime deps. --no-build-isolation: the one sdist (empy) builds with the pinned
+#    setuptools above instead of whatever an isolated build env would download.
+pip_install --no-build-isolation "${REQUIREMENTS[@]}"
+# 3) the project's packages, editable (PEP 660 via setuptools; no deps to resolve beyond the
+#    pinned set above). flex_model first: the others import it.
+editable=()
+for p in "${PACKAGES[@]}"; do editable+=(-e "$p"); done
+pip_install --no-build-isolation --no-deps "${editable[@]}"
+"$VENV/bin/python" -m pip check
+# 4) setuptools' editable (PEP 660) wheels do not install data_files, so register the packages
+#    in the venv's ament index by hand (symlinks into src/, like colcon --symlink-install).
+#    With AMENT_PREFIX_PATH=$VIRTUAL_ENV (scripts/env.sh), get_package_share_directory() works.
+for p in "${PACKAGES[@]}"; do
+  name="$(basename "$p")"
+  mkdir -p "$VENV/share/ament_index/resource_index/packages" "$VENV/share/$name"
+  : > "$VENV/share/ament_index/resource_index/packages/$name"
+  ln -sfn "$ROOT/$p/package.xml" "$VENV/share/$name/package.xml"
+done
+# flex_model's presets (linked even before the directory exists, so it goes live when it does)
+ln -sfn "$ROOT/src/flex_model/flex_model/presets" "$VENV/share/flex_model/presets"
+
+echo "$WANT" > "$STAMP"
+log "done in $(( $(date +%s) - start )) s"

@@ -1,0 +1,1 @@
+"""flex_control: controllers for the flex-twin flexible-link arm models."""

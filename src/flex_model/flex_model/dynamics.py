@@ -1,0 +1,240 @@
+"""FlexArmModel: the planar flexible-link arm of thesis Ch. II in manipulator-equation form.
+
+    B(q) a + c(q, v) + K q + D v = H_c tau + H_d u_d                    (thesis Eq. 27)
+
+with ``q = [alpha_1, q_f1, ..., alpha_nu, q_fnu]`` (absolute link angles and wavelet
+deformation variables, Eq. 12), ``c`` the exact Coriolis, centrifugal and gravity terms of
+the Lagrangian (``d/dt(B v) - 1/2 d/dq(v^T B v) - B a + dU_g/dq``), ``K`` the block
+diagonal stiffness of Eqs. (24)-(25) and ``D`` the internal friction of Eqs. (35)-(36).
+The joint angle an encoder sees is ``theta_i = alpha_i - alpha_{i-1} - gamma_{i-1,n}``
+(root tangent of link i against the tip tangent of link i-1), so ``H_c = G^T`` with
+``theta = G q``. The model holds parameters only, never state.
+"""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from . import kernels
+from .arm import ArmDescription
+from .basis import link_basis
+
+
+class FlexArmModel:
+    """Equations of motion, kinematics and energy of an arm description."""
+
+    def __init__(self, arm: ArmDescription):
+        self.arm = arm
+        self.bases = [link_basis(lk.profile, lk.n_vars // 2) for lk in arm.links]
+        self.nf = np.array([b.n_vars for b in self.bases], dtype=np.int64)
+        self.off = np.concatenate([[0], np.cumsum(self.nf + 1)[:-1]]).astype(np.int64)
+        self.nq = int(np.sum(self.nf + 1))
+        self.n_links = len(self.bases)
+        nq = self.nq
+        self.K = np.zeros((nq, nq))
+        self.D = np.zeros((nq, nq))
+        self._Bw = np.zeros((nq, nq))
+        self._h = np.zeros(nq)
+        self._k = np.zeros(nq)
+        for i, (lk, b) in enumerate(zip(arm.links, self.bases)):
+            s = self.flex_slice(i)
+            self.K[s, s] = b.K
+            self.D[s, s] = lk.internal_friction * b.S1
+            self._Bw[s, s] = b.Bw
+            self._h[s] = b.h
+            self._k[s] = b.k
+        self.G = np.zeros((self.n_links, nq))
+        for i in range(self.n_links):
+            self.G[i, self.off[i]] = 1.0
+            if i > 0:
+                self.G[i, self.off[i - 1]] = -1.0
+                self.G[i, self.tip_rotation_index(i - 1)] = -1.0
+        self.gravity = np.array(arm.gravity, dtype=float)
+        self.set_payload(arm.payload_mass, arm.payload_inertia)
+
+    # ----------------------------------------------------------------- indexing
+    def alpha_index(self, i: int) -> int:
+        return int(self.off[i])
+
+    def flex_slice(self, i: int) -> slice:
+        return slice(int(self.off[i]) + 1, int(self.off[i] + self.nf[i]) + 1)
+
+    def tip_deflection_index(self, i: int) -> int:
+        return int(self.off[i] + self.nf[i] - 1)
+
+    def tip_rotation_index(self, i: int) -> int:
+        return int(self.off[i] + self.nf[i])
+
+    def coordinate_names(self) -> list[str]:
+        """Names of the entries of q: link<i>/alpha, link<i>/delta<k>, link<i>/gamma<k>."""
+        names = []
+        for lk, n in zip(self.arm.links, self.nf):
+            names.append(f"{lk.name}/alpha")
+            for k in range(n // 2):
+                names += [f"{lk.name}/delta{k + 1}", f"{lk.name}/gamma{k + 1}"]
+        return names
+
+    @property
+    def alpha_indices(self) -> np.ndarray:
+        return self.off.copy()
+
+    # ----------------------------------------------------------------- parameters
+    def set_payload(self, mass: float, inertia: float) -> None:
+        """Set the tip payload (kg, kg m^2): it adds to M+ and J+ of the last link."""
+        if not (np.isfinite(mass) and np.isfinite(inertia)) or mass < 0 or inertia < 0:
+            raise ValueError(f"payload: got mass={mass!r}, inertia={inertia!r}; "
+                             "expected finite numbers >= 0 (kg, kg m^2)")
+        self.payload = (float(mass), float(inertia))
+        nl = self.n_links
+        L = np.array([lk.length for lk in self.arm.links])
+        m_plus = np.array([lk.M_plus for lk in self.arm.links])
+        j_plus = np.array([lk.J_plus for lk in self.arm.links])
+        m_plus[-1] += mass
+        j_plus[-1] += inertia
+        mtot = np.zeros(nl)
+        ntot = np.zeros(nl)
+        jrot = np.zeros(nl)
+        Bp = self._Bw.copy()
+        ht = self._h.copy()
+        kt = self._k.copy()
+        for i, (lk, b) in enumerate(zip(self.arm.links, self.bases)):
+            mtot[i] = lk.M_minus + b.mass + m_plus[i]
+            ntot[i] = b.first_moment + m_plus[i] * L[i]
+            jrot[i] = lk.J_minus + b.second_moment + m_plus[i] * L[i] ** 2 + j_plus[i]
+            d, g = self.tip_deflection_index(i), self.tip_rotation_index(i)
+            Bp[d, d] += m_plus[i]
+            ht[d] += m_plus[i]
+            kt[d] += m_plus[i] * L[i]
+            kt[g] += j_plus[i]
+        self.lengths = L
+        self.P = (self.off, self.nf, L, mtot, ntot, jrot, j_plus, Bp, ht, kt)
+
+    def with_gravity(self, gravity) -> "FlexArmModel":
+        """A view of this model with another gravity vector (m/s^2); arrays are shared."""
+        other = copy.copy(self)
+        other.gravity = np.asarray(gravity, dtype=float).copy()
+        return other
+
+    @property
+    def total_mass(self) -> float:
+        return float(np.sum(self.P[3]))
+
+    # ----------------------------------------------------------------- dynamics
+    def mass_matrix(self, q) -> np.ndarray:
+        """B(q) (thesis Eqs. 18-23), symmetric positive definite."""
+        return kernels.mass_matrix(np.asarray(q, dtype=float), self.P)
+
+    def bias(self, q, v) -> np.ndarray:
+        """c(q, v): Coriolis, centrifugal and gravity generalized forces (Eqs. 27, 26)."""
+        q = np.asarray(q, dtype=float)
+        return kernels.inverse_dynamics(q, np.asarray(v, dtype=float), np.zeros(self.nq),
+                                        self.gravity[0], self.gravity[1], self.P)
+
+    def gravity_force(self, q) -> np.ndarray:
+        """dU_g/dq (thesis Eqs. 16, 26)."""
+        return self.bias(q, np.zeros(self.nq))
+
+    def inverse_dynamics(self, q, v, a) -> np.ndarray:
+        """B(q) a + c(q, v) (without elastic, damping and applied forces)."""
+        return kernels.inverse_dynamics(np.asarray(q, float), np.asarray(v, float),
+                                        np.asarray(a, float), self.gravity[0],
+                                        self.gravity[1], self.P)
+
+    def stiffness_matrix(self) -> np.ndarray:
+        """K = diag(0, K_1, 0, K_2, ...) (thesis Eqs. 24-25)."""
+        return self.K
+
+    def damping_matrix(self) -> np.ndarray:
+        """D: internal friction k_a int w' w'^T dz per link (thesis Eqs. 35-36).
+
+        Eq. (35)'s damping term -k_a d''_t is taken in weak (Galerkin) form, which gives the
+        positive semi-definite matrix k_a int w'_i w'_j dz.
+        """
+        return self.D
+
+    def input_matrix(self) -> np.ndarray:
+        """H_c = G^T: joint torques to generalized forces (thesis Eq. 29)."""
+        return self.G.T
+
+    def tip_jacobian(self, q) -> np.ndarray:
+        """d p_tip / d q (2 x nq): generalized force of a tip force F is J^T F (Eq. 30)."""
+        return kernels.tip_jacobian(np.asarray(q, float), self.P)
+
+    def tip_torque_vector(self) -> np.ndarray:
+        """Generalized force of a unit torque at the arm's end (acts on alpha_nu + gamma_nu)."""
+        e = np.zeros(self.nq)
+        e[self.alpha_index(self.n_links - 1)] = 1.0
+        e[self.tip_rotation_index(self.n_links - 1)] = 1.0
+        return e
+
+    def acceleration(self, q, v, Q) -> np.ndarray:
+        """a = B^-1 (Q - c - K q - D v) for a generalized applied force Q."""
+        q = np.asarray(q, float)
+        v = np.asarray(v, float)
+        rhs = np.asarray(Q, float) - self.bias(q, v) - self.K @ q - self.D @ v
+        return np.linalg.solve(self.mass_matrix(q), rhs)
+
+    # ----------------------------------------------------------------- kinematics
+    def joint_angles(self, q) -> np.ndarray:
+        """Encoder angles theta (rad): relative angle at each joint."""
+        return self.G @ np.asarray(q, float)
+
+    def joint_coordinate_matrix(self) -> np.ndarray:
+        """T with q = T z, where z is q with every alpha_i replaced by the joint angle theta_i."""
+        S = np.eye(self.nq)
+        S[self.off] = self.G
+        return np.linalg.inv(S)
+
+    def q_from_joint_angles(self, theta, flex=None) -> np.ndarray:
+        """q for joint angles theta (rad) and optional deformation variables."""
+        z = np.zeros(self.nq)
+        if flex is not None:
+            z[np.setdiff1d(np.arange(self.nq), self.off)] = flex
+        z[self.off] = theta
+        return self.joint_coordinate_matrix() @ z
+
+    def link_origins(self, q) -> np.ndarray:
+        """Origins of the links and the arm's tip, (n_links + 1, 2), base frame (m)."""
+        return kernels.link_origins(np.asarray(q, float), self.P)
+
+    def tip_deflections(self, q) -> np.ndarray:
+        """Tip deflection delta_n of every link (m), normal to the root tangent."""
+        q = np.asarray(q, float)
+        return np.array([q[self.tip_deflection_index(i)] for i in range(self.n_links)])
+
+    def tip_rotations(self, q) -> np.ndarray:
+        """Tip rotation gamma_n of every link (rad) relative to its root tangent."""
+        q = np.asarray(q, float)
+        return np.array([q[self.tip_rotation_index(i)] for i in range(self.n_links)])
+
+    def tip_pose(self, q) -> tuple[float, float, float]:
+        """(x, y, phi) of the arm's end: position (m) and tangent angle (rad)."""
+        q = np.asarray(q, float)
+        x, y = self.link_origins(q)[-1]
+        last = self.n_links - 1
+        return float(x), float(y), float(q[self.alpha_index(last)]
+                                         + q[self.tip_rotation_index(last)])
+
+    def shape(self, q, points_per_link: int = 21) -> list[np.ndarray]:
+        """Deflected centre line of every link: list of (points, 2) arrays, base frame."""
+        q = np.asarray(q, float)
+        org = self.link_origins(q)
+        out = []
+        for i, b in enumerate(self.bases):
+            z = np.linspace(0.0, b.length, points_per_link)
+            d = b.shape_matrix(z) @ q[self.flex_slice(i)]
+            a = q[self.alpha_index(i)]
+            c, s = np.cos(a), np.sin(a)
+            out.append(np.column_stack([org[i, 0] + z * c - d * s, org[i, 1] + z * s + d * c]))
+        return out
+
+    # ----------------------------------------------------------------- energy
+    def energy(self, q, v) -> dict:
+        """Kinetic, elastic and gravitational energy (J) of the arm (Eqs. 7, 13, 15)."""
+        q = np.asarray(q, float)
+        v = np.asarray(v, float)
+        return {"kinetic": 0.5 * v @ self.mass_matrix(q) @ v,
+                "elastic": 0.5 * q @ self.K @ q,
+                "gravity": kernels.gravity_potential(q, self.gravity[0], self.gravity[1],
+                                                     self.P)}

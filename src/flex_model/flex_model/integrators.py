@@ -1,0 +1,198 @@
+"""Compiled time integration of the arm: a variable-step and a fixed-step scheme.
+
+State ``x = [q; v]``. The applied generalized force is (thesis Eqs. 27-30)
+
+    Q = H_c tau + J_tip^T F + e_tip C - K q - D v,
+    tau = Kp (theta_set - theta) + Kd (theta_dot_set - theta_dot) + u + pulses(t),
+
+with joint angles ``theta = G q`` (relative angle between the tip tangent of link i-1 and
+the root tangent of link i, so ``H_c = G^T``), a held input torque ``u`` (set by a policy
+between calls) and torque/force pulses on time windows.
+
+The input data ``E`` is the tuple built by :mod:`flex_model.simulate`:
+``(K, D, G, gx, gy, kp, kd, theta_set, u, pulse_t0, pulse_t1, pulse_tau, pulse_force,
+pulse_torque)``.
+
+Schemes
+-------
+- ``dopri5``: Dormand-Prince 5(4), error per step controlled in the weighted RMS norm
+  ``|err_i| / (atol_i + rtol |x_i|)``; lands exactly on the output times.
+- ``rk4``: classic fixed-step Runge-Kutta 4 (global error O(dt^4)); stable for
+  ``omega_max dt < 2.78``, so the caller chooses dt from the highest natural frequency.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .kernels import inverse_dynamics, mass_matrix, solve_spd, tip_jacobian
+
+_CACHE = True
+
+
+@njit(cache=_CACHE)
+def joint_torques(t, q, v, E):
+    """Joint torques tau (nl) of the built-in joint law at time t."""
+    K, D, G, gx, gy, kp, kd, theta_set, u, pt0, pt1, ptau, pF, pC = E
+    th = G @ q
+    dth = G @ v
+    tau = kp * (theta_set - th) - kd * dth + u
+    for p in range(pt0.shape[0]):
+        if pt0[p] <= t < pt1[p]:
+            tau += ptau[p]
+    return tau
+
+
+@njit(cache=_CACHE)
+def applied_force(t, q, v, P, E):
+    """Generalized applied force Q (joint torques, tip loads, elastic and damping forces)."""
+    K, D, G, gx, gy, kp, kd, theta_set, u, pt0, pt1, ptau, pF, pC = E
+    tau = joint_torques(t, q, v, E)
+    Q = G.T @ tau - K @ q - D @ v
+    fx = 0.0
+    fy = 0.0
+    c = 0.0
+    for p in range(pt0.shape[0]):
+        if pt0[p] <= t < pt1[p]:
+            fx += pF[p, 0]
+            fy += pF[p, 1]
+            c += pC[p]
+    if fx != 0.0 or fy != 0.0:
+        Jt = tip_jacobian(q, P)
+        Q += Jt[0] * fx + Jt[1] * fy
+    if c != 0.0:
+        off, nf = P[0], P[1]
+        last = off.shape[0] - 1
+        Q[off[last]] += c
+        Q[off[last] + nf[last]] += c
+    return Q
+
+
+@njit(cache=_CACHE)
+def derivative(t, x, P, E):
+    """dx/dt = [v; B(q)^-1 (Q - c(q, v) - dU_g/dq)]."""
+    n = x.shape[0] // 2
+    q = x[:n]
+    v = x[n:]
+    gx, gy = E[3], E[4]
+    rhs = applied_force(t, q, v, P, E) - inverse_dynamics(q, v, np.zeros(n), gx, gy, P)
+    a = solve_spd(mass_matrix(q, P), rhs)
+    out = np.empty(2 * n)
+    out[:n] = v
+    out[n:] = a
+    return out
+
+
+@njit(cache=_CACHE)
+def _finite(x, limit):
+    """False when a component is non-finite or beyond ``limit`` (a diverging state)."""
+    for i in range(x.shape[0]):
+        if not np.isfinite(x[i]) or abs(x[i]) > limit:
+            return False
+    return True
+
+
+@njit(cache=_CACHE)
+def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
+    """Integrate from t0 through the increasing output times ``t_out``.
+
+    Returns ``(X, status, t_end, x_end, h, n_steps, n_rejected)``; status 0 = done,
+    1 = non-finite or diverging state (beyond ``limit``; X rows after it are NaN),
+    2 = step size underflow, 3 = too many steps. ``h`` is the next step size.
+    """
+    a21 = 1 / 5
+    a31, a32 = 3 / 40, 9 / 40
+    a41, a42, a43 = 44 / 45, -56 / 15, 32 / 9
+    a51, a52, a53, a54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
+    a61, a62, a63, a64, a65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
+    b1, b3, b4, b5, b6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
+    e1, e3, e4, e5, e6, e7 = (71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200,
+                              22 / 525, -1 / 40)
+    c2, c3, c4, c5 = 1 / 5, 3 / 10, 4 / 5, 8 / 9
+    nx = x0.shape[0]
+    nout = t_out.shape[0]
+    X = np.full((nout, nx), np.nan)
+    t = t0
+    x = x0.copy()
+    k1 = derivative(t, x, P, E)
+    h = h0
+    steps = 0
+    rejected = 0
+    j = 0
+    while j < nout and t_out[j] <= t:
+        X[j] = x
+        j += 1
+    while j < nout:
+        if steps >= max_steps:
+            return X, 3, t, x, h, steps, rejected
+        hh = min(h, hmax, t_out[j] - t)
+        land = hh == t_out[j] - t
+        k2 = derivative(t + c2 * hh, x + hh * a21 * k1, P, E)
+        k3 = derivative(t + c3 * hh, x + hh * (a31 * k1 + a32 * k2), P, E)
+        k4 = derivative(t + c4 * hh, x + hh * (a41 * k1 + a42 * k2 + a43 * k3), P, E)
+        k5 = derivative(t + c5 * hh, x + hh * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4),
+                        P, E)
+        k6 = derivative(t + hh, x + hh * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4
+                                          + a65 * k5), P, E)
+        xn = x + hh * (b1 * k1 + b3 * k3 + b4 * k4 + b5 * k5 + b6 * k6)
+        k7 = derivative(t + hh, xn, P, E)
+        err = hh * (e1 * k1 + e3 * k3 + e4 * k4 + e5 * k5 + e6 * k6 + e7 * k7)
+        s = 0.0
+        for i in range(nx):
+            sc = atol[i] + rtol * max(abs(x[i]), abs(xn[i]))
+            s += (err[i] / sc) ** 2
+        en = np.sqrt(s / nx)
+        steps += 1
+        if not np.isfinite(en):
+            if hh < 1e-14 * max(1.0, abs(t)):
+                return X, 1, t, xn, h, steps, rejected
+            h = 0.25 * hh
+            rejected += 1
+            continue
+        if en <= 1.0:
+            t = t_out[j] if land else t + hh
+            x = xn
+            k1 = k7
+            if not _finite(x, limit):
+                return X, 1, t, x, h, steps, rejected
+            while j < nout and t_out[j] <= t:
+                X[j] = x
+                j += 1
+            fac = 5.0 if en == 0.0 else min(5.0, max(0.2, 0.9 * en ** -0.2))
+            if not land or fac < 1.0:
+                h = hh * fac
+        else:
+            rejected += 1
+            h = hh * max(0.2, 0.9 * en ** -0.2)
+            if h < 1e-14 * max(1.0, abs(t)):
+                return X, 2, t, x, h, steps, rejected
+    return X, 0, t, x, h, steps, rejected
+
+
+@njit(cache=_CACHE)
+def rk4(t0, x0, dt, n_steps, every, limit, P, E):
+    """Fixed-step RK4: ``n_steps`` steps of ``dt``; returns every ``every``-th state.
+
+    Returns ``(X, status, t_end, x_end)``; X[0] = x0. Status 1 = non-finite or diverging
+    state (beyond ``limit``) at t_end.
+    """
+    nx = x0.shape[0]
+    nrec = n_steps // every + 1
+    X = np.full((nrec, nx), np.nan)
+    X[0] = x0
+    x = x0.copy()
+    t = t0
+    r = 1
+    for s in range(1, n_steps + 1):
+        k1 = derivative(t, x, P, E)
+        k2 = derivative(t + 0.5 * dt, x + 0.5 * dt * k1, P, E)
+        k3 = derivative(t + 0.5 * dt, x + 0.5 * dt * k2, P, E)
+        k4 = derivative(t + dt, x + dt * k3, P, E)
+        x = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        t = t0 + s * dt
+        if not _finite(x, limit):
+            return X, 1, t, x
+        if s % every == 0:
+            X[r] = x
+            r += 1
+    return X, 0, t, x

@@ -1,0 +1,274 @@
+"""Compiled kernels of the flexible-arm equations of motion (thesis Ch. II, Eqs. 1-30).
+
+Coordinates ``q = [alpha_1, q_f1, alpha_2, q_f2, ...]`` (absolute link angles and the
+wavelet deformation variables of each link, thesis Eq. 12 and Eq. 22). Link ``i`` occupies
+``q[off[i] : off[i] + 1 + nf[i]]``; its tip deflection ``delta_n`` is at
+``off[i] + nf[i] - 1`` and its tip rotation ``gamma_n`` at ``off[i] + nf[i]``.
+
+A point of link i at abscissa z is (thesis Eq. 1)
+    p = o_i + z e1(alpha_i) + d(z) e2(alpha_i),   d = W(z) q_f,
+and the next link's origin is its tip (thesis Eqs. 20-21). The equations of motion
+
+    d/dt(B(q) v) - 1/2 d/dq (v^T B(q) v) + K q + D v + dU_g/dq = Q        (thesis Eq. 27)
+
+are evaluated by d'Alembert's principle over the particles of each link: each link's
+inertial force is computed in its own (redundant) coordinates (o_i, alpha_i, q_f) and
+mapped to q through the interconnection Jacobian of Eqs. (20)-(22), a backward sum of the
+outboard links' resultant forces. Gravity enters as a base acceleration -g. The result is
+the exact Lagrangian of Eqs. (6)-(7), (15)-(16), with cost linear in the number of
+variables for the bias and quadratic (the interconnection coupling) for B.
+
+The model data ``P`` is the tuple built by :func:`flex_model.dynamics.FlexArmModel.kernel_data`:
+``(off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt)`` where, per link i, with the end
+masses M-, M+ and inertias J-, J+ included (thesis Eq. 8 and the tilde quantities of
+Eq. 18): mtot = M, ntot = N, jrot = J + M+ L^2, Bp = B_f + M+ e_dn e_dn^T (block of a
+global nq x nq array), ht = h~, kt = k~ (global nq arrays, zero at the alpha entries).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+_CACHE = True
+
+
+@njit(cache=_CACHE)
+def inverse_dynamics(q, v, a, gx, gy, P):
+    """Generalized inertial + Coriolis/centrifugal + gravity force B a + c(q, v) + dU_g/dq.
+
+    Elastic and damping forces are not included (they are K q and D v).
+    """
+    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P
+    nl = L.shape[0]
+    nq = q.shape[0]
+    f = np.zeros(nq)
+    # forward pass: accelerations of the link origins; base accelerates with -g
+    aox = -gx
+    aoy = -gy
+    fox = np.zeros(nl)
+    foy = np.zeros(nl)
+    for i in range(nl):
+        o = off[i]
+        n = nf[i]
+        al = q[o]
+        wd = v[o]
+        ad = a[o]
+        c = np.cos(al)
+        s = np.sin(al)
+        e1x, e1y, e2x, e2y = c, s, -s, c
+        S = 0.0
+        Sd = 0.0
+        Sdd = 0.0
+        qBq = 0.0
+        qBv = 0.0
+        ka = 0.0
+        for j in range(n):
+            r = o + 1 + j
+            S += ht[r] * q[r]
+            Sd += ht[r] * v[r]
+            Sdd += ht[r] * a[r]
+            ka += kt[r] * a[r]
+            bq = 0.0
+            bv = 0.0
+            for l in range(n):
+                cidx = o + 1 + l
+                bq += Bp[r, cidx] * q[cidx]
+                bv += Bp[r, cidx] * v[cidx]
+            qBq += q[r] * bq
+            qBv += q[r] * bv
+        N = ntot[i]
+        e2a = e2x * aox + e2y * aoy
+        e1a = e1x * aox + e1y * aoy
+        # link resultant force (particles): F_o = int p'' dm
+        fox[i] = (mtot[i] * aox + ad * (N * e2x - S * e1x) - wd * wd * (N * e1x + S * e2x)
+                  - 2.0 * wd * Sd * e1x + Sdd * e2x)
+        foy[i] = (mtot[i] * aoy + ad * (N * e2y - S * e1y) - wd * wd * (N * e1y + S * e2y)
+                  - 2.0 * wd * Sd * e1y + Sdd * e2y)
+        # alpha equation
+        f[o] = N * e2a - S * e1a + ad * (jrot[i] + qBq) + 2.0 * wd * qBv + ka
+        # deformation equations
+        for j in range(n):
+            r = o + 1 + j
+            bq = 0.0
+            ba = 0.0
+            for l in range(n):
+                cidx = o + 1 + l
+                bq += Bp[r, cidx] * q[cidx]
+                ba += Bp[r, cidx] * a[cidx]
+            f[r] = ht[r] * e2a + kt[r] * ad - wd * wd * bq + ba
+        g = o + n
+        f[g] += jplus[i] * a[g]
+        # acceleration of the tip = origin of the next link (thesis Eq. 20 differentiated)
+        dl = o + n - 1
+        de = q[dl]
+        dd = v[dl]
+        da = a[dl]
+        Li = L[i]
+        aox = (aox + ad * (Li * e2x - de * e1x) - wd * wd * (Li * e1x + de * e2x)
+               - 2.0 * wd * dd * e1x + da * e2x)
+        aoy = (aoy + ad * (Li * e2y - de * e1y) - wd * wd * (Li * e1y + de * e2y)
+               - 2.0 * wd * dd * e1y + da * e2y)
+    # backward pass: outboard resultant forces acting through each link's tip
+    rx = 0.0
+    ry = 0.0
+    for i in range(nl - 1, -1, -1):
+        o = off[i]
+        n = nf[i]
+        al = q[o]
+        c = np.cos(al)
+        s = np.sin(al)
+        de = q[o + n - 1]
+        f[o] += (L[i] * (-s) - de * c) * rx + (L[i] * c - de * s) * ry
+        f[o + n - 1] += -s * rx + c * ry
+        rx += fox[i]
+        ry += foy[i]
+    return f
+
+
+@njit(cache=_CACHE)
+def mass_matrix(q, P):
+    """Inertia matrix B(q) of thesis Eqs. (18)-(23), assembled link by link."""
+    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P
+    nl = L.shape[0]
+    nq = q.shape[0]
+    B = np.zeros((nq, nq))
+    # interface columns (alpha_k, delta_n,k) and their 2-vectors phi = d o_{k+1} / d q_c
+    cols = np.zeros(2 * nl, dtype=np.int64)
+    phx = np.zeros(2 * nl)
+    phy = np.zeros(2 * nl)
+    for i in range(nl):
+        o = off[i]
+        n = nf[i]
+        c = np.cos(q[o])
+        s = np.sin(q[o])
+        e1x, e1y, e2x, e2y = c, s, -s, c
+        S = 0.0
+        qBq = 0.0
+        for j in range(n):
+            r = o + 1 + j
+            S += ht[r] * q[r]
+            bq = 0.0
+            for l in range(n):
+                bq += Bp[r, o + 1 + l] * q[o + 1 + l]
+            qBq += q[r] * bq
+        # own block
+        B[o, o] += jrot[i] + qBq
+        for j in range(n):
+            r = o + 1 + j
+            B[o, r] += kt[r]
+            B[r, o] += kt[r]
+            for l in range(n):
+                B[r, o + 1 + l] += Bp[r, o + 1 + l]
+        B[o + n, o + n] += jplus[i]
+        # coupling with the interface columns of the inboard links
+        N = ntot[i]
+        bax = N * e2x - S * e1x
+        bay = N * e2y - S * e1y
+        nc = 2 * i
+        for m in range(nc):
+            cm = cols[m]
+            val = bax * phx[m] + bay * phy[m]
+            B[o, cm] += val
+            B[cm, o] += val
+            e2p = e2x * phx[m] + e2y * phy[m]
+            for j in range(n):
+                r = o + 1 + j
+                B[r, cm] += ht[r] * e2p
+                B[cm, r] += ht[r] * e2p
+            for m2 in range(nc):
+                B[cm, cols[m2]] += mtot[i] * (phx[m] * phx[m2] + phy[m] * phy[m2])
+        # this link's interface columns for the links outboard of it
+        de = q[o + n - 1]
+        cols[nc] = o
+        phx[nc] = L[i] * e2x - de * e1x
+        phy[nc] = L[i] * e2y - de * e1y
+        cols[nc + 1] = o + n - 1
+        phx[nc + 1] = e2x
+        phy[nc + 1] = e2y
+    return B
+
+
+@njit(cache=_CACHE)
+def solve_spd(A, b):
+    """Solve A x = b for symmetric positive definite A by Cholesky (A is not modified)."""
+    n = b.shape[0]
+    Lc = np.zeros((n, n))
+    for j in range(n):
+        s = A[j, j]
+        for k in range(j):
+            s -= Lc[j, k] * Lc[j, k]
+        if s <= 0.0:
+            return np.full(n, np.nan)
+        d = np.sqrt(s)
+        Lc[j, j] = d
+        for i in range(j + 1, n):
+            t = A[i, j]
+            for k in range(j):
+                t -= Lc[i, k] * Lc[j, k]
+            Lc[i, j] = t / d
+    y = np.zeros(n)
+    for i in range(n):
+        t = b[i]
+        for k in range(i):
+            t -= Lc[i, k] * y[k]
+        y[i] = t / Lc[i, i]
+    x = np.zeros(n)
+    for i in range(n - 1, -1, -1):
+        t = y[i]
+        for k in range(i + 1, n):
+            t -= Lc[k, i] * x[k]
+        x[i] = t / Lc[i, i]
+    return x
+
+
+@njit(cache=_CACHE)
+def link_origins(q, P):
+    """Origins o_1..o_{nl+1} (the last is the arm's tip) in the base frame: (nl+1, 2)."""
+    off, nf, L = P[0], P[1], P[2]
+    nl = L.shape[0]
+    out = np.zeros((nl + 1, 2))
+    for i in range(nl):
+        o = off[i]
+        c = np.cos(q[o])
+        s = np.sin(q[o])
+        de = q[o + nf[i] - 1]
+        out[i + 1, 0] = out[i, 0] + L[i] * c - de * s
+        out[i + 1, 1] = out[i, 1] + L[i] * s + de * c
+    return out
+
+
+@njit(cache=_CACHE)
+def tip_jacobian(q, P):
+    """d p_tip / d q (2, nq): Jacobian of the arm's end point (thesis Eqs. 20-21, 30)."""
+    off, nf, L = P[0], P[1], P[2]
+    nl = L.shape[0]
+    Jt = np.zeros((2, q.shape[0]))
+    for i in range(nl):
+        o = off[i]
+        c = np.cos(q[o])
+        s = np.sin(q[o])
+        de = q[o + nf[i] - 1]
+        Jt[0, o] = -L[i] * s - de * c
+        Jt[1, o] = L[i] * c - de * s
+        Jt[0, o + nf[i] - 1] = -s
+        Jt[1, o + nf[i] - 1] = c
+    return Jt
+
+
+@njit(cache=_CACHE)
+def gravity_potential(q, gx, gy, P):
+    """U_g = -g . sum_i int p dm (thesis Eqs. 15-16, 26)."""
+    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P
+    org = link_origins(q, P)
+    u = 0.0
+    for i in range(L.shape[0]):
+        o = off[i]
+        c = np.cos(q[o])
+        s = np.sin(q[o])
+        S = 0.0
+        for j in range(nf[i]):
+            S += ht[o + 1 + j] * q[o + 1 + j]
+        px = mtot[i] * org[i, 0] + ntot[i] * c - S * s
+        py = mtot[i] * org[i, 1] + ntot[i] * s + S * c
+        u -= gx * px + gy * py
+    return u

@@ -1,0 +1,1 @@
+"""flex_planner: trajectory planning for the flex-twin flexible-link arm models."""

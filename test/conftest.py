@@ -1,0 +1,41 @@
+"""Session-wide test setup for flex-twin.
+
+Runs at import time, i.e. before any test module (or anything it imports) loads rclpy:
+* ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (forced): DDS discovery must never leave this host.
+* ROS_DOMAIN_ID: per run (derived from the pytest pid, 1..101) unless already set, so that
+  concurrent runs on one machine do not see each other. 1..101 keeps Fast DDS's port ranges
+  clear of the Linux ephemeral port range.
+* ROS_PYTHON_CHECK_FIELDS=1: generated message classes check field types on assignment.
+"""
+import os
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; RANGE above is authoritative
+os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
+
+if "rclpy" in sys.modules:  # e.g. a pytest plugin imported it before this conftest
+    warnings.warn("rclpy was imported before test/conftest.py set the ROS environment",
+                  RuntimeWarning, stacklevel=1)
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    """The checkout's root directory."""
+    return REPO_ROOT
+
+
+@pytest.fixture(scope="session")
+def shared_dir() -> Path:
+    """``../shared`` beside the checkout (reference data); skips the test when it is absent."""
+    path = REPO_ROOT.parent / "shared"
+    if not path.is_dir():
+        pytest.skip(f"../shared not found beside the checkout: {path}")
+    return path
