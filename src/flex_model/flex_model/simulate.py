@@ -11,9 +11,11 @@ Accuracy
 - ``method='variable'``: Dormand-Prince 5(4) with local error control (``rtol``, and
   ``atol`` per state: 1e-3 rtol in m or rad for q, 1e-2 rtol for v by default); steps land
   on pulse edges and control instants.
-- ``method='fixed'``: RK4 with a constant step ``dt`` (default: 2 / |lambda|_max of the
-  linearized arm at the initial state, inside RK4's stability limit of 2.78); global error
-  O(dt^4). Pulse edges are resolved to the step.
+- ``method='fixed'``: generalized-alpha with a constant step ``dt`` (default 1 ms, the
+  model node's rate; rounded down to divide the sample period), spectral radius
+  ``rho_inf`` (default 0.9): implicit, second order (global error O(dt^2)),
+  unconditionally stable, so the stiff flexible modes do not limit the step. The method
+  restarts at pulse edges and at policy instants (rounded to the step grid).
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from typing import Callable
 import numpy as np
 
 from .dynamics import FlexArmModel
-from .integrators import dopri5, joint_torques, rk4
+from .integrators import consistent_acceleration, dopri5, generalized_alpha, joint_torques
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
@@ -128,22 +130,6 @@ def _input_data(model: FlexArmModel, pd: JointPD | None, pulses, u):
             kp, kd, sp, u, t0, t1, ptau, pf, pc)
 
 
-def stable_fixed_step(model: FlexArmModel, q, pd: JointPD | None = None,
-                      factor: float = 2.0) -> float:
-    """A fixed RK4 step inside the stability limit: factor / max|lambda| of the arm at q."""
-    nl = model.n_links
-    B = model.mass_matrix(q)
-    K = model.K.copy()
-    C = model.D.copy()
-    if pd is not None:
-        K += model.G.T @ np.diag(np.asarray(pd.kp, float).reshape(nl)) @ model.G
-        C += model.G.T @ np.diag(np.asarray(pd.kd, float).reshape(nl)) @ model.G
-    Binv = np.linalg.inv(B)
-    n = model.nq
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Binv @ K, -Binv @ C]])
-    return factor / float(np.max(np.abs(np.linalg.eigvals(A))))
-
-
 def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:
     names = model.coordinate_names()
     names = names + [n + "_rate" for n in names]
@@ -157,7 +143,7 @@ def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDiverge
 def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period: float,
              pd: JointPD | None = None, pulses=(), policy: Callable | None = None,
              control_period: float | None = None, method: str = "variable",
-             rtol: float = 1e-8, atol=None, dt: float | None = None,
+             rtol: float = 1e-8, atol=None, dt: float | None = None, rho_inf: float = 0.9,
              progress: Callable | None = None) -> SimulationResult:
     """Integrate the arm from (q0, v0) over [0, t_final], sampling every ``sample_period``.
 
@@ -173,79 +159,116 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
     nq, nl = model.nq, model.n_links
     q0 = np.asarray(q0, float)
     v0 = np.zeros(nq) if v0 is None else np.asarray(v0, float)
-    x = np.concatenate([q0, v0])
+    x0 = np.concatenate([q0, v0])
     u = np.zeros(nl)
     E = _input_data(model, pd, pulses, u)
     n_samples = int(round(t_final / sample_period)) + 1
     t_samples = np.arange(n_samples) * sample_period
+    control_period = (control_period or sample_period) if policy is not None else None
+    run = _run_fixed if method == "fixed" else _run_variable
+    X, U, stats = run(model, x0, E, u, t_samples, policy, control_period, pulses,
+                      rtol=rtol, atol=atol, dt=dt, rho_inf=rho_inf, progress=progress)
+    q = X[:, :nq]
+    v = X[:, nq:]
+    tau = np.empty((n_samples, nl))
+    for j in range(n_samples):
+        u[:] = U[j]
+        tau[j] = joint_torques(t_samples[j], q[j], v[j], E)
+    stats["method"] = method
+    return SimulationResult(model=model, t=t_samples, q=q, v=v, tau=tau, stats=stats)
+
+
+def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, rtol, atol,
+                  progress, **_):
+    """Dormand-Prince between breakpoints (pulse edges, control instants, progress marks)."""
+    nq = model.nq
+    t_final = t_samples[-1]
     if policy is not None:
-        control_period = control_period or sample_period
         instants = np.arange(0.0, t_final, control_period)
     else:
-        instants = np.arange(0.0, t_final, max(1.0, sample_period))  # progress chunks
+        instants = np.arange(0.0, t_final, 1.0)  # progress marks
     edges = {float(t) for t in instants}
     for p in pulses:
         edges.update(t for t in (p.start, p.end) if 0.0 < t < t_final)
     edges = np.array(sorted(edges | {float(t_final)}))
-    X = np.full((n_samples, 2 * nq), np.nan)
-    U = np.zeros((n_samples, nl))
-    X[0] = x
-    if method == "fixed" and dt is None:
-        dt = stable_fixed_step(model, q0, pd)
     if atol is None:
         atol = np.concatenate([np.full(nq, 1e-3 * rtol), np.full(nq, 1e-2 * rtol)])
-    h = min(sample_period, 1e-3)
-    stats = {"steps": 0, "rejected": 0, "method": method}
+    X = np.full((len(t_samples), 2 * nq), np.nan)
+    U = np.zeros((len(t_samples), len(u)))
+    X[0] = x
+    h = min(t_samples[1] - t_samples[0], 1e-3)
+    stats = {"steps": 0, "rejected": 0}
     t = 0.0
-    for k in range(len(edges)):
-        t_end = edges[k]
+    for t_end in edges:
         if t_end <= t:
             continue
         if policy is not None and np.any(np.isclose(instants, t)):
-            u[:] = np.asarray(policy(t, x.copy()), float).reshape(nl)
+            u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
         sel = (t_samples > t + 1e-12) & (t_samples <= t_end + 1e-12)
         outs = t_samples[sel]
         if len(outs) == 0 or not np.isclose(outs[-1], t_end):
             outs = np.append(outs, t_end)
-        if method == "variable":
-            Xs, status, t_stop, x_stop, h, steps, rej = dopri5(
-                t, x, outs, rtol, atol, h, np.inf, 10_000_000, DIVERGENCE_LIMIT, model.P, E)
-            stats["steps"] += steps
-            stats["rejected"] += rej
-            if status == 1:
-                raise _diverged(model, t_stop, x_stop)
-            if status != 0:
-                raise SimulationDivergedError(
-                    f"integration stopped at t = {t_stop:.6g} s (step size underflow or step "
-                    f"limit, status {status}); the system may be too stiff for rtol={rtol}")
-        else:
-            n_steps = max(1, int(np.ceil((t_end - t) / dt - 1e-9)))
-            h_seg = (t_end - t) / n_steps
-            # sample times inside the segment must be on the step grid: integrate between
-            # consecutive outputs
-            Xs = np.empty((len(outs), 2 * nq))
-            xc, tc = x, t
-            for j, to in enumerate(outs):
-                m = max(1, int(round((to - tc) / h_seg)))
-                Xr, status, t_stop, x_stop = rk4(tc, xc, (to - tc) / m, m, m,
-                                                 DIVERGENCE_LIMIT, model.P, E)
-                if status == 1:
-                    raise _diverged(model, t_stop, x_stop)
-                xc, tc = Xr[-1], to
-                Xs[j] = xc
-            stats["steps"] += n_steps
-        n_in = int(sel.sum())
-        X[sel] = Xs[:n_in]
+        Xs, status, t_stop, x_stop, h, steps, rej = dopri5(
+            t, x, outs, rtol, atol, h, np.inf, 10_000_000, DIVERGENCE_LIMIT, model.P, E)
+        stats["steps"] += steps
+        stats["rejected"] += rej
+        if status == 1:
+            raise _diverged(model, t_stop, x_stop)
+        if status != 0:
+            raise SimulationDivergedError(
+                f"integration stopped at t = {t_stop:.6g} s (step size underflow or step "
+                f"limit, status {status}); the system may be too stiff for rtol={rtol}")
+        X[sel] = Xs[:int(sel.sum())]
         U[sel] = u
         x = Xs[-1].copy()
         t = t_end
         if progress is not None:
             progress(t, t_final)
-    q = X[:, :nq]
-    v = X[:, nq:]
-    tau = np.empty((n_samples, nl))
-    for j in range(n_samples):
-        E[8][:] = U[j]
-        tau[j] = joint_torques(t_samples[j], q[j], v[j], E)
-    stats["dt"] = dt
-    return SimulationResult(model=model, t=t_samples, q=q, v=v, tau=tau, stats=stats)
+    return X, U, stats
+
+
+def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt, rho_inf,
+               progress, **_):
+    """Generalized-alpha on a step grid that divides the sample period."""
+    sample_period = t_samples[1] - t_samples[0] if len(t_samples) > 1 else t_samples[-1]
+    per_sample = max(1, int(np.ceil(sample_period / (dt or 1e-3) - 1e-9)))
+    h = sample_period / per_sample
+    n_total = (len(t_samples) - 1) * per_sample
+    chunk = max(1, int(round(control_period / h))) if policy is not None else \
+        max(1, int(round(1.0 / h)))
+    X = np.full((len(t_samples), len(x)), np.nan)
+    U = np.zeros((len(t_samples), len(u)))
+    X[0] = x
+    # the method restarts (consistent acceleration) where a pulse switches, as a load jump
+    # inside its acceleration history would cost an O(h) error
+    restarts = {int(round(t / h)) for p in pulses for t in (p.start, p.end)
+                if 0 < round(t / h) < n_total}
+    step = 0
+    iters = 0
+    while step < n_total:
+        m = min(chunk - step % chunk, n_total - step,
+                min([r - step for r in restarts if r > step], default=n_total))
+        t = step * h
+        if step % chunk == 0 and policy is not None:
+            u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
+        if step == 0 or step in restarts or policy is not None:
+            a = consistent_acceleration(t, x, model.P, E)
+            abar = a.copy()
+        Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
+            t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, model.P, E)
+        iters += it
+        if status == 1:
+            raise _diverged(model, t_stop, x_stop)
+        if status == 2:
+            raise SimulationDivergedError(
+                f"Newton iterations did not converge at t = {t_stop:.6g} s with step "
+                f"{h:.3g} s; reduce the step")
+        idx = step + np.arange(1, m + 1)
+        on_grid = idx % per_sample == 0
+        X[idx[on_grid] // per_sample] = Xs[1:][on_grid]
+        U[idx[on_grid] // per_sample] = u
+        x = x_stop
+        step += m
+        if progress is not None:
+            progress(step * h, t_samples[-1])
+    return X, U, {"steps": n_total, "dt": h, "newton_iterations": iters}
