@@ -27,7 +27,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from .config import ConfigError, Fields, read_yaml
+from .config import _MISSING, ConfigError, Fields, read_yaml
 from .sections import SHAPE_DIMENSIONS, Segment, SectionProfile
 
 PRESET_DIR = Path(__file__).resolve().parent / "presets"
@@ -112,11 +112,12 @@ def _dims(f: Fields, shape: str) -> dict:
         ga = f.number("GA", positive=True)
         dims["GA"] = (ga, ga)
     if "wall" in dims:
-        thinnest = min(min(dims[k]) for k in dims if k != "wall")
-        if max(dims["wall"]) * 2 >= thinnest:
-            raise f.error("wall", list(dims["wall"]),
-                          f"less than half the outer dimension ({thinnest} m)")
-    f.done()
+        for end, k in (("root", 0), ("tip", 1)):
+            outer = min(dims[name][k] for name in dims if name != "wall")
+            if 2 * dims["wall"][k] >= outer:
+                raise f.error("wall", f.data["wall"],
+                              f"less than half the outer dimension at the {end} ({outer} m)")
+    f.done(["shape", *SHAPE_DIMENSIONS[shape]] + (["GA"] if shape == "explicit" else []))
     return dims
 
 
@@ -142,7 +143,7 @@ def _link(f: Fields, index: int) -> LinkDescription:
     length = f.number("length", positive=True, unit="m")
     mat = _material(f.mapping("material")) if f.has("material") else {}
     if f.has("segments") == f.has("section"):
-        raise f.error("section", f.data.get("section"),
+        raise f.error("section", f.data.get("section", _MISSING),
                       "exactly one of 'section' or 'segments'")
     if f.has("section"):
         segments = (_segment(f.mapping("section"), mat, length),)
@@ -166,7 +167,8 @@ def _link(f: Fields, index: int) -> LinkDescription:
     ends.done()
     k_a = f.number("internal_friction", 0.0, nonnegative=True, unit="N s")
     disc = f.string("discretization", "wavelet", choices=list(DISCRETIZATIONS))
-    f.done()
+    f.done(["name", "length", "material", "section", "segments", "variables", "end_masses",
+            "internal_friction", "discretization"])
     return LinkDescription(name=name, length=length, segments=segments, n_vars=n_vars,
                            internal_friction=k_a, discretization=disc, **end)
 
@@ -224,4 +226,4 @@ def load_arm(name_or_path: str | Path, vars_per_link: int | None = None) -> ArmD
     """Load and validate an arm description by preset name or path."""
     path = resolve_preset(name_or_path)
     arm = arm_from_dict(read_yaml(path), str(path))
-    return arm.with_vars_per_link(vars_per_link) if vars_per_link else arm
+    return arm.with_vars_per_link(vars_per_link) if vars_per_link is not None else arm

@@ -133,7 +133,9 @@ def _simulate(scenario_ref, args, label: str):
     from .scenario import load_scenario
 
     sc = load_scenario(scenario_ref, args.vars_per_link)
-    if args.duration:
+    if args.duration is not None:
+        if not args.duration > 0:
+            raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
         sc.duration = args.duration
     if args.method:
         sc.method = args.method

@@ -116,8 +116,8 @@ def load_scenario(name_or_path, vars_per_link: int | None = None) -> Scenario:
             raise f.error("arm", arm_ref, exc.allowed) from None
         raise
     nv = f.integer("vars_per_link", 0, min_value=0, max_value=200)
-    nv = vars_per_link or nv
-    if nv:
+    nv = vars_per_link if vars_per_link is not None else nv
+    if vars_per_link is not None or nv:
         if nv % 2:
             raise f.error("vars_per_link", nv, "an even integer >= 2")
         arm = arm.with_vars_per_link(nv)

@@ -106,7 +106,7 @@ class SimulationResult:
     def to_csv(self, path) -> None:
         names, data = self.table()
         np.savetxt(path, data, delimiter=",", header=",".join(names), comments="",
-                   fmt="%.10g")
+                   fmt="%.17g")
 
 
 def _input_data(model: FlexArmModel, pd: JointPD | None, pulses, u):

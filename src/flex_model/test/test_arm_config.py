@@ -50,13 +50,10 @@ ARM_ERRORS = [
      "this required field"),
     ("missing_length", lambda d: _drop(d["links"][0], "length"), "links[0].length",
      "<missing>", "this required field"),
-    pytest.param("missing_section", lambda d: _drop(d["links"][0], "section"),
-                 "links[0].section", "<missing>", "exactly one of 'section' or 'segments'",
-                 id="missing_section", marks=pytest.mark.xfail(
-                     strict=True, reason="arm.py _link reports a missing section as "
-                     "'got None' instead of '<missing>'")),
+    ("missing_section", lambda d: _drop(d["links"][0], "section"), "links[0].section",
+     "<missing>", "exactly one of 'section' or 'segments'"),
     ("thick_wall", lambda d: d["links"][0]["section"].update(wall=0.011),
-     "links[0].section.wall", "[0.011, 0.011]", "less than half the outer dimension (0.02 m)"),
+     "links[0].section.wall", "0.011", "less than half the outer dimension at the root (0.02 m)"),
     ("segments_sum", _segments, "links[0].segments", "1.5",
      "segment lengths summing to length = 2.0 m"),
     ("odd_variables", lambda d: d["links"][0].update(variables=3),

@@ -140,8 +140,6 @@ def test_simulate_writes_csv_and_summary(simulated):
     assert sorted(p.name for p in out_dir.iterdir()) == ["thesis_three_link_pd.csv"]
 
 
-@pytest.mark.xfail(strict=True, reason="SimulationResult.to_csv writes fmt='%.10g' "
-                   "(simulate.py): 10 significant digits, q1 off by 1.1e-12")
 def test_simulate_csv_keeps_full_precision(simulated):
     first = simulated[3][0]
     assert first[1:4] == pytest.approx(np.radians([-20.0, 20.0, -20.0]), abs=1e-12, rel=0)
