@@ -208,6 +208,29 @@ class FlexArmModel:
         q = np.asarray(q, float)
         return np.array([q[self.tip_rotation_index(i)] for i in range(self.n_links)])
 
+    def axial_shortening(self, q) -> np.ndarray:
+        """Chord shortening of every link, u = 1/2 int d'^2 dz = 1/2 q_f^T S1 q_f (m).
+
+        The thesis model (Eq. 1) is small-deflection: it does not move the link tip
+        towards the root as the link bends. This second-order estimate measures what
+        that omission is worth (it is not part of the equations of motion).
+        """
+        q = np.asarray(q, float)
+        return np.array([0.5 * q[self.flex_slice(i)] @ b.S1 @ q[self.flex_slice(i)]
+                         for i, b in enumerate(self.bases)])
+
+    def link_tips_with_shortening(self, q) -> np.ndarray:
+        """Link tips (n_links, 2) moved back along each chord by its axial shortening."""
+        q = np.asarray(q, float)
+        tips = self.link_origins(q)[1:].copy()
+        u = self.axial_shortening(q)
+        shift = np.zeros(2)
+        for i in range(self.n_links):
+            a = q[self.alpha_index(i)]
+            shift -= u[i] * np.array([np.cos(a), np.sin(a)])
+            tips[i] += shift
+        return tips
+
     def tip_pose(self, q) -> tuple[float, float, float]:
         """(x, y, phi) of the arm's end: position (m) and tangent angle (rad)."""
         q = np.asarray(q, float)

@@ -1,0 +1,154 @@
+"""Benchmark: VALIDATION.md section E (three steel links, PD, 1 kN m pulse), 10 s simulated.
+
+Prints, in one run on this machine:
+- for 2, 4, 6, 8 variables per link and both integration modes: CPU and wall time per
+  simulated second, the tip of link 3 against a converged run of our own model, and the
+  joint angles, deflections and tip against the independent Exudyn reference (with and
+  without the axial-shortening estimate, the part due to small-deflection kinematics);
+- the cost of one evaluation of the equations of motion against the number of variables,
+  with its fitted growth exponent;
+- Exudyn itself (the peer script, in its own venv) side by side, and the speed ratio at a
+  tip error within 0.1 mm of our converged run.
+
+    python bench/bench_section_E.py [--no-peer] [--json out.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from flex_model.arm import load_arm
+from flex_model.dynamics import FlexArmModel
+from flex_model.integrators import derivative
+from flex_model.scenario import load_scenario
+
+HERE = Path(__file__).resolve().parent
+REFERENCE = HERE.parent.parent / "shared" / "reference" / "section_E_reference_exudyn.csv"
+TIMES = (3.5, 5.0, 10.0)
+
+
+def run(nv, method, dt=None, rtol=1e-7):
+    sc = load_scenario("thesis_three_link_pd", vars_per_link=nv)
+    sc.method, sc.step, sc.rtol = method, dt, rtol
+    model = sc.model()
+    short = load_scenario("thesis_three_link_pd", vars_per_link=nv)
+    short.duration, short.method, short.step = 0.02, method, dt
+    short.run(model=model)  # compile / load the kernels outside the timing
+    best = None
+    for _ in range(3):
+        c0, w0 = time.process_time(), time.perf_counter()
+        res = sc.run(model=model)
+        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+        best = (cpu, wall, res) if best is None or cpu < best[0] else best
+    return model, best
+
+
+def eom_cost(nvs=(2, 4, 8, 16, 32, 64)):
+    """Microseconds per evaluation of dx/dt (mass matrix, bias, Cholesky solve)."""
+    sc = load_scenario("thesis_three_link_pd")
+    out = []
+    for nv in nvs:
+        model = FlexArmModel(load_arm("thesis_three_link", nv))
+        from flex_model.simulate import _input_data
+        E = _input_data(model, sc.pd, sc.pulses, np.zeros(3))
+        x = np.concatenate([model.q_from_joint_angles(sc.theta0), np.zeros(model.nq)])
+        x[model.nq:] = 0.01
+        derivative(0.0, x, model.P, E)
+        n = 2000
+        t0 = time.perf_counter()
+        for _ in range(n):
+            derivative(0.0, x, model.P, E)
+        out.append((nv, model.nq, 1e6 * (time.perf_counter() - t0) / n))
+    nq = np.array([o[1] for o in out], float)
+    us = np.array([o[2] for o in out])
+    slope_all = np.polyfit(np.log(nq), np.log(us), 1)[0]
+    slope_low = np.polyfit(np.log(nq[:4]), np.log(us[:4]), 1)[0]
+    return out, slope_low, slope_all
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--no-peer", action="store_true", help="skip the Exudyn run")
+    ap.add_argument("--json", default=None, help="write all figures to this JSON file")
+    args = ap.parse_args(argv)
+    ref = np.loadtxt(REFERENCE, delimiter=",", skiprows=1) if REFERENCE.exists() else None
+    if ref is None:
+        print(f"(reference {REFERENCE} absent: no comparison with Exudyn)")
+
+    print("converged run of our model: 8 variables per link, generalized-alpha, dt = 1e-4 s")
+    conv_model, (_, _, conv) = run(8, "fixed", 1e-4)
+    conv_tip = conv.link_tips()[:, 2]
+    rows = []
+    configs = [(nv, "fixed", dt) for nv in (2, 4, 6, 8) for dt in (2e-3, 1e-3, 5e-4)]
+    configs += [(nv, "variable", None) for nv in (2, 4)]
+    for nv, method, dt in configs:
+        model, (cpu, wall, res) = run(nv, method, dt)
+        tips = res.link_tips()[:, 2]
+        row = {"vars_per_link": nv, "method": method, "dt_s": dt,
+               "cpu_s_per_sim_s": cpu / 10.0, "wall_s_per_sim_s": wall / 10.0,
+               "tip_err_vs_converged_mm": float(1e3 * np.max(np.hypot(*(tips - conv_tip).T)))}
+        if ref is not None:
+            k = np.rint(ref[:, 0] / 0.005).astype(int)
+            q = np.degrees(res.joint_angles[k])
+            w = res.tip_deflections[k]
+            row["joint_angle_max_diff_deg"] = float(np.max(np.abs(q - ref[:, 10:13])))
+            row["max_w_rel_diff"] = float(np.max(np.abs(np.max(np.abs(w), 0)
+                                                        / np.max(np.abs(ref[:, 7:10]), 0) - 1)))
+            tip_ref = ref[:, 5:7]
+            row["tip_max_diff_mm"] = float(1e3 * np.max(np.hypot(*(tips[k] - tip_ref).T)))
+            short = np.array([model.link_tips_with_shortening(qq)[2] for qq in res.q[k]])
+            row["tip_max_diff_with_shortening_mm"] = float(
+                1e3 * np.max(np.hypot(*(short - tip_ref).T)))
+            row["tip_at_mm"] = {t: float(1e3 * np.hypot(*(tips[int(round(t / 0.005))]
+                                                         - ref[np.argmin(abs(ref[:, 0] - t)),
+                                                               5:7])))
+                                for t in TIMES}
+        rows.append(row)
+        print(f"  nv={nv} {method:8s} dt={dt or 0:7.1e}: {row['cpu_s_per_sim_s']:.4f} CPU-s/s, "
+              f"vs converged {row['tip_err_vs_converged_mm']:.3f} mm"
+              + (f", vs Exudyn: joints {row['joint_angle_max_diff_deg']:.3f} deg, "
+                 f"max|w| {100 * row['max_w_rel_diff']:.2f} %, tip "
+                 f"{row['tip_max_diff_mm']:.1f} mm ({row['tip_max_diff_with_shortening_mm']:.1f}"
+                 f" mm with the shortening estimate)" if ref is not None else ""), flush=True)
+
+    cost, slope_low, slope_all = eom_cost()
+    print("cost of one evaluation of the equations of motion (mass matrix + bias + solve):")
+    for nv, nq, us in cost:
+        print(f"  {nv:3d} variables per link, {nq:4d} coordinates: {us:8.2f} us")
+    print(f"  growth exponent in the number of coordinates: {slope_low:.2f} (up to 16 per "
+          f"link), {slope_all:.2f} (up to 64: the dense Cholesky solve, O(n^3), takes over)")
+
+    out = {"rows": rows, "eom_cost_us": cost, "growth_exponent_low": slope_low,
+           "growth_exponent_all": slope_all}
+    ok = [r for r in rows if r["tip_err_vs_converged_mm"] <= 0.1]
+    fastest = min(ok, key=lambda r: r["cpu_s_per_sim_s"]) if ok else None
+    if fastest:
+        print(f"fastest run within 0.1 mm of the converged run: nv={fastest['vars_per_link']}, "
+              f"{fastest['method']}, dt={fastest['dt_s']}: {fastest['cpu_s_per_sim_s']:.4f} "
+              "CPU-s per simulated s")
+    if not args.no_peer:
+        sys.path.insert(0, str(HERE))
+        import peer_exudyn
+        if not Path(peer_exudyn.PEER_VENV).exists():
+            peer_exudyn.ensure_peer_venv()
+        peer = peer_exudyn.run_peer(nel=4, h=2e-3, repeats=3)
+        if peer:
+            out["exudyn"] = peer
+            print(f"Exudyn (4 elements per link, h = 2e-3, sparse): "
+                  f"{peer['cpu_s_per_sim_s']:.4f} CPU-s per simulated s")
+            if fastest:
+                ratio = peer["cpu_s_per_sim_s"] / fastest["cpu_s_per_sim_s"]
+                out["speed_ratio_vs_exudyn"] = ratio
+                print(f"speed ratio (Exudyn / ours, same run): {ratio:.1f}x")
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
