@@ -4,6 +4,7 @@ Example (the thesis Example 1 arm)::
 
     name: thesis_example1
     gravity: [0.0, -9.81]            # m/s^2 in the base frame
+    kinematics: small_deflection     # thesis Eq. 1; or second_order (axial shortening)
     payload: {mass: 0.0, inertia: 0.0}
     links:
       - name: link1
@@ -32,6 +33,9 @@ from .sections import SHAPE_DIMENSIONS, Segment, SectionProfile
 
 PRESET_DIR = Path(__file__).resolve().parent / "presets"
 DISCRETIZATIONS = ("wavelet",)
+#: small_deflection: the thesis model (Eq. 1); second_order: with the axial shortening of
+#: bent links, u = 1/2 int d'^2 dz, which gives geometric stiffening (see kernels.py)
+KINEMATICS = ("small_deflection", "second_order")
 
 
 @dataclass(frozen=True)
@@ -74,6 +78,7 @@ class ArmDescription:
     payload_inertia: float = 0.0
     description: str = ""
     source: str = "<memory>"
+    kinematics: str = "small_deflection"
 
     @property
     def n_links(self) -> int:
@@ -92,6 +97,12 @@ class ArmDescription:
 
     def without_gravity(self) -> "ArmDescription":
         return dataclasses.replace(self, gravity=(0.0, 0.0))
+
+    def with_kinematics(self, kinematics: str) -> "ArmDescription":
+        if kinematics not in KINEMATICS:
+            raise ConfigError(self.source, "kinematics", kinematics,
+                              f"one of {', '.join(KINEMATICS)}")
+        return dataclasses.replace(self, kinematics=kinematics)
 
 
 def _dims(f: Fields, shape: str) -> dict:
@@ -179,6 +190,7 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
     name = f.string("name")
     description = f.string("description", "")
     gravity = tuple(f.vector("gravity", 2, [0.0, -9.81], unit="m/s^2"))
+    kinematics = f.string("kinematics", "small_deflection", choices=list(KINEMATICS))
     pay = f.mapping("payload", {})
     payload_mass = pay.number("mass", 0.0, nonnegative=True, unit="kg")
     payload_inertia = pay.number("inertia", 0.0, nonnegative=True, unit="kg m^2")
@@ -202,7 +214,7 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
     f.done()
     return ArmDescription(name=name, links=links, joints=tuple(joints), gravity=gravity,
                           payload_mass=payload_mass, payload_inertia=payload_inertia,
-                          description=description, source=source)
+                          description=description, source=source, kinematics=kinematics)
 
 
 def preset_names() -> list[str]:

@@ -164,6 +164,41 @@ class LinkBasis:
         """W' (len(z), n_vars): slope d'(z) = W' q_f."""
         return self._sample(z)[1]
 
+    def shortening_matrix(self, z) -> np.ndarray:
+        """S(z) = int_0^z w' w'^T ds (len(z), n, n): axial shortening u(z) = 1/2 q_f^T S q_f.
+
+        Second-order (foreshortening) kinematics of a bent inextensible link: the point
+        at arc length z lies at z - u(z) along the root tangent.
+        """
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        n = self.n_vars
+        out = np.zeros((len(z), n, n))
+        cuts = np.unique(np.concatenate([self.nodes, self.elements[0].profile.breaks]))
+        for m, zz in enumerate(z):
+            edges = np.concatenate([cuts[cuts < zz], [zz]])
+            for a, b in zip(edges[:-1], edges[1:]):
+                pts, w = _gauss(a, b)
+                d = self.slope_matrix(pts)
+                out[m] += (d * w[:, None]).T @ d
+        return out
+
+    def runtime_quadrature(self, points_per_piece: int = 8):
+        """Gauss points z (m), weights times m(z) (kg) over the link, split at the interval
+        ends and the section breaks: exact for the polynomial integrands of Hermite
+        wavelets."""
+        xi, wxi = np.polynomial.legendre.leggauss(points_per_piece)
+        cuts = np.unique(np.concatenate([self.nodes, self.elements[0].profile.breaks]))
+        z, mw = [], []
+        profile = self.elements[0].profile
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            zz = a + 0.5 * (b - a) * (xi + 1.0)
+            k = int(np.clip(np.searchsorted(profile.breaks, 0.5 * (a + b), side="right") - 1,
+                            0, len(profile.segments) - 1))
+            m = profile.property_on_piece(k, zz)[1]
+            z.append(zz)
+            mw.append(0.5 * (b - a) * wxi * m)
+        return np.concatenate(z), np.concatenate(mw)
+
     def _sample(self, z):
         z = np.atleast_1d(np.asarray(z, dtype=float))
         n = self.n_vars

@@ -50,6 +50,8 @@ def _model(args):
     from .dynamics import FlexArmModel
 
     arm = load_arm(args.arm, args.vars_per_link)
+    if args.kinematics:
+        arm = arm.with_kinematics(args.kinematics)
     if getattr(args, "no_gravity", False):
         arm = arm.without_gravity()
     return FlexArmModel(arm)
@@ -133,6 +135,8 @@ def _simulate(scenario_ref, args, label: str):
     from .scenario import load_scenario
 
     sc = load_scenario(scenario_ref, args.vars_per_link)
+    if args.kinematics:
+        sc.arm = sc.arm.with_kinematics(args.kinematics)
     if args.duration is not None:
         if not args.duration > 0:
             raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
@@ -146,7 +150,8 @@ def _simulate(scenario_ref, args, label: str):
     out_dir = _run_dir(args.out, sc.name)
     csv = out_dir / f"{sc.name}.csv"
     res.to_csv(csv)
-    summary = {"scenario": sc.name, "arm": sc.arm.name, "vars_per_link":
+    summary = {"scenario": sc.name, "arm": sc.arm.name, "kinematics": sc.arm.kinematics,
+               "vars_per_link":
                [lk.n_vars for lk in sc.arm.links], "duration_s": sc.duration,
                "method": sc.method, "wall_s": wall, "cpu_s": cpu,
                "cpu_s_per_simulated_s": cpu / sc.duration, "steps": res.stats["steps"],
@@ -164,7 +169,8 @@ def _simulate(scenario_ref, args, label: str):
 
 def _print_summary(summary: dict) -> None:
     print(f"scenario {summary['scenario']} on arm {summary['arm']} "
-          f"({summary['vars_per_link']} variables per link, {summary['method']} step)")
+          f"({summary['vars_per_link']} variables per link, {summary['kinematics']} "
+          f"kinematics, {summary['method']} step)")
     print(f"  simulated {summary['duration_s']:g} s in {summary['wall_s']:.3f} s wall, "
           f"{summary['cpu_s_per_simulated_s']:.4f} CPU-s per simulated s, "
           f"{summary['steps']} steps")
@@ -193,6 +199,8 @@ def cmd_demo(args) -> int:
     """The model demo: the thesis three-link arm under PD with a torque pulse (section E)."""
     print("flex-twin demo: three flexible steel links (thesis efficiency example), PD joints,"
           " 1 kN m pulse on joint 1 at 3-4 s", file=sys.stderr)
+    args.kinematics = args.kinematics or "second_order"
+    args.method = args.method or "fixed"
     sc, res, summary = _simulate("thesis_three_link_pd", args, "demo")
     tips = res.link_tips()[:, -1]
     rows = []
@@ -241,6 +249,12 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--joint-angles-deg", type=float, nargs="+", default=None,
                         help="joint (relative) angles of the configuration, deg")
         sp.add_argument("--json", action="store_true", help="machine-readable output")
+        kinematics_arg(sp)
+
+    def kinematics_arg(sp):
+        sp.add_argument("--kinematics", choices=["small_deflection", "second_order"],
+                        default=None, help="override the arm's kinematics (second_order: "
+                        "with the axial shortening of bent links, i.e. geometric stiffening)")
 
     sp = sub.add_parser("modes", help="natural frequencies and mode shapes")
     arm_args(sp)
@@ -273,6 +287,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--out", default=None, help="output directory (default runs/...)")
         sp.add_argument("--no-plot", action="store_true")
         sp.add_argument("--json", action="store_true")
+        kinematics_arg(sp)
 
     sp = sub.add_parser("simulate", help="simulate a scenario file; writes CSV and PNG")
     sp.add_argument("scenario", help="scenario preset name or YAML path")

@@ -108,7 +108,51 @@ class FlexArmModel:
             kt[d] += m_plus[i] * L[i]
             kt[g] += j_plus[i]
         self.lengths = L
-        self.P = (self.off, self.nf, L, mtot, ntot, jrot, j_plus, Bp, ht, kt)
+        mode = 1 if self.arm.kinematics == "second_order" else 0
+        zq, mu, Wq, Sq = self._quadrature(m_plus) if mode else self._no_quadrature
+        jrig = np.array([lk.J_minus for lk in self.arm.links]) + j_plus
+        self.P = (mode, self.off, self.nf, L, mtot, ntot, jrot, j_plus, Bp, ht, kt,
+                  zq, mu, Wq, Sq, jrig)
+
+    _no_quadrature = (np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 1)),
+                      np.zeros((1, 1, 1, 1)))
+
+    def _quadrature(self, m_plus):
+        """Run-time quadrature of the second-order kinematics (kernels.py, mode 1).
+
+        Per link: the root point (M-), Gauss points of the distributed mass, padding,
+        and the tip point (M+, with S(L)) last. Cached: only the end masses change.
+        """
+        if getattr(self, "_quad_cache", None) is None:
+            per_link = []
+            for b in self.bases:
+                z, mw = b.runtime_quadrature()
+                W = b.shape_matrix(z)
+                S = b.shortening_matrix(np.concatenate([z, [b.length]]))
+                per_link.append((z, mw, W, S))
+            npt = max(len(p[0]) for p in per_link) + 2
+            nfm = int(self.nf.max())
+            nl = self.n_links
+            zq = np.zeros((nl, npt))
+            mu = np.zeros((nl, npt))
+            Wq = np.zeros((nl, npt, nfm))
+            Sq = np.zeros((nl, npt, nfm, nfm))
+            for i, (z, mw, W, S) in enumerate(per_link):
+                n, k = self.nf[i], len(z)
+                zq[i, 1:1 + k] = z
+                mu[i, 1:1 + k] = mw
+                Wq[i, 1:1 + k, :n] = W
+                Sq[i, 1:1 + k, :n, :n] = S[:-1]
+                zq[i, -1] = self.bases[i].length
+                Wq[i, -1, n - 2] = 1.0
+                Sq[i, -1, :n, :n] = S[-1]
+            self._quad_cache = (zq, mu, Wq, Sq)
+        zq, mu, Wq, Sq = self._quad_cache
+        mu = mu.copy()
+        for i, lk in enumerate(self.arm.links):
+            mu[i, 0] = lk.M_minus
+            mu[i, -1] = m_plus[i]
+        return zq, mu, Wq, Sq
 
     def with_gravity(self, gravity) -> "FlexArmModel":
         """A view of this model with another gravity vector (m/s^2); arrays are shared."""
@@ -118,7 +162,7 @@ class FlexArmModel:
 
     @property
     def total_mass(self) -> float:
-        return float(np.sum(self.P[3]))
+        return float(np.sum(self.P[4]))
 
     # ----------------------------------------------------------------- dynamics
     def mass_matrix(self, q) -> np.ndarray:

@@ -62,7 +62,7 @@ def applied_force(t, q, v, P, E):
         Jt = tip_jacobian(q, P)
         Q += Jt[0] * fx + Jt[1] * fy
     if c != 0.0:
-        off, nf = P[0], P[1]
+        off, nf = P[1], P[2]
         last = off.shape[0] - 1
         Q[off[last]] += c
         Q[off[last] + nf[last]] += c

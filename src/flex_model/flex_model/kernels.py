@@ -18,11 +18,21 @@ outboard links' resultant forces. Gravity enters as a base acceleration -g. The 
 the exact Lagrangian of Eqs. (6)-(7), (15)-(16), with cost linear in the number of
 variables for the bias and quadratic (the interconnection coupling) for B.
 
-The model data ``P`` is the tuple built by :func:`flex_model.dynamics.FlexArmModel.kernel_data`:
-``(off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt)`` where, per link i, with the end
-masses M-, M+ and inertias J-, J+ included (thesis Eq. 8 and the tilde quantities of
-Eq. 18): mtot = M, ntot = N, jrot = J + M+ L^2, Bp = B_f + M+ e_dn e_dn^T (block of a
-global nq x nq array), ht = h~, kt = k~ (global nq arrays, zero at the alpha entries).
+The model data ``P`` is the tuple built by :class:`flex_model.dynamics.FlexArmModel`:
+``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig)``. For the
+thesis model (mode 0), per link i, with the end masses M-, M+ and inertias J-, J+
+included (thesis Eq. 8 and the tilde quantities of Eq. 18): mtot = M, ntot = N,
+jrot = J + M+ L^2, Bp = B_f + M+ e_dn e_dn^T (block of a global nq x nq array),
+ht = h~, kt = k~ (global nq arrays, zero at the alpha entries).
+
+Mode 1 adds the second-order (foreshortening) kinematics of an inextensible bent link,
+    p = o + (z - u(z)) e1 + d(z) e2,    u(z) = 1/2 q_f^T S(z) q_f,  S = int_0^z w' w'^T,
+which the thesis omits (Remark 5 drops the related higher-order terms): it brings the
+geometric stiffening of the links under axial load (gravity, centrifugal and the
+outboard links' inertia). The integrals are then evaluated at run time by Gauss
+quadrature at points zq (per link, padded) with mass weights mu (kg; the end masses are
+points at z = 0 and z = L), shape values Wq and matrices Sq = S(zq); jrig = J- + J+.
+The equations stay those of an exact Lagrangian (energy is conserved).
 """
 from __future__ import annotations
 
@@ -38,7 +48,9 @@ def inverse_dynamics(q, v, a, gx, gy, P):
 
     Elastic and damping forces are not included (they are K q and D v).
     """
-    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P
+    if P[0] == 1:
+        return _inverse_dynamics_2(q, v, a, gx, gy, P)
+    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P[1:11]
     nl = L.shape[0]
     nq = q.shape[0]
     f = np.zeros(nq)
@@ -128,7 +140,9 @@ def inverse_dynamics(q, v, a, gx, gy, P):
 @njit(cache=_CACHE)
 def mass_matrix(q, P):
     """Inertia matrix B(q) of thesis Eqs. (18)-(23), assembled link by link."""
-    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P
+    if P[0] == 1:
+        return _mass_matrix_2(q, P)
+    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P[1:11]
     nl = L.shape[0]
     nq = q.shape[0]
     B = np.zeros((nq, nq))
@@ -222,9 +236,29 @@ def solve_spd(A, b):
 
 
 @njit(cache=_CACHE)
+def _tip_point(q, i, P):
+    """Local tip quantities of link i: (u_L, s_L = S(L) q_f) (zero in mode 0)."""
+    off, nf = P[1], P[2]
+    n = nf[i]
+    o = off[i]
+    sL = np.zeros(n)
+    uL = 0.0
+    if P[0] == 1:
+        Sq, npt = P[14], P[12].shape[1]
+        k = npt - 1  # the last point of every link is its tip (z = L)
+        for j in range(n):
+            acc = 0.0
+            for l in range(n):
+                acc += Sq[i, k, j, l] * q[o + 1 + l]
+            sL[j] = acc
+            uL += 0.5 * q[o + 1 + j] * acc
+    return uL, sL
+
+
+@njit(cache=_CACHE)
 def link_origins(q, P):
     """Origins o_1..o_{nl+1} (the last is the arm's tip) in the base frame: (nl+1, 2)."""
-    off, nf, L = P[0], P[1], P[2]
+    off, nf, L = P[1], P[2], P[3]
     nl = L.shape[0]
     out = np.zeros((nl + 1, 2))
     for i in range(nl):
@@ -232,15 +266,16 @@ def link_origins(q, P):
         c = np.cos(q[o])
         s = np.sin(q[o])
         de = q[o + nf[i] - 1]
-        out[i + 1, 0] = out[i, 0] + L[i] * c - de * s
-        out[i + 1, 1] = out[i, 1] + L[i] * s + de * c
+        uL, sL = _tip_point(q, i, P)
+        out[i + 1, 0] = out[i, 0] + (L[i] - uL) * c - de * s
+        out[i + 1, 1] = out[i, 1] + (L[i] - uL) * s + de * c
     return out
 
 
 @njit(cache=_CACHE)
 def tip_jacobian(q, P):
     """d p_tip / d q (2, nq): Jacobian of the arm's end point (thesis Eqs. 20-21, 30)."""
-    off, nf, L = P[0], P[1], P[2]
+    off, nf, L = P[1], P[2], P[3]
     nl = L.shape[0]
     Jt = np.zeros((2, q.shape[0]))
     for i in range(nl):
@@ -248,19 +283,36 @@ def tip_jacobian(q, P):
         c = np.cos(q[o])
         s = np.sin(q[o])
         de = q[o + nf[i] - 1]
-        Jt[0, o] = -L[i] * s - de * c
-        Jt[1, o] = L[i] * c - de * s
-        Jt[0, o + nf[i] - 1] = -s
-        Jt[1, o + nf[i] - 1] = c
+        uL, sL = _tip_point(q, i, P)
+        Jt[0, o] = -(L[i] - uL) * s - de * c
+        Jt[1, o] = (L[i] - uL) * c - de * s
+        for j in range(nf[i]):
+            Jt[0, o + 1 + j] -= sL[j] * c
+            Jt[1, o + 1 + j] -= sL[j] * s
+        Jt[0, o + nf[i] - 1] += -s
+        Jt[1, o + nf[i] - 1] += c
     return Jt
 
 
 @njit(cache=_CACHE)
 def gravity_potential(q, gx, gy, P):
     """U_g = -g . sum_i int p dm (thesis Eqs. 15-16, 26)."""
-    off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P
     org = link_origins(q, P)
     u = 0.0
+    if P[0] == 1:
+        off, nf, L, zq, mu, Wq, Sq = P[1], P[2], P[3], P[11], P[12], P[13], P[14]
+        for i in range(L.shape[0]):
+            o = off[i]
+            c = np.cos(q[o])
+            s = np.sin(q[o])
+            for k in range(mu.shape[1]):
+                d, uu = _point_dq(q, o, nf[i], Wq[i, k], Sq[i, k])
+                r = zq[i, k] - uu
+                u -= mu[i, k] * (gx * (org[i, 0] + r * c - d * s)
+                                 + gy * (org[i, 1] + r * s + d * c))
+        return u
+    off, nf, L, mtot, ntot = P[1], P[2], P[3], P[4], P[5]
+    ht = P[9]
     for i in range(L.shape[0]):
         o = off[i]
         c = np.cos(q[o])
@@ -272,3 +324,196 @@ def gravity_potential(q, gx, gy, P):
         py = mtot[i] * org[i, 1] + ntot[i] * s + S * c
         u -= gx * px + gy * py
     return u
+
+
+@njit(cache=_CACHE)
+def _point_dq(q, o, n, W, S):
+    """Deflection d = W q_f and shortening u = 1/2 q_f^T S q_f at one point."""
+    d = 0.0
+    u = 0.0
+    for j in range(n):
+        d += W[j] * q[o + 1 + j]
+        acc = 0.0
+        for l in range(n):
+            acc += S[j, l] * q[o + 1 + l]
+        u += 0.5 * q[o + 1 + j] * acc
+    return d, u
+
+
+@njit(cache=_CACHE)
+def _point_kinematics(q, v, o, n, W, S, z, c, s, wd, sv, Jfx, Jfy):
+    """Point of a link with second-order kinematics (mode 1).
+
+    Fills the columns Jf (d p / d q_f) and ``sv`` = S q_f; returns the alpha column
+    (Jax, Jay) and the velocity-product acceleration (xix, xiy) for alpha' = wd.
+    """
+    d = 0.0
+    dd = 0.0
+    u = 0.0
+    ud = 0.0
+    vSv = 0.0
+    for j in range(n):
+        qj = q[o + 1 + j]
+        d += W[j] * qj
+        dd += W[j] * v[o + 1 + j]
+        acc = 0.0
+        accv = 0.0
+        for l in range(n):
+            acc += S[j, l] * q[o + 1 + l]
+            accv += S[j, l] * v[o + 1 + l]
+        sv[j] = acc
+        u += 0.5 * qj * acc
+        ud += acc * v[o + 1 + j]
+        vSv += v[o + 1 + j] * accv
+    e1x, e1y, e2x, e2y = c, s, -s, c
+    r = z - u
+    for j in range(n):
+        Jfx[j] = W[j] * e2x - sv[j] * e1x
+        Jfy[j] = W[j] * e2y - sv[j] * e1y
+    Jax = r * e2x - d * e1x
+    Jay = r * e2y - d * e1y
+    xix = -(vSv + r * wd * wd + 2.0 * dd * wd) * e1x - (2.0 * ud * wd + d * wd * wd) * e2x
+    xiy = -(vSv + r * wd * wd + 2.0 * dd * wd) * e1y - (2.0 * ud * wd + d * wd * wd) * e2y
+    return Jax, Jay, xix, xiy
+
+
+@njit(cache=_CACHE)
+def _inverse_dynamics_2(q, v, a, gx, gy, P):
+    """Mode 1 of :func:`inverse_dynamics`: d'Alembert over quadrature points."""
+    off, nf, L = P[1], P[2], P[3]
+    jplus = P[7]
+    zq, mu, Wq, Sq, jrig = P[11], P[12], P[13], P[14], P[15]
+    nl = L.shape[0]
+    nq = q.shape[0]
+    npt = mu.shape[1]
+    nfm = Wq.shape[2]
+    f = np.zeros(nq)
+    aox = -gx
+    aoy = -gy
+    fox = np.zeros(nl)
+    foy = np.zeros(nl)
+    tipx = np.zeros((nl, nfm + 1))  # tip Jacobian columns (alpha, q_f) per link
+    tipy = np.zeros((nl, nfm + 1))
+    sv = np.zeros(nfm)
+    Jfx = np.zeros(nfm)
+    Jfy = np.zeros(nfm)
+    for i in range(nl):
+        o = off[i]
+        n = nf[i]
+        c = np.cos(q[o])
+        s = np.sin(q[o])
+        wd = v[o]
+        ad = a[o]
+        Fx = 0.0
+        Fy = 0.0
+        Fa = 0.0
+        nx = aox
+        ny = aoy
+        for k in range(npt):
+            m = mu[i, k]
+            Jax, Jay, xix, xiy = _point_kinematics(q, v, o, n, Wq[i, k], Sq[i, k], zq[i, k],
+                                                   c, s, wd, sv, Jfx, Jfy)
+            px = aox + Jax * ad + xix
+            py = aoy + Jay * ad + xiy
+            for j in range(n):
+                px += Jfx[j] * a[o + 1 + j]
+                py += Jfy[j] * a[o + 1 + j]
+            if k == npt - 1:  # tip point: next origin's acceleration and Jacobian
+                nx = px
+                ny = py
+                tipx[i, 0] = Jax
+                tipy[i, 0] = Jay
+                for j in range(n):
+                    tipx[i, 1 + j] = Jfx[j]
+                    tipy[i, 1 + j] = Jfy[j]
+            if m == 0.0:
+                continue
+            Fx += m * px
+            Fy += m * py
+            Fa += m * (Jax * px + Jay * py)
+            for j in range(n):
+                f[o + 1 + j] += m * (Jfx[j] * px + Jfy[j] * py)
+        g = o + n
+        f[o] += Fa + jrig[i] * ad + jplus[i] * a[g]
+        f[g] += jplus[i] * (ad + a[g])
+        fox[i] = Fx
+        foy[i] = Fy
+        aox = nx
+        aoy = ny
+    rx = 0.0
+    ry = 0.0
+    for i in range(nl - 1, -1, -1):
+        o = off[i]
+        for j in range(nf[i] + 1):
+            f[o + j] += tipx[i, j] * rx + tipy[i, j] * ry
+        rx += fox[i]
+        ry += foy[i]
+    return f
+
+
+@njit(cache=_CACHE)
+def _mass_matrix_2(q, P):
+    """Mode 1 of :func:`mass_matrix`: sum of mu J^T J over the quadrature points."""
+    off, nf, L = P[1], P[2], P[3]
+    jplus = P[7]
+    zq, mu, Wq, Sq, jrig = P[11], P[12], P[13], P[14], P[15]
+    nl = L.shape[0]
+    nq = q.shape[0]
+    npt = mu.shape[1]
+    nfm = Wq.shape[2]
+    B = np.zeros((nq, nq))
+    v0 = np.zeros(nq)
+    cols = np.zeros(nq, dtype=np.int64)
+    phx = np.zeros(nq)
+    phy = np.zeros(nq)
+    nc = 0
+    sv = np.zeros(nfm)
+    Jfx = np.zeros(nfm)
+    Jfy = np.zeros(nfm)
+    Jx = np.zeros(nfm + 1)
+    Jy = np.zeros(nfm + 1)
+    for i in range(nl):
+        o = off[i]
+        n = nf[i]
+        c = np.cos(q[o])
+        s = np.sin(q[o])
+        # local blocks: oo (scalar mass), o-(alpha, f) (2 x (n+1)), (alpha, f)^2
+        mt = 0.0
+        box = np.zeros(n + 1)
+        boy = np.zeros(n + 1)
+        for k in range(npt):
+            Jax, Jay, xix, xiy = _point_kinematics(q, v0, o, n, Wq[i, k], Sq[i, k],
+                                                   zq[i, k], c, s, 0.0, sv, Jfx, Jfy)
+            Jx[0] = Jax
+            Jy[0] = Jay
+            for j in range(n):
+                Jx[1 + j] = Jfx[j]
+                Jy[1 + j] = Jfy[j]
+            m = mu[i, k]
+            if m != 0.0:
+                mt += m
+                for j in range(n + 1):
+                    box[j] += m * Jx[j]
+                    boy[j] += m * Jy[j]
+                    for l in range(n + 1):
+                        B[o + j, o + l] += m * (Jx[j] * Jx[l] + Jy[j] * Jy[l])
+        g = o + n
+        B[o, o] += jrig[i]
+        B[o, g] += jplus[i]
+        B[g, o] += jplus[i]
+        B[g, g] += jplus[i]
+        for mm in range(nc):
+            cm = cols[mm]
+            for j in range(n + 1):
+                val = box[j] * phx[mm] + boy[j] * phy[mm]
+                B[o + j, cm] += val
+                B[cm, o + j] += val
+            for m2 in range(nc):
+                B[cm, cols[m2]] += mt * (phx[mm] * phx[m2] + phy[mm] * phy[m2])
+        # this link's tip Jacobian columns (the last point is z = L)
+        for j in range(n + 1):
+            cols[nc + j] = o + j
+            phx[nc + j] = Jx[j]
+            phy[nc + j] = Jy[j]
+        nc += n + 1
+    return B

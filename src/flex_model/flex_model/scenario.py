@@ -5,6 +5,7 @@ Example (shipped as preset ``thesis_three_link_pd``)::
     name: thesis_three_link_pd
     arm: thesis_three_link            # preset name or path (relative to this file)
     vars_per_link: 4                  # optional override
+    kinematics: second_order          # optional override (small_deflection: thesis Eq. 1)
     gravity: true                     # false: no gravity
     duration: 10.0                    # s
     sample_period: 0.005              # s
@@ -121,6 +122,9 @@ def load_scenario(name_or_path, vars_per_link: int | None = None) -> Scenario:
         if nv % 2:
             raise f.error("vars_per_link", nv, "an even integer >= 2")
         arm = arm.with_vars_per_link(nv)
+    if f.has("kinematics"):
+        arm = arm.with_kinematics(f.string("kinematics", choices=["small_deflection",
+                                                                  "second_order"]))
     if not f.boolean("gravity", True):
         arm = arm.without_gravity()
     nl = arm.n_links

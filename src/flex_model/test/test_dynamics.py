@@ -125,3 +125,84 @@ def test_joint_coordinates_round_trip_and_encoder_angle():
     np.testing.assert_allclose(model.joint_angles(q), theta, atol=1e-15)
     # theta_2 = alpha_2 - alpha_1 - gamma_1n
     assert q[model.off[1]] == pytest.approx(0.3 + 0.04 - 0.2)
+
+
+def particle_points(model):
+    """Per link: z, mass weights, W(z), S(z) at the root, 10 Gauss points per interval and
+    the tip (end masses at both ends)."""
+    xi, wxi = np.polynomial.legendre.leggauss(10)
+    m_pay = model.payload[0]
+    out = []
+    for i, (lk, b) in enumerate(zip(model.arm.links, model.bases)):
+        zs, ws = [], []
+        for z0, z1 in zip(b.nodes[:-1], b.nodes[1:]):
+            zs.append(z0 + 0.5 * (z1 - z0) * (xi + 1))
+            ws.append(0.5 * (z1 - z0) * wxi)
+        z, w = np.concatenate(zs), np.concatenate(ws)
+        mw = w * lk.segments[0].properties(z / lk.length)[1]
+        mp = lk.M_plus + (m_pay if i == model.n_links - 1 else 0.0)
+        z = np.concatenate([[0.0], z, [lk.length]])
+        mw = np.concatenate([[lk.M_minus], mw, [mp]])
+        out.append((z, mw, b.shape_matrix(z), b.shortening_matrix(z)))
+    return out
+
+
+def second_order_lagrangian(model, points, q, v, g):
+    """T and U_g of the second-order kinematics by direct quadrature of the particles:
+    p = o + (z - u) e1 + d e2, u = 1/2 int_0^z d'^2 dz."""
+    T = 0.0
+    U = 0.0
+    o = np.zeros(2, dtype=q.dtype)
+    od = np.zeros(2, dtype=q.dtype)
+    j_pay = model.payload[1]
+    for i, (lk, (z, mw, W, S)) in enumerate(zip(model.arm.links, points)):
+        s = model.flex_slice(i)
+        a, ad, qf, vf = q[model.off[i]], v[model.off[i]], q[s], v[s]
+        e1 = np.array([np.cos(a), np.sin(a)])
+        e2 = np.array([-np.sin(a), np.cos(a)])
+        jp = lk.J_plus + (j_pay if i == model.n_links - 1 else 0.0)
+        d, dd = W @ qf, W @ vf
+        u = 0.5 * np.einsum("j,kjl,l->k", qf, S, qf)
+        ud = np.einsum("j,kjl,l->k", qf, S, vf)
+        r = z - u
+        p = o[None, :] + r[:, None] * e1 + d[:, None] * e2
+        pd = (od[None, :] - ud[:, None] * e1 + (r * ad)[:, None] * e2 + dd[:, None] * e2
+              - (d * ad)[:, None] * e1)
+        T += 0.5 * np.sum(mw * np.sum(pd * pd, axis=1))
+        T += 0.5 * lk.J_minus * ad**2 + 0.5 * jp * (ad + vf[-1]) ** 2
+        U += g * np.sum(mw * p[:, 1])
+        o, od = p[-1], pd[-1]
+    return T, U
+
+
+def test_second_order_kinematics_match_their_lagrangian():
+    arm = load_arm("thesis_three_link", 4).with_kinematics("second_order")
+    model = FlexArmModel(arm)
+    model.set_payload(0.4, 0.05)
+    n = model.nq
+    E = np.eye(n)
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=n) * 0.3
+    v = rng.normal(size=n)
+    acc = rng.normal(size=n)
+    pts = particle_points(model)
+    kin = lambda qq, vv: second_order_lagrangian(model, pts, qq, vv, 9.81)[0]  # noqa: E731
+
+    def B(qq):
+        t0 = np.array([kin(qq, E[j]) for j in range(n)])
+        return np.array([[kin(qq, E[i] + E[j]) - t0[i] - t0[j] if i != j else 2 * t0[i]
+                          for j in range(n)] for i in range(n)])
+
+    Bq = B(q.astype(complex)).real
+    Bdot_v = (B(q + 1j * H * v) @ v).imag / H
+    dT = np.array([kin(q + 1j * H * E[k], v).imag / H for k in range(n)])
+    dU = np.array([second_order_lagrangian(model, pts, q + 1j * H * E[k], v, 9.81)[1].imag / H
+                   for k in range(n)])
+    fref = Bq @ acc + Bdot_v - dT + dU
+    np.testing.assert_allclose(model.mass_matrix(q), Bq, rtol=1e-8,
+                               atol=1e-8 * np.abs(Bq).max())
+    np.testing.assert_allclose(model.inverse_dynamics(q, v, acc), fref, rtol=1e-8,
+                               atol=1e-8 * np.abs(fref).max())
+    # and the gravity potential used for the energy is the same
+    assert model.energy(q, v)["gravity"] == pytest.approx(
+        second_order_lagrangian(model, pts, q, v, 9.81)[1], rel=1e-10)

@@ -20,10 +20,10 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
 os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
 
 if "rclpy" in sys.modules:  # e.g. a pytest plugin imported it before this conftest
-    warnings.warn("rclpy was imported before test/conftest.py set the ROS environment",
+    warnings.warn("rclpy was imported before conftest.py set the ROS environment",
                   RuntimeWarning, stacklevel=1)
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parent
 
 
 @pytest.fixture(scope="session")
