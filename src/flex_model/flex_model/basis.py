@@ -182,10 +182,11 @@ class LinkBasis:
                 out[m] += (d * w[:, None]).T @ d
         return out
 
-    def runtime_quadrature(self, points_per_piece: int = 8):
+    def runtime_quadrature(self, points_per_piece: int = 6):
         """Gauss points z (m), weights times m(z) (kg) over the link, split at the interval
-        ends and the section breaks: exact for the polynomial integrands of Hermite
-        wavelets."""
+        ends and the section breaks. Six points are exact to degree 11: the mass-matrix
+        integrand of Hermite wavelets with the shortening (S S, degree 10) times a linearly
+        varying mass per length."""
         xi, wxi = np.polynomial.legendre.leggauss(points_per_piece)
         cuts = np.unique(np.concatenate([self.nodes, self.elements[0].profile.breaks]))
         z, mw = [], []
