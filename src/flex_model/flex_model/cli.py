@@ -84,6 +84,13 @@ def cmd_modes(args) -> int:
     res = natural_modes(model, _angles(args, model), joints=args.joints, kp=kp, kd=kd,
                         gravity_preload=args.gravity_preload)
     out = res.as_dict(args.count)
+    if args.state_space:
+        from .modes import linearize
+        lin = linearize(model, _angles(args, model), joints=args.joints, kp=kp, kd=kd,
+                        gravity_preload=args.gravity_preload)
+        np.savez(args.state_space, A=lin.A, B=lin.B, C=lin.C, D=lin.D,
+                 inputs=np.array(lin.input_names), outputs=np.array(lin.output_names))
+        out["state_space"] = str(args.state_space)
     if args.plot:
         from .plots import plot_modes
         plot_modes(model, res, args.plot, title=f"{model.arm.name}: joints {args.joints}")
@@ -265,6 +272,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--gravity-preload", action="store_true",
                     help="linearize about the equilibrium under gravity (default: unloaded)")
     sp.add_argument("--plot", default=None, help="write the mode shapes to this PNG")
+    sp.add_argument("--state-space", default=None, metavar="FILE.npz",
+                    help="write the linearization x' = A x + B u, y = C x + D u (with input "
+                    "and output names) to this file")
     sp.set_defaults(func=cmd_modes)
 
     sp = sub.add_parser("static", help="static equilibrium: tip rotation and displacement")

@@ -143,3 +143,17 @@ def test_simulate_writes_csv_and_summary(simulated):
 def test_simulate_csv_keeps_full_precision(simulated):
     first = simulated[3][0]
     assert first[1:4] == pytest.approx(np.radians([-20.0, 20.0, -20.0]), abs=1e-12, rel=0)
+
+
+def test_modes_state_space_file_reproduces_frequencies(tmp_path, capsys):
+    """The written A matrix has the clamped arm's natural frequencies as eigenvalues."""
+    path = tmp_path / "ss.npz"
+    assert main(["modes", "thesis_example1", "--joints", "clamped", "--json",
+                 "--state-space", str(path)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    data = np.load(path)
+    lam = np.linalg.eigvals(data["A"])
+    f = np.sort(np.abs(lam.imag[lam.imag > 0])) / (2 * np.pi)
+    np.testing.assert_allclose(f, out["frequencies_hz"], rtol=1e-9)
+    assert list(data["inputs"]) == ["tip/force_x", "tip/force_y", "tip/torque"]
+    assert data["C"].shape[0] == len(data["outputs"]) == 2 + 3 + 2
