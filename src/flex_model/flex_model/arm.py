@@ -17,6 +17,8 @@ Example (the thesis Example 1 arm)::
       - ...
     joints:
       - {name: joint1, type: revolute}
+    effects:                         # optional, see flex_model.effects
+      - {type: gear, joint: joint1, ratio: 50, rotor_inertia: 0.002}
 
 A section dimension given as ``[root, tip]`` is linearly tapered; ``segments`` (a list of
 ``{length, section, material?}``) replaces ``section`` for piecewise sections. Shape
@@ -79,6 +81,20 @@ class ArmDescription:
     description: str = ""
     source: str = "<memory>"
     kinematics: str = "small_deflection"
+    effects: tuple = ()
+
+    def effect(self, kind: str, target: str = ""):
+        """The effect of a type on a target (joint/link name), or None."""
+        for e in self.effects:
+            if e.TYPE == kind and e.target == target:
+                return e
+        return None
+
+    def with_effects(self, *effects) -> "ArmDescription":
+        """The same arm with these effects added (replacing same type and target)."""
+        keep = tuple(e for e in self.effects
+                     if all((e.TYPE, e.target) != (n.TYPE, n.target) for n in effects))
+        return dataclasses.replace(self, effects=keep + tuple(effects))
 
     @property
     def n_links(self) -> int:
@@ -211,10 +227,13 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
     names = [j.name for j in joints]
     if len(set(names)) != len(names):
         raise f.error("joints", names, "unique joint names")
+    from .effects import parse_effects
+    effects = parse_effects(f.items("effects", []), source, names, [lk.name for lk in links])
     f.done()
     return ArmDescription(name=name, links=links, joints=tuple(joints), gravity=gravity,
                           payload_mass=payload_mass, payload_inertia=payload_inertia,
-                          description=description, source=source, kinematics=kinematics)
+                          description=description, source=source, kinematics=kinematics,
+                          effects=effects)
 
 
 def preset_names() -> list[str]:

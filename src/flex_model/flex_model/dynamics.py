@@ -51,7 +51,33 @@ class FlexArmModel:
                 self.G[i, self.off[i - 1]] = -1.0
                 self.G[i, self.tip_rotation_index(i - 1)] = -1.0
         self.gravity = np.array(arm.gravity, dtype=float)
+        self.B_const = np.zeros((nq, nq))
+        self.torque_limit = np.full(self.n_links, np.inf)
+        self.contact = np.zeros(7)
+        self._apply_effects()
         self.set_payload(arm.payload_mass, arm.payload_inertia)
+
+    def _apply_effects(self) -> None:
+        """Fold the arm's effects (flex_model.effects) into the model's constant data."""
+        joints = self.arm.joint_names
+        links = [lk.name for lk in self.arm.links]
+        for e in self.arm.effects:
+            if e.TYPE == "gear":
+                self.B_const += e.inertia_matrix(self, joints.index(e.target))
+            elif e.TYPE == "structural_damping":
+                i = links.index(e.target)
+                s = self.flex_slice(i)
+                lk = self.arm.links[i]
+                m_ff = self._Bw[s, s].copy()
+                m_ff[-2, -2] += lk.M_plus
+                m_ff[-1, -1] += lk.J_plus
+                self.D[s, s] += e.damping_block(self.bases[i], m_ff)
+            elif e.TYPE == "base_tilt":
+                self.gravity = e.gravity(self.gravity)
+            elif e.TYPE == "torque_saturation":
+                self.torque_limit[joints.index(e.target)] = e["limit"]
+            elif e.TYPE == "contact_surface":
+                self.contact = e.kernel_data()
 
     # ----------------------------------------------------------------- indexing
     def alpha_index(self, i: int) -> int:
@@ -112,7 +138,7 @@ class FlexArmModel:
         zq, mu, Wq, Sq = self._quadrature(m_plus) if mode else self._no_quadrature
         jrig = np.array([lk.J_minus for lk in self.arm.links]) + j_plus
         self.P = (mode, self.off, self.nf, L, mtot, ntot, jrot, j_plus, Bp, ht, kt,
-                  zq, mu, Wq, Sq, jrig)
+                  zq, mu, Wq, Sq, jrig, self.B_const)
 
     _no_quadrature = (np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 1)),
                       np.zeros((1, 1, 1, 1)))
@@ -211,6 +237,18 @@ class FlexArmModel:
         e[self.alpha_index(self.n_links - 1)] = 1.0
         e[self.tip_rotation_index(self.n_links - 1)] = 1.0
         return e
+
+    def contact_force(self, q, v=None) -> np.ndarray:
+        """Force (N, base frame) of the contact surface on the tip (zero without one)."""
+        ct = self.contact
+        if ct[0] <= 0:
+            return np.zeros(2)
+        q = np.asarray(q, float)
+        tip = self.link_origins(q)[-1]
+        n = ct[3:5]
+        pen = -n @ (tip - ct[1:3])
+        vn = 0.0 if v is None else n @ (self.tip_jacobian(q) @ np.asarray(v, float))
+        return max(0.0, ct[5] * pen - ct[6] * vn) * n if pen > 0 else np.zeros(2)
 
     def acceleration(self, q, v, Q) -> np.ndarray:
         """a = B^-1 (Q - c - K q - D v) for a generalized applied force Q."""

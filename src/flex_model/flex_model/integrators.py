@@ -11,7 +11,9 @@ between calls) and torque/force pulses on time windows.
 
 The input data ``E`` is the tuple built by :mod:`flex_model.simulate`:
 ``(K, D, G, gx, gy, kp, kd, theta_set, u, pulse_t0, pulse_t1, pulse_tau, pulse_force,
-pulse_torque)``.
+pulse_torque, torque_limit, contact)``; the joint torques are clipped to ``torque_limit``
+(actuator saturation) and ``contact`` = (on, x, y, nx, ny, k, c) is a one-sided
+spring-damper surface at the tip (flex_model.effects.contact).
 
 Schemes
 -------
@@ -26,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kernels import inverse_dynamics, mass_matrix, solve_spd, tip_jacobian
+from .kernels import inverse_dynamics, link_origins, mass_matrix, solve_spd, tip_jacobian
 
 _CACHE = True
 
@@ -34,20 +36,21 @@ _CACHE = True
 @njit(cache=_CACHE)
 def joint_torques(t, q, v, E):
     """Joint torques tau (nl) of the built-in joint law at time t."""
-    K, D, G, gx, gy, kp, kd, theta_set, u, pt0, pt1, ptau, pF, pC = E
+    G, kp, kd, theta_set, u, pt0, pt1, ptau, lim = E[2], E[5], E[6], E[7], E[8], E[9], \
+        E[10], E[11], E[14]
     th = G @ q
     dth = G @ v
     tau = kp * (theta_set - th) - kd * dth + u
     for p in range(pt0.shape[0]):
         if pt0[p] <= t < pt1[p]:
             tau += ptau[p]
-    return tau
+    return np.minimum(np.maximum(tau, -lim), lim)
 
 
 @njit(cache=_CACHE)
 def applied_force(t, q, v, P, E):
     """Generalized applied force Q (joint torques, tip loads, elastic and damping forces)."""
-    K, D, G, gx, gy, kp, kd, theta_set, u, pt0, pt1, ptau, pF, pC = E
+    K, D, G, pt0, pt1, pF, pC, ct = E[0], E[1], E[2], E[9], E[10], E[12], E[13], E[15]
     tau = joint_torques(t, q, v, E)
     Q = G.T @ tau - K @ q - D @ v
     fx = 0.0
@@ -58,6 +61,19 @@ def applied_force(t, q, v, P, E):
             fx += pF[p, 0]
             fy += pF[p, 1]
             c += pC[p]
+    if ct[0] > 0.0:
+        org = link_origins(q, P)
+        Jt = tip_jacobian(q, P)
+        nx, ny = ct[3], ct[4]
+        pen = -(nx * (org[-1, 0] - ct[1]) + ny * (org[-1, 1] - ct[2]))
+        if pen > 0.0:
+            vn = 0.0
+            for j in range(q.shape[0]):
+                vn += (nx * Jt[0, j] + ny * Jt[1, j]) * v[j]
+            fn = ct[5] * pen - ct[6] * vn
+            if fn > 0.0:
+                fx += fn * nx
+                fy += fn * ny
     if fx != 0.0 or fy != 0.0:
         Jt = tip_jacobian(q, P)
         Q += Jt[0] * fx + Jt[1] * fy

@@ -19,7 +19,8 @@ the exact Lagrangian of Eqs. (6)-(7), (15)-(16), with cost linear in the number 
 variables for the bias and quadratic (the interconnection coupling) for B.
 
 The model data ``P`` is the tuple built by :class:`flex_model.dynamics.FlexArmModel`:
-``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig)``. For the
+``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig, Bc)``, Bc a
+constant inertia added to B (rotor inertias of geared joints, seed 000 Eq. 35). For the
 thesis model (mode 0), per link i, with the end masses M-, M+ and inertias J-, J+
 included (thesis Eq. 8 and the tilde quantities of Eq. 18): mtot = M, ntot = N,
 jrot = J + M+ L^2, Bp = B_f + M+ e_dn e_dn^T (block of a global nq x nq array),
@@ -49,7 +50,13 @@ def inverse_dynamics(q, v, a, gx, gy, P):
     Elastic and damping forces are not included (they are K q and D v).
     """
     if P[0] == 1:
-        return _inverse_dynamics_2(q, v, a, gx, gy, P)
+        return _inverse_dynamics_2(q, v, a, gx, gy, P) + P[16] @ a
+    return _inverse_dynamics_1(q, v, a, gx, gy, P) + P[16] @ a
+
+
+@njit(cache=_CACHE)
+def _inverse_dynamics_1(q, v, a, gx, gy, P):
+    """Mode 0 (thesis kinematics) of :func:`inverse_dynamics`."""
     off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P[1:11]
     nl = L.shape[0]
     nq = q.shape[0]
@@ -141,7 +148,13 @@ def inverse_dynamics(q, v, a, gx, gy, P):
 def mass_matrix(q, P):
     """Inertia matrix B(q) of thesis Eqs. (18)-(23), assembled link by link."""
     if P[0] == 1:
-        return _mass_matrix_2(q, P)
+        return _mass_matrix_2(q, P) + P[16]
+    return _mass_matrix_1(q, P) + P[16]
+
+
+@njit(cache=_CACHE)
+def _mass_matrix_1(q, P):
+    """Mode 0 (thesis kinematics) of :func:`mass_matrix`."""
     off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt = P[1:11]
     nl = L.shape[0]
     nq = q.shape[0]

@@ -127,7 +127,7 @@ def _input_data(model: FlexArmModel, pd: JointPD | None, pulses, u):
         pf[k] = p.tip_force
         pc[k] = p.tip_torque
     return (model.K, model.D, model.G, float(model.gravity[0]), float(model.gravity[1]),
-            kp, kd, sp, u, t0, t1, ptau, pf, pc)
+            kp, kd, sp, u, t0, t1, ptau, pf, pc, model.torque_limit, model.contact)
 
 
 def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:

@@ -69,10 +69,12 @@ class StaticResult:
 
 
 def static_residual(model: FlexArmModel, q, tau, load: TipLoad) -> np.ndarray:
-    """Generalized force balance Q - K q - dU_g/dq in q coordinates (zero at equilibrium)."""
+    """Generalized force balance Q - K q - dU_g/dq in q coordinates (zero at equilibrium),
+    with the tip load and the contact force of a contact surface."""
     r = model.G.T @ tau - model.K @ q - model.gravity_force(q)
-    if load.force[0] or load.force[1]:
-        r += model.tip_jacobian(q).T @ np.asarray(load.force, float)
+    force = np.asarray(load.force, float) + model.contact_force(q)
+    if force[0] or force[1]:
+        r += model.tip_jacobian(q).T @ force
     if load.torque:
         r += load.torque * model.tip_torque_vector()
     return r
@@ -112,8 +114,8 @@ def static_equilibrium(model: FlexArmModel, joint_angles=None, *, joints: str = 
         z = np.linalg.solve(T, np.asarray(q_guess, float))
         if joints == "clamped":
             z[model.off] = theta_set
-    scale = max(1.0, float(np.max(np.abs(np.diag(model.K)))))
     r = residual(z)
+    scale = max(1.0, float(np.max(np.abs(r))))  # the unbalanced force at the start
     for it in range(1, max_iter + 1):
         # Jacobian by central differences (the residual is smooth; cost is negligible)
         nfree = int(free.sum())
@@ -131,7 +133,7 @@ def static_equilibrium(model: FlexArmModel, joint_angles=None, *, joints: str = 
         if linear:
             break
         if np.max(np.abs(dz)) < tol * max(1.0, np.max(np.abs(z))) or \
-                np.max(np.abs(r)) < 1e-13 * scale:
+                np.max(np.abs(r)) < 1e-14 * scale:
             break
     else:
         raise StaticConvergenceError(

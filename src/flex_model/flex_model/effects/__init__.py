@@ -1,0 +1,33 @@
+"""Effect registry: parse the ``effects:`` list of an arm description."""
+from __future__ import annotations
+
+from ..config import Fields
+from .base import NOMINAL_TOLERANCES, Effect, Parameter
+from .base_tilt import BaseTilt
+from .contact import ContactSurface
+from .gear import Gear
+from .saturation import TorqueSaturation
+from .structural_damping import StructuralDamping
+
+EFFECT_TYPES = {cls.TYPE: cls for cls in (Gear, StructuralDamping, BaseTilt, TorqueSaturation,
+                                          ContactSurface)}
+
+__all__ = ["EFFECT_TYPES", "NOMINAL_TOLERANCES", "Effect", "Parameter", "parse_effects",
+           "BaseTilt", "ContactSurface", "Gear", "StructuralDamping", "TorqueSaturation"]
+
+
+def parse_effects(items: list, source: str, joint_names, link_names) -> tuple:
+    """Validate the effects of an arm description; one effect per type and target."""
+    effects = []
+    seen = set()
+    for k, raw in enumerate(items):
+        f = Fields(raw, source, f"effects[{k}]")
+        kind = f.string("type", choices=sorted(EFFECT_TYPES))
+        eff = EFFECT_TYPES[kind].parse(f, joint_names, link_names)
+        key = (kind, eff.target)
+        if key in seen:
+            raise f.error("type", kind, f"at most one {kind} effect per "
+                          f"{EFFECT_TYPES[kind].TARGET}")
+        seen.add(key)
+        effects.append(eff)
+    return tuple(effects)
