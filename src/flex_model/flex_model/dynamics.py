@@ -29,8 +29,12 @@ class FlexArmModel:
         self.bases = [link_basis(lk.profile, lk.n_vars // 2) for lk in arm.links]
         self.nf = np.array([b.n_vars for b in self.bases], dtype=np.int64)
         self.off = np.concatenate([[0], np.cumsum(self.nf + 1)[:-1]]).astype(np.int64)
-        self.nq = int(np.sum(self.nf + 1))
         self.n_links = len(self.bases)
+        self.nq_arm = int(np.sum(self.nf + 1))
+        # elastic joints add a motor coordinate each, after the arm's coordinates
+        self.elastic_joints = [i for i, j in enumerate(arm.joint_names)
+                               if (e := arm.effect("joint_elasticity", j)) and not e.is_off]
+        self.nq = self.nq_arm + len(self.elastic_joints)
         nq = self.nq
         self.K = np.zeros((nq, nq))
         self.D = np.zeros((nq, nq))
@@ -50,6 +54,11 @@ class FlexArmModel:
             if i > 0:
                 self.G[i, self.off[i - 1]] = -1.0
                 self.G[i, self.tip_rotation_index(i - 1)] = -1.0
+        # the actuator's coordinate: the joint angle, or the motor angle of an elastic joint
+        self.Ga = self.G.copy()
+        for m, i in enumerate(self.elastic_joints):
+            self.Ga[i] = 0.0
+            self.Ga[i, self.nq_arm + m] = 1.0
         self.gravity = np.array(arm.gravity, dtype=float)
         self.B_const = np.zeros((nq, nq))
         self.torque_limit = np.full(self.n_links, np.inf)
@@ -57,13 +66,42 @@ class FlexArmModel:
         self._apply_effects()
         self.set_payload(arm.payload_mass, arm.payload_inertia)
 
+    #: columns of joint_data: spring (k, b, backlash, smoothing), friction (F_v, F_c, F_s,
+    #: w_s, eps), DC motor (on, R, K_t, K_e, i_max, V_max), gear ratio n, cogging (A, N, phase)
+    JOINT_DATA = ("k", "b", "backlash", "smoothing", "fv", "fc", "fs", "ws", "eps", "motor",
+                  "R", "Kt", "Ke", "imax", "vmax", "ratio", "cog_A", "cog_N", "cog_phase")
+
     def _apply_effects(self) -> None:
         """Fold the arm's effects (flex_model.effects) into the model's constant data."""
         joints = self.arm.joint_names
         links = [lk.name for lk in self.arm.links]
+        col = {name: k for k, name in enumerate(self.JOINT_DATA)}
+        jd = np.zeros((self.n_links, len(self.JOINT_DATA)))
+        jd[:, col["k"]] = np.inf
+        jd[:, col["ws"]] = 1.0
+        jd[:, col["eps"]] = 1.0
+        jd[:, col["ratio"]] = 1.0
+        jd[:, col["R"]] = 1.0
+        jd[:, col["cog_N"]] = 1.0
+        jd[:, col["imax"]] = jd[:, col["vmax"]] = np.inf
         for e in self.arm.effects:
+            i = joints.index(e.target) if e.TARGET == "joint" else None
             if e.TYPE == "gear":
-                self.B_const += e.inertia_matrix(self, joints.index(e.target))
+                jd[i, col["ratio"]] = e["ratio"]
+                self.B_const += e.inertia_matrix(self, i)
+            elif e.TYPE == "joint_elasticity" and not e.is_off:
+                jd[i, col["k"]], jd[i, col["b"]] = e["stiffness"], e["damping"]
+                m = self.nq_arm + self.elastic_joints.index(i)
+                self.B_const[m, m] += e["motor_inertia"]
+            elif e.TYPE == "backlash":
+                jd[i, col["backlash"]], jd[i, col["smoothing"]] = e.values
+            elif e.TYPE == "joint_friction":
+                jd[i, col["fv"]:col["eps"] + 1] = e.values
+            elif e.TYPE == "dc_motor":
+                jd[i, col["motor"]] = 1.0
+                jd[i, col["R"]:col["vmax"] + 1] = e.values
+            elif e.TYPE == "cogging":
+                jd[i, col["cog_A"]:col["cog_phase"] + 1] = e.values
             elif e.TYPE == "structural_damping":
                 i = links.index(e.target)
                 s = self.flex_slice(i)
@@ -75,9 +113,10 @@ class FlexArmModel:
             elif e.TYPE == "base_tilt":
                 self.gravity = e.gravity(self.gravity)
             elif e.TYPE == "torque_saturation":
-                self.torque_limit[joints.index(e.target)] = e["limit"]
+                self.torque_limit[i] = e["limit"]
             elif e.TYPE == "contact_surface":
                 self.contact = e.kernel_data()
+        self.joint_data = jd
 
     # ----------------------------------------------------------------- indexing
     def alpha_index(self, i: int) -> int:
@@ -99,6 +138,7 @@ class FlexArmModel:
             names.append(f"{lk.name}/alpha")
             for k in range(n // 2):
                 names += [f"{lk.name}/delta{k + 1}", f"{lk.name}/gamma{k + 1}"]
+        names += [f"{self.arm.joint_names[i]}/motor" for i in self.elastic_joints]
         return names
 
     @property
@@ -224,8 +264,9 @@ class FlexArmModel:
         return self.D
 
     def input_matrix(self) -> np.ndarray:
-        """H_c = G^T: joint torques to generalized forces (thesis Eq. 29)."""
-        return self.G.T
+        """H_c = Ga^T: actuator torques to generalized forces (thesis Eq. 29); Ga = G
+        unless a joint is elastic, whose actuator drives its motor coordinate."""
+        return self.Ga.T
 
     def tip_jacobian(self, q) -> np.ndarray:
         """d p_tip / d q (2 x nq): generalized force of a tip force F is J^T F (Eq. 30)."""
@@ -237,6 +278,17 @@ class FlexArmModel:
         e[self.alpha_index(self.n_links - 1)] = 1.0
         e[self.tip_rotation_index(self.n_links - 1)] = 1.0
         return e
+
+    def joint_forces(self, q, v=None) -> np.ndarray:
+        """Generalized forces of the joint effects: springs (with backlash), friction and
+        cogging (flex_model.effects)."""
+        from .integrators import joint_passive_forces
+        from .simulate import _input_data
+        q = np.asarray(q, float)
+        v = np.zeros(self.nq) if v is None else np.asarray(v, float)
+        if not hasattr(self, "_E0"):
+            self._E0 = _input_data(self, None, (), np.zeros(self.n_links))
+        return joint_passive_forces(q, v, self._E0)
 
     def contact_force(self, q, v=None) -> np.ndarray:
         """Force (N, base frame) of the contact surface on the tip (zero without one)."""
@@ -269,12 +321,33 @@ class FlexArmModel:
         return np.linalg.inv(S)
 
     def q_from_joint_angles(self, theta, flex=None) -> np.ndarray:
-        """q for joint angles theta (rad) and optional deformation variables."""
+        """q for joint angles theta (rad) and optional deformation variables; the motor
+        coordinates of elastic joints equal their joint angles (unloaded springs)."""
         z = np.zeros(self.nq)
         if flex is not None:
-            z[np.setdiff1d(np.arange(self.nq), self.off)] = flex
+            z[self.flex_indices] = flex
         z[self.off] = theta
+        for m, i in enumerate(self.elastic_joints):
+            z[self.nq_arm + m] = np.asarray(theta, float)[i]
         return self.joint_coordinate_matrix() @ z
+
+    def v_from_joint_rates(self, rates) -> np.ndarray:
+        """v for joint rates (rad/s) of the undeformed arm (motors turning with the joints)."""
+        z = np.zeros(self.nq)
+        z[self.off] = rates
+        for m, i in enumerate(self.elastic_joints):
+            z[self.nq_arm + m] = np.asarray(rates, float)[i]
+        return self.joint_coordinate_matrix() @ z
+
+    @property
+    def flex_indices(self) -> np.ndarray:
+        """Indices of the deformation variables in q."""
+        return np.setdiff1d(np.arange(self.nq_arm), self.off)
+
+    def actuator_angles(self, q) -> np.ndarray:
+        """Angles the actuators see (rad, link side): joint angles, or motor angles / n of
+        elastic joints (the motor encoders)."""
+        return self.Ga @ np.asarray(q, float)
 
     def link_origins(self, q) -> np.ndarray:
         """Origins of the links and the arm's tip, (n_links + 1, 2), base frame (m)."""
@@ -335,11 +408,28 @@ class FlexArmModel:
         return out
 
     # ----------------------------------------------------------------- energy
+    def joint_potential(self, q) -> float:
+        """Energy stored in the joint springs (with backlash) and the cogging field (J)."""
+        from .integrators import dead_zone_energy
+        q = np.asarray(q, float)
+        jd = self.joint_data
+        u = 0.0
+        for i in range(self.n_links):
+            k, b, s = jd[i, 0], jd[i, 2], jd[i, 3]
+            if np.isfinite(k):
+                x = (self.Ga[i] - self.G[i]) @ q
+                u += k * (dead_zone_energy(x, b, s) if b > 0 else 0.5 * x * x)
+            amp, n_per, phase = jd[i, 16], jd[i, 17], jd[i, 18]
+            if amp:
+                wn = n_per * jd[i, 15]
+                u += amp / wn * np.cos(wn * (self.Ga[i] @ q) + phase)
+        return float(u)
+
     def energy(self, q, v) -> dict:
         """Kinetic, elastic and gravitational energy (J) of the arm (Eqs. 7, 13, 15)."""
         q = np.asarray(q, float)
         v = np.asarray(v, float)
         return {"kinetic": 0.5 * v @ self.mass_matrix(q) @ v,
-                "elastic": 0.5 * q @ self.K @ q,
+                "elastic": 0.5 * q @ self.K @ q + self.joint_potential(q),
                 "gravity": kernels.gravity_potential(q, self.gravity[0], self.gravity[1],
                                                      self.P)}

@@ -11,9 +11,12 @@ between calls) and torque/force pulses on time windows.
 
 The input data ``E`` is the tuple built by :mod:`flex_model.simulate`:
 ``(K, D, G, gx, gy, kp, kd, theta_set, u, pulse_t0, pulse_t1, pulse_tau, pulse_force,
-pulse_torque, torque_limit, contact)``; the joint torques are clipped to ``torque_limit``
-(actuator saturation) and ``contact`` = (on, x, y, nx, ny, k, c) is a one-sided
-spring-damper surface at the tip (flex_model.effects.contact).
+pulse_torque, torque_limit, contact, Ga, joint_data)``; the joint torques are clipped to
+``torque_limit`` (actuator saturation), ``contact`` = (on, x, y, nx, ny, k, c) is a
+one-sided spring-damper surface at the tip (flex_model.effects.contact), ``Ga`` maps q to
+the actuator coordinates (the joint angle, or the motor angle of an elastic joint) and
+``joint_data`` holds the joint effects (FlexArmModel.JOINT_DATA: springs with backlash,
+friction, DC motor, gear ratio, cogging).
 
 Schemes
 -------
@@ -35,24 +38,92 @@ _CACHE = True
 
 @njit(cache=_CACHE)
 def joint_torques(t, q, v, E):
-    """Joint torques tau (nl) of the built-in joint law at time t."""
-    G, kp, kd, theta_set, u, pt0, pt1, ptau, lim = E[2], E[5], E[6], E[7], E[8], E[9], \
-        E[10], E[11], E[14]
-    th = G @ q
-    dth = G @ v
+    """Actuator torques (nl) at time t: PD + held input (a voltage for a DC motor joint),
+    through the motor model, clipped to the torque limit, plus torque pulses."""
+    kp, kd, theta_set, u, pt0, pt1, ptau, lim, Ga, jd = E[5], E[6], E[7], E[8], E[9], \
+        E[10], E[11], E[14], E[16], E[17]
+    th = Ga @ q
+    dth = Ga @ v
     tau = kp * (theta_set - th) - kd * dth + u
+    for i in range(tau.shape[0]):
+        if jd[i, 9] > 0.0:  # DC motor: tau is the voltage (seed 003 Eq. 48, L neglected)
+            n = jd[i, 15]
+            volt = min(max(tau[i], -jd[i, 14]), jd[i, 14])
+            cur = (volt - jd[i, 12] * n * dth[i]) / jd[i, 10]
+            cur = min(max(cur, -jd[i, 13]), jd[i, 13])
+            tau[i] = n * jd[i, 11] * cur
+    tau = np.minimum(np.maximum(tau, -lim), lim)
     for p in range(pt0.shape[0]):
         if pt0[p] <= t < pt1[p]:
             tau += ptau[p]
-    return np.minimum(np.maximum(tau, -lim), lim)
+    return tau
+
+
+@njit(cache=_CACHE)
+def dead_zone(x, b, s):
+    """C-infinity dead zone of half-width b (corners rounded over s) and its slope."""
+    xp = x - b
+    xm = x + b
+    rp = np.sqrt(xp * xp + s * s)
+    rm = np.sqrt(xm * xm + s * s)
+    return 0.5 * (xp + rp) + 0.5 * (xm - rm), 0.5 * (1.0 + xp / rp) + 0.5 * (1.0 - xm / rm)
+
+
+@njit(cache=_CACHE)
+def dead_zone_energy(x, b, s):
+    """Integral of dead_zone from 0 to x (the potential of a spring with backlash / k)."""
+    def prim(y, c):  # integral of 0.5 (y - c + sqrt((y - c)^2 + s^2))
+        z = y - c
+        r = np.sqrt(z * z + s * s)
+        return 0.25 * (z * z + z * r + s * s * np.log(z + r))
+    def prim2(y, c):  # integral of 0.5 (y + c - sqrt((y + c)^2 + s^2))
+        z = y + c
+        r = np.sqrt(z * z + s * s)
+        return 0.25 * (z * z - z * r - s * s * np.log(-z + r))
+    return prim(x, b) - prim(0.0, b) + prim2(x, b) - prim2(0.0, b)
+
+
+@njit(cache=_CACHE)
+def joint_passive_forces(q, v, E):
+    """Generalized forces of the joint springs (with backlash), friction and cogging."""
+    G, Ga, jd = E[2], E[16], E[17]
+    Q = np.zeros(q.shape[0])
+    for i in range(jd.shape[0]):
+        if np.isfinite(jd[i, 0]):  # elastic joint: spring between motor and link side
+            x = 0.0
+            xd = 0.0
+            for j in range(q.shape[0]):
+                d = Ga[i, j] - G[i, j]
+                x += d * q[j]
+                xd += d * v[j]
+            if jd[i, 2] > 0.0:
+                dz, slope = dead_zone(x, jd[i, 2], jd[i, 3])
+                ts = jd[i, 0] * dz + jd[i, 1] * slope * xd
+            else:
+                ts = jd[i, 0] * x + jd[i, 1] * xd
+            for j in range(q.shape[0]):
+                Q[j] -= (Ga[i, j] - G[i, j]) * ts
+        tf = 0.0
+        if jd[i, 4] > 0.0 or jd[i, 5] > 0.0 or jd[i, 6] > 0.0:
+            w = Ga[i] @ v
+            g = jd[i, 5] + (jd[i, 6] - jd[i, 5]) * np.exp(-(w / jd[i, 7]) ** 2)
+            tf -= jd[i, 4] * w + g * np.tanh(w / jd[i, 8])
+        if jd[i, 16] != 0.0:
+            wn = jd[i, 17] * jd[i, 15]
+            tf += jd[i, 16] * np.sin(wn * (Ga[i] @ q) + jd[i, 18])
+        if tf != 0.0:
+            for j in range(q.shape[0]):
+                Q[j] += Ga[i, j] * tf
+    return Q
 
 
 @njit(cache=_CACHE)
 def applied_force(t, q, v, P, E):
-    """Generalized applied force Q (joint torques, tip loads, elastic and damping forces)."""
-    K, D, G, pt0, pt1, pF, pC, ct = E[0], E[1], E[2], E[9], E[10], E[12], E[13], E[15]
+    """Generalized applied force Q (joint torques, joint effects, tip loads, contact,
+    elastic and damping forces)."""
+    K, D, pt0, pt1, pF, pC, ct, Ga = E[0], E[1], E[9], E[10], E[12], E[13], E[15], E[16]
     tau = joint_torques(t, q, v, E)
-    Q = G.T @ tau - K @ q - D @ v
+    Q = Ga.T @ tau - K @ q - D @ v + joint_passive_forces(q, v, E)
     fx = 0.0
     fy = 0.0
     c = 0.0
@@ -83,6 +154,37 @@ def applied_force(t, q, v, P, E):
         Q[off[last]] += c
         Q[off[last] + nf[last]] += c
     return Q
+
+
+@njit(cache=_CACHE)
+def _joint_tangent(v, E):
+    """Stiffness and damping of the joint laws and effects for the Newton matrix."""
+    G, kp, kd, Ga, jd = E[2], E[5], E[6], E[16], E[17]
+    n = G.shape[1]
+    Kj = np.zeros((n, n))
+    Cj = np.zeros((n, n))
+    for i in range(jd.shape[0]):
+        gain = 1.0
+        cd = 0.0
+        if jd[i, 9] > 0.0:
+            gain = jd[i, 15] * jd[i, 11] / jd[i, 10]
+            cd = gain * jd[i, 12] * jd[i, 15]
+        w = Ga[i] @ v
+        if jd[i, 5] > 0.0 or jd[i, 6] > 0.0:
+            cd += jd[i, 6] / jd[i, 8] / np.cosh(min(abs(w / jd[i, 8]), 300.0)) ** 2
+        cd += jd[i, 4] + gain * kd[i]
+        kk = gain * kp[i]
+        for a in range(n):
+            for b in range(n):
+                Kj[a, b] += kk * Ga[i, a] * Ga[i, b]
+                Cj[a, b] += cd * Ga[i, a] * Ga[i, b]
+        if np.isfinite(jd[i, 0]):
+            for a in range(n):
+                for b in range(n):
+                    dd = (Ga[i, a] - G[i, a]) * (Ga[i, b] - G[i, b])
+                    Kj[a, b] += jd[i, 0] * dd
+                    Cj[a, b] += jd[i, 1] * dd
+    return Kj, Cj
 
 
 @njit(cache=_CACHE)
@@ -198,21 +300,32 @@ def consistent_acceleration(t, x, P, E):
 
 
 @njit(cache=_CACHE)
+def _alpha_residual(a1, a, abar, q, v, t, h, af, am, gam, beta, P, E):
+    """Residual B(q1) a1 - (Q - c) of a generalized-alpha step for the guess a1."""
+    abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
+    v1 = v + h * ((1.0 - gam) * abar + gam * abar1)
+    q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
+    B, rhs = _balance(t, q1, v1, P, E)
+    return B @ a1 - rhs, B, q1, v1
+
+
+@njit(cache=_CACHE)
 def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, P, E):
     """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form).
 
     Second-order accurate, unconditionally stable for linear systems, with numerical
     damping of the unresolved high modes set by the spectral radius ``rho_inf`` at
     infinite frequency (1 = none). Each step solves B(q1) a1 = Q - c by Newton's method on
-    the iteration matrix B + gamma' (D + G^T Kd G) + beta' (K + G^T Kp G) until the
-    position correction is below ``tol`` (m or rad). Pulses are evaluated at mid-step, so a
+    the iteration matrix B + gamma' (D + C_joints) + beta' (K + K_joints) (PD gains, joint
+    springs, friction slope and back-EMF at the current speed) until the position
+    correction is below ``tol`` (m or rad). Pulses are evaluated at mid-step, so a
     pulse edge on the step grid is resolved exactly.
 
     Returns ``(X, status, t_end, x_end, a_end, abar_end, iterations)``; X holds every
     ``every``-th state, X[0] = x0. Status 1 = non-finite or diverging state, 2 = Newton did
-    not converge in 25 iterations.
+    not converge in 50 iterations (with backtracking line search).
     """
-    K, D, G, gx, gy, kp, kd = E[0], E[1], E[2], E[3], E[4], E[5], E[6]
+    K, D = E[0], E[1]
     am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
     af = rho_inf / (rho_inf + 1.0)
     gam = 0.5 + af - am
@@ -220,8 +333,6 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     ratio = (1.0 - af) / (1.0 - am)
     bp = h * h * beta * ratio
     gp = h * gam * ratio
-    Kst = K + G.T @ np.diag(kp) @ G
-    Cst = D + G.T @ np.diag(kd) @ G
     nx = x0.shape[0]
     n = nx // 2
     nrec = n_steps // every + 1
@@ -238,16 +349,26 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
         t1 = t0 + s * h
         a1 = a.copy()
         ok = False
-        for it in range(25):
-            abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
-            v1 = v + h * ((1.0 - gam) * abar + gam * abar1)
-            q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
-            B, rhs = _balance(t1 - 0.5 * h, q1, v1, P, E)
-            res = B @ a1 - rhs
-            da = solve_spd(B + gp * Cst + bp * Kst, -res)
-            a1 += da
+        res, B, q1, v1 = _alpha_residual(a1, a, abar, q, v, t1 - 0.5 * h, h, af, am, gam,
+                                         beta, P, E)
+        norm = np.sqrt(np.sum(res * res))
+        for it in range(50):
+            Kj, Cj = _joint_tangent(v1, E)
+            da = solve_spd(B + gp * (D + Cj) + bp * (K + Kj), -res)
+            # backtracking on the residual: regularized friction is nearly flat outside
+            # its narrow zone, where full Newton steps overshoot across it
+            lam = 1.0
+            for ls in range(30):
+                a_try = a1 + lam * da
+                r_try, B_try, q_try, v_try = _alpha_residual(
+                    a_try, a, abar, q, v, t1 - 0.5 * h, h, af, am, gam, beta, P, E)
+                n_try = np.sqrt(np.sum(r_try * r_try))
+                if n_try <= (1.0 - 1e-4 * lam) * norm or n_try < 1e-300 or ls == 29:
+                    break
+                lam *= 0.5
+            a1, res, B, q1, v1, norm = a_try, r_try, B_try, q_try, v_try, n_try
             iters += 1
-            if np.max(np.abs(da)) * bp <= tol:
+            if np.max(np.abs(da)) * lam * bp <= tol:
                 ok = True
                 break
         abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)

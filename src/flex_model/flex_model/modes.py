@@ -70,16 +70,15 @@ def linearize(model: FlexArmModel, joint_angles=None, *, joints: str = "clamped"
         else:
             q0 = static_equilibrium(model, theta_set, joints=joints, kp=kp).q
     q0 = np.asarray(q0, float)
-    # holding torques: joint torques that balance the equilibrium exactly
+    # holding torques: actuator torques that balance the equilibrium exactly
     r0 = static_residual(model, q0, np.zeros(nl), TipLoad())
-    tau_hold = -np.linalg.lstsq(model.G.T, r0, rcond=None)[0]
+    tau_hold = -np.linalg.lstsq(model.Ga.T, r0, rcond=None)[0]
     free = np.arange(nq) if joints != "clamped" else np.setdiff1d(np.arange(nq), model.off)
     z0 = np.linalg.solve(T, q0)
 
     def force(z):
         q = T @ z
-        th = z[model.off]
-        tau = tau_hold + (kp * (theta_set - th) if joints == "pd" else 0.0)
+        tau = tau_hold + (kp * (theta_set - model.Ga @ q) if joints == "pd" else 0.0)
         return T.T @ static_residual(model, q, tau, TipLoad())
 
     n = len(free)
@@ -93,13 +92,15 @@ def linearize(model: FlexArmModel, joint_angles=None, *, joints: str = "clamped"
     Kt = Kt[free]
     Kt = 0.5 * (Kt + Kt.T)
     Mz = (T.T @ model.mass_matrix(q0) @ T)[np.ix_(free, free)]
-    Dq = model.damping_matrix().copy()
-    Cz = (T.T @ Dq @ T)
-    if joints == "pd":
-        Cz[model.off, model.off] += kd
-    Cz = Cz[np.ix_(free, free)]
-    # inputs: joint torques (z-space: theta rows), tip force, tip torque
-    Bq_tau = model.G.T
+    # damping: structural, PD (through the actuator coordinates), joint springs, friction
+    # slope and back-EMF at rest (flex_model.integrators._joint_tangent)
+    from .integrators import _joint_tangent
+    from .simulate import JointPD, _input_data
+    pd = JointPD(kp, kd if joints == "pd" else np.zeros(nl), theta_set)
+    Cj = _joint_tangent(np.zeros(nq), _input_data(model, pd, (), np.zeros(nl)))[1]
+    Cz = (T.T @ (model.damping_matrix() + Cj) @ T)[np.ix_(free, free)]
+    # inputs: actuator torques, tip force, tip torque
+    Bq_tau = model.Ga.T
     Jt = model.tip_jacobian(q0)
     Bq = np.column_stack([Bq_tau, Jt.T, model.tip_torque_vector()])
     names_in = [f"{j}/torque" for j in model.arm.joint_names] + ["tip/force_x", "tip/force_y",

@@ -69,8 +69,7 @@ class Scenario:
                 q0 = static_equilibrium(model, self.theta0, joints="clamped").q
         else:
             q0 = model.q_from_joint_angles(self.theta0)
-        v0 = model.joint_coordinate_matrix()[:, model.off] @ self.dtheta0
-        return q0, v0
+        return q0, model.v_from_joint_rates(self.dtheta0)
 
     def run(self, progress=None, model: FlexArmModel | None = None) -> SimulationResult:
         model = model or self.model()

@@ -127,7 +127,8 @@ def _input_data(model: FlexArmModel, pd: JointPD | None, pulses, u):
         pf[k] = p.tip_force
         pc[k] = p.tip_torque
     return (model.K, model.D, model.G, float(model.gravity[0]), float(model.gravity[1]),
-            kp, kd, sp, u, t0, t1, ptau, pf, pc, model.torque_limit, model.contact)
+            kp, kd, sp, u, t0, t1, ptau, pf, pc, model.torque_limit, model.contact,
+            model.Ga, model.joint_data)
 
 
 def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:
@@ -204,6 +205,8 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
             continue
         if policy is not None and np.any(np.isclose(instants, t)):
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
+            if t == 0.0:
+                U[0] = u
         sel = (t_samples > t + 1e-12) & (t_samples <= t_end + 1e-12)
         outs = t_samples[sel]
         if len(outs) == 0 or not np.isclose(outs[-1], t_end):
@@ -251,6 +254,8 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
         t = step * h
         if step % chunk == 0 and policy is not None:
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
+            if step == 0:
+                U[0] = u
         if step == 0 or step in restarts or policy is not None:
             a = consistent_acceleration(t, x, model.P, E)
             abar = a.copy()

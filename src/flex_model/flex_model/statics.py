@@ -71,7 +71,7 @@ class StaticResult:
 def static_residual(model: FlexArmModel, q, tau, load: TipLoad) -> np.ndarray:
     """Generalized force balance Q - K q - dU_g/dq in q coordinates (zero at equilibrium),
     with the tip load and the contact force of a contact surface."""
-    r = model.G.T @ tau - model.K @ q - model.gravity_force(q)
+    r = model.Ga.T @ tau - model.K @ q - model.gravity_force(q) + model.joint_forces(q)
     force = np.asarray(load.force, float) + model.contact_force(q)
     if force[0] or force[1]:
         r += model.tip_jacobian(q).T @ force
@@ -104,12 +104,10 @@ def static_equilibrium(model: FlexArmModel, joint_angles=None, *, joints: str = 
 
     def residual(z):
         q = T @ z
-        th = z[model.off]
-        tau = tau0 + (kp * (theta_set - th) if joints == "pd" else 0.0)
+        tau = tau0 + (kp * (theta_set - model.Ga @ q) if joints == "pd" else 0.0)
         return (T.T @ static_residual(model, q, tau, load))[free]
 
-    z = np.zeros(nq)
-    z[model.off] = theta_set
+    z = np.linalg.solve(T, model.q_from_joint_angles(theta_set))
     if q_guess is not None:
         z = np.linalg.solve(T, np.asarray(q_guess, float))
         if joints == "clamped":

@@ -1,14 +1,16 @@
 """Effects (flex_model.effects): each alone, against closed forms and conservation."""
 import numpy as np
 import pytest
+from scipy.integrate import cumulative_simpson
 
 from flex_model.arm import arm_from_dict, load_arm
 from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_model.effects import (EFFECT_TYPES, BaseTilt, ContactSurface, Gear,
+from flex_model.effects import (EFFECT_TYPES, Backlash, BaseTilt, Cogging, ContactSurface,
+                                DCMotor, Gear, JointElasticity, JointFriction,
                                 StructuralDamping, TorqueSaturation)
 from flex_model.modes import natural_modes
-from flex_model.simulate import JointPD, simulate
+from flex_model.simulate import JointPD, Pulse, simulate
 from flex_model.statics import TipLoad, static_equilibrium
 
 
@@ -142,7 +144,7 @@ def base_dict():
 
 
 @pytest.mark.parametrize("raw, path, allowed", [
-    ({"type": "magic"}, "effects[0].type", "one of base_tilt, contact_surface"),
+    ({"type": "magic"}, "effects[0].type", "one of backlash, base_tilt, cogging, contact_surface"),
     ({"type": "gear", "joint": "joint9", "ratio": 5}, "effects[0].joint", "one of joint1"),
     ({"type": "gear", "joint": "joint1", "ratio": -5}, "effects[0].ratio", ">= 0.001"),
     ({"type": "gear", "joint": "joint1", "torque": 5}, "effects[0].torque", "no such field"),
@@ -162,3 +164,110 @@ def test_duplicate_effect_is_rejected():
     data["effects"] = [{"type": "base_tilt", "angle": 0.1}, {"type": "base_tilt", "angle": 0.2}]
     with pytest.raises(ConfigError, match=r"effects\[1\].type.*at most one base_tilt"):
         arm_from_dict(data, "arm.yaml")
+
+
+def stiff_link(length=1.0, m=2.0, ei=1e9):
+    """A single link so stiff that it is rigid for these tests, no gravity (time runs use
+    the implicit fixed-step scheme: the explicit one would resolve its 1e5 rad/s mode)."""
+    return arm_from_dict({"name": "stiff", "gravity": [0.0, 0.0], "links": [{
+        "length": length, "section": {"shape": "explicit", "EI": ei, "m": m}}]})
+
+
+def test_elastic_joint_has_the_two_inertia_frequency():
+    """Motor J_m - spring k - rigid link J_l: omega^2 = k (J_m + J_l) / (J_m J_l)."""
+    k, jm = 500.0, 0.2
+    model = FlexArmModel(stiff_link().with_effects(effect(JointElasticity, "joint1",
+                                                          stiffness=k, motor_inertia=jm)))
+    jl = 2.0 * 1.0**3 / 3.0
+    f = natural_modes(model, joints="hinged").omega
+    assert f[0] == pytest.approx(0.0, abs=1e-6)
+    assert f[1] == pytest.approx(np.sqrt(k * (jm + jl) / (jm * jl)), rel=1e-6)  # EI finite
+    assert model.nq == 4 and model.coordinate_names()[-1] == "joint1/motor"
+
+
+def test_friction_holds_below_break_away_and_slides_above():
+    fr = effect(JointFriction, "joint1", coulomb=1.0, static=1.5, stribeck_velocity=0.01)
+    model = FlexArmModel(stiff_link().with_effects(fr))
+    jl = 2.0 / 3.0
+    hold = simulate(model, np.zeros(model.nq), t_final=1.0, sample_period=0.01,
+                    pulses=[Pulse(0.0, 2.0, (1.2,))], method="fixed")
+    # held: after a start-up transient (4.5e-5 rad with rho_inf 0.9) the joint creeps at
+    # exactly the regularization's rate eps atanh(tau / F_s)
+    assert np.abs(hold.joint_angles[:, 0]).max() < 1e-4
+    creep = (hold.joint_angles[-1, 0] - hold.joint_angles[50, 0]) / 0.5
+    assert creep == pytest.approx(1e-6 * np.arctanh(1.2 / 1.5), rel=1e-6)
+    slide = simulate(model, np.zeros(model.nq), t_final=1.0, sample_period=0.01,
+                     pulses=[Pulse(0.0, 2.0, (3.0,))], method="fixed")
+    # once past the Stribeck range the joint accelerates at (tau - F_c) / J
+    acc = np.diff(slide.joint_rates[50:, 0]) / 0.01
+    np.testing.assert_allclose(acc, (3.0 - 1.0) / jl, rtol=1e-6)
+
+
+def test_energy_balance_with_friction_and_an_elastic_joint():
+    """Released with a motor speed: the energy lost equals the work of friction and of the
+    joint damper."""
+    arm = stiff_link(ei=200.0).with_effects(
+        effect(JointElasticity, "joint1", stiffness=300.0, damping=0.5, motor_inertia=0.1),
+        effect(JointFriction, "joint1", viscous=0.05, coulomb=0.3, static=0.3,
+               regularization=0.05))
+    model = FlexArmModel(arm)
+    v0 = np.zeros(model.nq)
+    v0[-1] = 3.0  # motor turning, link at rest
+    res = simulate(model, np.zeros(model.nq), v0, t_final=1.0, sample_period=1e-4,
+                   rtol=1e-11)
+    E = np.array([sum(model.energy(q, v).values()) for q, v in zip(res.q, res.v)])
+    w = res.v[:, -1]
+    dx = res.v[:, -1] - res.joint_rates[:, 0]
+    power = -w * np.array([float(JointFriction(target="joint1", values=(
+        0.05, 0.3, 0.3, 0.01, 0.05)).torque(x)) for x in w]) + 0.5 * dx**2
+    lost = cumulative_simpson(power, x=res.t, initial=0.0)
+    assert lost[-1] > 0.5 * E[0]
+    assert np.max(np.abs(E[0] - E - lost)) / lost[-1] < 1e-6
+
+
+def test_backlash_adds_the_play_to_the_spring_deflection():
+    """Motor held (stiff PD on the motor), torque C on the link: rotation b + C / k."""
+    k, b, C = 200.0, 0.01, 1.0
+    arm = stiff_link().with_effects(
+        effect(JointElasticity, "joint1", stiffness=k, motor_inertia=0.1),
+        effect(Backlash, "joint1", half_width=b, smoothing=1e-7))
+    model = FlexArmModel(arm)
+    r = static_equilibrium(model, joints="pd", kp=1e9, load=TipLoad(torque=C))
+    assert r.joint_angles[0] == pytest.approx(b + C / k, rel=1e-6)
+    r0 = static_equilibrium(model, joints="pd", kp=1e9, load=TipLoad(torque=0.3 * k * b))
+    assert r0.joint_angles[0] == pytest.approx(b + 0.3 * b, rel=1e-5)  # k dz = load
+
+
+def test_dc_motor_no_load_speed_and_stall_torque():
+    """J w' = n K_t (V - K_e n w) / R: w -> V / (K_e n); with a current limit the joint's
+    angular momentum grows at n K_t i_max."""
+    R, kt, ke, n, volt = 2.0, 0.05, 0.05, 20.0, 6.0
+    jl = 2.0 / 3.0
+    arm = stiff_link().with_effects(
+        effect(Gear, "joint1", ratio=n),
+        effect(DCMotor, "joint1", resistance=R, torque_constant=kt, back_emf_constant=ke))
+    model = FlexArmModel(arm)
+    tau_m = jl * R / (n * n * kt * ke)
+    res = simulate(model, np.zeros(model.nq), t_final=12 * tau_m, sample_period=tau_m / 10,
+                   policy=lambda t, x: [volt], method="fixed", dt=tau_m / 1000)
+    assert res.joint_rates[-1, 0] == pytest.approx(volt / (ke * n) * (1 - np.exp(-12)),
+                                                   rel=1e-6)
+    limited = FlexArmModel(arm.with_effects(effect(
+        DCMotor, "joint1", resistance=R, torque_constant=kt, back_emf_constant=ke,
+        current_limit=1.0)))
+    res = simulate(limited, np.zeros(model.nq), t_final=0.01, sample_period=1e-3,
+                   policy=lambda t, x: [100.0], method="fixed", dt=1e-4)
+    momentum = (limited.mass_matrix(res.q[-1]) @ res.v[-1])[0]
+    assert momentum == pytest.approx(n * kt * 1.0 * 0.01, rel=1e-8)
+    np.testing.assert_allclose(res.tau[:, 0], n * kt * 1.0)
+
+
+def test_cogging_torque_is_periodic_in_the_motor_angle():
+    amp, periods, n = 0.2, 6.0, 10.0
+    model = FlexArmModel(stiff_link().with_effects(
+        effect(Gear, "joint1", ratio=n),
+        effect(Cogging, "joint1", amplitude=amp, periods=periods, phase=0.3)))
+    for th in (0.0, 0.01, 0.05, 1.0):
+        q = model.q_from_joint_angles([th])
+        assert model.joint_forces(q)[0] == pytest.approx(amp * np.sin(periods * n * th + 0.3),
+                                                         rel=1e-12, abs=1e-15)

@@ -5,15 +5,20 @@ from ..config import Fields
 from .base import NOMINAL_TOLERANCES, Effect, Parameter
 from .base_tilt import BaseTilt
 from .contact import ContactSurface
+from .friction import JointFriction
 from .gear import Gear
+from .joint_elasticity import Backlash, JointElasticity
+from .motor import Cogging, DCMotor
 from .saturation import TorqueSaturation
 from .structural_damping import StructuralDamping
 
-EFFECT_TYPES = {cls.TYPE: cls for cls in (Gear, StructuralDamping, BaseTilt, TorqueSaturation,
-                                          ContactSurface)}
+EFFECT_TYPES = {cls.TYPE: cls for cls in (Gear, JointElasticity, Backlash, JointFriction,
+                                          DCMotor, Cogging, StructuralDamping, BaseTilt,
+                                          TorqueSaturation, ContactSurface)}
 
 __all__ = ["EFFECT_TYPES", "NOMINAL_TOLERANCES", "Effect", "Parameter", "parse_effects",
-           "BaseTilt", "ContactSurface", "Gear", "StructuralDamping", "TorqueSaturation"]
+           "Backlash", "BaseTilt", "Cogging", "ContactSurface", "DCMotor", "Gear",
+           "JointElasticity", "JointFriction", "StructuralDamping", "TorqueSaturation"]
 
 
 def parse_effects(items: list, source: str, joint_names, link_names) -> tuple:
@@ -30,4 +35,9 @@ def parse_effects(items: list, source: str, joint_names, link_names) -> tuple:
                           f"{EFFECT_TYPES[kind].TARGET}")
         seen.add(key)
         effects.append(eff)
+    for k, eff in enumerate(effects):
+        if eff.TYPE == "backlash" and ("joint_elasticity", eff.target) not in seen:
+            raise Fields(items[k], source, f"effects[{k}]").error(
+                "type", "backlash", f"a joint_elasticity effect on {eff.target} as well "
+                "(backlash is a dead zone of the joint spring)")
     return tuple(effects)

@@ -45,6 +45,7 @@ class Effect:
     PARAMETERS = ()
     EQUIVALENT = ()           # effect types (or nominal parameters) it is confused with
     DESCRIPTION = ""
+    LIBRARY = True            # a hypothesis of the diagnosis library
 
     target: str               # joint or link name ("" for the arm)
     values: tuple             # parameter values in PARAMETERS order
@@ -70,7 +71,10 @@ class Effect:
         values = []
         for p in cls.PARAMETERS:
             lo, hi = p.bounds
-            values.append(f.number(p.name, p.off, min_value=lo, max_value=hi, unit=p.unit))
+            if not f.has(p.name):  # the "off" value (may be infinite, e.g. a rigid joint)
+                values.append(p.off)
+                continue
+            values.append(f.number(p.name, min_value=lo, max_value=hi, unit=p.unit))
         cls.check(f, values)
         f.done()
         return cls(target=target, values=tuple(values))
