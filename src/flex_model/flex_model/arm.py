@@ -19,6 +19,8 @@ Example (the thesis Example 1 arm)::
       - {name: joint1, type: revolute}
     effects:                         # optional, see flex_model.effects
       - {type: gear, joint: joint1, ratio: 50, rotor_inertia: 0.002}
+    sensors:                         # optional, see flex_model.sensors
+      - {kind: joint_encoder, joint: joint1, resolution: 0.0015, noise: 0.0}
 
 A section dimension given as ``[root, tip]`` is linearly tapered; ``segments`` (a list of
 ``{length, section, material?}``) replaces ``section`` for piecewise sections. Shape
@@ -82,6 +84,7 @@ class ArmDescription:
     source: str = "<memory>"
     kinematics: str = "small_deflection"
     effects: tuple = ()
+    sensors: tuple = ()
 
     def effect(self, kind: str, target: str = ""):
         """The effect of a type on a target (joint/link name), or None."""
@@ -229,11 +232,15 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
         raise f.error("joints", names, "unique joint names")
     from .effects import parse_effects
     effects = parse_effects(f.items("effects", []), source, names, [lk.name for lk in links])
+    from .sensors import Sensor
+    sensors = tuple(Sensor.parse(Fields(r, source, f"sensors[{k}]"), names,
+                                 [lk.name for lk in links])
+                    for k, r in enumerate(f.items("sensors", [])))
     f.done()
     return ArmDescription(name=name, links=links, joints=tuple(joints), gravity=gravity,
                           payload_mass=payload_mass, payload_inertia=payload_inertia,
                           description=description, source=source, kinematics=kinematics,
-                          effects=effects)
+                          effects=effects, sensors=sensors)
 
 
 def preset_names() -> list[str]:

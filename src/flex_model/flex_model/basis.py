@@ -164,6 +164,24 @@ class LinkBasis:
         """W' (len(z), n_vars): slope d'(z) = W' q_f."""
         return self._sample(z)[1]
 
+    def curvature_matrix(self, z) -> np.ndarray:
+        """W'' (len(z), n_vars): curvature d''(z) = W'' q_f = M(z) / EI(z) (exact for the
+        wavelets: (c2 + c3 s) / EI on each interval)."""
+        z = np.atleast_1d(np.asarray(z, dtype=float))
+        out = np.zeros((len(z), self.n_vars))
+        e_idx = np.clip(np.searchsorted(self.nodes, z, side="right") - 1, 0,
+                        len(self.elements) - 1)
+        for e, (el, c) in enumerate(zip(self.elements, self.coeffs)):
+            sel = e_idx == e
+            if not np.any(sel):
+                continue
+            ei = el.profile.properties(z[sel])[0]
+            s = z[sel] - el.a
+            curv = (c[2][None, :] + s[:, None] * c[3][None, :]) / ei[:, None]
+            cols, keep = _element_dofs(e)
+            out[np.ix_(sel, cols)] = curv[:, keep]
+        return out
+
     def shortening_matrix(self, z) -> np.ndarray:
         """S(z) = int_0^z w' w'^T ds (len(z), n, n): axial shortening u(z) = 1/2 q_f^T S q_f.
 

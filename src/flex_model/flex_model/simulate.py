@@ -66,6 +66,8 @@ class SimulationResult:
     v: np.ndarray
     tau: np.ndarray
     stats: dict = field(default_factory=dict)
+    u: np.ndarray = None        # held policy input at the samples
+    inputs: tuple = None        # the compiled input data (integrators.py E)
 
     @property
     def joint_angles(self) -> np.ndarray:
@@ -176,7 +178,8 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
         u[:] = U[j]
         tau[j] = joint_torques(t_samples[j], q[j], v[j], E)
     stats["method"] = method
-    return SimulationResult(model=model, t=t_samples, q=q, v=v, tau=tau, stats=stats)
+    return SimulationResult(model=model, t=t_samples, q=q, v=v, tau=tau, stats=stats, u=U,
+                            inputs=E)
 
 
 def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, rtol, atol,

@@ -1,0 +1,132 @@
+"""Sensors: what an instrumented arm measures, with noise, bias, quantisation and delay.
+
+Each sensor turns a simulated trajectory into a measured signal:
+
+    y(t) = Q( x(t - delay) + bias + noise ),   Q = rounding to the resolution
+
+with white Gaussian noise of standard deviation ``noise`` (seeded, reproducible). Kinds:
+
+- ``joint_encoder`` (rad): link-side joint angle; ``motor_encoder`` (rad): motor angle
+  (gear ratio times the actuator coordinate);
+- ``joint_torque`` (N m): the torque through the joint (spring torque of an elastic joint,
+  actuator torque of a rigid one);
+- ``tip_accelerometer`` (m/s^2): specific force a - g at the arm's end in the tip frame
+  (x along the tip tangent), as the single-link arm of seed 000 carries;
+- ``strain_gauge``: surface bending strain -c d''(z) of a link at ``position`` (m from the
+  link root), ``surface_distance`` c (m) from the neutral axis;
+- ``tip_position`` (m): x, y of the arm's end in the base frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Fields
+from .integrators import derivative
+
+KINDS = ("joint_encoder", "motor_encoder", "joint_torque", "tip_accelerometer",
+         "strain_gauge", "tip_position")
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """One sensor; ``target`` is a joint name (encoders, torque) or a link name (gauge)."""
+
+    name: str
+    kind: str
+    target: str = ""
+    noise: float = 0.0
+    bias: float = 0.0
+    resolution: float = 0.0
+    delay: float = 0.0
+    position: float = 0.0
+    surface_distance: float = 0.0
+
+    @staticmethod
+    def parse(f: Fields, joint_names, link_names) -> "Sensor":
+        kind = f.string("kind", choices=list(KINDS))
+        target = ""
+        if kind in ("joint_encoder", "motor_encoder", "joint_torque"):
+            target = f.string("joint", choices=list(joint_names))
+        elif kind == "strain_gauge":
+            target = f.string("link", choices=list(link_names))
+        sensor = Sensor(
+            name=f.string("name", f"{target or 'arm'}/{kind}"), kind=kind, target=target,
+            noise=f.number("noise", 0.0, nonnegative=True),
+            bias=f.number("bias", 0.0), resolution=f.number("resolution", 0.0,
+                                                            nonnegative=True),
+            delay=f.number("delay", 0.0, nonnegative=True, unit="s"),
+            position=f.number("position", 0.0, nonnegative=True, unit="m"),
+            surface_distance=f.number("surface_distance", 0.0, nonnegative=True, unit="m"))
+        f.done()
+        return sensor
+
+
+def true_signal(sensor: Sensor, result) -> np.ndarray:
+    """The noiseless, undelayed signal of a sensor along a SimulationResult (N, k)."""
+    model = result.model
+    joints = model.arm.joint_names
+    if sensor.kind == "joint_encoder":
+        return result.joint_angles[:, [joints.index(sensor.target)]]
+    if sensor.kind == "motor_encoder":
+        i = joints.index(sensor.target)
+        return (result.q @ model.Ga[i] * model.joint_data[i, 15])[:, None]
+    if sensor.kind == "joint_torque":
+        i = joints.index(sensor.target)
+        jd = model.joint_data[i]
+        if np.isfinite(jd[0]):  # elastic: the spring carries the torque to the link
+            return np.array([_spring_torque(model, i, q, v)
+                             for q, v in zip(result.q, result.v)])[:, None]
+        return result.tau[:, [i]]
+    if sensor.kind == "tip_position":
+        return result.tip_xy
+    if sensor.kind == "tip_accelerometer":
+        return tip_specific_force(result)
+    if sensor.kind == "strain_gauge":
+        i = [lk.name for lk in model.arm.links].index(sensor.target)
+        curv = model.bases[i].curvature_matrix([sensor.position])[0]
+        return -sensor.surface_distance * (result.q[:, model.flex_slice(i)] @ curv)[:, None]
+    raise ValueError(f"sensor kind: got {sensor.kind!r}; expected one of {', '.join(KINDS)}")
+
+
+def _spring_torque(model, i, q, v) -> float:
+    from .integrators import dead_zone
+    jd = model.joint_data[i]
+    d = model.Ga[i] - model.G[i]
+    x, xd = d @ q, d @ v
+    if jd[2] > 0:
+        dz, slope = dead_zone(x, jd[2], jd[3])
+        return jd[0] * dz + jd[1] * slope * xd
+    return jd[0] * x + jd[1] * xd
+
+
+def tip_specific_force(result) -> np.ndarray:
+    """a_tip - g of the arm's end in the tip frame (N, 2): J a + (dJ/dq v) v, rotated."""
+    model = result.model
+    out = np.empty((len(result.t), 2))
+    E = result.inputs
+    for k, (t, q, v) in enumerate(zip(result.t, result.q, result.v)):
+        E[8][:] = result.u[k]
+        a = derivative(t, np.concatenate([q, v]), model.P, E)[model.nq:]
+        h = 1e-6 / max(1.0, np.max(np.abs(v)))
+        jdot_v = (model.tip_jacobian(q + h * v) - model.tip_jacobian(q - h * v)) @ v / (2 * h)
+        acc = model.tip_jacobian(q) @ a + jdot_v - model.gravity
+        phi = model.tip_pose(q)[2]
+        c, s = np.cos(phi), np.sin(phi)
+        out[k] = [c * acc[0] + s * acc[1], -s * acc[0] + c * acc[1]]
+    return out
+
+
+def measure(sensor: Sensor, result, seed: int = 0):
+    """(t, y): the measured signal of ``sensor`` along a simulation result."""
+    x = true_signal(sensor, result)
+    t = result.t
+    if sensor.delay > 0:
+        x = np.column_stack([np.interp(t - sensor.delay, t, col, left=col[0]) for col in x.T])
+    y = x + sensor.bias
+    if sensor.noise > 0:
+        y = y + np.random.default_rng(seed).normal(0.0, sensor.noise, size=y.shape)
+    if sensor.resolution > 0:
+        y = np.round(y / sensor.resolution) * sensor.resolution
+    return t, y

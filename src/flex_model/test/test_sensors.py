@@ -1,0 +1,97 @@
+"""Sensors: zero noise is the truth, bias shifts, delay is late, quantisation rounds; the
+accelerometer and the strain gauge against closed forms."""
+import numpy as np
+import pytest
+
+from flex_model.arm import arm_from_dict, load_arm
+from flex_model.dynamics import FlexArmModel
+from flex_model.sensors import Sensor, measure, true_signal
+from flex_model.simulate import JointPD, Pulse, simulate
+from flex_model.statics import TipLoad, static_equilibrium
+
+
+@pytest.fixture(scope="module")
+def run():
+    model = FlexArmModel(load_arm("thesis_example1", 4))
+    th0 = np.array([0.2, -0.3])
+    res = simulate(model, model.q_from_joint_angles([0.0, 0.0]), t_final=0.5,
+                   sample_period=1e-3, pd=JointPD([300.0, 100.0], [10.0, 5.0], th0),
+                   rtol=1e-10)
+    return res
+
+
+def test_encoder_without_noise_is_the_truth_and_bias_shifts(run):
+    t, y = measure(Sensor("e", "joint_encoder", "joint2"), run)
+    np.testing.assert_array_equal(y[:, 0], run.joint_angles[:, 1])
+    t, yb = measure(Sensor("e", "joint_encoder", "joint2", bias=0.01), run)
+    np.testing.assert_allclose(yb - y, 0.01, rtol=1e-12)
+
+
+def test_delay_returns_the_signal_late(run):
+    t, y = measure(Sensor("e", "joint_encoder", "joint1", delay=0.02), run)
+    k = int(round(0.02 / 1e-3))
+    np.testing.assert_allclose(y[k:, 0], run.joint_angles[:-k, 0], rtol=1e-12, atol=1e-15)
+
+
+def test_quantisation_and_noise(run):
+    t, y = measure(Sensor("e", "joint_encoder", "joint1", resolution=2 * np.pi / 4096), run)
+    steps = y[:, 0] / (2 * np.pi / 4096)
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-9)
+    assert np.max(np.abs(y[:, 0] - run.joint_angles[:, 0])) <= np.pi / 4096 + 1e-15
+    t, yn = measure(Sensor("e", "joint_encoder", "joint1", noise=1e-3), run, seed=4)
+    r = yn[:, 0] - run.joint_angles[:, 0]
+    assert np.std(r) == pytest.approx(1e-3, rel=0.1) and abs(np.mean(r)) < 2e-4
+
+
+def test_accelerometer_reads_minus_gravity_at_rest_and_centripetal_when_spinning():
+    arm = arm_from_dict({"name": "stiff", "links": [{"length": 0.5, "section": {
+        "shape": "explicit", "EI": 1e6, "m": 1.0}}], "gravity": [0.0, -9.81]})
+    model = FlexArmModel(arm)
+    q0 = static_equilibrium(model, joints="pd", kp=1e9).q  # balanced: truly at rest
+    res = simulate(model, q0, t_final=0.01, sample_period=1e-3,
+                   pd=JointPD([1e9], [0.0], [0.0]), method="fixed", dt=1e-4)
+    f = true_signal(Sensor("a", "tip_accelerometer"), res)
+    phi = model.tip_pose(q0)[2]  # the tip tangent of the sagging link
+    np.testing.assert_allclose(f[-1], [9.81 * np.sin(phi), 9.81 * np.cos(phi)], atol=1e-9)
+    spin = FlexArmModel(arm.without_gravity())
+    w = 3.0
+    res = simulate(spin, np.zeros(spin.nq), spin.v_from_joint_rates([w]), t_final=0.02,
+                   sample_period=1e-3, method="fixed", dt=1e-5)
+    f = true_signal(Sensor("a", "tip_accelerometer"), res)
+    # centripetal acceleration w^2 (L - u) towards the joint; the stiff link barely bends
+    np.testing.assert_allclose(f[:, 0], -w * w * 0.5, rtol=1e-4)
+
+
+def test_strain_gauge_of_a_cantilever_under_a_tip_force():
+    """epsilon(z) = -c F (L - z) / EI for a tip force F (Euler-Bernoulli, exact)."""
+    arm = load_arm("thesis_example1", 4).without_gravity()
+    model = FlexArmModel(arm)
+    F = 2.0
+    r = static_equilibrium(model, joints="clamped", load=TipLoad(force=(0.0, F)), linear=True)
+    res = simulate(model, r.q, t_final=0.002, sample_period=1e-3,
+                   pulses=[Pulse(0.0, 1.0, (), (0.0, F))], pd=JointPD([1e12, 1e12], [0, 0],
+                                                                     [0, 0]),
+                   method="fixed", dt=1e-6)
+    ei = arm.links[1].segments[0].properties(0.0)[0]
+    c = 0.01
+    eps = true_signal(Sensor("g", "strain_gauge", "link2", position=0.7,
+                             surface_distance=c), res)
+    assert eps[0, 0] == pytest.approx(-c * F * (2.0 - 0.7) / ei, rel=1e-8)
+    eps1 = true_signal(Sensor("g", "strain_gauge", "link1", position=0.3,
+                              surface_distance=c), res)
+    assert eps1[0, 0] == pytest.approx(-c * F * (4.0 - 0.3) / ei, rel=1e-8)
+
+
+def test_sensors_in_the_arm_description():
+    data = {"name": "s", "links": [{"length": 1.0, "section": {"shape": "explicit",
+                                                               "EI": 1.0, "m": 1.0}}],
+            "sensors": [{"kind": "joint_encoder", "joint": "joint1", "resolution": 0.001},
+                        {"kind": "strain_gauge", "link": "link1", "position": 0.2,
+                         "surface_distance": 0.005}]}
+    arm = arm_from_dict(data, "arm.yaml")
+    assert [s.kind for s in arm.sensors] == ["joint_encoder", "strain_gauge"]
+    assert arm.sensors[0].resolution == 0.001 and arm.sensors[1].name == "link1/strain_gauge"
+    data["sensors"][0]["joint"] = "joint7"
+    from flex_model.config import ConfigError
+    with pytest.raises(ConfigError, match=r"arm.yaml: sensors\[0\].joint: got 'joint7'"):
+        arm_from_dict(data, "arm.yaml")
