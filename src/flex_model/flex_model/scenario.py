@@ -20,6 +20,8 @@ Example (shipped as preset ``thesis_three_link_pd``)::
       - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}
     tip_loads:                        # tip force (N, base frame) / torque (N m) on [start, end)
       - {force: [0.0, -10.0], torque: 0.0, start: 0.0, end: 1.0}
+    payload_changes:                  # pick and place: the tip payload from a time on
+      - {time: 2.0, mass: 0.5, inertia: 0.001}
     integrator: {method: variable, rtol: 1.0e-7}   # or {method: fixed, step: 1.0e-4}
 """
 from __future__ import annotations
@@ -56,6 +58,7 @@ class Scenario:
     rtol: float
     step: float | None
     source: str
+    payload_changes: tuple = ()
 
     def model(self) -> FlexArmModel:
         return FlexArmModel(self.arm)
@@ -83,7 +86,8 @@ class Scenario:
                                  for j in range(torques.shape[1])])
         return simulate(model, q0, v0, t_final=self.duration, sample_period=self.sample_period,
                         pd=self.pd, pulses=self.pulses, policy=policy, method=self.method,
-                        rtol=self.rtol, dt=self.step, progress=progress)
+                        rtol=self.rtol, dt=self.step, payload_changes=self.payload_changes,
+                        progress=progress)
 
 
 def scenario_names() -> list[str]:
@@ -183,6 +187,13 @@ def load_scenario(name_or_path, vars_per_link: int | None = None) -> Scenario:
             raise lf.error("end", end, f"a time after start ({start} s)")
         lf.done()
         pulses.append(Pulse(start, end, (), force, torque))
+    changes = []
+    for k, raw in enumerate(f.items("payload_changes", [])):
+        cf = Fields(raw, src, f"payload_changes[{k}]")
+        changes.append((cf.number("time", nonnegative=True, unit="s"),
+                        cf.number("mass", nonnegative=True, unit="kg"),
+                        cf.number("inertia", 0.0, nonnegative=True, unit="kg m^2")))
+        cf.done()
     integ = f.mapping("integrator", {})
     method = integ.string("method", "variable", choices=["variable", "fixed"])
     rtol = integ.number("rtol", 1e-7, positive=True, max_value=1e-2)
@@ -192,4 +203,4 @@ def load_scenario(name_or_path, vars_per_link: int | None = None) -> Scenario:
     return Scenario(name=name, arm=arm, duration=duration, sample_period=sample,
                     theta0=theta0, dtheta0=dtheta0, start_static=start_static, pd=pd,
                     torque_table=table, pulses=pulses, method=method, rtol=rtol, step=step,
-                    source=src)
+                    source=src, payload_changes=tuple(changes))

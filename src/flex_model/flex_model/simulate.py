@@ -19,6 +19,7 @@ Accuracy
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -147,12 +148,15 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
              pd: JointPD | None = None, pulses=(), policy: Callable | None = None,
              control_period: float | None = None, method: str = "variable",
              rtol: float = 1e-8, atol=None, dt: float | None = None, rho_inf: float = 0.9,
-             progress: Callable | None = None) -> SimulationResult:
+             payload_changes=(), progress: Callable | None = None) -> SimulationResult:
     """Integrate the arm from (q0, v0) over [0, t_final], sampling every ``sample_period``.
 
     ``policy(t, x) -> tau`` (N m per joint) adds to the built-in PD and pulses, held for
-    ``control_period`` (default: ``sample_period``). ``progress(t, t_final)`` is called as
-    the run advances. Raises :class:`SimulationDivergedError` naming the time and variable.
+    ``control_period`` (default: ``sample_period``), and delayed per joint by the arm's
+    ``actuator_delay`` effects. ``payload_changes``: (time, mass, inertia) triples, a pick
+    (the payload's momentum, zero, joins the arm's: B v is conserved) or a place (the arm
+    keeps its velocity). ``progress(t, t_final)`` is called as the run advances. Raises
+    :class:`SimulationDivergedError` naming the time and variable.
     """
     if method not in ("variable", "fixed"):
         raise ValueError(f"method: got {method!r}; expected 'variable' or 'fixed'")
@@ -160,6 +164,12 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
         raise ValueError(f"t_final and sample_period must be > 0 (got {t_final}, "
                          f"{sample_period})")
     nq, nl = model.nq, model.n_links
+    if payload_changes:
+        model = copy.copy(model)  # the caller's model keeps its payload
+    delays = np.array([getattr(model.arm.effect("actuator_delay", j), "values", (0.0,))[0]
+                       for j in model.arm.joint_names])
+    if policy is not None and np.any(delays > 0):
+        policy = _delayed(policy, delays, nl)
     q0 = np.asarray(q0, float)
     v0 = np.zeros(nq) if v0 is None else np.asarray(v0, float)
     x0 = np.concatenate([q0, v0])
@@ -169,8 +179,10 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
     t_samples = np.arange(n_samples) * sample_period
     control_period = (control_period or sample_period) if policy is not None else None
     run = _run_fixed if method == "fixed" else _run_variable
+    changes = sorted((float(t), float(m), float(j)) for t, m, j in payload_changes)
     X, U, stats = run(model, x0, E, u, t_samples, policy, control_period, pulses,
-                      rtol=rtol, atol=atol, dt=dt, rho_inf=rho_inf, progress=progress)
+                      rtol=rtol, atol=atol, dt=dt, rho_inf=rho_inf, progress=progress,
+                      changes=changes)
     q = X[:, :nq]
     v = X[:, nq:]
     tau = np.empty((n_samples, nl))
@@ -182,8 +194,36 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
                             inputs=E)
 
 
+def _delayed(policy, delays, nl):
+    """Wrap a policy so that joint j applies the command issued delays[j] earlier."""
+    history = []
+
+    def delayed(t, x):
+        history.append((t, np.asarray(policy(t, x), float).reshape(nl)))
+        out = np.zeros(nl)
+        for j in range(nl):
+            for tk, cmd in reversed(history):
+                if tk <= t - delays[j] + 1e-12:
+                    out[j] = cmd[j]
+                    break
+        return out
+    return delayed
+
+
+def _apply_payload_change(model, x, mass, inertia):
+    """Change the payload at state x; a heavier payload is picked up at rest (B v kept)."""
+    n = model.nq
+    q, v = x[:n], x[n:]
+    B_old = model.mass_matrix(q)
+    old = model.payload
+    model.set_payload(mass, inertia)
+    if mass > old[0] or inertia > old[1]:
+        v = np.linalg.solve(model.mass_matrix(q), B_old @ v)
+    return np.concatenate([q, v])
+
+
 def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, rtol, atol,
-                  progress, **_):
+                  progress, changes, **_):
     """Dormand-Prince between breakpoints (pulse edges, control instants, progress marks)."""
     nq = model.nq
     t_final = t_samples[-1]
@@ -194,6 +234,7 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
     edges = {float(t) for t in instants}
     for p in pulses:
         edges.update(t for t in (p.start, p.end) if 0.0 < t < t_final)
+    edges.update(c[0] for c in changes if 0.0 <= c[0] < t_final)
     edges = np.array(sorted(edges | {float(t_final)}))
     if atol is None:
         atol = np.concatenate([np.full(nq, 1e-3 * rtol), np.full(nq, 1e-2 * rtol)])
@@ -206,6 +247,9 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
     for t_end in edges:
         if t_end <= t:
             continue
+        for c in changes:
+            if abs(c[0] - t) < 1e-12:
+                x = _apply_payload_change(model, x, c[1], c[2])
         if policy is not None and np.any(np.isclose(instants, t)):
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
             if t == 0.0:
@@ -234,7 +278,7 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
 
 
 def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt, rho_inf,
-               progress, **_):
+               progress, changes, **_):
     """Generalized-alpha on a step grid that divides the sample period."""
     sample_period = t_samples[1] - t_samples[0] if len(t_samples) > 1 else t_samples[-1]
     per_sample = max(1, int(np.ceil(sample_period / (dt or 1e-3) - 1e-9)))
@@ -249,12 +293,16 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
     # inside its acceleration history would cost an O(h) error
     restarts = {int(round(t / h)) for p in pulses for t in (p.start, p.end)
                 if 0 < round(t / h) < n_total}
+    pick = {int(round(c[0] / h)): c for c in changes if 0 <= round(c[0] / h) < n_total}
+    restarts |= set(pick)
     step = 0
     iters = 0
     while step < n_total:
         m = min(chunk - step % chunk, n_total - step,
                 min([r - step for r in restarts if r > step], default=n_total))
         t = step * h
+        if step in pick:
+            x = _apply_payload_change(model, x, pick[step][1], pick[step][2])
         if step % chunk == 0 and policy is not None:
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
             if step == 0:

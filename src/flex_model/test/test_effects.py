@@ -6,7 +6,7 @@ from scipy.integrate import cumulative_simpson
 from flex_model.arm import arm_from_dict, load_arm
 from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_model.effects import (EFFECT_TYPES, Backlash, BaseTilt, Cogging, ContactSurface,
+from flex_model.effects import (EFFECT_TYPES, ActuatorDelay, Backlash, BaseTilt, Cogging, ContactSurface,
                                 DCMotor, Gear, JointElasticity, JointFriction,
                                 StructuralDamping, TorqueSaturation)
 from flex_model.modes import natural_modes
@@ -144,7 +144,7 @@ def base_dict():
 
 
 @pytest.mark.parametrize("raw, path, allowed", [
-    ({"type": "magic"}, "effects[0].type", "one of backlash, base_tilt, cogging, contact_surface"),
+    ({"type": "magic"}, "effects[0].type", "one of actuator_delay, backlash, base_tilt, cogging"),
     ({"type": "gear", "joint": "joint9", "ratio": 5}, "effects[0].joint", "one of joint1"),
     ({"type": "gear", "joint": "joint1", "ratio": -5}, "effects[0].ratio", ">= 0.001"),
     ({"type": "gear", "joint": "joint1", "torque": 5}, "effects[0].torque", "no such field"),
@@ -271,3 +271,37 @@ def test_cogging_torque_is_periodic_in_the_motor_angle():
         q = model.q_from_joint_angles([th])
         assert model.joint_forces(q)[0] == pytest.approx(amp * np.sin(periods * n * th + 0.3),
                                                          rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("method", ["variable", "fixed"])
+def test_payload_pick_conserves_momentum_and_place_keeps_velocity(method):
+    model = FlexArmModel(stiff_link(ei=1e4))
+    v0 = model.v_from_joint_rates([2.0])
+    res = simulate(model, np.zeros(model.nq), v0, t_final=0.2, sample_period=1e-3,
+                   payload_changes=[(0.05, 0.5, 0.01), (0.15, 0.0, 0.0)], method=method,
+                   rtol=1e-10, dt=1e-4)
+    assert model.payload == (0.0, 0.0)  # the caller's model is untouched
+    jl = 2.0 / 3.0
+    held = model.__class__(model.arm)
+    held.set_payload(0.5, 0.01)
+
+    def momentum(m, k):  # angular momentum about the joint: the momentum of alpha_1
+        return (m.mass_matrix(res.q[k]) @ res.v[k])[0]
+
+    # no gravity, no torque: conserved, and through the pick (payload picked at rest);
+    # generalized-alpha conserves it to its (second-order) accuracy
+    rel = 1e-9 if method == "variable" else 1e-6
+    assert momentum(model, 40) == pytest.approx(2.0 * jl, rel=rel)
+    assert momentum(held, 100) == pytest.approx(2.0 * jl, rel=rel)
+    assert momentum(held, 150) == pytest.approx(2.0 * jl, rel=rel)
+    # the place: the payload leaves with its own momentum, the arm keeps its velocity
+    assert momentum(model, 190) == pytest.approx(momentum(model, 150), rel=rel)
+
+
+def test_actuator_delay_applies_commands_late():
+    model = FlexArmModel(stiff_link().with_effects(effect(ActuatorDelay, "joint1",
+                                                          delay=0.02)))
+    res = simulate(model, np.zeros(model.nq), t_final=0.05, sample_period=1e-3,
+                   policy=lambda t, x: [1.0], control_period=1e-3, method="fixed", dt=1e-4)
+    np.testing.assert_allclose(res.tau[:20, 0], 0.0)   # a sample holds the torque that
+    np.testing.assert_allclose(res.tau[21:, 0], 1.0)   # acted up to it (left limit)

@@ -5,6 +5,7 @@ from ..config import Fields
 from .base import NOMINAL_TOLERANCES, Effect, Parameter
 from .base_tilt import BaseTilt
 from .contact import ContactSurface
+from .delay import ActuatorDelay
 from .friction import JointFriction
 from .gear import Gear
 from .joint_elasticity import Backlash, JointElasticity
@@ -14,10 +15,10 @@ from .structural_damping import StructuralDamping
 
 EFFECT_TYPES = {cls.TYPE: cls for cls in (Gear, JointElasticity, Backlash, JointFriction,
                                           DCMotor, Cogging, StructuralDamping, BaseTilt,
-                                          TorqueSaturation, ContactSurface)}
+                                          TorqueSaturation, ContactSurface, ActuatorDelay)}
 
 __all__ = ["EFFECT_TYPES", "NOMINAL_TOLERANCES", "Effect", "Parameter", "parse_effects",
-           "Backlash", "BaseTilt", "Cogging", "ContactSurface", "DCMotor", "Gear",
+           "ActuatorDelay", "Backlash", "BaseTilt", "Cogging", "ContactSurface", "DCMotor", "Gear",
            "JointElasticity", "JointFriction", "StructuralDamping", "TorqueSaturation"]
 
 
