@@ -9,6 +9,10 @@ for variable EI they are built from the moments ``G_p(s) = int_0^s t^p / EI dt``
     w(s) = c0 + c1 s + c2 F1(s) + c3 F2(s),   F1 = s G0 - G1,   F2 = s G1 - G2,
     w''(s) = (c2 + c3 s) / EI(s).
 
+For a Timoshenko link (thesis Eq. 4) the section rotation psi = c1 + c2 G0 + c3 G1 is the
+nodal variable and the shear force V = -c3 adds w' = psi - c3 chi/GA, so F2 gains
+-H(s) = -int_0^s chi/GA dt and K the shear energy c3^2 H(h).
+
 The root of the link is clamped to its rigid frame (d(0) = d'(0) = 0: alpha is the root
 tangent), so the deformation variables are ``q_f = [delta_1, gamma_1, ..., delta_n,
 gamma_n]`` (thesis Eq. 12): deflection and rotation at the interval end points.
@@ -39,10 +43,17 @@ def _gauss(a, b):
 
 
 class _Element:
-    """One interval [a, b] of a link: quadrature grid and the moments of 1/EI."""
+    """One interval [a, b] of a link: quadrature grid and the moments of 1/EI.
 
-    def __init__(self, profile: SectionProfile, a: float, b: float):
+    With ``shear`` (Timoshenko, thesis Eq. 4) the shear compliance chi/GA of the profile (or
+    1/``shear_stiffness`` when given) enters the static solution as a fourth moment
+    H(s) = int_0^s chi/GA dt.
+    """
+
+    def __init__(self, profile: SectionProfile, a: float, b: float, shear: bool = False,
+                 shear_stiffness: float | None = None):
         self.profile, self.a, self.b = profile, a, b
+        self.shear, self.shear_stiffness = shear, shear_stiffness
         self.h = b - a
         # smooth pieces of [a, b], each cut into equal sub-intervals
         cuts = [a] + [z for z in profile.breaks[1:-1] if a < z < b] + [b]
@@ -55,8 +66,8 @@ class _Element:
         self.sub_lo = np.array([s[0] for s in sub])
         self.sub_hi = np.array([s[1] for s in sub])
         # full integrals of s^p / EI over each sub-interval, cumulated
-        full = np.array([self._moments_on(e0, e1, k) for e0, e1, k in sub])  # (nsub, 3)
-        self.cum = np.vstack([np.zeros(3), np.cumsum(full, axis=0)])
+        full = np.array([self._moments_on(e0, e1, k) for e0, e1, k in sub])  # (nsub, 4)
+        self.cum = np.vstack([np.zeros(4), np.cumsum(full, axis=0)])
         # quadrature grid for the element integrals
         zq, wq, props = [], [], []
         for e0, e1, k in sub:
@@ -76,15 +87,23 @@ class _Element:
         return int(np.clip(np.searchsorted(self.profile.breaks, z, side="right") - 1, 0,
                            len(self.profile.segments) - 1))
 
+    def _compliance(self, ei, ga):
+        if not self.shear:
+            return np.zeros_like(ei)
+        if self.shear_stiffness is not None:
+            return np.full_like(ei, 1.0 / self.shear_stiffness)
+        return 1.0 / ga
+
     def _moments_on(self, z0, z1, k):
-        """int_{z0}^{z1} (z - a)^p / EI(z) dz for p = 0, 1, 2 (with segment k's law)."""
+        """int_{z0}^{z1} (z - a)^p / EI(z) dz for p = 0, 1, 2 and int chi/GA dz."""
         z, w = _gauss(z0, z1)
-        ei = self.profile.property_on_piece(k, z)[0]
+        ei, _, ga = self.profile.property_on_piece(k, z)
         s = z - self.a
-        return np.array([np.sum(w / ei), np.sum(w * s / ei), np.sum(w * s * s / ei)])
+        return np.array([np.sum(w / ei), np.sum(w * s / ei), np.sum(w * s * s / ei),
+                         np.sum(w * self._compliance(ei, ga))])
 
     def moments(self, z):
-        """G_p(z - a), p = 0, 1, 2, at points z in [a, b]: array (len(z), 3)."""
+        """G_p(z - a), p = 0, 1, 2, and H(z - a) at points z in [a, b]: (len(z), 4)."""
         z = np.clip(np.atleast_1d(np.asarray(z, dtype=float)), self.a, self.b)
         j = np.clip(np.searchsorted(self.sub_hi, z, side="left"), 0, len(self.sub) - 1)
         out = self.cum[j].copy()
@@ -92,20 +111,22 @@ class _Element:
         nodes, weights = _gauss(lo, z)  # (len(z), ng)
         for i in range(len(z)):
             k = self.sub[j[i]][2]
-            ei = self.profile.property_on_piece(k, nodes[i])[0]
+            ei, _, ga = self.profile.property_on_piece(k, nodes[i])
             s = nodes[i] - self.a
             out[i] += [np.sum(weights[i] / ei), np.sum(weights[i] * s / ei),
-                       np.sum(weights[i] * s * s / ei)]
+                       np.sum(weights[i] * s * s / ei),
+                       np.sum(weights[i] * self._compliance(ei, ga))]
         return out
 
     def coefficients(self):
         """c (4 x 4): column j gives c0..c3 of the shape function with unit end value j.
 
-        End values ordered (w(a), w'(a), w(b), w'(b)).
+        End values ordered (w(a), psi(a), w(b), psi(b)), psi the rotation of the section
+        (= w' without shear).
         """
-        g0, g1, g2 = self.mu
+        g0, g1, g2, hh = self.mu
         h = self.h
-        f1, f2 = h * g0 - g1, h * g1 - g2
+        f1, f2 = h * g0 - g1, h * g1 - g2 - hh
         mat = np.array([[f1, f2], [g0, g1]])
         c = np.zeros((4, 4))
         for j in range(4):
@@ -116,15 +137,19 @@ class _Element:
             c[2:, j] = np.linalg.solve(mat, rhs)
         return c
 
-    def shape(self, z, c):
-        """Values, slopes (and curvatures) of the 4 shape functions at points z: (len(z), 4)."""
+    def shape(self, z, c, rotation: bool = False):
+        """Values and slopes w' of the 4 shape functions at points z: (len(z), 4) each; with
+        ``rotation`` the section rotations psi = w' + c3 chi/GA instead of the slopes."""
         z = np.atleast_1d(np.asarray(z, dtype=float))
         g = self.moments(z)
         s = z - self.a
         f1 = s * g[:, 0] - g[:, 1]
-        f2 = s * g[:, 1] - g[:, 2]
+        f2 = s * g[:, 1] - g[:, 2] - g[:, 3]
         basis = np.stack([np.ones_like(s), s, f1, f2], axis=1)
         dbasis = np.stack([np.zeros_like(s), np.ones_like(s), g[:, 0], g[:, 1]], axis=1)
+        if not rotation and self.shear:  # w' = psi + V chi/GA, shear force V = -c3
+            ei, _, ga = self.profile.properties(z)
+            dbasis[:, 3] -= self._compliance(ei, ga)
         return basis @ c, dbasis @ c
 
 
@@ -151,6 +176,9 @@ class LinkBasis:
     S1: np.ndarray
     elements: tuple
     coeffs: tuple
+    rot_inertia: float = 0.0          # int rho I dz (kg m), Timoshenko rotary inertia
+    rot_coupling: np.ndarray = None   # int rho I psi dz
+    rot_matrix: np.ndarray = None     # int rho I psi psi^T dz
 
     @property
     def n_vars(self) -> int:
@@ -247,11 +275,15 @@ def _element_dofs(e: int):
     return [base, base + 1, base + 2, base + 3], [0, 1, 2, 3]
 
 
-def link_basis(profile: SectionProfile, n_intervals: int, nodes=None) -> LinkBasis:
+def link_basis(profile: SectionProfile, n_intervals: int, nodes=None, shear: bool = False,
+               shear_stiffness: float | None = None, rho_over_e: float = 0.0) -> LinkBasis:
     """Build the wavelet basis of a link with ``n_intervals`` intervals (2 n variables).
 
     ``nodes`` optionally gives the partition points (0 = z_0 < ... < z_n = L); by default
-    the partition is uniform (thesis Eq. 5).
+    the partition is uniform (thesis Eq. 5). ``shear`` builds the Timoshenko wavelets
+    (static solutions of thesis Eq. 4, shear energy of Remark 3 in K, rotary inertia
+    rho I = (rho/E) EI in rot_*); the deformation variables are then the deflection and
+    the section rotation at the interval ends.
     """
     length = profile.length
     if nodes is None:
@@ -265,8 +297,11 @@ def link_basis(profile: SectionProfile, n_intervals: int, nodes=None) -> LinkBas
     k = np.zeros(n)
     mass = first = second = 0.0
     elements, coeffs = [], []
+    r_in = 0.0
+    r_c = np.zeros(n)
+    r_m = np.zeros((n, n))
     for e in range(n_intervals):
-        el = _Element(profile, nodes[e], nodes[e + 1])
+        el = _Element(profile, nodes[e], nodes[e + 1], shear, shear_stiffness)
         c = el.coefficients()
         zq, wq, mq = el.zq, el.wq, el.m_q
         vals, slopes = el.shape(zq, c)
@@ -278,11 +313,17 @@ def link_basis(profile: SectionProfile, n_intervals: int, nodes=None) -> LinkBas
         S1[ix] += (s * wq[:, None]).T @ s
         h[cols] += (wq * mq) @ v
         k[cols] += (wq * mq * zq) @ v
-        # stiffness from the moments of 1/EI: w'' = (c2 + c3 s)/EI
-        g0, g1, g2 = el.mu
+        # stiffness from the moments of 1/EI: EI psi' = c2 + c3 s; shear force V = c3
+        g0, g1, g2, hh = el.mu
         c2, c3 = c[2, keep], c[3, keep]
         K[ix] += (np.outer(c2, c2) * g0 + (np.outer(c2, c3) + np.outer(c3, c2)) * g1
-                  + np.outer(c3, c3) * g2)
+                  + np.outer(c3, c3) * (g2 + hh))
+        if shear and rho_over_e > 0:
+            rho_i = rho_over_e * el.ei_q * wq
+            psi = el.shape(zq, c, rotation=True)[1][:, keep]
+            r_in += np.sum(rho_i)
+            r_c[cols] += rho_i @ psi
+            r_m[ix] += (psi * rho_i[:, None]).T @ psi
         mass += np.sum(wq * mq)
         first += np.sum(wq * mq * zq)
         second += np.sum(wq * mq * zq * zq)
@@ -291,4 +332,5 @@ def link_basis(profile: SectionProfile, n_intervals: int, nodes=None) -> LinkBas
     sym = lambda a: 0.5 * (a + a.T)  # noqa: E731
     return LinkBasis(length=length, nodes=nodes, mass=mass, first_moment=first,
                      second_moment=second, Bw=sym(Bw), h=h, k=k, K=sym(K), S1=sym(S1),
-                     elements=tuple(elements), coeffs=tuple(coeffs))
+                     elements=tuple(elements), coeffs=tuple(coeffs), rot_inertia=r_in,
+                     rot_coupling=r_c, rot_matrix=sym(r_m))

@@ -13,6 +13,7 @@ The joint angle an encoder sees is ``theta_i = alpha_i - alpha_{i-1} - gamma_{i-
 from __future__ import annotations
 
 import copy
+import warnings
 
 import numpy as np
 
@@ -26,7 +27,7 @@ class FlexArmModel:
 
     def __init__(self, arm: ArmDescription):
         self.arm = arm
-        self.bases = [link_basis(lk.profile, lk.n_vars // 2) for lk in arm.links]
+        self.bases = [self._link_basis(lk) for lk in arm.links]
         self.nf = np.array([b.n_vars for b in self.bases], dtype=np.int64)
         self.off = np.concatenate([[0], np.cumsum(self.nf + 1)[:-1]]).astype(np.int64)
         self.n_links = len(self.bases)
@@ -65,6 +66,27 @@ class FlexArmModel:
         self.contact = np.zeros(7)
         self._apply_effects()
         self.set_payload(arm.payload_mass, arm.payload_inertia)
+
+    def _link_basis(self, lk):
+        """The wavelet basis of a link: Euler-Bernoulli, or Timoshenko with its effect."""
+        from .effects import slenderness
+        tim = self.arm.effect("timoshenko", lk.name)
+        if tim is None or tim.is_off:
+            beta = slenderness(lk)
+            if beta < 100:
+                warnings.warn(f"{self.arm.source}: {lk.name}: beta = G A L^2 / (chi E I) = "
+                              f"{beta:.3g} < 100: shear flexibility matters; add a "
+                              "'timoshenko' effect (thesis Remark 6)", stacklevel=3)
+            return link_basis(lk.profile, lk.n_vars // 2)
+        ga = tim["shear_stiffness"]
+        seg = lk.segments[0]
+        if np.isnan(ga) and not seg.G > 0:
+            raise ValueError(f"{self.arm.source}: effects: timoshenko on {lk.name}: no "
+                             "shear_stiffness and no material G to compute it from")
+        rho_over_e = seg.rho / seg.E if seg.E > 0 else 0.0
+        return link_basis(lk.profile, lk.n_vars // 2, shear=True,
+                          shear_stiffness=None if np.isnan(ga) else ga,
+                          rho_over_e=rho_over_e)
 
     #: columns of joint_data: spring (k, b, backlash, smoothing), friction (F_v, F_c, F_s,
     #: w_s, eps), DC motor (on, R, K_t, K_e, i_max, V_max), gear ratio n, cogging (A, N, phase)
@@ -116,6 +138,13 @@ class FlexArmModel:
                 self.torque_limit[i] = e["limit"]
             elif e.TYPE == "contact_surface":
                 self.contact = e.kernel_data()
+        for i, b in enumerate(self.bases):  # rotary inertia of Timoshenko links (Remark 3)
+            if b.rot_inertia:
+                idx = np.concatenate([[self.alpha_index(i)],
+                                      np.arange(self.nq)[self.flex_slice(i)]])
+                blk = np.block([[np.array([[b.rot_inertia]]), b.rot_coupling[None, :]],
+                                [b.rot_coupling[:, None], b.rot_matrix]])
+                self.B_const[np.ix_(idx, idx)] += blk
         self.joint_data = jd
 
     # ----------------------------------------------------------------- indexing

@@ -12,14 +12,17 @@ from .joint_elasticity import Backlash, JointElasticity
 from .motor import Cogging, DCMotor
 from .saturation import TorqueSaturation
 from .structural_damping import StructuralDamping
+from .timoshenko import Timoshenko, slenderness
 
 EFFECT_TYPES = {cls.TYPE: cls for cls in (Gear, JointElasticity, Backlash, JointFriction,
                                           DCMotor, Cogging, StructuralDamping, BaseTilt,
-                                          TorqueSaturation, ContactSurface, ActuatorDelay)}
+                                          TorqueSaturation, ContactSurface, ActuatorDelay,
+                                          Timoshenko)}
 
 __all__ = ["EFFECT_TYPES", "NOMINAL_TOLERANCES", "Effect", "Parameter", "parse_effects",
            "ActuatorDelay", "Backlash", "BaseTilt", "Cogging", "ContactSurface", "DCMotor", "Gear",
-           "JointElasticity", "JointFriction", "StructuralDamping", "TorqueSaturation"]
+           "JointElasticity", "JointFriction", "StructuralDamping", "Timoshenko",
+           "TorqueSaturation", "slenderness"]
 
 
 def parse_effects(items: list, source: str, joint_names, link_names) -> tuple:
