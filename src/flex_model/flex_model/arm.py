@@ -19,6 +19,7 @@ Example (the thesis Example 1 arm)::
       - {name: joint1, type: revolute}
     effects:                         # optional, see flex_model.effects
       - {type: gear, joint: joint1, ratio: 50, rotor_inertia: 0.002}
+    tolerances: {E: 0.05}            # optional: relative tolerances of nominal parameters
     sensors:                         # optional, see flex_model.sensors
       - {kind: joint_encoder, joint: joint1, resolution: 0.0015, noise: 0.0}
 
@@ -85,6 +86,12 @@ class ArmDescription:
     kinematics: str = "small_deflection"
     effects: tuple = ()
     sensors: tuple = ()
+    tolerances: tuple = ()      # (name, relative tolerance) overriding NOMINAL_TOLERANCES
+
+    def tolerance(self, name: str) -> float:
+        """Relative manufacturing tolerance of a nominal parameter (E, rho, section, ...)."""
+        from .effects import NOMINAL_TOLERANCES
+        return dict(self.tolerances).get(name, NOMINAL_TOLERANCES[name])
 
     def effect(self, kind: str, target: str = ""):
         """The effect of a type on a target (joint/link name), or None."""
@@ -232,6 +239,11 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
         raise f.error("joints", names, "unique joint names")
     from .effects import parse_effects
     effects = parse_effects(f.items("effects", []), source, names, [lk.name for lk in links])
+    from .effects import NOMINAL_TOLERANCES
+    tf = f.mapping("tolerances", {})
+    tolerances = tuple((k, tf.number(k, nonnegative=True, max_value=1.0))
+                       for k in NOMINAL_TOLERANCES if tf.has(k))
+    tf.done(list(NOMINAL_TOLERANCES))
     from .sensors import Sensor
     sensors = tuple(Sensor.parse(Fields(r, source, f"sensors[{k}]"), names,
                                  [lk.name for lk in links])
@@ -240,7 +252,7 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
     return ArmDescription(name=name, links=links, joints=tuple(joints), gravity=gravity,
                           payload_mass=payload_mass, payload_inertia=payload_inertia,
                           description=description, source=source, kinematics=kinematics,
-                          effects=effects, sensors=sensors)
+                          effects=effects, sensors=sensors, tolerances=tolerances)
 
 
 def preset_names() -> list[str]:

@@ -228,6 +228,25 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def cmd_effects(args) -> int:
+    """The effect library: parameters with units, off values, bounds, tolerances."""
+    from .effects import EFFECT_TYPES, NOMINAL_TOLERANCES
+    lib = {"effects": [cls.describe() for cls in EFFECT_TYPES.values()],
+           "nominal_tolerances": NOMINAL_TOLERANCES}
+    if args.json:
+        print(json.dumps(lib))
+        return 0
+    for e in lib["effects"]:
+        print(f"{e['type']} ({e['target']}): {e['description']}")
+        for p in e["parameters"]:
+            print(f"    {p['name']:20s} [{p['unit']}] off {p['off']:g}, bounds "
+                  f"{p['bounds'][0]:g}..{p['bounds'][1]:g}, tolerance {100 * p['tolerance']:g} %")
+        print("    cannot be told apart from: " + "; ".join(e["equivalent"]))
+    print("nominal parameter tolerances: " + ", ".join(
+        f"{k} {100 * v:g} %" for k, v in NOMINAL_TOLERANCES.items()))
+    return 0
+
+
 def cmd_presets(args) -> int:
     from .arm import load_arm, preset_names
     from .scenario import scenario_names
@@ -307,6 +326,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("demo", help="the model demo (section E scenario)")
     sim_args(sp)
     sp.set_defaults(func=cmd_demo)
+
+    sp = sub.add_parser("effects", help="the library of model effects and their parameters")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_effects)
 
     sp = sub.add_parser("presets", help="list arm and scenario presets")
     sp.add_argument("--json", action="store_true")

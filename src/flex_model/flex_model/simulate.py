@@ -82,6 +82,17 @@ class SimulationResult:
     def tip_xy(self) -> np.ndarray:
         return np.array([self.model.link_origins(q)[-1] for q in self.q])
 
+    @property
+    def contact_forces(self) -> np.ndarray:
+        """(n_samples, 2): force of the contact surface on the tip (N, base frame)."""
+        return np.array([self.model.contact_force(q, v) for q, v in zip(self.q, self.v)])
+
+    @property
+    def motor_angles(self) -> np.ndarray:
+        """(n_samples, n_elastic_joints): motor coordinates of the elastic joints (rad,
+        link side)."""
+        return self.q[:, self.model.nq_arm:]
+
     def link_tips(self) -> np.ndarray:
         """(n_samples, n_links, 2): the tip of every link."""
         return np.array([self.model.link_origins(q)[1:] for q in self.q])
@@ -96,15 +107,22 @@ class SimulationResult:
         return self.q[:, [self.model.tip_rotation_index(i) for i in range(self.model.n_links)]]
 
     def table(self) -> tuple[list[str], np.ndarray]:
-        """Columns of the CSV output and the data (SI units, rad)."""
+        """Columns of the CSV output and the data (SI units, rad); motor angles ``qm<i>``
+        of elastic joints and the contact force follow when the arm has them."""
         nl = self.model.n_links
         names = (["t"] + [f"q{i + 1}" for i in range(nl)] + [f"v{i + 1}" for i in range(nl)]
                  + [f"tau{i + 1}" for i in range(nl)] + ["tip_x", "tip_y"]
                  + [f"link{i + 1}_tip_deflection" for i in range(nl)]
                  + [f"link{i + 1}_tip_rotation" for i in range(nl)])
-        data = np.column_stack([self.t, self.joint_angles, self.joint_rates, self.tau,
-                                self.tip_xy, self.tip_deflections, self.tip_rotations])
-        return names, data
+        cols = [self.t, self.joint_angles, self.joint_rates, self.tau, self.tip_xy,
+                self.tip_deflections, self.tip_rotations]
+        if self.model.elastic_joints:
+            names += [f"qm{i + 1}" for i in self.model.elastic_joints]
+            cols.append(self.motor_angles)
+        if self.model.contact[0] > 0:
+            names += ["contact_fx", "contact_fy"]
+            cols.append(self.contact_forces)
+        return names, np.column_stack(cols)
 
     def to_csv(self, path) -> None:
         names, data = self.table()

@@ -157,3 +157,16 @@ def test_modes_state_space_file_reproduces_frequencies(tmp_path, capsys):
     np.testing.assert_allclose(f, out["frequencies_hz"], rtol=1e-9)
     assert list(data["inputs"]) == ["tip/force_x", "tip/force_y", "tip/torque"]
     assert data["C"].shape[0] == len(data["outputs"]) == 2 + 3 + 2
+
+
+def test_effects_library_listing(capsys):
+    assert main(["effects", "--json"]) == 0
+    lib = json.loads(capsys.readouterr().out)
+    types = {e["type"]: e for e in lib["effects"]}
+    assert {"gear", "joint_elasticity", "joint_friction", "backlash", "dc_motor",
+            "structural_damping", "contact_surface", "timoshenko", "torque_saturation",
+            "actuator_delay", "base_tilt", "cogging"} <= set(types)
+    fr = {p["name"]: p for p in types["joint_friction"]["parameters"]}
+    assert fr["coulomb"]["unit"] == "N m" and fr["coulomb"]["off"] == 0.0
+    assert "Coulomb within Stribeck" in types["joint_friction"]["equivalent"]
+    assert lib["nominal_tolerances"]["E"] == 0.05

@@ -305,3 +305,28 @@ def test_actuator_delay_applies_commands_late():
                    policy=lambda t, x: [1.0], control_period=1e-3, method="fixed", dt=1e-4)
     np.testing.assert_allclose(res.tau[:20, 0], 0.0)   # a sample holds the torque that
     np.testing.assert_allclose(res.tau[21:, 0], 1.0)   # acted up to it (left limit)
+
+
+def test_contact_force_and_motor_angles_are_outputs(tmp_path):
+    arm = stiff_link(ei=1e4).with_effects(
+        effect(JointElasticity, "joint1", stiffness=100.0, motor_inertia=0.1),
+        effect(ContactSurface, x=0.0, y=-0.5, normal_angle=np.pi / 2, stiffness=1e4,
+               damping=10.0))
+    model = FlexArmModel(arm.__class__(**{**arm.__dict__, "gravity": (0.0, -9.81)}))
+    res = simulate(model, model.q_from_joint_angles([-0.4]), t_final=0.5, sample_period=0.01,
+                   method="fixed", dt=1e-3)
+    names, data = res.table()
+    assert names[-3:] == ["qm1", "contact_fx", "contact_fy"]
+    assert np.all(res.contact_forces[:, 1] >= 0) and res.contact_forces[:, 1].max() > 0
+    np.testing.assert_allclose(data[:, -3], res.motor_angles[:, 0])
+
+
+def test_arm_tolerances_override_the_defaults():
+    data = {"name": "t", "links": [{"length": 1.0, "section": {"shape": "explicit",
+                                                               "EI": 1.0, "m": 1.0}}],
+            "tolerances": {"E": 0.1}}
+    arm = arm_from_dict(data)
+    assert arm.tolerance("E") == 0.1 and arm.tolerance("rho") == 0.02
+    data["tolerances"] = {"Young": 0.1}
+    with pytest.raises(ConfigError, match=r"tolerances.Young: got 0.1; expected no such"):
+        arm_from_dict(data)
