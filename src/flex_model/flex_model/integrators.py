@@ -386,3 +386,14 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
             X[r] = x
             r += 1
     return X, 0, t, np.concatenate((q, v)), a, abar, iters
+
+
+# numba re-compiles a cached function when its own file changes, not when a compiled
+# function it calls from kernels.py does: flush these caches when kernels.py changes.
+def _guard_caches():
+    from . import kernels
+    from .numba_cache import guard
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")], [kernels.__file__])
+
+
+_guard_caches()
