@@ -334,6 +334,15 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("presets", help="list arm and scenario presets")
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_presets)
+    # subcommands of the other packages, when installed (imported here only, so that the
+    # core of flex_model never depends on them)
+    for module, hook in (("flex_planner.cli", "add_plan_parser"),
+                         ("flex_control.cli", "add_control_parser")):
+        try:
+            add = getattr(__import__(module, fromlist=[hook]), hook)
+        except (ImportError, AttributeError):
+            continue
+        add(sub)
     return p
 
 

@@ -35,7 +35,7 @@ from flex_model.dynamics import FlexArmModel
 from flex_model.kernels import inverse_dynamics, link_origins, tip_jacobian
 from flex_model.statics import TipLoad, static_equilibrium
 
-from . import _numba_cache
+from flex_model import numba_cache as _numba_cache
 from .inverse_statics import check_rigid_joints
 from .trajectories import SampledTrajectory
 
