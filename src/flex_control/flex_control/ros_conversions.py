@@ -1,0 +1,95 @@
+"""Message <-> array conversions of the controller node, with the input checks.
+
+Every function raises ``ValueError`` naming the message field, the value and what is
+allowed; the node logs the message and drops the input, so nothing malformed reaches the
+controller. rclpy delivers a JointState whose arrays have mismatched lengths as it is, so
+lengths and finiteness are checked here.
+"""
+from __future__ import annotations
+
+import numpy as np
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory
+
+from flex_model.trajectory import JointTrajectoryData
+
+
+def _finite(field: str, values) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise ValueError(f"{field}[{bad}]: got {arr[bad]!r}; expected finite values")
+    return arr
+
+
+def joint_state_arrays(msg: JointState, joint_names) -> tuple[np.ndarray, np.ndarray]:
+    """(positions, velocities) of ``joint_names`` (rad, rad/s) from a JointState."""
+    names = list(msg.name)
+    n = len(names)
+    for field in ("position", "velocity"):
+        got = len(getattr(msg, field))
+        if got != n:
+            raise ValueError(f"JointState.{field}: got {got} values for {n} names; expected "
+                             f"one per name")
+    try:
+        idx = [names.index(j) for j in joint_names]
+    except ValueError:
+        missing = [j for j in joint_names if j not in names]
+        raise ValueError(f"JointState.name: got {names}; expected to contain "
+                         f"{list(joint_names)} (missing {missing})") from None
+    pos = _finite("JointState.position", np.asarray(msg.position, float)[idx])
+    vel = _finite("JointState.velocity", np.asarray(msg.velocity, float)[idx])
+    return pos, vel
+
+
+def deflection_array(msg: Float64MultiArray, n: int) -> np.ndarray:
+    """Link tip deflections (m) from a Float64MultiArray of length ``n``."""
+    if len(msg.data) != n:
+        raise ValueError(f"deflections.data: got {len(msg.data)} values; expected {n} "
+                         "(one tip deflection per link, m)")
+    return _finite("deflections.data", msg.data)
+
+
+def trajectory_from_msg(msg: JointTrajectory, joint_names) -> JointTrajectoryData:
+    """A JointTrajectory as :class:`JointTrajectoryData` in the order of ``joint_names``.
+
+    The message's joint names must be the same set (any order); empty velocities,
+    accelerations or efforts of a point mean zeros; times must increase.
+    """
+    names = list(msg.joint_names)
+    want = list(joint_names)
+    if sorted(names) != sorted(want) or len(set(names)) != len(names):
+        raise ValueError(f"JointTrajectory.joint_names: got {names}; expected the joints "
+                         f"{want} (any order)")
+    if not msg.points:
+        raise ValueError("JointTrajectory.points: got 0 points; expected at least 1")
+    idx = [names.index(j) for j in want]
+    n = len(want)
+    t = np.empty(len(msg.points))
+    arrays = {k: np.zeros((len(msg.points), n))
+              for k in ("positions", "velocities", "accelerations", "effort")}
+    for k, p in enumerate(msg.points):
+        t[k] = p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
+        for field in arrays:
+            values = getattr(p, field)
+            if field == "positions" and len(values) != n:
+                raise ValueError(f"JointTrajectory.points[{k}].positions: got {len(values)} "
+                                 f"values; expected {n}")
+            if len(values) not in (0, n):
+                raise ValueError(f"JointTrajectory.points[{k}].{field}: got {len(values)} "
+                                 f"values; expected 0 or {n}")
+            if len(values):
+                arrays[field][k] = _finite(f"JointTrajectory.points[{k}].{field}",
+                                           np.asarray(values, float)[idx])
+    if np.any(np.diff(t) <= 0):
+        raise ValueError(f"JointTrajectory.points.time_from_start: got {t.tolist()} s; "
+                         "expected strictly increasing times")
+    return JointTrajectoryData(joint_names=want, t=t, positions=arrays["positions"],
+                               velocities=arrays["velocities"],
+                               accelerations=arrays["accelerations"], efforts=arrays["effort"])
+
+
+def commands_msg(tau) -> Float64MultiArray:
+    """Joint torques (N m) as the effort controller's Float64MultiArray (joint order)."""
+    return Float64MultiArray(data=[float(x) for x in tau])
