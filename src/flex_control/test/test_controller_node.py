@@ -89,8 +89,10 @@ class Harness:
                                        velocity=[float(x) for x in vel]))
 
     def next_command(self, what="a command"):
+        """A command computed after what was just sent: a few control periods later (the
+        executor may run the timer before it delivers the new message)."""
         n = len(self.commands)
-        self.spin_until(lambda: len(self.commands) > n + 1, what)
+        self.spin_until(lambda: len(self.commands) > n + 3, what)
         return np.array(self.commands[-1])
 
     def close(self):
@@ -126,7 +128,8 @@ def trajectory_msg(names, positions, effort=None):
 
 
 def test_published_torque_equals_core_eq95(make_harness):
-    h = make_harness(h=[2.0, 3.0], a=[4.0, 5.0], torque_limits=[1000.0])
+    # a long state timeout: a slow first trajectory acceptance must not make the state stale
+    h = make_harness(h=[2.0, 3.0], a=[4.0, 5.0], torque_limits=[1000.0], state_timeout=30.0)
     pos, vel = np.array([0.1, -0.2]), np.array([0.3, 0.05])
     h.send_state(pos, vel)
     h.traj_pub.publish(trajectory_msg(JOINTS, [0.5, 0.25], effort=[1.5, -2.0]))
