@@ -1,0 +1,216 @@
+"""ModelNode: the flexible arm as a ROS 2 node (a thin adapter around flex_model.stepper).
+
+Publications (simulation time in every header):
+    /joint_states        sensor_msgs/JointState   joint angles (encoder), rates, applied torques
+    /flex/deflections    sensor_msgs/JointState   link<i>/tip_deflection (m), tip_rotation (rad)
+    /flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``frame_id``
+    /flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords
+    /flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor
+    /clock               rosgraph_msgs/Clock      in lockstep mode (or publish_clock)
+Subscriptions:
+    /effort_controller/commands  std_msgs/Float64MultiArray  joint torques, joint order
+    /flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
+Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
+Parameters: arm, vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz, model
+loop), publish_rate (Hz), max_step (s), initial_joint_angles_deg, command_timeout (s, 0 =
+never), timeout_action (hold | zero), lockstep_timeout (s, wall), frame_id, shape_points,
+publish_clock.
+
+realtime: a timer at ``rate`` integrates over the wall time elapsed since the last tick
+(rcl timers skip missed periods). lockstep: deterministic; after publishing the state at t
+the node waits for a command (or ``lockstep_timeout`` of wall time) before it advances by
+1/rate, so simulation time moves only as the model-controller loop completes.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
+from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import Imu, JointState
+from visualization_msgs.msg import MarkerArray
+
+from . import ros_conversions as conv
+from .arm import load_arm
+from .dynamics import FlexArmModel
+from .stepper import Stepper
+
+
+class ModelNode(Node):
+    """The arm simulated at ``rate`` and published at ``publish_rate``."""
+
+    def __init__(self, **kwargs):
+        super().__init__("flex_model", **kwargs)
+        p = {name: self.declare_parameter(name, default).value for name, default in (
+            ("arm", "thesis_example1"), ("vars_per_link", 0), ("kinematics", ""),
+            ("mode", "realtime"), ("rate", 1000.0), ("publish_rate", 250.0),
+            ("max_step", 1e-3), ("initial_joint_angles_deg", [0.0]),
+            ("command_timeout", 0.0), ("timeout_action", "hold"),
+            ("lockstep_timeout", 1.0), ("frame_id", "base_link"), ("shape_points", 15),
+            ("publish_clock", False))}
+        if p["mode"] not in ("realtime", "lockstep"):
+            raise ValueError(f"parameter mode: got {p['mode']!r}; expected realtime or lockstep")
+        if p["timeout_action"] not in ("hold", "zero"):
+            raise ValueError(f"parameter timeout_action: got {p['timeout_action']!r}; "
+                             "expected hold or zero")
+        if not (p["rate"] > 0 and p["publish_rate"] > 0 and p["max_step"] > 0):
+            raise ValueError("parameters rate, publish_rate and max_step must be > 0")
+        arm = load_arm(p["arm"], p["vars_per_link"] or None)
+        if p["kinematics"]:
+            arm = arm.with_kinematics(p["kinematics"])
+        self.model = FlexArmModel(arm)
+        theta0 = np.radians(np.resize(np.asarray(p["initial_joint_angles_deg"], float),
+                                      self.model.n_links))
+        self.stepper = Stepper(self.model, self.model.q_from_joint_angles(theta0),
+                               max_step=p["max_step"])
+        self.p = p
+        self.names = arm.joint_names
+        self.links = [lk.name for lk in arm.links]
+        self.has_imu = any(s.kind == "tip_accelerometer" for s in arm.sensors)
+        self.paused = False
+        self.command_time = 0.0
+        self.commanded = False       # a command arrived since the last lockstep step
+        self.wait_start = None
+        self.next_publish = 0.0
+        self.warned = set()
+        qos = 10
+        self.pub_js = self.create_publisher(JointState, "/joint_states", qos)
+        self.pub_defl = self.create_publisher(JointState, "/flex/deflections", qos)
+        self.pub_tip = self.create_publisher(PoseStamped, "/flex/tip_pose", qos)
+        self.pub_shape = self.create_publisher(MarkerArray, "/flex/shape", qos)
+        self.pub_imu = self.create_publisher(Imu, "/flex/tip_imu", qos) if self.has_imu \
+            else None
+        self.pub_clock = self.create_publisher(Clock, "/clock", qos) \
+            if p["mode"] == "lockstep" or p["publish_clock"] else None
+        self.create_subscription(Float64MultiArray, "/effort_controller/commands",
+                                 self.on_command, qos)
+        self.create_subscription(Float64MultiArray, "/flex/payload", self.on_payload, qos)
+        self.create_service(Trigger, "~/reset", self.on_reset)
+        self.create_service(SetBool, "~/pause", self.on_pause)
+        self.last_wall = time.monotonic()
+        period = 1.0 / p["rate"] if p["mode"] == "realtime" else 1e-4
+        self.timer = self.create_timer(period, self.on_tick)
+        self.publish_state(full=True)
+        self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates), {p['mode']} "
+                               f"at {p['rate']:g} Hz, publishing at {p['publish_rate']:g} Hz")
+
+    # ------------------------------------------------------------- inputs
+    def _warn_once(self, key, text):
+        if key not in self.warned:
+            self.warned.add(key)
+            self.get_logger().warning(text)
+
+    def on_command(self, msg: Float64MultiArray) -> None:
+        try:
+            u = conv.finite_array(msg.data, self.model.n_links, "command")
+        except ValueError as exc:
+            self.get_logger().warning(f"dropped /effort_controller/commands: {exc}; "
+                                      "holding the last valid command",
+                                      throttle_duration_sec=1.0)
+            return
+        self.stepper.set_command(u)
+        self.command_time = self.stepper.t
+        self.commanded = True
+
+    def on_payload(self, msg: Float64MultiArray) -> None:
+        try:
+            m, j = conv.finite_array(msg.data, 2, "payload [mass, inertia]")
+            self.stepper.set_payload(m, j)
+        except ValueError as exc:
+            self.get_logger().warning(f"dropped /flex/payload: {exc}")
+            return
+        self.get_logger().info(f"payload now {m:g} kg, {j:g} kg m^2")
+
+    def on_reset(self, request, response):
+        self.stepper.reset()
+        self.command_time, self.next_publish = 0.0, 0.0
+        self.publish_state(full=True)
+        response.success, response.message = True, "reset to the initial state at t = 0"
+        return response
+
+    def on_pause(self, request, response):
+        self.paused = bool(request.data)
+        self.last_wall = time.monotonic()
+        response.success, response.message = True, "paused" if self.paused else "running"
+        return response
+
+    # ------------------------------------------------------------- loop
+    def on_tick(self) -> None:
+        now = time.monotonic()
+        elapsed, self.last_wall = now - self.last_wall, now
+        if self.paused:
+            return
+        if self.p["mode"] == "lockstep":
+            if not self.commanded:
+                self.wait_start = self.wait_start or now
+                if now - self.wait_start < self.p["lockstep_timeout"]:
+                    return
+                self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
+                                "stepping with the held command")
+            self.commanded, self.wait_start = False, None
+            dt = 1.0 / self.p["rate"]
+        else:
+            dt = min(elapsed, 0.1)  # integrate the elapsed time; cap a stalled process
+        timeout = self.p["command_timeout"]
+        if timeout > 0 and self.stepper.t - self.command_time > timeout:
+            if self.p["timeout_action"] == "zero" and np.any(self.stepper.u):
+                self.stepper.set_command(np.zeros(self.model.n_links))
+            self._warn_once("timeout", f"no valid command for {timeout:g} s: "
+                            f"{self.p['timeout_action']}")
+        try:
+            self.stepper.advance(dt)
+        except Exception as exc:  # a diverged model stops the loop, loudly
+            self.get_logger().error(f"model stopped: {exc}")
+            self.timer.cancel()
+            return
+        full = self.stepper.t >= self.next_publish - 1e-12
+        if full:
+            self.next_publish = self.stepper.t + 1.0 / self.p["publish_rate"]
+        if full or self.p["mode"] == "lockstep":
+            self.publish_state(full=full)
+
+    def publish_state(self, full: bool = True) -> None:
+        st, t = self.stepper, self.stepper.t
+        if self.pub_clock is not None:
+            self.pub_clock.publish(Clock(clock=conv.stamp(t)))
+        self.pub_js.publish(conv.joint_state(t, self.names, *st.joint_state()))
+        if not full:
+            return
+        self.pub_defl.publish(conv.deflection_state(t, self.links, *st.deflections()))
+        x, y, phi = st.tip_pose()
+        self.pub_tip.publish(conv.tip_pose(t, x, y, phi, self.p["frame_id"]))
+        shapes = self.model.shape(st.q, int(self.p["shape_points"]))
+        chords = [np.array([s[0], s[-1]]) for s in shapes]
+        self.pub_shape.publish(conv.shape_markers(t, shapes, chords, self.p["frame_id"]))
+        if self.pub_imu is not None:
+            rate = float(self.model.tip_torque_vector() @ st.v)  # tip frame rotation rate
+            self.pub_imu.publish(conv.imu(t, st.tip_specific_force(), rate, phi))
+
+
+def main(args=None) -> None:
+    from .cli import ros_environment
+    ros_environment()
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = ModelNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:  # a callback that raced the shutdown by Ctrl-C is no error
+        if rclpy.ok():
+            raise
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

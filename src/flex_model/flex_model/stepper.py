@@ -1,0 +1,118 @@
+"""Stepper: the arm advanced in real-time-sized pieces (what the model node runs).
+
+Holds the integration state (q, v, the generalized-alpha acceleration history) of one
+arm and advances it by any duration with the fixed-step implicit scheme of
+:mod:`flex_model.integrators` (generalized-alpha, default step 1 ms), the held joint
+command acting as the policy input. A new command or payload restarts the method
+(consistent acceleration), as simulate() does at control instants.
+"""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from .dynamics import FlexArmModel
+from .integrators import consistent_acceleration, generalized_alpha, joint_torques
+from .simulate import (DIVERGENCE_LIMIT, SimulationDivergedError, _apply_payload_change,
+                       _diverged, _input_data)
+
+
+class Stepper:
+    """Advance a FlexArmModel under a held joint command (N m, or V for DC-motor joints)."""
+
+    def __init__(self, model: FlexArmModel, q0=None, v0=None, *, max_step: float = 1e-3,
+                 rho_inf: float = 0.9):
+        self.model = copy.copy(model)  # payload changes stay local to this stepper
+        self.max_step, self.rho_inf = float(max_step), float(rho_inf)
+        self.u = np.zeros(model.n_links)
+        self.E = _input_data(self.model, None, (), self.u)
+        self.q0 = self.model.q_from_joint_angles(np.zeros(model.n_links)) if q0 is None \
+            else np.asarray(q0, float)
+        self.v0 = np.zeros(model.nq) if v0 is None else np.asarray(v0, float)
+        self.reset()
+
+    def reset(self, q0=None, v0=None) -> None:
+        """Back to the initial state (or a given one) at t = 0."""
+        if q0 is not None:
+            self.q0 = np.asarray(q0, float)
+        if v0 is not None:
+            self.v0 = np.asarray(v0, float)
+        self.t = 0.0
+        self.x = np.concatenate([self.q0, self.v0])
+        self.u[:] = 0.0
+        self._restart()
+
+    def _restart(self) -> None:
+        self.a = consistent_acceleration(self.t, self.x, self.model.P, self.E)
+        self.abar = self.a.copy()
+
+    def set_command(self, u) -> None:
+        """Hold a new joint command from now on (restarts the method if it changed)."""
+        u = np.asarray(u, float).reshape(self.model.n_links)
+        if not np.all(np.isfinite(u)):
+            raise ValueError(f"command: got {u.tolist()}; expected finite values")
+        if not np.array_equal(u, self.u):
+            self.u[:] = u
+            self._restart()
+
+    def set_payload(self, mass: float, inertia: float) -> None:
+        """Change the tip payload now (a pick keeps B v, a place keeps v)."""
+        self.x = _apply_payload_change(self.model, self.x, mass, inertia)
+        self._restart()
+
+    def advance(self, duration: float) -> None:
+        """Integrate over ``duration`` (s) in equal steps no longer than max_step."""
+        if duration <= 0:
+            return
+        n = max(1, int(np.ceil(duration / self.max_step - 1e-9)))
+        h = duration / n
+        X, status, t_end, x_end, a, abar, _ = generalized_alpha(
+            self.t, self.x, self.a, self.abar, h, n, n, self.rho_inf, 1e-10, DIVERGENCE_LIMIT,
+            self.model.P, self.E)
+        if status == 1:
+            raise _diverged(self.model, t_end, x_end)
+        if status == 2:
+            raise SimulationDivergedError(
+                f"Newton iterations did not converge at t = {t_end:.6g} s with step "
+                f"{h:.3g} s; reduce max_step")
+        self.t, self.x, self.a, self.abar = self.t + duration, x_end, a, abar
+
+    # ------------------------------------------------------------------ outputs
+    @property
+    def q(self) -> np.ndarray:
+        return self.x[:self.model.nq]
+
+    @property
+    def v(self) -> np.ndarray:
+        return self.x[self.model.nq:]
+
+    def joint_state(self):
+        """(angles, rates, applied torques) of the joints (rad, rad/s, N m)."""
+        m = self.model
+        tau = joint_torques(self.t, self.q, self.v, self.E)
+        return m.joint_angles(self.q), m.G @ self.v, tau
+
+    def deflections(self):
+        """(tip deflections, tip rotations, their rates) of every link."""
+        m = self.model
+        d = [m.tip_deflection_index(i) for i in range(m.n_links)]
+        r = [m.tip_rotation_index(i) for i in range(m.n_links)]
+        return self.q[d], self.q[r], self.v[d], self.v[r]
+
+    def tip_pose(self):
+        return self.model.tip_pose(self.q)
+
+    def tip_specific_force(self) -> np.ndarray:
+        """Specific force a - g at the tip in the tip frame (m/s^2), what an accelerometer
+        there measures (flex_model.sensors)."""
+        from .integrators import derivative
+        m = self.model
+        acc = derivative(self.t, self.x, m.P, self.E)[m.nq:]
+        q, v = self.q, self.v
+        h = 1e-6 / max(1.0, float(np.max(np.abs(v))))
+        jdot_v = (m.tip_jacobian(q + h * v) - m.tip_jacobian(q - h * v)) @ v / (2 * h)
+        a_tip = m.tip_jacobian(q) @ acc + jdot_v - m.gravity
+        phi = m.tip_pose(q)[2]
+        c, s = np.cos(phi), np.sin(phi)
+        return np.array([c * a_tip[0] + s * a_tip[1], -s * a_tip[0] + c * a_tip[1]])
