@@ -16,3 +16,4 @@ Core (numpy/scipy/yaml/flex_model only):
 
 ROS: :mod:`.controller_node` (``ControllerNode``), :mod:`.ros_conversions`.
 """
+import flex_model as _flex_model  # noqa: F401,E402  (the ROS environment first)

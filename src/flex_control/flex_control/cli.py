@@ -299,19 +299,8 @@ def main(argv=None) -> int:
     """Standalone entry (same exit codes as flex-twin: 2 bad input, 1 failed)."""
     parser = argparse.ArgumentParser(prog="flex-control")
     add_control_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    from flex_model.config import ConfigError
-    from flex_model.simulate import SimulationDivergedError
-    from flex_model.statics import StaticConvergenceError
-
-    try:
-        return args.func(args)
-    except (ConfigError, ValueError, FileNotFoundError) as exc:
-        print(f"flex-twin: error: {exc}", file=sys.stderr)
-        return 2
-    except (StaticConvergenceError, SimulationDivergedError, np.linalg.LinAlgError) as exc:
-        print(f"flex-twin: failed: {exc}", file=sys.stderr)
-        return 1
+    from flex_model.cli import run_command
+    return run_command(parser.parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -6,18 +6,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
-
-def _finish(fig, ax, path, title):
-    for a in np.ravel(ax):
-        a.grid(True, alpha=0.3)
-        if a.get_legend_handles_labels()[0]:
-            a.legend(fontsize=8)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+from flex_model.plots import finish_figure  # noqa: E402
 
 
 def plot_step(resp, path) -> None:
@@ -32,7 +21,7 @@ def plot_step(resp, path) -> None:
                     f"amplitude {1e3 * resp.tip_amplitude_m:.4g} mm")
     ax[2].plot(resp.t, resp.torque)
     ax[2].set(xlabel="t [s]", ylabel="joint torque [N m]", yscale="symlog")
-    _finish(fig, ax, path, f"{resp.arm}: Eq. (45) step "
+    finish_figure(fig, ax, path, f"{resp.arm}: Eq. (45) step "
             f"{np.degrees(resp.start):.0f} -> {np.degrees(resp.end):.0f} deg")
 
 
@@ -52,7 +41,7 @@ def plot_design(result, path) -> None:
     ax[0, 1].set(ylabel="a [rad/s]", yscale="log")
     ax[1, 0].set(xlabel="t [s]", ylabel="zeta_min")
     ax[1, 1].set(xlabel="t [s]", ylabel="tau_max [s]")
-    _finish(fig, ax, path, "gain-scheduled design of Eq. (95) (cyclic coordinate ascent)")
+    finish_figure(fig, ax, path, "gain-scheduled design of Eq. (95) (cyclic coordinate ascent)")
 
 
 def plot_ltv(report, model, path, title: str = "") -> None:
@@ -79,7 +68,7 @@ def plot_ltv(report, model, path, title: str = "") -> None:
                 ax[2].plot(tt, H[:, i, j], lw=0.8, label=f"{name} <- tau{j + 1}")
     ax[2].set(xlabel="t [s]", ylabel="impulse response (per N m s)",
               title=f"impulse response matrix (converged: {report.impulse_converged})")
-    _finish(fig, ax, path, title or "LTV check of the closed loop")
+    finish_figure(fig, ax, path, title or "LTV check of the closed loop")
 
 
 def plot_frozen(points, path) -> None:
@@ -94,7 +83,7 @@ def plot_frozen(points, path) -> None:
     ax[0].set(ylabel="zeta_min")
     ax[1].set(ylabel="tau_max [s]")
     ax[2].set(xlabel="t [s]", ylabel="gain margin")
-    _finish(fig, ax, path, "frozen-time eigenvalues of the closed loop")
+    finish_figure(fig, ax, path, "frozen-time eigenvalues of the closed loop")
 
 
 def plot_tracking(run, trajectory, path) -> None:
@@ -106,4 +95,4 @@ def plot_tracking(run, trajectory, path) -> None:
             ax[k].plot(trajectory.t, trajectory.tip[:, k], "--", label="nominal")
         ax[k].set(ylabel=f"tip {name} [m]")
     ax[1].set(xlabel="t [s]")
-    _finish(fig, ax, path, "nonlinear arm under Eq. (95) with the nominal feed-forward")
+    finish_figure(fig, ax, path, "nonlinear arm under Eq. (95) with the nominal feed-forward")

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import random
 import sys
 import time
 from datetime import datetime
@@ -16,11 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-def ros_environment() -> None:
-    """Discovery on this host only and a per-run domain, unless the user chose otherwise."""
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(1, 100)))
+from . import ros_environment
 
 
 class Progress:
@@ -334,6 +328,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("presets", help="list arm and scenario presets")
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_presets)
+    from .bag_cli import add_bag_parsers  # record, play, bag info (rclpy imported lazily)
+    add_bag_parsers(sub)
     # subcommands of the other packages, when installed (imported here only, so that the
     # core of flex_model never depends on them)
     for module, hook in (("flex_planner.cli", "add_plan_parser"),
@@ -347,8 +343,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    ros_environment()
-    args = build_parser().parse_args(argv)
+    ros_environment()  # also done on importing flex_model; repeated for embedding callers
+    return run_command(build_parser().parse_args(argv))
+
+
+def run_command(args) -> int:
+    """Run a parsed subcommand: exit 2 with one line on bad input, 1 on a failed
+    computation (shared by the packages' own entry points)."""
     from .config import ConfigError
     from .simulate import SimulationDivergedError
     from .statics import StaticConvergenceError

@@ -72,10 +72,12 @@ def dead_zone(x, b, s):
 @njit(cache=_CACHE)
 def dead_zone_energy(x, b, s):
     """Integral of dead_zone from 0 to x (the potential of a spring with backlash / k)."""
+
     def prim(y, c):  # integral of 0.5 (y - c + sqrt((y - c)^2 + s^2))
         z = y - c
         r = np.sqrt(z * z + s * s)
         return 0.25 * (z * z + z * r + s * s * np.log(z + r))
+
     def prim2(y, c):  # integral of 0.5 (y + c - sqrt((y + c)^2 + s^2))
         z = y + c
         r = np.sqrt(z * z + s * s)
@@ -349,7 +351,7 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
         t1 = t0 + s * h
         a1 = a.copy()
         ok = False
-        res, B, q1, v1 = _alpha_residual(a1, a, abar, q, v, t1 - 0.5 * h, h, af, am, gam,
+        res, B, _, v1 = _alpha_residual(a1, a, abar, q, v, t1 - 0.5 * h, h, af, am, gam,
                                          beta, P, E)
         norm = np.sqrt(np.sum(res * res))
         for it in range(50):
@@ -360,13 +362,13 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
             lam = 1.0
             for ls in range(30):
                 a_try = a1 + lam * da
-                r_try, B_try, q_try, v_try = _alpha_residual(
+                r_try, B_try, _, v_try = _alpha_residual(
                     a_try, a, abar, q, v, t1 - 0.5 * h, h, af, am, gam, beta, P, E)
                 n_try = np.sqrt(np.sum(r_try * r_try))
                 if n_try <= (1.0 - 1e-4 * lam) * norm or n_try < 1e-300 or ls == 29:
                     break
                 lam *= 0.5
-            a1, res, B, q1, v1, norm = a_try, r_try, B_try, q_try, v_try, n_try
+            a1, res, B, v1, norm = a_try, r_try, B_try, v_try, n_try
             iters += 1
             if np.max(np.abs(da)) * lam * bp <= tol:
                 ok = True

@@ -26,8 +26,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
@@ -39,6 +37,7 @@ from visualization_msgs.msg import MarkerArray
 from . import ros_conversions as conv
 from .arm import load_arm
 from .dynamics import FlexArmModel
+from .ros_main import run_node
 from .stepper import Stepper
 
 
@@ -194,22 +193,7 @@ class ModelNode(Node):
 
 
 def main(args=None) -> None:
-    from .cli import ros_environment
-    ros_environment()
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ModelNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:  # a callback that raced the shutdown by Ctrl-C is no error
-        if rclpy.ok():
-            raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(ModelNode, args)
 
 
 if __name__ == "__main__":

@@ -3,9 +3,10 @@
 numba invalidates a cached function when the source file of THAT function changes, not
 when a jitted function it calls changes (numba documentation, "Cache invalidation").
 flex_model's integrators and the planner's loops call flex_model's compiled kernels, so
-an entry compiled against an older ``flex_model/kernels.py`` could be loaded silently. :func:`guard` stores a fingerprint of
-the dependency sources beside each dispatcher's cache and flushes the cache when it
-differs. Nothing here changes results; it only decides whether to recompile.
+an entry compiled against an older ``flex_model/kernels.py`` could be loaded silently.
+:func:`guard` stores a fingerprint of the dependency sources beside each dispatcher's
+cache and flushes the cache when it differs. Nothing here changes results; it only
+decides whether to recompile.
 """
 from __future__ import annotations
 

@@ -8,6 +8,19 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def finish_figure(fig, ax, path, title: str = "") -> None:
+    """Grid and legends on every axis, the title, a tight layout; save as PNG and close."""
+    for a in np.ravel(ax):
+        a.grid(True, alpha=0.3)
+        if a.get_legend_handles_labels()[0]:
+            a.legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def plot_simulation(result, path, title: str = "") -> None:
     """Joint angles, tip deflections, joint torques and the tip path in one figure."""
     model = result.model
@@ -31,14 +44,7 @@ def plot_simulation(result, path, title: str = "") -> None:
     ax[1, 0].set(xlabel="t [s]", ylabel="torque [N m]", title="joint torques")
     ax[1, 1].set(xlabel="x [m]", ylabel="y [m]", title="tip paths and deflected shapes")
     ax[1, 1].set_aspect("equal", adjustable="datalim")
-    for a in ax.flat:
-        a.grid(True, alpha=0.3)
-        a.legend(fontsize=8)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    finish_figure(fig, ax, path, title)
 
 
 def plot_modes(model, modal, path, count: int = 4, title: str = "") -> None:
@@ -53,8 +59,4 @@ def plot_modes(model, modal, path, count: int = 4, title: str = "") -> None:
         shp = np.vstack(model.shape(0.1 * span * phi / max(1e-12, np.max(np.abs(phi))), 31))
         ax.plot(shp[:, 0], shp[:, 1], label=f"mode {k + 1}: {modal.frequencies_hz[k]:.4g} Hz")
     ax.set(xlabel="x [m]", ylabel="y [m]", title=title or "mode shapes")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    finish_figure(fig, ax, path)

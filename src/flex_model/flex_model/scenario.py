@@ -80,10 +80,8 @@ class Scenario:
         policy = None
         if self.torque_table is not None:
             tt, torques = self.torque_table
-
-            def policy(t, x):
-                return np.array([np.interp(t, tt, torques[:, j])
-                                 for j in range(torques.shape[1])])
+            policy = lambda t, x: np.array([np.interp(t, tt, col)  # noqa: E731
+                                            for col in torques.T])
         return simulate(model, q0, v0, t_final=self.duration, sample_period=self.sample_period,
                         pd=self.pd, pulses=self.pulses, policy=policy, method=self.method,
                         rtol=self.rtol, dt=self.step, payload_changes=self.payload_changes,

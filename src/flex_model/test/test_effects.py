@@ -6,8 +6,8 @@ from scipy.integrate import cumulative_simpson
 from flex_model.arm import arm_from_dict, load_arm
 from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_model.effects import (EFFECT_TYPES, ActuatorDelay, Backlash, BaseTilt, Cogging, ContactSurface,
-                                DCMotor, Gear, JointElasticity, JointFriction,
+from flex_model.effects import (EFFECT_TYPES, ActuatorDelay, Backlash, BaseTilt, Cogging,
+                                ContactSurface, DCMotor, Gear, JointElasticity, JointFriction,
                                 StructuralDamping, TorqueSaturation)
 from flex_model.modes import natural_modes
 from flex_model.simulate import JointPD, Pulse, simulate

@@ -7,6 +7,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from flex_model.plots import finish_figure  # noqa: E402
 
 
 def plot_plan(model, result, waypoints, path, title: str = "") -> None:
@@ -29,11 +30,4 @@ def plot_plan(model, result, waypoints, path, title: str = "") -> None:
     ax[0, 1].set(xlabel="t [s]", ylabel="joint angle [deg]", title="joint trajectory (splines)")
     ax[1, 0].set(xlabel="t [s]", ylabel="deflection [mm]", title="nominal deflections")
     ax[1, 1].set(xlabel="t [s]", ylabel="torque [N m]", title="admissible nominal torque")
-    for a in ax.flat:
-        a.grid(True, alpha=0.3)
-        a.legend(fontsize=8)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    finish_figure(fig, ax, path, title)
