@@ -1,0 +1,84 @@
+"""The only writer of the golden bags under test/data/bags (rosbag2, MCAP).
+
+    python test/tools/make_golden_bags.py            # refuses to overwrite
+    python test/tools/make_golden_bags.py --force    # regenerate on purpose
+
+model_lockstep: the model of the arm below stepped by flex_model's core Stepper under a
+fixed command sequence, recorded as the model node publishes it in lockstep mode: the
+state at t = 0, then per 1 ms step the command (at t_k) and the state at t_k+1
+(/joint_states, /flex/deflections). Replay test: test/test_replay_model_node.py.
+"""
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from flex_model import ros_conversions as conv
+from flex_model.arm import load_arm
+from flex_model.bags import BagWriter
+from flex_model.dynamics import FlexArmModel
+from flex_model.stepper import Stepper
+from std_msgs.msg import Float64MultiArray
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "bags"
+MODEL_LOCKSTEP = {"arm": "thesis_example1", "initial_joint_angles_deg": [10.0, -20.0],
+                  "rate": 1000.0, "steps": 100}
+
+
+def commands(n):
+    """The recorded command sequence (N m): smooth, both signs, not constant."""
+    return [np.array([2.0 * np.sin(0.3 * k), -0.5 + 0.01 * k]) for k in range(n)]
+
+
+def make_model_lockstep(path: Path) -> None:
+    p = MODEL_LOCKSTEP
+    arm = load_arm(p["arm"])
+    model = FlexArmModel(arm)
+    st = Stepper(model, model.q_from_joint_angles(np.radians(p["initial_joint_angles_deg"])))
+    dt = 1.0 / p["rate"]
+    links = [lk.name for lk in arm.links]
+    with BagWriter(path) as bag:
+        bag.add_topic("/joint_states", "sensor_msgs/msg/JointState")
+        bag.add_topic("/flex/deflections", "sensor_msgs/msg/JointState")
+        bag.add_topic("/effort_controller/commands", "std_msgs/msg/Float64MultiArray")
+
+        def record_state():
+            t_ns = int(round(st.t * 1e9))
+            bag.write("/joint_states", conv.joint_state(st.t, arm.joint_names,
+                                                        *st.joint_state()), t_ns)
+            bag.write("/flex/deflections", conv.deflection_state(st.t, links,
+                                                                 *st.deflections()), t_ns)
+        record_state()
+        for k, u in enumerate(commands(p["steps"])):
+            bag.write("/effort_controller/commands", Float64MultiArray(data=list(u)),
+                      int(round(k * dt * 1e9)))
+            st.set_command(u)
+            st.advance(dt)
+            record_state()
+    (path / "provenance.yaml").write_text(yaml.safe_dump({
+        "generator": "test/tools/make_golden_bags.py", "scenario": "model_lockstep",
+        "parameters": p, "model": "flex_model.stepper.Stepper (generalized-alpha, 1 ms)"}))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--force", action="store_true", help="overwrite existing golden bags")
+    args = ap.parse_args(argv)
+    target = DATA / "model_lockstep"
+    if target.exists():
+        if not args.force:
+            print(f"{target} exists; use --force to regenerate it", file=sys.stderr)
+            return 2
+        shutil.rmtree(target)
+    make_model_lockstep(target)
+    print(f"wrote {target}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
