@@ -7,6 +7,11 @@ model_lockstep: the model of the arm below stepped by flex_model's core Stepper 
 fixed command sequence, recorded as the model node publishes it in lockstep mode: the
 state at t = 0, then per 1 ms step the command (at t_k) and the state at t_k+1
 (/joint_states, /flex/deflections). Replay test: test/test_replay_model_node.py.
+
+controller_hold: a held reference (/flex_planner/trajectory, one point with feed-forward)
+and model_lockstep's joint states, with the commands of the controller core
+(flex_control DecentralizedPD, thesis Eq. 95) for each state. Replay test:
+test/test_replay_controller_node.py.
 """
 from __future__ import annotations
 
@@ -65,18 +70,53 @@ def make_model_lockstep(path: Path) -> None:
         "parameters": p, "model": "flex_model.stepper.Stepper (generalized-alpha, 1 ms)"}))
 
 
+CONTROLLER_HOLD = {"h": [2.0, 3.0], "a": [4.0, 5.0], "hold": [0.5, 0.25],
+                   "feedforward": [1.5, -2.0], "torque_limits": [1000.0, 1000.0]}
+
+
+def make_controller_hold(path: Path, states_bag: Path) -> None:
+    from flex_control.laws import DecentralizedPD, hold_reference
+    from flex_model.bags import read_bag
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    p = CONTROLLER_HOLD
+    names = ["joint1", "joint2"]
+    ref = hold_reference(names, p["hold"])
+    ref.efforts[:] = p["feedforward"]
+    law = DecentralizedPD(ref, h=p["h"], a=p["a"])
+    traj = JointTrajectory(joint_names=names, points=[JointTrajectoryPoint(
+        positions=p["hold"], velocities=[0.0, 0.0], effort=p["feedforward"])])
+    with BagWriter(path) as bag:
+        bag.add_topic("/flex_planner/trajectory", "trajectory_msgs/msg/JointTrajectory")
+        bag.add_topic("/joint_states", "sensor_msgs/msg/JointState")
+        bag.add_topic("/effort_controller/commands", "std_msgs/msg/Float64MultiArray")
+        bag.write("/flex_planner/trajectory", traj, 0)
+        for topic, _, t_ns, msg in read_bag(states_bag, topics=["/joint_states"]):
+            bag.write("/joint_states", msg, t_ns + 1)
+            tau = law.torque(0.0, np.array(msg.position), np.array(msg.velocity))
+            bag.write("/effort_controller/commands",
+                      Float64MultiArray(data=[float(x) for x in tau]), t_ns + 2)
+    (path / "provenance.yaml").write_text(yaml.safe_dump({
+        "generator": "test/tools/make_golden_bags.py", "scenario": "controller_hold",
+        "parameters": p, "states": "model_lockstep /joint_states",
+        "controller": "flex_control.laws.DecentralizedPD (thesis Eq. 95)"}))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--force", action="store_true", help="overwrite existing golden bags")
     args = ap.parse_args(argv)
-    target = DATA / "model_lockstep"
-    if target.exists():
-        if not args.force:
-            print(f"{target} exists; use --force to regenerate it", file=sys.stderr)
-            return 2
-        shutil.rmtree(target)
-    make_model_lockstep(target)
-    print(f"wrote {target}")
+    makers = (("model_lockstep", make_model_lockstep),
+              ("controller_hold",
+               lambda path: make_controller_hold(path, DATA / "model_lockstep")))
+    for name, make in makers:
+        target = DATA / name
+        if target.exists():
+            if not args.force:
+                print(f"{target} exists; use --force to regenerate it", file=sys.stderr)
+                continue
+            shutil.rmtree(target)
+        make(target)
+        print(f"wrote {target}")
     return 0
 
 
