@@ -12,6 +12,10 @@ controller_hold: a held reference (/flex_planner/trajectory, one point with feed
 and model_lockstep's joint states, with the commands of the controller core
 (flex_control DecentralizedPD, thesis Eq. 95) for each state. Replay test:
 test/test_replay_controller_node.py.
+
+planner_short: a two-waypoint request (/flex_planner/waypoints, nav_msgs/Path) on the
+section F arm and the trajectory the planner core gives for it (/flex_planner/trajectory,
+10 ms samples). Replay test: test/test_replay_planner_node.py.
 """
 from __future__ import annotations
 
@@ -101,13 +105,46 @@ def make_controller_hold(path: Path, states_bag: Path) -> None:
         "controller": "flex_control.laws.DecentralizedPD (thesis Eq. 95)"}))
 
 
+PLANNER_SHORT = {"arm": "thesis_example1", "sample_period": 0.01,
+                 "waypoints": [[-1.0, -1.0], [-1.2, -1.1]], "times": [0.0, 1.0]}
+
+
+def make_planner_short(path: Path) -> None:
+    from flex_planner import plan_tip_path
+    from flex_planner.ros_messages import trajectory_msg
+    from geometry_msgs.msg import PoseStamped
+    from nav_msgs.msg import Path as PathMsg
+    p = PLANNER_SHORT
+    model = FlexArmModel(load_arm(p["arm"]))
+    request = PathMsg()
+    request.header.frame_id = "base_link"
+    for (x, y), t in zip(p["waypoints"], p["times"]):
+        pose = PoseStamped()
+        pose.header.frame_id = "base_link"
+        pose.header.stamp = conv.stamp(t)
+        pose.pose.position.x, pose.pose.position.y = x, y
+        pose.pose.orientation.w = 1.0
+        request.poses.append(pose)
+    traj = plan_tip_path(model, np.array(p["waypoints"]), np.array(p["times"]),
+                         sample_period=p["sample_period"])
+    with BagWriter(path) as bag:
+        bag.add_topic("/flex_planner/waypoints", "nav_msgs/msg/Path")
+        bag.add_topic("/flex_planner/trajectory", "trajectory_msgs/msg/JointTrajectory")
+        bag.write("/flex_planner/waypoints", request, 0)
+        bag.write("/flex_planner/trajectory", trajectory_msg(traj, "base_link"), 1)
+    (path / "provenance.yaml").write_text(yaml.safe_dump({
+        "generator": "test/tools/make_golden_bags.py", "scenario": "planner_short",
+        "parameters": p, "planner": "flex_planner.plan_tip_path"}))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--force", action="store_true", help="overwrite existing golden bags")
     args = ap.parse_args(argv)
     makers = (("model_lockstep", make_model_lockstep),
               ("controller_hold",
-               lambda path: make_controller_hold(path, DATA / "model_lockstep")))
+               lambda path: make_controller_hold(path, DATA / "model_lockstep")),
+              ("planner_short", make_planner_short))
     for name, make in makers:
         target = DATA / name
         if target.exists():
