@@ -330,6 +330,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_presets)
     from .bag_cli import add_bag_parsers  # record, play, bag info (rclpy imported lazily)
     add_bag_parsers(sub)
+    from .ros_suite import add_up_parser  # up: the nodes from a parameter file
+    add_up_parser(sub)
     # subcommands of the other packages, when installed (imported here only, so that the
     # core of flex_model never depends on them)
     for module, hook in (("flex_planner.cli", "add_plan_parser"),
