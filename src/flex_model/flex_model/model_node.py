@@ -17,9 +17,10 @@ never), timeout_action (hold | zero), lockstep_timeout (s, wall), frame_id, shap
 publish_clock.
 
 realtime: a timer at ``rate`` integrates over the wall time elapsed since the last tick
-(rcl timers skip missed periods). lockstep: deterministic; after publishing the state at t
-the node waits for a command (or ``lockstep_timeout`` of wall time) before it advances by
-1/rate, so simulation time moves only as the model-controller loop completes.
+(rcl timers skip missed periods). lockstep: deterministic; each command advances the model
+by 1/rate and publishes the new state (and /clock), so simulation time moves only as the
+model-controller loop completes; without a command for ``lockstep_timeout`` (wall) the
+model steps with the held one.
 """
 from __future__ import annotations
 
@@ -74,8 +75,6 @@ class ModelNode(Node):
         self.has_imu = any(s.kind == "tip_accelerometer" for s in arm.sensors)
         self.paused = False
         self.command_time = 0.0
-        self.commanded = False       # a command arrived since the last lockstep step
-        self.wait_start = None
         self.next_publish = 0.0
         self.warned = set()
         qos = 10
@@ -93,7 +92,8 @@ class ModelNode(Node):
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.last_wall = time.monotonic()
-        period = 1.0 / p["rate"] if p["mode"] == "realtime" else 1e-4
+        # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog
+        period = 1.0 / p["rate"] if p["mode"] == "realtime" else 0.05
         self.timer = self.create_timer(period, self.on_tick)
         self.publish_state(full=True)
         self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates), {p['mode']} "
@@ -115,7 +115,9 @@ class ModelNode(Node):
             return
         self.stepper.set_command(u)
         self.command_time = self.stepper.t
-        self.commanded = True
+        if self.p["mode"] == "lockstep" and not self.paused:
+            self.last_wall = time.monotonic()
+            self.step(1.0 / self.p["rate"])
 
     def on_payload(self, msg: Float64MultiArray) -> None:
         try:
@@ -145,17 +147,18 @@ class ModelNode(Node):
         elapsed, self.last_wall = now - self.last_wall, now
         if self.paused:
             return
-        if self.p["mode"] == "lockstep":
-            if not self.commanded:
-                self.wait_start = self.wait_start or now
-                if now - self.wait_start < self.p["lockstep_timeout"]:
-                    return
-                self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
-                                "stepping with the held command")
-            self.commanded, self.wait_start = False, None
-            dt = 1.0 / self.p["rate"]
-        else:
-            dt = min(elapsed, 0.1)  # integrate the elapsed time; cap a stalled process
+        if self.p["mode"] == "lockstep":  # watchdog: no command for lockstep_timeout
+            if elapsed < self.p["lockstep_timeout"]:
+                self.last_wall -= elapsed  # keep measuring from the last step
+                return
+            self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
+                            "stepping with the held command")
+            self.step(1.0 / self.p["rate"])
+            return
+        self.step(min(elapsed, 0.1))  # integrate the elapsed time; cap a stalled process
+
+    def step(self, dt: float) -> None:
+        """Advance the model by dt (s), apply the command timeout, publish."""
         timeout = self.p["command_timeout"]
         if timeout > 0 and self.stepper.t - self.command_time > timeout:
             if self.p["timeout_action"] == "zero" and np.any(self.stepper.u):
