@@ -16,7 +16,7 @@ DEMO_ARGS ?=
 help:
 	@echo "make venv    create/refresh .venv (pinned by constraints.txt)"
 	@echo "make test    run the test suite (PYTEST_ARGS='-k foo' to narrow)"
-	@echo "make demo    run 'flex-twin demo' (DEMO_ARGS='...' to pass options)"
+	@echo "make demo    the twin demo over ROS: 'flex-twin twin-demo' (DEMO_ARGS='...')"
 	@echo "make bench   run bench/run_all.py if present"
 	@echo "make clean   remove build/test artefacts (keeps .venv); distclean also removes .venv"
 
@@ -27,7 +27,7 @@ test: venv
 	cd $(ROOT) && $(ENV) && ROS_PYTHON_CHECK_FIELDS=1 python -m pytest $(PYTEST_ARGS) $(TEST_DIRS)
 
 demo: venv
-	cd $(ROOT) && $(ENV) && flex-twin demo $(DEMO_ARGS)
+	cd $(ROOT) && $(ENV) && flex-twin twin-demo $(DEMO_ARGS)
 
 bench: venv
 	@cd $(ROOT) && if [ -f bench/run_all.py ]; then $(ENV) && python bench/run_all.py; \

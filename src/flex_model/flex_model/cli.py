@@ -222,6 +222,29 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def cmd_twin_demo(args) -> int:
+    """The thesis Ch. V task over ROS: planner, controller and model nodes, recorded."""
+    from .twin_demo import run
+    print("flex-twin twin demo: planner -> controller (Eq. 95) -> model over ROS topics, "
+          "thesis Ch. V task", file=sys.stderr)
+    s = run(args.out, duration=args.duration, progress=Progress("twin demo", not args.json))
+    if args.json:
+        print(json.dumps(s))
+        return 0
+    print(f"{'waypoint':>8} {'t [s]':>6} {'tip error [mm]':>15}")
+    for k, w in enumerate(s["waypoints"]):
+        print(f"{k + 1:>8} {w['t_s']:6.1f} {w['tip_error_mm']:15.2f}")
+    print("max |tip deflection| per link [mm]: " + ", ".join(
+        f"{v:.1f}" for v in s["max_abs_tip_deflection_mm"]))
+    print("peak torques [N m]: " + ", ".join(f"{v:.1f}" for v in s["peak_torque_nm"]))
+    print(f"simulated {s['simulated_s']:g} s in {s['wall_s']:.1f} s wall "
+          f"(real-time factor {s['real_time_factor']:.2f})")
+    print(f"bag: {s['bag']} (open it in Foxglove: File > Open local file, the .mcap inside; "
+          f"/flex/shape shows the deflected arm)")
+    print(f"plots: {s['png']}")
+    return 0
+
+
 def cmd_effects(args) -> int:
     """The effect library: parameters with units, off values, bounds, tolerances."""
     from .effects import EFFECT_TYPES, NOMINAL_TOLERANCES
@@ -320,6 +343,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("demo", help="the model demo (section E scenario)")
     sim_args(sp)
     sp.set_defaults(func=cmd_demo)
+
+    sp = sub.add_parser("twin-demo", help="the thesis Ch. V task over ROS (planner, "
+                        "controller, model), recorded to a bag")
+    sp.add_argument("--out", default=None, help="output directory (default runs/...)")
+    sp.add_argument("--duration", type=float, default=15.0, help="simulated time, s")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_twin_demo)
 
     sp = sub.add_parser("effects", help="the library of model effects and their parameters")
     sp.add_argument("--json", action="store_true")

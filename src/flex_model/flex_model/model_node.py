@@ -12,7 +12,8 @@ Subscriptions:
     /flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
 Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
 Parameters: arm, vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz, model
-loop), publish_rate (Hz), max_step (s), initial_joint_angles_deg, command_timeout (s, 0 =
+loop), publish_rate (Hz), max_step (s), initial_joint_angles_deg, start_static (start
+deflected at rest under gravity), start_paused (until ~/pause false), command_timeout (s, 0 =
 never), timeout_action (hold | zero), lockstep_timeout (s, wall), frame_id, shape_points,
 publish_clock.
 
@@ -53,7 +54,7 @@ class ModelNode(Node):
             ("max_step", 1e-3), ("initial_joint_angles_deg", [0.0]),
             ("command_timeout", 0.0), ("timeout_action", "hold"),
             ("lockstep_timeout", 1.0), ("frame_id", "base_link"), ("shape_points", 15),
-            ("publish_clock", False))}
+            ("publish_clock", False), ("start_static", False), ("start_paused", False))}
         if p["mode"] not in ("realtime", "lockstep"):
             raise ValueError(f"parameter mode: got {p['mode']!r}; expected realtime or lockstep")
         if p["timeout_action"] not in ("hold", "zero"):
@@ -67,13 +68,16 @@ class ModelNode(Node):
         self.model = FlexArmModel(arm)
         theta0 = np.radians(np.resize(np.asarray(p["initial_joint_angles_deg"], float),
                                       self.model.n_links))
-        self.stepper = Stepper(self.model, self.model.q_from_joint_angles(theta0),
-                               max_step=p["max_step"])
+        q0 = self.model.q_from_joint_angles(theta0)
+        if p["start_static"]:  # at rest, deflected under gravity with the joints held
+            from .statics import static_equilibrium
+            q0 = static_equilibrium(self.model, theta0, joints="clamped").q
+        self.stepper = Stepper(self.model, q0, max_step=p["max_step"])
         self.p = p
         self.names = arm.joint_names
         self.links = [lk.name for lk in arm.links]
         self.has_imu = any(s.kind == "tip_accelerometer" for s in arm.sensors)
-        self.paused = False
+        self.paused = bool(p["start_paused"])
         self.command_time = 0.0
         self.next_publish = 0.0
         self.warned = set()
@@ -136,8 +140,10 @@ class ModelNode(Node):
         return response
 
     def on_pause(self, request, response):
-        self.paused = bool(request.data)
+        was_paused, self.paused = self.paused, bool(request.data)
         self.last_wall = time.monotonic()
+        if was_paused and not self.paused and self.p["mode"] == "lockstep":
+            self.step(1.0 / self.p["rate"])  # restart the model-controller loop
         response.success, response.message = True, "paused" if self.paused else "running"
         return response
 

@@ -12,9 +12,9 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 
 def stamp(t: float) -> Time:
-    """builtin_interfaces/Time of a simulation time t (s)."""
-    sec = int(math.floor(t))
-    return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
+    """builtin_interfaces/Time of a simulation time t (s), rounded to the nanosecond."""
+    sec, nanosec = divmod(int(round(t * 1e9)), 1_000_000_000)
+    return Time(sec=sec, nanosec=nanosec)
 
 
 def joint_state(t, names, position, velocity, effort) -> JointState:

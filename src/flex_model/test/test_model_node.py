@@ -120,3 +120,11 @@ def test_reset_pause_and_shape_markers(lockstep):
     h.spin_until(fut.done, "reset")
     assert fut.result().success and h.node.stepper.t == 0.0
     np.testing.assert_array_equal(h.node.stepper.q, h.node.stepper.q0)
+
+
+def test_stamps_round_to_the_nanosecond_without_wrapping():
+    from flex_model.ros_conversions import stamp
+    for t, want in ((2.9999999999, (3, 0)), (3.0000000004, (3, 0)), (0.0015, (0, 1500000)),
+                    (12.5, (12, 500000000))):
+        s = stamp(t)
+        assert (s.sec, s.nanosec) == want
