@@ -224,7 +224,7 @@ def cmd_demo(args) -> int:
 
 def cmd_twin_demo(args) -> int:
     """The thesis Ch. V task over ROS: planner, controller and model nodes, recorded."""
-    from .twin_demo import run
+    from .ros_twin_demo import run
     print("flex-twin twin demo: planner -> controller (Eq. 95) -> model over ROS topics, "
           "thesis Ch. V task", file=sys.stderr)
     s = run(args.out, duration=args.duration, progress=Progress("twin demo", not args.json))
