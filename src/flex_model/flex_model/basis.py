@@ -195,20 +195,10 @@ class LinkBasis:
     def curvature_matrix(self, z) -> np.ndarray:
         """W'' (len(z), n_vars): curvature d''(z) = W'' q_f = M(z) / EI(z) (exact for the
         wavelets: (c2 + c3 s) / EI on each interval)."""
-        z = np.atleast_1d(np.asarray(z, dtype=float))
-        out = np.zeros((len(z), self.n_vars))
-        e_idx = np.clip(np.searchsorted(self.nodes, z, side="right") - 1, 0,
-                        len(self.elements) - 1)
-        for e, (el, c) in enumerate(zip(self.elements, self.coeffs)):
-            sel = e_idx == e
-            if not np.any(sel):
-                continue
-            ei = el.profile.properties(z[sel])[0]
-            s = z[sel] - el.a
-            curv = (c[2][None, :] + s[:, None] * c[3][None, :]) / ei[:, None]
-            cols, keep = _element_dofs(e)
-            out[np.ix_(sel, cols)] = curv[:, keep]
-        return out
+        def curvature(el, c, zs):
+            ei = el.profile.properties(zs)[0]
+            return ((c[2][None, :] + (zs - el.a)[:, None] * c[3][None, :]) / ei[:, None],)
+        return self._per_element(z, curvature)[0]
 
     def shortening_matrix(self, z) -> np.ndarray:
         """S(z) = int_0^z w' w'^T ds (len(z), n, n): axial shortening u(z) = 1/2 q_f^T S q_f.
@@ -247,21 +237,26 @@ class LinkBasis:
         return np.concatenate(z), np.concatenate(mw)
 
     def _sample(self, z):
+        return self._per_element(z, lambda el, c, zs: el.shape(zs, c))
+
+    def _per_element(self, z, evaluate):
+        """Assemble per-element arrays (len(z), 4) returned by ``evaluate(el, c, z_in_el)``
+        into (len(z), n_vars) arrays of the link's variables."""
         z = np.atleast_1d(np.asarray(z, dtype=float))
-        n = self.n_vars
-        w = np.zeros((len(z), n))
-        dw = np.zeros((len(z), n))
         e_idx = np.clip(np.searchsorted(self.nodes, z, side="right") - 1, 0,
                         len(self.elements) - 1)
+        out = None
         for e, (el, c) in enumerate(zip(self.elements, self.coeffs)):
             sel = e_idx == e
             if not np.any(sel):
                 continue
-            vals, slopes = el.shape(z[sel], c)
+            parts = evaluate(el, c, z[sel])
+            if out is None:
+                out = [np.zeros((len(z), self.n_vars)) for _ in parts]
             cols, keep = _element_dofs(e)
-            w[np.ix_(sel, cols)] = vals[:, keep]
-            dw[np.ix_(sel, cols)] = slopes[:, keep]
-        return w, dw
+            for o, part in zip(out, parts):
+                o[np.ix_(sel, cols)] = part[:, keep]
+        return out if out is not None else [np.zeros((len(z), self.n_vars))] * 2
 
 
 def _element_dofs(e: int):

@@ -392,29 +392,6 @@ class FlexArmModel:
         q = np.asarray(q, float)
         return np.array([q[self.tip_rotation_index(i)] for i in range(self.n_links)])
 
-    def axial_shortening(self, q) -> np.ndarray:
-        """Chord shortening of every link, u = 1/2 int d'^2 dz = 1/2 q_f^T S1 q_f (m).
-
-        The thesis model (Eq. 1) is small-deflection: it does not move the link tip
-        towards the root as the link bends. This second-order estimate measures what
-        that omission is worth (it is not part of the equations of motion).
-        """
-        q = np.asarray(q, float)
-        return np.array([0.5 * q[self.flex_slice(i)] @ b.S1 @ q[self.flex_slice(i)]
-                         for i, b in enumerate(self.bases)])
-
-    def link_tips_with_shortening(self, q) -> np.ndarray:
-        """Link tips (n_links, 2) moved back along each chord by its axial shortening."""
-        q = np.asarray(q, float)
-        tips = self.link_origins(q)[1:].copy()
-        u = self.axial_shortening(q)
-        shift = np.zeros(2)
-        for i in range(self.n_links):
-            a = q[self.alpha_index(i)]
-            shift -= u[i] * np.array([np.cos(a), np.sin(a)])
-            tips[i] += shift
-        return tips
-
     def tip_pose(self, q) -> tuple[float, float, float]:
         """(x, y, phi) of the arm's end: position (m) and tangent angle (rad)."""
         q = np.asarray(q, float)
@@ -422,6 +399,16 @@ class FlexArmModel:
         last = self.n_links - 1
         return float(x), float(y), float(q[self.alpha_index(last)]
                                          + q[self.tip_rotation_index(last)])
+
+    def tip_specific_force(self, q, v, a) -> np.ndarray:
+        """What an accelerometer at the arm's end measures: a_tip - g in the tip frame
+        (x along the tip tangent), a_tip = J a + (dJ/dq v) v (m/s^2)."""
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        h = 1e-6 / max(1.0, float(np.max(np.abs(v))))
+        jdot_v = (self.tip_jacobian(q + h * v) - self.tip_jacobian(q - h * v)) @ v / (2 * h)
+        acc = self.tip_jacobian(q) @ np.asarray(a, float) + jdot_v - self.gravity
+        c, s = np.cos(self.tip_pose(q)[2]), np.sin(self.tip_pose(q)[2])
+        return np.array([c * acc[0] + s * acc[1], -s * acc[0] + c * acc[1]])
 
     def shape(self, q, points_per_link: int = 21) -> list[np.ndarray]:
         """Deflected centre line of every link: list of (points, 2) arrays, base frame."""

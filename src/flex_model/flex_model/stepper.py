@@ -107,12 +107,5 @@ class Stepper:
         """Specific force a - g at the tip in the tip frame (m/s^2), what an accelerometer
         there measures (flex_model.sensors)."""
         from .integrators import derivative
-        m = self.model
-        acc = derivative(self.t, self.x, m.P, self.E)[m.nq:]
-        q, v = self.q, self.v
-        h = 1e-6 / max(1.0, float(np.max(np.abs(v))))
-        jdot_v = (m.tip_jacobian(q + h * v) - m.tip_jacobian(q - h * v)) @ v / (2 * h)
-        a_tip = m.tip_jacobian(q) @ acc + jdot_v - m.gravity
-        phi = m.tip_pose(q)[2]
-        c, s = np.cos(phi), np.sin(phi)
-        return np.array([c * a_tip[0] + s * a_tip[1], -s * a_tip[0] + c * a_tip[1]])
+        a = derivative(self.t, self.x, self.model.P, self.E)[self.model.nq:]
+        return self.model.tip_specific_force(self.q, self.v, a)
