@@ -362,13 +362,19 @@ def build_parser() -> argparse.ArgumentParser:
     add_bag_parsers(sub)
     from .ros_suite import add_up_parser  # up: the nodes from a parameter file
     add_up_parser(sub)
-    # subcommands of the other packages, when installed (imported here only, so that the
-    # core of flex_model never depends on them)
-    for module, hook in (("flex_planner.cli", "add_plan_parser"),
+    # subcommands of flex_model's workflows (compare, diagnose, replay/import) and of the
+    # other packages when installed (imported here only, so that the core of flex_model
+    # never depends on them)
+    for module, hook in (("flex_model.comparison.cli", "add_compare_parser"),
+                         ("flex_model.diagnosis.cli", "add_diagnose_parser"),
+                         ("flex_model.real_arms.cli", "add_real_arm_parsers"),
+                         ("flex_planner.cli", "add_plan_parser"),
                          ("flex_control.cli", "add_control_parser")):
         try:
             add = getattr(__import__(module, fromlist=[hook]), hook)
-        except (ImportError, AttributeError):
+        except ModuleNotFoundError as exc:
+            if not module.startswith(exc.name or "\0"):
+                raise
             continue
         add(sub)
     return p
