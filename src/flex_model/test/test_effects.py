@@ -180,7 +180,9 @@ def test_elastic_joint_has_the_two_inertia_frequency():
                                                           stiffness=k, motor_inertia=jm)))
     jl = 2.0 * 1.0**3 / 3.0
     f = natural_modes(model, joints="hinged").omega
-    assert f[0] == pytest.approx(0.0, abs=1e-6)
+    # the rigid-body mode: zero up to the eigensolver's roundoff, sqrt(eps) omega_max
+    # (the 1e9 N m^2 link puts omega_max at 1.6e6 rad/s; BLAS builds differ there)
+    assert f[0] < 1e-7 * f[-1]
     assert f[1] == pytest.approx(np.sqrt(k * (jm + jl) / (jm * jl)), rel=1e-6)  # EI finite
     assert model.nq == 4 and model.coordinate_names()[-1] == "joint1/motor"
 
