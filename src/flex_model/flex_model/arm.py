@@ -204,7 +204,7 @@ def _link(f: Fields, index: int) -> LinkDescription:
             raise f.error("segments", total, f"segment lengths summing to length = {length} m")
         segments = tuple(segments)
     disc = f.string("discretization", "wavelet", choices=list(DISCRETIZATIONS))
-    n_vars = f.integer("variables", 2, min_value=2 if disc != "lumped" else 1,
+    n_vars = f.integer("variables", 2, min_value=2,
                        max_value=200, even=disc in PAIRED)
     options = _discretization_options(f, disc)
     ends = f.mapping("end_masses", {})

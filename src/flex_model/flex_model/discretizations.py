@@ -108,21 +108,30 @@ def function_basis(profile: SectionProfile, functions, cuts, *, kind: str,
     cuts, z, w, ei, m = _quadrature(profile, cuts)
     W, dW, ddW = functions(z)
     wm = w * m
-    raw_bw = (W * wm[:, None]).T @ W
-    raw_k = (ddW * (w * ei)[:, None]).T @ ddW
-    n = W.shape[1]
+    raw = {"Bw": (W * wm[:, None]).T @ W, "K": (ddW * (w * ei)[:, None]).T @ ddW,
+           "S1": (dW * w[:, None]).T @ dW, "h": wm @ W, "k": (wm * z) @ W}
+    rigid = (float(np.sum(wm)), float(np.sum(wm * z)), float(np.sum(wm * z * z)))
+    return basis_from_matrices(profile, functions, cuts, raw, rigid, kind=kind,
+                               tip_form=tip_form, details=details)
+
+
+def basis_from_matrices(profile: SectionProfile, functions, cuts, raw: dict, rigid,
+                        *, kind: str, tip_form: bool = True,
+                        details: dict | None = None) -> FunctionBasis:
+    """A FunctionBasis from its link matrices in the raw variables (``raw``: Bw, K, S1,
+    h, k) and the rigid integrals (mass, first and second moment), in tip form (Eq. 84)
+    if ``tip_form``."""
+    n = raw["Bw"].shape[0]
     t = tip_transform(functions, profile.length) if tip_form else np.eye(n)
     t_inv = np.linalg.inv(t)
     sym = lambda a: 0.5 * (a + a.T)  # noqa: E731
     cong = lambda a: sym(t_inv.T @ a @ t_inv)  # noqa: E731
-    s1 = (dW * w[:, None]).T @ dW
     return FunctionBasis(
-        length=profile.length, nodes=cuts, mass=float(np.sum(wm)),
-        first_moment=float(np.sum(wm * z)), second_moment=float(np.sum(wm * z * z)),
-        Bw=cong(raw_bw), h=(wm @ W) @ t_inv, k=(wm * z) @ W @ t_inv, K=cong(raw_k),
-        S1=cong(s1), elements=(), coeffs=(), section=profile, functions=functions,
-        tip_transform=t, raw_Bw=sym(raw_bw), raw_K=sym(raw_k), kind=kind,
-        details=details or {})
+        length=profile.length, nodes=np.asarray(cuts, float), mass=rigid[0],
+        first_moment=rigid[1], second_moment=rigid[2], Bw=cong(raw["Bw"]),
+        h=raw["h"] @ t_inv, k=raw["k"] @ t_inv, K=cong(raw["K"]), S1=cong(raw["S1"]),
+        elements=(), coeffs=(), section=profile, functions=functions, tip_transform=t,
+        raw_Bw=sym(raw["Bw"]), raw_K=sym(raw["K"]), kind=kind, details=details or {})
 
 
 def assumed_modes_basis(profile: SectionProfile, count: int, mode_type: str = "clamped_free",
@@ -132,13 +141,19 @@ def assumed_modes_basis(profile: SectionProfile, count: int, mode_type: str = "c
     (thesis Eqs. 55-56; for a variable section the shapes are those of the mean link and
     the integrals use the real EI(z), m(z))."""
     length = profile.length
-    m_mean = _quadrature(profile, [0.0, length])
-    m_mean = float(np.sum(m_mean[2] * m_mean[4])) / length
-    shapes = mode_shapes(length, count, mode_type, mass_per_length=m_mean,
-                         tip_mass=tip_mass, tip_inertia=tip_inertia)
+    shapes = link_modes(profile, count, mode_type, tip_mass, tip_inertia)
     cuts = np.linspace(0.0, length, max(8, count) + 1)
     return function_basis(profile, shapes.evaluate, cuts, kind=kind,
                           details={"mode_type": mode_type, "beta_L": shapes.roots})
+
+
+def link_modes(profile: SectionProfile, count: int, mode_type: str, tip_mass: float = 0.0,
+               tip_inertia: float = 0.0):
+    """Mode shapes of the uniform link with the link's length and mean mass per length."""
+    q = _quadrature(profile, [0.0, profile.length])
+    m_mean = float(np.sum(q[2] * q[4])) / profile.length
+    return mode_shapes(profile.length, count, mode_type, mass_per_length=m_mean,
+                       tip_mass=tip_mass, tip_inertia=tip_inertia)
 
 
 def ritz_basis(profile: SectionProfile, count: int) -> FunctionBasis:
