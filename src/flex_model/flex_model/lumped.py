@@ -36,8 +36,9 @@ from .sections import SectionProfile
 
 
 def lumped_parameters(profile: SectionProfile, masses: int, mode_type: str = "clamped_mass",
-                      tip_mass: float = 0.0, tip_inertia: float = 0.0):
-    """Lumped masses M_e,j (kg) and springs K_e,j (N/m) of seed 000 Eqs. (12) and (16)."""
+                      tip_mass: float = 0.0, tip_inertia: float = 0.0, with_mode=False):
+    """Lumped masses M_e,j (kg) and springs K_e,j (N/m) of seed 000 Eqs. (12) and (16)
+    (and the mode F used, if ``with_mode``)."""
     shapes = link_modes(profile, 1, mode_type, tip_mass, tip_inertia)
     length = profile.length
     ell = length / masses
@@ -50,7 +51,7 @@ def lumped_parameters(profile: SectionProfile, masses: int, mode_type: str = "cl
     chord = np.diff(f_e) / ell
     w_rel = ell * (chord - np.concatenate([[0.0], chord[:-1]]))
     k_e = np.bincount(piece, w * ei * ddphi ** 2, masses) / w_rel ** 2
-    return m_e, k_e
+    return (m_e, k_e, shapes) if with_mode else (m_e, k_e)
 
 
 def lumped_basis(profile: SectionProfile, masses: int, mode_type: str = "clamped_mass",
@@ -59,7 +60,8 @@ def lumped_basis(profile: SectionProfile, masses: int, mode_type: str = "clamped
     if masses < 2:
         raise ValueError("a lumped link in the model needs variables >= 2 masses (the tip "
                          f"deflection and rotation are two coordinates); got {masses}")
-    m_e, k_e = lumped_parameters(profile, masses, mode_type, tip_mass, tip_inertia)
+    m_e, k_e, mode = lumped_parameters(profile, masses, mode_type, tip_mass, tip_inertia,
+                                       with_mode=True)
     length = profile.length
     ell = length / masses
     nodes = np.linspace(0.0, length, masses + 1)
@@ -86,4 +88,4 @@ def lumped_basis(profile: SectionProfile, masses: int, mode_type: str = "clamped
     rigid = (float(np.sum(w * m)), float(np.sum(w * m * z)), float(np.sum(w * m * z * z)))
     return basis_from_matrices(profile, functions, nodes, raw, rigid, kind="lumped",
                                details={"lumped_masses": m_e, "lumped_springs": k_e,
-                                        "mode_type": mode_type})
+                                        "mode_type": mode_type, "mode": mode})
