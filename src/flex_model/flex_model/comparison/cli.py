@@ -1,0 +1,41 @@
+"""``flex-twin compare``: every discretization on the same arms, a markdown report with
+plots (paper value next to ours) in an output directory."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+
+def cmd_compare(args) -> int:
+    from .report import write_report
+
+    def say(msg):
+        if not args.quiet:
+            print(f"compare: {msg}", file=sys.stderr, flush=True)
+    out = Path(args.out)
+    res = write_report(out, with_cost=not args.no_cost, progress=say)
+    summary = {"report": str(out / "report.md"), "results": str(out / "results.json"),
+               "plots": sorted(str(p) for p in out.glob("*.png"))}
+    if args.json:
+        print(json.dumps(summary | {"table_I": {r["method"]: r["I"]
+                                                for r in res["tables_I_III"]}}))
+    else:
+        print(f"report: {summary['report']}")
+        for r in res["tables_I_III"]:
+            paper = r["paper_I"]
+            print(f"  Table I {r['method']:>20}: {r['I'][0]:.3f}, {r['I'][1]:.3f} Hz"
+                  + (f" (paper {paper[0]}, {paper[1]})" if paper else ""))
+    return 0
+
+
+def add_compare_parser(sub) -> None:
+    sp = sub.add_parser("compare", help="compare the discretizations of the seeds (wavelets, "
+                        "assumed/optimized modes, Ritz, lumped, FEM) on the same arms")
+    sp.add_argument("--out", default="runs/compare", help="output directory (report.md, "
+                    "PNG plots, results.json)")
+    sp.add_argument("--no-cost", action="store_true",
+                    help="skip the cost table (section E timings, about a minute)")
+    sp.add_argument("--json", action="store_true", help="print a JSON summary")
+    sp.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    sp.set_defaults(func=cmd_compare)
