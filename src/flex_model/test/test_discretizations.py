@@ -199,3 +199,30 @@ def test_discretization_fields_are_validated():
         arm_from_dict(d, "arm.yaml")
     d["links"][0].update(discretization="assumed_modes", variables=3)
     assert arm_from_dict(d, "arm.yaml").links[0].n_vars == 3
+
+
+def test_thesis_tables_IV_V_ritz_column():
+    """Thesis Tables IV-V (Example 2, piecewise section): two Ritz polynomials per link
+    give 17.2 / 2.94 / 1.45 deg and 257 / 79 / 73 mm where the exact values are 26.5 /
+    4.32 / 1.90 deg and 377 / 106 / 83 mm (the wavelets, exact with two variables)."""
+    from flex_model.comparison.tables import thesis_tables_IV_V
+    rows = {r["method"]: r for r in thesis_tables_IV_V()}
+    for name in ("wavelet 2", "Ritz polynomials 2"):
+        r = rows[name]
+        for key in ("IV", "V"):
+            assert all(in_print(x, p) for x, p in zip(r[key], r[f"paper_{key}"])), r
+
+
+def test_compare_cli_writes_the_report(tmp_path, capsys):
+    """``flex-twin compare`` (without the slow parts) writes report.md with the paper
+    value next to ours, and a bad --out is a one-line error with exit code 2."""
+    from flex_model.cli import main
+    assert main(["compare", "--out", str(tmp_path / "c"), "--no-cost", "--no-frequency",
+                 "--quiet", "--json"]) == 0
+    text = (tmp_path / "c" / "report.md").read_text()
+    assert "| f1 | 1.32 / 1.323 | 1.32 / 1.323 | 1.36 / 1.363 | 1.51 / 1.508 |" in text
+    assert "| 0.008634 kg | 0.008632 kg |" in text
+    (tmp_path / "file").write_text("")
+    capsys.readouterr()
+    assert main(["compare", "--out", str(tmp_path / "file"), "--no-cost", "--quiet"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1

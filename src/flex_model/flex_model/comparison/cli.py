@@ -14,7 +14,8 @@ def cmd_compare(args) -> int:
         if not args.quiet:
             print(f"compare: {msg}", file=sys.stderr, flush=True)
     out = Path(args.out)
-    res = write_report(out, with_cost=not args.no_cost, progress=say)
+    res = write_report(out, with_cost=not args.no_cost, with_frequency=not args.no_frequency,
+                       progress=say)
     summary = {"report": str(out / "report.md"), "results": str(out / "results.json"),
                "plots": sorted(str(p) for p in out.glob("*.png"))}
     if args.json:
@@ -36,6 +37,8 @@ def add_compare_parser(sub) -> None:
                     "PNG plots, results.json)")
     sp.add_argument("--no-cost", action="store_true",
                     help="skip the cost table (section E timings, about a minute)")
+    sp.add_argument("--no-frequency", action="store_true",
+                    help="skip the frequency responses of sections C and D")
     sp.add_argument("--json", action="store_true", help="print a JSON summary")
     sp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     sp.set_defaults(func=cmd_compare)

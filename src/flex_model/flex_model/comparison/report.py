@@ -12,7 +12,9 @@ from .frequency import REFERENCE_VARS, frequency_responses, plot_frequency_respo
 
 
 def _pair(paper, ours, fmt):
-    return f"{'—' if paper is None else format(paper, fmt)} / {format(ours, fmt)}"
+    """'paper / ours', ours with one more decimal than the paper prints."""
+    more = fmt if not fmt.endswith("f") else f".{int(fmt[1:-1]) + 1}f"
+    return f"{'—' if paper is None else format(paper, fmt)} / {format(ours, more)}"
 
 
 def _tables_I_III(rows) -> list[str]:
@@ -33,6 +35,20 @@ def _tables_I_III(rows) -> list[str]:
             out.append(f"| {lab} | " + " | ".join(cells) + " |")
         out.append("")
     return out
+
+
+def _tables_IV_V(rows) -> list[str]:
+    out = ["## Thesis Tables IV-V (Example 2, piecewise section, clamped joints)", "",
+           "Tip rotation (deg) and tip displacement (mm), paper / ours; clamped-free modes "
+           "and FEM are not in the thesis.", "",
+           "| | " + " | ".join(r["method"] for r in rows) + " |",
+           "|---" * (len(rows) + 1) + "|"]
+    for key, fmt, unit in (("IV", ".2f", "deg"), ("V", ".0f", "mm")):
+        for k, lab in enumerate(("C = 50 N m", "F = 10 N", "own weight")):
+            cells = [_pair(None if r[f"paper_{key}"] is None else r[f"paper_{key}"][k],
+                           r[key][k], fmt) for r in rows]
+            out.append(f"| {lab} ({unit}) | " + " | ".join(cells) + " |")
+    return out + [""]
 
 
 def _table_VI(rows, r8) -> list[str]:
@@ -151,9 +167,12 @@ NOTES = ["## Notes", "",
          "its gear and damping; `flex-twin control step` covers the wavelet model.", ""]
 
 
-def write_report(out_dir, *, with_cost: bool = True, progress=None) -> dict:
+def write_report(out_dir, *, with_cost: bool = True, with_frequency: bool = True,
+                 progress=None) -> dict:
     """Compute everything, write report.md, PNGs and results.json into ``out_dir``."""
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: expected a directory (it is a file)")
     out.mkdir(parents=True, exist_ok=True)
     say = progress or (lambda msg: None)
     say("thesis Tables I-III")
@@ -163,9 +182,10 @@ def write_report(out_dir, *, with_cost: bool = True, progress=None) -> dict:
     say("seed 000 Tables 2 and 4")
     s0 = tables.seed000_tables()
     md = ["# flex-twin compare: the seeds' flexible-link models on the same arms", ""]
-    md += _tables_I_III(rows) + _table_VI(vi, r8) + _seed000(s0)
+    iv_v = tables.thesis_tables_IV_V()
+    md += _tables_I_III(rows) + _tables_IV_V(iv_v) + _table_VI(vi, r8) + _seed000(s0)
     responses = []
-    for section in ("C", "D"):
+    for section in ("C", "D") if with_frequency else ():
         res = frequency_responses(section, progress=say)
         png = f"frequency_response_{section}.png"
         plot_frequency_responses(res, out / png)
@@ -181,7 +201,7 @@ def write_report(out_dir, *, with_cost: bool = True, progress=None) -> dict:
         md += _cost(cost)
     md += NOTES
     (out / "report.md").write_text("\n".join(md))
-    results = {"tables_I_III": rows, "table_VI": vi, "remark8": r8, "seed000": s0,
+    results = {"tables_I_III": rows, "tables_IV_V": iv_v, "table_VI": vi, "remark8": r8, "seed000": s0,
                "frequency_responses": responses, "cost": cost}
     (out / "results.json").write_text(json.dumps(results, indent=1, default=_jsonable))
     return results

@@ -1,6 +1,7 @@
 """The paper tables the comparison reproduces, paper value next to ours.
 
-Thesis Tables I-III (Example 1, two functions per link, VALIDATION.md B), Table VI and
+Thesis Tables I-III (Example 1, two functions per link, VALIDATION.md B), Tables IV-V
+(Example 2, VALIDATION.md C), Table VI and
 Remark 8 (VALIDATION.md A), seed 000 Tables 2 and 4 (VALIDATION.md G). Every function
 returns plain dicts (JSON-ready); ``None`` stands for "not in the paper".
 """
@@ -67,29 +68,59 @@ def _theory_example1(arm):
     return tuple(f), tuple(rot), tuple(disp)
 
 
+def _static_column(arm, loads):
+    """|tip rotation| (deg) and |tip displacement| (mm) of the linear statics for tip
+    loads (``None``: the own weight), clamped joints."""
+    model = FlexArmModel(arm.without_gravity())
+    rot, disp = [], []
+    for load in loads:
+        mdl = FlexArmModel(arm) if load is None else model
+        r = static_equilibrium(mdl, load=TipLoad() if load is None else load, linear=True)
+        rot.append(abs(float(np.degrees(r.tip_rotation))))
+        disp.append(abs(1e3 * float(r.tip_displacement)))
+    return rot, disp
+
+
 def thesis_tables_I_to_III(n_vars: int = 2) -> list[dict]:
     """One dict per column: name, ours and paper for Tables I, II, III."""
     arm = load_arm("thesis_example1")
+    loads = (TipLoad(torque=10.0), TipLoad.from_magnitude(5.0), None)
     rows = []
     for name, disc, opt in TABLE_COLUMNS:
         if disc is None:
             f, rot, disp = _theory_example1(arm)
         else:
             a = with_discretization(arm, disc, n_vars, **opt)
-            model = FlexArmModel(a.without_gravity())
-            f = tuple(natural_modes(model, joints="clamped").frequencies_hz[:2])
-            rot, disp = [], []
-            for mdl, load in ((model, TipLoad(torque=10.0)),
-                              (model, TipLoad.from_magnitude(5.0)),
-                              (FlexArmModel(a), TipLoad())):
-                r = static_equilibrium(mdl, load=load, linear=True)
-                rot.append(abs(float(np.degrees(r.tip_rotation))))
-                disp.append(abs(1e3 * float(r.tip_displacement)))
+            f = tuple(natural_modes(FlexArmModel(a.without_gravity()),
+                                    joints="clamped").frequencies_hz[:2])
+            rot, disp = _static_column(a, loads)
         paper = PAPER_TABLES.get(name, {})
         rows.append({"method": name, "discretization": disc, "options": opt,
                      "I": [float(x) for x in f], "II": [float(x) for x in rot],
                      "III": [float(x) for x in disp], "paper_I": paper.get("I"),
                      "paper_II": paper.get("II"), "paper_III": paper.get("III")})
+    return rows
+
+
+#: thesis Tables IV (tip rotation deg) and V (tip displacement mm), Example 2: C = 50 N m,
+#: F = 10 N, own weight; "true" = wavelets with 20 variables per link
+PAPER_TABLES_IV_V = {"wavelet 20 (true)": ((26.5, 4.32, 1.90), (377, 106, 83)),
+                     "wavelet 2": ((26.5, 4.32, 1.90), (377, 106, 83)),
+                     "Ritz polynomials 2": ((17.2, 2.94, 1.45), (257, 79, 73))}
+
+
+def thesis_tables_IV_V() -> list[dict]:
+    """Example 2 (piecewise section, VALIDATION.md C): wavelets vs Ritz, two variables."""
+    arm = load_arm("thesis_example2")
+    loads = (TipLoad(torque=50.0), TipLoad.from_magnitude(10.0), None)
+    rows = []
+    for name, disc, n in (("wavelet 20 (true)", "wavelet", 20), ("wavelet 2", "wavelet", 2),
+                          ("Ritz polynomials 2", "ritz_polynomials", 2),
+                          ("clamped-free modes 2", "assumed_modes", 2), ("FEM 2", "fem", 2)):
+        rot, disp = _static_column(with_discretization(arm, disc, n), loads)
+        paper = PAPER_TABLES_IV_V.get(name, (None, None))
+        rows.append({"method": name, "IV": rot, "V": disp, "paper_IV": paper[0],
+                     "paper_V": paper[1]})
     return rows
 
 
