@@ -218,7 +218,7 @@ def test_compare_cli_writes_the_report(tmp_path, capsys):
     value next to ours, and a bad --out is a one-line error with exit code 2."""
     from flex_model.cli import main
     assert main(["compare", "--out", str(tmp_path / "c"), "--no-cost", "--no-frequency",
-                 "--quiet", "--json"]) == 0
+                 "--no-step", "--quiet", "--json"]) == 0
     text = (tmp_path / "c" / "report.md").read_text()
     assert "| f1 | 1.32 / 1.323 | 1.32 / 1.323 | 1.36 / 1.363 | 1.51 / 1.508 |" in text
     assert "| 0.008634 kg | 0.008632 kg |" in text

@@ -7,6 +7,33 @@ import sys
 from pathlib import Path
 
 
+#: seed 000 Table 4 step response: (label, discretization, variables, options)
+STEP_METHODS = (("wavelet", "wavelet", 8, {}),
+                ("assumed modes (2, clamped with tip mass)", "assumed_modes", 2,
+                 {"mode_type": "clamped_mass"}),
+                ("lumped chain (2 masses)", "lumped", 2, {"mode_type": "clamped_mass"}),
+                ("lumped chain (8 masses)", "lumped", 8, {"mode_type": "clamped_mass"}))
+
+
+def seed000_step_responses(progress=None):
+    """Seed 000 Table 4: the Eq. (45) step 10 -> 30 deg on the Table 3 link for each method
+    (flex_control.step_response, imported here only); None without flex_control."""
+    try:
+        from flex_control.step_response import step_response
+    except ModuleNotFoundError:
+        return None
+    from ..arm import load_arm
+    from .methods import with_discretization
+    rows = []
+    for label, disc, n, opt in STEP_METHODS:
+        if progress:
+            progress(f"seed 000 Table 4 step response: {label}")
+        r = step_response(with_discretization(load_arm("seed000_table3"), disc, n, **opt))
+        rows.append({"method": label, "tip_frequency_hz": float(r.tip_frequency_hz),
+                     "tip_amplitude_m": float(r.tip_amplitude_m)})
+    return rows
+
+
 def cmd_compare(args) -> int:
     from .report import write_report
 
@@ -15,6 +42,7 @@ def cmd_compare(args) -> int:
             print(f"compare: {msg}", file=sys.stderr, flush=True)
     out = Path(args.out)
     res = write_report(out, with_cost=not args.no_cost, with_frequency=not args.no_frequency,
+                       step_responses=None if args.no_step else seed000_step_responses,
                        progress=say)
     summary = {"report": str(out / "report.md"), "results": str(out / "results.json"),
                "plots": sorted(str(p) for p in out.glob("*.png"))}
@@ -39,6 +67,8 @@ def add_compare_parser(sub) -> None:
                     help="skip the cost table (section E timings, about a minute)")
     sp.add_argument("--no-frequency", action="store_true",
                     help="skip the frequency responses of sections C and D")
+    sp.add_argument("--no-step", action="store_true",
+                    help="skip the seed 000 Table 4 step responses (needs flex_control)")
     sp.add_argument("--json", action="store_true", help="print a JSON summary")
     sp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     sp.set_defaults(func=cmd_compare)
