@@ -14,6 +14,8 @@ Example (the thesis Example 1 arm)::
         variables: 2                 # deformation variables (2 per interval)
         end_masses: {M_minus: 0, M_plus: 0, J_minus: 0, J_plus: 0}
         internal_friction: 0.0       # k_a of thesis Eq. (35), N s
+        discretization: wavelet      # or assumed_modes, optimized_modes, ritz_polynomials,
+                                     # lumped, fem (flex_model.discretizations)
       - ...
     joints:
       - {name: joint1, type: revolute}
@@ -26,6 +28,13 @@ Example (the thesis Example 1 arm)::
 A section dimension given as ``[root, tip]`` is linearly tapered; ``segments`` (a list of
 ``{length, section, material?}``) replaces ``section`` for piecewise sections. Shape
 ``explicit`` takes ``EI`` (N m^2) and ``m`` (kg/m) directly (no material needed).
+
+``discretization`` (default ``wavelet``): ``variables`` is then the number of modes
+(``assumed_modes``, ``optimized_modes``, with ``mode_type: clamped_free | hinged_free |
+clamped_mass``; clamped_mass takes optional ``tip_mass``, ``tip_inertia``, default M+,
+J+ and the payload), of polynomials (``ritz_polynomials``), of lumped masses (``lumped``,
+seed 000, first mode ``mode_type``, default clamped_mass) or twice the Hermite elements
+(``fem``, even). Every variant needs at least two variables (tip deflection and rotation).
 """
 from __future__ import annotations
 
