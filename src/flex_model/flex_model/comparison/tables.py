@@ -167,7 +167,9 @@ def remark8() -> dict:
             "omega_wavelet": [float(x) for x in np.sqrt(sla.eigh(wav.K, wav.Bw,
                                                                   eigvals_only=True))],
             "omega_ritz": [float(x) for x in np.sort(np.abs(lam_r.imag))[::2]],
-            "omega_exact": [float(x) for x in omega_exact], "paper": PAPER_REMARK8}
+            "omega_exact": [float(x) for x in omega_exact], "paper": PAPER_REMARK8,
+            "eigenvalues_ritz": [[float(x.real), float(x.imag)] for x in lam_r],
+            "eigenvalues_wavelet": [[float(x.real), float(x.imag)] for x in lam_w]}
 
 
 def seed000_tables() -> dict:
