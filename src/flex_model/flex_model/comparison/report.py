@@ -128,6 +128,18 @@ def _seed000(s) -> list[str]:
             f"m / {pb['amplitude_lumped_m']} m | below |", ""]
 
 
+def _seed002(h) -> list[str]:
+    out = ["## Seed 002 FEM with flexible joints (section H arm, 2 elements per link)", "",
+           "Joint springs 1e4 N m/rad and motor inertias 0.1 kg m^2 (seed 002 Eqs. 11-14, the "
+           "`joint_elasticity` effect), free (hinged) arm, first five non-zero frequencies (Hz):",
+           "", "| joints | wavelet | FEM | max relative difference |", "|---|---|---|---|"]
+    for label, r in h.items():
+        out.append(f"| {label} | " + ", ".join(f"{x:.4f}" for x in r["wavelet_hz"]) + " | "
+                   + ", ".join(f"{x:.4f}" for x in r["fem_hz"])
+                   + f" | {r['max_relative_difference']:.1e} |")
+    return out + [""]
+
+
 def _frequency(res, png) -> list[str]:
     ref = res["reference_frequencies_hz"]
     out = [f"## Frequency responses, section {res['section']} ({res['arm']})", "",
@@ -217,6 +229,8 @@ def write_report(out_dir, *, with_cost: bool = True, with_frequency: bool = True
     md = ["# flex-twin compare: the seeds' flexible-link models on the same arms", ""]
     iv_v = tables.thesis_tables_IV_V()
     md += _tables_I_III(rows) + _tables_IV_V(iv_v) + _table_VI(vi, r8) + _seed000(s0)
+    h = tables.seed002_flexible_joints()
+    md += _seed002(h)
     steps = step_responses(say) if step_responses else None
     if steps:
         md += _steps(steps)
@@ -238,6 +252,7 @@ def write_report(out_dir, *, with_cost: bool = True, with_frequency: bool = True
     md += NOTES
     (out / "report.md").write_text("\n".join(md))
     results = {"tables_I_III": rows, "tables_IV_V": iv_v, "step_responses": steps,
+               "seed002": h,
                "table_VI": vi, "remark8": r8, "seed000": s0,
                "frequency_responses": responses, "cost": cost}
     (out / "results.json").write_text(json.dumps(results, indent=1, default=_jsonable))

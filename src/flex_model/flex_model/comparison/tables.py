@@ -202,3 +202,24 @@ def seed000_tables() -> dict:
                                       "f_exact_hz": 0.824, "amplitude_assumed_modes_m": 0.1462,
                                       "amplitude_lumped_m": 0.2032}
     return out
+
+
+def seed002_flexible_joints() -> dict:
+    """Seed 002 (VALIDATION.md H): the two-link FEM arm, two Hermite elements per link,
+    with the flexible joints of Eqs. 11-14 (k = 1e4 N m/rad, motor inertia 0.1 kg m^2,
+    the ``joint_elasticity`` effect) and rigid: FEM vs wavelet frequencies of the free
+    (hinged) arm, the two rigid-body modes left out."""
+    from ..effects import parse_effects
+    arm = load_arm("seed002_two_link")
+    eff = parse_effects([{"type": "joint_elasticity", "joint": j, "stiffness": 1e4,
+                          "motor_inertia": 0.1} for j in arm.joint_names], "<compare>",
+                        arm.joint_names, [lk.name for lk in arm.links])
+    out = {}
+    for label, a in (("rigid joints", arm), ("flexible joints", arm.with_effects(*eff))):
+        f = {d: natural_modes(FlexArmModel(with_discretization(a, d, 4)),
+                              joints="hinged").frequencies_hz[2:7] for d in ("wavelet", "fem")}
+        out[label] = {"wavelet_hz": [float(x) for x in f["wavelet"]],
+                      "fem_hz": [float(x) for x in f["fem"]],
+                      "max_relative_difference": float(np.max(np.abs(f["fem"] / f["wavelet"]
+                                                                     - 1.0)))}
+    return out
