@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from ..integrators import derivative
+from ..modes import natural_modes
 from ..scenario import load_scenario
 from ..simulate import SimulationDivergedError, _input_data
 from .methods import METHODS, with_discretization
@@ -61,11 +62,12 @@ def simulated_second(sc, model, duration: float, dt: float) -> float:
 
 def cost_table(vars_per_link=(4, 8), duration: float = 5.0, dt: float = 1e-3,
                repeats: int = 2000, progress=None) -> list[dict]:
-    """One row per method: us per evaluation and CPU s per simulated second at each
-    variable count, growth exponents between the first and the last count."""
+    """One row per method: us per evaluation, CPU s per simulated second and the highest
+    natural frequency (clamped joints: what bounds an explicit step) at each variable
+    count, growth exponents between the first and the last count."""
     rows = []
     for label, disc, opt in METHODS:
-        row = {"method": label, "eval_us": {}, "cpu_per_sim_s": {}}
+        row = {"method": label, "eval_us": {}, "cpu_per_sim_s": {}, "f_max_hz": {}}
         for n in vars_per_link:
             if progress:
                 progress(f"cost: {label}, {n} variables per link")
@@ -73,6 +75,8 @@ def cost_table(vars_per_link=(4, 8), duration: float = 5.0, dt: float = 1e-3,
             model = sc.model()
             row["eval_us"][n] = eom_microseconds(model, sc, repeats)
             row["cpu_per_sim_s"][n] = simulated_second(sc, model, duration, dt)
+            row["f_max_hz"][n] = float(natural_modes(model, joints="clamped")
+                                       .frequencies_hz[-1])
         lo, hi = vars_per_link[0], vars_per_link[-1]
         ratio = np.log(hi / lo)
         row["eval_exponent"] = float(np.log(row["eval_us"][hi] / row["eval_us"][lo]) / ratio)

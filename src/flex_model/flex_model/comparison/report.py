@@ -146,7 +146,8 @@ def _frequency(res, png) -> list[str]:
            f"![section {res['section']}]({png})", "",
            f"Reference: wavelets, {REFERENCE_VARS} variables per link: f1..f3 = "
            + ", ".join(f"{x:.3f}" for x in ref) + " Hz. Static gain error at 0.1 Hz and the "
-           "highest frequency below which |H| is within 1 dB of the reference:", "",
+           "highest frequency below which |H| is within 1 dB of the reference (strict near the "
+           "antiresonance notches):", "",
            "| method | variables | f1, f2, f3 (Hz) | static gain error | within 1 dB up to |",
            "|---|---|---|---|---|"]
     for c in res["curves"]:
@@ -164,13 +165,15 @@ def _cost(rows) -> list[str]:
            + " and ".join(str(n) for n in counts) + " variables per link; growth exponent "
            "d ln(cost) / d ln(variables). One noisy run on a shared 2-core machine.", "",
            "| method | " + " | ".join(f"us/eval ({n})" for n in counts) + " | exponent | "
-           + " | ".join(f"CPU s/sim s ({n})" for n in counts) + " | exponent |",
-           "|---" * (3 + 2 * len(counts)) + "|"]
+           + " | ".join(f"CPU s/sim s ({n})" for n in counts) + " | exponent | "
+           + " | ".join(f"f_max Hz ({n})" for n in counts) + " |",
+           "|---" * (3 + 3 * len(counts)) + "|"]
     for r in rows:
         out.append(f"| {r['method']} | " + " | ".join(f"{r['eval_us'][n]:.1f}" for n in counts)
                    + f" | {r['eval_exponent']:.2f} | "
                    + " | ".join(f"{r['cpu_per_sim_s'][n]:.4f}" for n in counts)
-                   + f" | {r['sim_exponent']:.2f} |")
+                   + f" | {r['sim_exponent']:.2f} | "
+                   + " | ".join(f"{r['f_max_hz'][n]:.4g}" for n in counts) + " |")
     return out + ["", "Thesis (MATLAB ode15s, symbolic expressions): 26.4 / 124.6 / 504.1 s "
                   "(wavelets, 4 / 6 / 8 variables), 95.1 / 648.5 / 4312.4 s (clamped-free "
                   "modes), 83.9 s / 18 days / 775 days (polynomials). Here every method "
