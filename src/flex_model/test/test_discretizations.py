@@ -226,3 +226,16 @@ def test_compare_cli_writes_the_report(tmp_path, capsys):
     capsys.readouterr()
     assert main(["compare", "--out", str(tmp_path / "file"), "--no-cost", "--quiet"]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_tip_torque_response_tends_to_the_static_compliance():
+    """|H(j w)| tip torque -> tip rotation at w -> 0 is the static compliance L / EI of
+    the 4 m clamped beam of Example 1 (Theorem 1: exact with two wavelets per link), and
+    the response has a pole at the first clamped frequency."""
+    from flex_model.comparison.frequency import tip_torque_response
+    arm = load_arm("thesis_example1").without_gravity()
+    model = FlexArmModel(arm)
+    ei = float(arm.links[0].segments[0].properties(np.array([0.0]))[0][0])
+    h = tip_torque_response(model, np.array([1e-4, 1.3233, 1.3234]))
+    assert abs(h[0]) == pytest.approx(4.0 / ei, rel=1e-6)
+    assert abs(h[1]) > 1e3 * abs(h[0]) or abs(h[2]) > 1e3 * abs(h[0])
