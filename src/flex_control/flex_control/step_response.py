@@ -167,15 +167,18 @@ class StepResponse:
         return out
 
 
-def step_response(preset: str = "seed000_real_arm", *, start_deg: float = 10.0,
+def step_response(preset: str | ArmDescription = "seed000_real_arm", *,
+                  start_deg: float = 10.0,
                   end_deg: float = 30.0, kpp: float = KPP, kpv: float = KPV,
                   gear_ratio: float = GEAR_RATIO, rotor_inertia: float = ROTOR_INERTIA,
                   damping_ratio: float | None = None, t_final: float | None = None,
                   step: float = 1e-4, sample_period: float = 5e-4) -> StepResponse:
     """Simulate the step ``start_deg -> end_deg`` of the joint (motor command / n) under
     Eq. (45) from rest, undeformed (seed 000 Section 5); ``damping_ratio`` defaults to the
-    seed's value for the preset (0 for others)."""
-    zeta = SEED_DAMPING.get(preset, 0.0) if damping_ratio is None else damping_ratio
+    seed's value for the preset (0 for others). ``preset`` may be an arm description (e.g.
+    the preset with another link discretization); its name selects the seed's values."""
+    name = preset if isinstance(preset, str) else preset.name
+    zeta = SEED_DAMPING.get(name, 0.0) if damping_ratio is None else damping_ratio
     arm = with_link_damping(geared_arm(preset, gear_ratio, rotor_inertia), zeta)
     model = FlexArmModel(arm)
     f_clamped = float(natural_modes(model, joints="clamped").frequencies_hz[0])
@@ -197,7 +200,7 @@ def step_response(preset: str = "seed000_real_arm", *, start_deg: float = 10.0,
     settle = float(res.t[np.flatnonzero(off)[-1] + 1]) if off.any() and not off[-1] \
         else float(res.t[-1])
     freq, amp = residual_oscillation(res.t, w, settle)
-    return StepResponse(arm=preset, t=res.t, joint_angle=theta, tip_angle=tip_angle,
+    return StepResponse(arm=name, t=res.t, joint_angle=theta, tip_angle=tip_angle,
                         tip_deflection=w, torque=res.tau[:, 0], start=th0, end=th1,
                         damping_ratio=zeta, joint_rise_time=rise_j, joint_overshoot_pct=over_j,
                         tip_rise_time=rise_t, tip_overshoot_pct=over_t, settle_time=settle,

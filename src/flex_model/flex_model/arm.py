@@ -14,6 +14,8 @@ Example (the thesis Example 1 arm)::
         variables: 2                 # deformation variables (2 per interval)
         end_masses: {M_minus: 0, M_plus: 0, J_minus: 0, J_plus: 0}
         internal_friction: 0.0       # k_a of thesis Eq. (35), N s
+        discretization: wavelet      # or assumed_modes, optimized_modes, ritz_polynomials,
+                                     # lumped, fem (flex_model.discretizations)
       - ...
     joints:
       - {name: joint1, type: revolute}
@@ -26,6 +28,13 @@ Example (the thesis Example 1 arm)::
 A section dimension given as ``[root, tip]`` is linearly tapered; ``segments`` (a list of
 ``{length, section, material?}``) replaces ``section`` for piecewise sections. Shape
 ``explicit`` takes ``EI`` (N m^2) and ``m`` (kg/m) directly (no material needed).
+
+``discretization`` (default ``wavelet``): ``variables`` is then the number of modes
+(``assumed_modes``, ``optimized_modes``, with ``mode_type: clamped_free | hinged_free |
+clamped_mass``; clamped_mass takes optional ``tip_mass``, ``tip_inertia``, default M+,
+J+ and the payload), of polynomials (``ritz_polynomials``), of lumped masses (``lumped``,
+seed 000, first mode ``mode_type``, default clamped_mass) or twice the Hermite elements
+(``fem``, even). Every variant needs at least two variables (tip deflection and rotation).
 """
 from __future__ import annotations
 
@@ -37,7 +46,11 @@ from .config import _MISSING, ConfigError, Fields, read_yaml
 from .sections import SHAPE_DIMENSIONS, Segment, SectionProfile
 
 PRESET_DIR = Path(__file__).resolve().parent / "presets"
-DISCRETIZATIONS = ("wavelet",)
+#: link discretizations (flex_model.discretizations); wavelet is the thesis's Ch. II model
+DISCRETIZATIONS = ("wavelet", "assumed_modes", "optimized_modes", "ritz_polynomials",
+                   "lumped", "fem")
+#: discretizations whose variables come in (deflection, rotation) pairs
+PAIRED = ("wavelet", "fem")
 #: small_deflection: the thesis model (Eq. 1); second_order: with the axial shortening of
 #: bent links, u = 1/2 int d'^2 dz, which gives geometric stiffening (see kernels.py)
 KINEMATICS = ("small_deflection", "second_order")
@@ -57,6 +70,9 @@ class LinkDescription:
     J_plus: float = 0.0
     internal_friction: float = 0.0
     discretization: str = "wavelet"
+    mode_type: str = "clamped_free"   # assumed/optimized modes and lumped (mode_shapes.py)
+    tip_mass: float | None = None     # clamped_mass modes: M_p (default M+ and payload)
+    tip_inertia: float | None = None  # clamped_mass modes: I_p (default J+ and payload)
 
     @property
     def profile(self) -> SectionProfile:
@@ -196,18 +212,35 @@ def _link(f: Fields, index: int) -> LinkDescription:
         if abs(total - length) > 1e-9 * length:
             raise f.error("segments", total, f"segment lengths summing to length = {length} m")
         segments = tuple(segments)
-    n_vars = f.integer("variables", 2, min_value=2, max_value=200, even=True)
+    disc = f.string("discretization", "wavelet", choices=list(DISCRETIZATIONS))
+    n_vars = f.integer("variables", 2, min_value=2,
+                       max_value=200, even=disc in PAIRED)
+    options = _discretization_options(f, disc)
     ends = f.mapping("end_masses", {})
     end = {k: ends.number(k, 0.0, nonnegative=True, unit=u) for k, u in
            (("M_minus", "kg"), ("M_plus", "kg"), ("J_minus", "kg m^2"),
             ("J_plus", "kg m^2"))}
     ends.done()
     k_a = f.number("internal_friction", 0.0, nonnegative=True, unit="N s")
-    disc = f.string("discretization", "wavelet", choices=list(DISCRETIZATIONS))
     f.done(["name", "length", "material", "section", "segments", "variables", "end_masses",
-            "internal_friction", "discretization"])
+            "internal_friction", "discretization", *options])
     return LinkDescription(name=name, length=length, segments=segments, n_vars=n_vars,
-                           internal_friction=k_a, discretization=disc, **end)
+                           internal_friction=k_a, discretization=disc, **options, **end)
+
+
+def _discretization_options(f: Fields, disc: str) -> dict:
+    """Options of the modal discretizations: mode_type and, for clamped_mass, tip_mass and
+    tip_inertia (default: the link's M+, J+, plus the payload on the last link)."""
+    if disc not in ("assumed_modes", "optimized_modes", "lumped"):
+        return {}
+    from .mode_shapes import MODE_TYPES
+    default = "clamped_mass" if disc == "lumped" else "clamped_free"
+    out = {"mode_type": f.string("mode_type", default, choices=list(MODE_TYPES))}
+    if out["mode_type"] == "clamped_mass":
+        for key, unit in (("tip_mass", "kg"), ("tip_inertia", "kg m^2")):
+            if f.has(key):
+                out[key] = f.number(key, nonnegative=True, unit=unit)
+    return out
 
 
 def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:

@@ -184,6 +184,10 @@ class LinkBasis:
     def n_vars(self) -> int:
         return self.Bw.shape[0]
 
+    @property
+    def profile(self) -> SectionProfile:
+        return self.elements[0].profile
+
     def shape_matrix(self, z) -> np.ndarray:
         """W (len(z), n_vars): deflection d(z) = W q_f at points z along the link."""
         return self._sample(z)[0]
@@ -209,7 +213,7 @@ class LinkBasis:
         z = np.atleast_1d(np.asarray(z, dtype=float))
         n = self.n_vars
         out = np.zeros((len(z), n, n))
-        cuts = np.unique(np.concatenate([self.nodes, self.elements[0].profile.breaks]))
+        cuts = np.unique(np.concatenate([self.nodes, self.profile.breaks]))
         for m, zz in enumerate(z):
             edges = np.concatenate([cuts[cuts < zz], [zz]])
             for a, b in zip(edges[:-1], edges[1:]):
@@ -224,9 +228,9 @@ class LinkBasis:
         integrand of Hermite wavelets with the shortening (S S, degree 10) times a linearly
         varying mass per length."""
         xi, wxi = np.polynomial.legendre.leggauss(points_per_piece)
-        cuts = np.unique(np.concatenate([self.nodes, self.elements[0].profile.breaks]))
+        cuts = np.unique(np.concatenate([self.nodes, self.profile.breaks]))
         z, mw = [], []
-        profile = self.elements[0].profile
+        profile = self.profile
         for a, b in zip(cuts[:-1], cuts[1:]):
             zz = a + 0.5 * (b - a) * (xi + 1.0)
             k = int(np.clip(np.searchsorted(profile.breaks, 0.5 * (a + b), side="right") - 1,

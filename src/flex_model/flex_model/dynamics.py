@@ -68,9 +68,18 @@ class FlexArmModel:
         self.set_payload(arm.payload_mass, arm.payload_inertia)
 
     def _link_basis(self, lk):
-        """The wavelet basis of a link: Euler-Bernoulli, or Timoshenko with its effect."""
+        """The wavelet basis of a link: Euler-Bernoulli, or Timoshenko with its effect;
+        another discretization (flex_model.discretizations) if the link asks for one."""
         from .effects import slenderness
         tim = self.arm.effect("timoshenko", lk.name)
+        if lk.discretization != "wavelet":
+            if tim is not None and not tim.is_off:
+                raise ValueError(f"{self.arm.source}: effects: timoshenko on {lk.name}: "
+                                 "only with discretization: wavelet")
+            from .discretizations import discretized_basis
+            last = lk is self.arm.links[-1]
+            return discretized_basis(lk, self.arm.payload_mass if last else 0.0,
+                                     self.arm.payload_inertia if last else 0.0)
         if tim is None or tim.is_off:
             beta = slenderness(lk)
             if beta < 100:
@@ -165,6 +174,10 @@ class FlexArmModel:
         names = []
         for lk, n in zip(self.arm.links, self.nf):
             names.append(f"{lk.name}/alpha")
+            if n % 2 or lk.discretization not in ("wavelet", "fem"):
+                names += [f"{lk.name}/eta{k + 1}" for k in range(n - 2)]
+                names += [f"{lk.name}/delta", f"{lk.name}/gamma"]
+                continue
             for k in range(n // 2):
                 names += [f"{lk.name}/delta{k + 1}", f"{lk.name}/gamma{k + 1}"]
         names += [f"{self.arm.joint_names[i]}/motor" for i in self.elastic_joints]
