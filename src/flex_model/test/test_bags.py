@@ -304,21 +304,27 @@ def test_record_all_picks_up_a_topic_published_after_the_start(tmp_path, ros, re
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(repo_root / "src" / "flex_model"), os.environ.get("PYTHONPATH", "")]))
     proc = subprocess.Popen([sys.executable, "-m", "flex_model.bag_cli", "record", "--all",
-                             "--duration", "3", "--discovery-time", "0.2", "-o", str(bag)],
+                             "--duration", "60", "--discovery-time", "0.2", "-o", str(bag)],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        time.sleep(0.5)
+        # the topic must appear after the recorder's start-up scan (a loaded machine can take
+        # longer than any fixed sleep to start Python): wait for its first line
+        first = proc.stderr.readline()
+        assert first.startswith("recording "), first
         pub = make_node("late").create_publisher(JointState, topic, RELIABLE)
-        spin_until(lambda: pub.get_subscription_count() > 0, "the late subscription")
+        spin_until(lambda: pub.get_subscription_count() > 0, "the late subscription",
+                   timeout=20.0)
         for i in range(10):
             pub.publish(joint_state(i))
+        time.sleep(0.5)  # let the recorder take the 10 messages, then stop it (Ctrl-C)
+        proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=15)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
     assert proc.returncode == 0, err
-    assert f"recording new topic {topic}" in err
+    assert topic not in first and f"recording new topic {topic}" in err
     assert [m for t, _, _, m in read_bag(bag) if t == topic] == [
         joint_state(i) for i in range(10)]
 
