@@ -40,9 +40,9 @@ def test_tip_mass_matches_seed000_lumped_model(gap):
     """Seed 000's lumped model (VALIDATION.md G): k = 96.74 N/m, lumped beam mass
     0.008634 kg; M = k / (2 pi f)^2 - m_l = 27.46 g gives 8.24 Hz (+7.2 %, payload
     tolerance 1 %)."""
-    m = fits_value = gap[2]["tip mass"].values[0]
+    m = gap[2]["tip mass"].values[0]
     lumped = 96.74 / (2 * np.pi * MEASURED) ** 2 - 0.008634
-    assert fits_value == pytest.approx(lumped, rel=2e-3)
+    assert m == pytest.approx(lumped, rel=2e-3)
     assert m / 0.025607 - 1 == pytest.approx(0.0723, abs=1e-3)
 
 

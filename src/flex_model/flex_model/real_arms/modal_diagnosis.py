@@ -201,10 +201,10 @@ def fit_effects(setup: ModalSetup, candidates, measured_hz, *, modes=None, sigma
 
     ``modes``: 1-based mode numbers of the measured frequencies (default 1..n);
     ``sigma``: relative uncertainty of each measured frequency; ``count``: modes predicted
-    (default: the highest measured one). Each parameter starts from the best point of a
-    ``grid`` over its bounds (one parameter) or from ``start`` (default: the nominal
-    values), clipped to the bounds. The one-sigma intervals come from the Jacobian, with sigma inflated by the
-    lack of fit when chi^2 / dof > 1.
+    (default: the highest measured one). One parameter: the best point of a ``grid`` over
+    its bounds, refined by Brent's bounded search; several: trust-region least squares
+    from ``start`` (default: the nominal values), clipped to the bounds. The one-sigma
+    intervals come from the Jacobian, inflated by the lack of fit when chi^2 / dof > 1.
     """
     measured = np.atleast_1d(np.asarray(measured_hz, float))
     modes = np.arange(1, len(measured) + 1) if modes is None else np.asarray(modes, int)
