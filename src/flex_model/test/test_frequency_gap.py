@@ -31,7 +31,7 @@ def test_stiffness_scale_is_the_squared_frequency_ratio(gap):
     f0 = modal_frequencies(setup, 1)[0]
     assert f0 == pytest.approx(8.4597, abs=1e-4)
     s = fits["stiffness scale"]
-    assert s.values[0] == pytest.approx((MEASURED / f0) ** 2, rel=1e-6)
+    assert s.values[0] == pytest.approx((MEASURED / f0) ** 2, rel=1e-5)
     assert s.values[0] == pytest.approx((8.24 / 8.46) ** 2, rel=1e-3)
     assert s.within_tolerance() == [False]           # -5.13 % against E's +-5 %
 
@@ -51,7 +51,7 @@ def test_every_reachable_effect_explains_the_one_frequency_exactly(gap):
     for name in ("stiffness scale", "mass scale", "tip mass", "tip inertia",
                  "root compliance"):
         assert fits[name].reachable
-        assert fits[name].predicted_hz[0] == pytest.approx(MEASURED, rel=1e-6)
+        assert fits[name].predicted_hz[0] == pytest.approx(MEASURED, rel=1e-5)
     # the second mode separates them: tip inertia 50.8 Hz, mass 72.2, root 76.3, EI 76.6
     f2 = {n: f.predicted_hz[1] for n, f in fits.items()}
     assert f2["tip inertia"] == pytest.approx(50.76, abs=0.05)
@@ -74,7 +74,7 @@ def test_frequency_gap_command_writes_report_and_rejects_bad_input(tmp_path, cap
     out = json.loads(capsys.readouterr().out)
     by = {f["effects"][0]: f for f in out["fits"]}
     assert by["stiffness scale"]["values"][0] == pytest.approx(
-        (MEASURED / out["nominal_hz"][0]) ** 2, rel=1e-6)
+        (MEASURED / out["nominal_hz"][0]) ** 2, rel=1e-5)
     assert (tmp_path / "report.md").read_text().count("| tip mass |") == 1
     assert (tmp_path / "frequency_gap.png").stat().st_size > 10_000
     assert _run(["frequency-gap", "--measured-hz", "-1"]) == 2

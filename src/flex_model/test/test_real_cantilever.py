@@ -1,14 +1,19 @@
 """The steel cantilever on a shaker (issue 9): Euler-Bernoulli model from its dimensions,
 mode identification from force/acceleration records, single-effect diagnosis."""
+import argparse
+import json
+
 import numpy as np
 import pytest
 import scipy.signal as sig
 
 from flex_model.arm import load_arm
+from flex_model.cli import run_command
 from flex_model.real_arms.cantilever import (DATA_SET, LBF, MODE_BANDS_HZ, REPORTED_MODES_HZ,
                                              ShakerRecord, clamped_free_roots,
                                              euler_bernoulli_clamped_free_hz, frf_h1,
-                                             identify_mode, read_data_set)
+                                             identify_modes, read_data_set)
+from flex_model.real_arms.modal_cli import add_modal_parsers
 from flex_model.real_arms.modal_diagnosis import (ModalSetup, diagnose, link_totals,
                                                   modal_frequencies, shift_pattern,
                                                   standard_candidates)
@@ -50,7 +55,7 @@ def test_identification_recovers_a_known_mode(fn, zeta):
     acc += 0.01 * acc.std() * rng.standard_normal(n)
     t = np.arange(n) / fs
     band = next(bd for bd in MODE_BANDS_HZ if bd[0] < fn < bd[1])
-    peak = identify_mode(ShakerRecord("synthetic", t, force, force, acc), band)
+    peak, = identify_modes(ShakerRecord("synthetic", t, force, force, acc), [band])
     if fn * zeta < 0.1:       # half-power width 2 zeta f below 3 bins of the finest Welch
         assert not peak.identified and "not resolved" in peak.reason
         return
@@ -71,7 +76,7 @@ def test_shaker_records_are_narrowband_and_show_no_resonance(shared_dir):
         k = [int(np.argmin(np.abs(frf.frequency - f))) for f in (100.0, 120.0, 150.0)]
         assert np.all(frf.coherence[k] > 0.99)
         lines.append(np.abs(frf.H[k]))
-        assert not any(identify_mode(rec, band).identified for band in MODE_BANDS_HZ)
+        assert not any(p.identified for p in identify_modes(rec))
     lines = np.array(lines)
     assert np.ptp(lines, axis=0) / lines.mean(axis=0) == pytest.approx([0, 0, 0], abs=0.1)
     # |H| at 100 Hz: 0.055-0.060 (m/s^2)/N, i.e. 0.025-0.027 g/lbf
@@ -102,3 +107,42 @@ def test_diagnosis_puts_stiffness_and_mass_in_one_class_ahead_of_root_compliance
     shifts = shift_pattern(setup, rc, REPORTED[0]).predicted_hz / model - 1
     assert shifts[0] == pytest.approx(REPORTED[0] / model[0] - 1, abs=1e-6)
     assert shifts == pytest.approx([-0.090, -0.078, -0.069], abs=2e-3)
+
+
+@pytest.mark.parametrize("effect, size", [("root compliance", 400.0), ("tip mass", 1e-3)])
+def test_root_spring_and_tip_mass_shift_all_modes_alike_to_first_order(effect, size):
+    """A uniform cantilever's modes all store the same share of strain energy in a root
+    spring, 4 EI / (kp L), and of kinetic energy in a tip mass, 4 M / (m L) (phi''(0) =
+    2 beta^2, phi(L)^2 = 4 with int phi^2 = L): every mode drops by half of it,
+    delta f / f = -2 EI / (kp L) or -2 M / (m L), here -0.5 % and -0.2 %."""
+    setup = ModalSetup(load_arm("usc_cantilever", 16))
+    length, mass, ei = link_totals(setup.arm)
+    cand = next(c for c in standard_candidates(setup) if c.name == effect)
+    if effect == "root compliance":
+        value, expected = size * ei / length, -2.0 / size
+    else:
+        value, expected = size * mass, -2.0 * size
+    shifted = modal_frequencies(cand.apply(setup, value), 3)
+    assert shifted / modal_frequencies(setup, 3) - 1 == pytest.approx([expected] * 3,
+                                                                     rel=0.05)
+
+
+def test_cantilever_command_reports_the_equivalence_class(shared_dir, tmp_path, capsys):
+    p = argparse.ArgumentParser(prog="flex-twin")
+    add_modal_parsers(p.add_subparsers(dest="cmd", required=True))
+    one = tmp_path / "data"       # one record (a link, not a copy) keeps the test short
+    one.mkdir()
+    name = "data_set_1_downsampled_by_16.lvm"
+    (one / name).symlink_to(shared_dir / "data" / "real" / DATA_SET / name)
+    args = ["cantilever", "--data", str(one), "--vars", "8", "--out", str(tmp_path), "--json"]
+    assert run_command(p.parse_args(args)) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["model_over_measured"] == pytest.approx(
+        np.array(out["model_hz"][:3]) / REPORTED, rel=1e-12)
+    assert set(out["diagnosis"]["classes"][0]) == {"stiffness scale", "mass scale"}
+    report = (tmp_path / "report.md").read_text()
+    assert "one equivalence class" in report and "F-test" in report
+    assert (tmp_path / "cantilever.png").stat().st_size > 20_000
+    bad = ["cantilever", "--data", str(tmp_path / "missing")]
+    assert run_command(p.parse_args(bad)) == 2
+    assert capsys.readouterr().err.count("\n") == 1

@@ -202,13 +202,20 @@ def tip_accelerance(arm, frequency_hz, damping=0.01, count: int = 6) -> np.ndarr
     return np.sum(-w ** 2 * tip ** 2 / (wn ** 2 - w ** 2 + 2j * zeta * wn * w), axis=1)
 
 
-def identify_mode(record: ShakerRecord, band, npersegs=(4096, 8192, 16384),
-                  min_coherence: float = 0.8) -> IdentifiedPeak:
-    """:func:`pick_peak` at several Welch resolutions; a resonance keeps its half-power
-    width as the resolution refines, a forced (harmonic) line narrows with it. Identified
-    only if at least two resolutions resolve the peak, with frequencies within one coarse
-    bin and damping ratios within 30 % of each other; the finest estimate is returned."""
-    peaks = [pick_peak(frf_h1(record, n), band, min_coherence) for n in npersegs]
+def identify_modes(record: ShakerRecord, bands=MODE_BANDS_HZ, npersegs=(4096, 8192, 16384),
+                   min_coherence: float = 0.8) -> list[IdentifiedPeak]:
+    """:func:`pick_peak` in each band at several Welch resolutions; a resonance keeps its
+    half-power width as the resolution refines, a forced (harmonic) line narrows with it.
+    Identified only if at least two resolutions resolve the peak, with frequencies within
+    one coarse bin and damping ratios within 30 % of each other; the finest estimate is
+    returned."""
+    frfs = [frf_h1(record, n) for n in npersegs]
+    return [_consistent([pick_peak(frf, band, min_coherence) for frf in frfs], band,
+                        record.rate / npersegs[0]) for band in bands]
+
+
+def _consistent(peaks, band, coarse_bin: float) -> IdentifiedPeak:
+    """The finest of the resolutions' peaks if at least two agree (see identify_modes)."""
     found = [p for p in peaks if p.identified]
     if len(found) < 2:
         last = next(p for p in reversed(peaks) if not p.identified)
@@ -216,7 +223,7 @@ def identify_mode(record: ShakerRecord, band, npersegs=(4096, 8192, 16384),
                               reason=f"not resolved at two resolutions ({last.reason})")
     f = np.array([p.frequency_hz for p in found])
     z = np.array([p.damping_ratio for p in found])
-    if np.ptp(f) > record.rate / npersegs[0] or z.max() > 1.3 * z.min():
+    if np.ptp(f) > coarse_bin or z.max() > 1.3 * z.min():
         return IdentifiedPeak(tuple(band), False, coherence=found[-1].coherence,
                               reason=f"peak near {f[-1]:.1f} Hz changes with the resolution "
                                      f"(zeta {z.max():.4f} -> {z.min():.4f}): a forced line, "
@@ -277,7 +284,7 @@ def cantilever_study(arm, records=(), measured_hz=REPORTED_MODES_HZ, *, sigma: f
     for rec in records:
         say(f"identifying {rec.name}")
         frfs[rec.name] = frf_h1(rec)
-        identified[rec.name] = [identify_mode(rec, b) for b in MODE_BANDS_HZ[:n]]
+        identified[rec.name] = identify_modes(rec, MODE_BANDS_HZ[:n])
     cands = standard_candidates(setup)
     say(f"fitting {len(cands)} single effects to {n} frequencies")
     diag = diagnose(setup, cands, measured, sigma=sigma, count=n + 2)

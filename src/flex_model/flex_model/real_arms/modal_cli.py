@@ -156,6 +156,14 @@ def _verdict(st) -> list:
                    "4 EI / (kp L), is the same for every mode, as is a tip mass's share of "
                    f"the kinetic energy): a 1 % drop of mode 1 gives "
                    f"{', '.join(f'{x:.3f}' for x in s1)} %.")
+    tip = next((f for f in d.fits if f.name == "tip mass"), None)
+    if tip is not None:
+        from .modal_diagnosis import link_totals
+        beam = link_totals(st.arm)[1]
+        out.append(f"- A tip mass alone would need {1000 * tip.values[0]:.0f} g "
+                   f"({100 * tip.values[0] / beam:.1f} % of the {beam:.3f} kg beam); an "
+                   "accelerometer of a few grams (e.g. 6 g) lowers every mode by only about "
+                   f"{200 * 0.006 / beam:.1f} % (first order, -2 M / (m L)).")
     if d.pair is not None and d.pair_p_value is not None:
         verdict = "not justified" if d.pair_p_value > 0.05 else "justified"
         out.append(f"- Parsimony: adding a second effect ({d.pair.name}) lowers chi^2 from "

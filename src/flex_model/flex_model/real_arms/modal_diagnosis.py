@@ -37,10 +37,27 @@ class ModalSetup:
     kd: float | None = None
 
 
+class _MemoModel(FlexArmModel):
+    """FlexArmModel with memoized link bases: the fits rebuild the model many times, and a
+    candidate that changes only the payload, an end inertia or the joint keeps the nominal
+    links (the bases depend on the section profile, the variables and the Timoshenko
+    effect only)."""
+
+    _memo: dict = {}
+
+    def _link_basis(self, lk):
+        key = (repr(lk.segments), lk.n_vars, repr(self.arm.effect("timoshenko", lk.name)))
+        if key not in self._memo:
+            if len(self._memo) > 64:
+                self._memo.clear()
+            self._memo[key] = super()._link_basis(lk)
+        return self._memo[key]
+
+
 def modal_frequencies(setup: ModalSetup, count: int) -> np.ndarray:
     """The ``count`` lowest vibration frequencies (Hz); rigid-body and overdamped modes
     (zeta >= 0.5, e.g. a hub on a strongly damped PD joint) are skipped, missing ones NaN."""
-    res = natural_modes(FlexArmModel(setup.arm), joints=setup.joints, kp=setup.kp,
+    res = natural_modes(_MemoModel(setup.arm), joints=setup.joints, kp=setup.kp,
                         kd=setup.kd)
     keep = (res.omega > 1e-6) & (res.damping_ratio < 0.5)
     f = res.frequencies_hz[keep][:count]
