@@ -48,9 +48,15 @@ def _tol(fit) -> str:
 def cmd_cantilever(args) -> int:
     from ..arm import load_arm
     from ..cli import _run_dir
-    from .cantilever import DATA_SET, read_data_set
+    from .cantilever import DATA_SET, cantilever_study, read_data_set
 
     say = _say(args)
+    measured = np.asarray(args.measured_hz, float)
+    if not (np.all(measured > 0) and np.all(np.diff(measured) > 0)):
+        raise ValueError(f"--measured-hz: got {args.measured_hz}; expected increasing "
+                         "frequencies > 0 Hz (modes 1, 2, ...)")
+    if not args.sigma > 0:
+        raise ValueError(f"--sigma: got {args.sigma}; expected a relative uncertainty > 0")
     arm = load_arm(args.arm, args.vars)
     data = Path(args.data) if args.data else SHARED_DATA / DATA_SET
     if args.data and not data.is_dir():
@@ -58,8 +64,7 @@ def cmd_cantilever(args) -> int:
     records = read_data_set(data) if data.is_dir() else []
     if not records:
         say(f"no shaker data at {data}: identification skipped")
-    from .cantilever import cantilever_study
-    study = cantilever_study(arm, records, args.measured_hz, sigma=args.sigma, progress=say)
+    study = cantilever_study(arm, records, measured, sigma=args.sigma, progress=say)
     out = _run_dir(args.out, "cantilever")
     result = study.as_dict()
     result["data"] = str(data) if records else None
@@ -235,6 +240,8 @@ def cmd_frequency_gap(args) -> int:
     say = _say(args)
     if not args.measured_hz > 0:
         raise ValueError(f"--measured-hz: got {args.measured_hz}; expected a frequency > 0 Hz")
+    if not args.sigma > 0:
+        raise ValueError(f"--sigma: got {args.sigma}; expected a relative uncertainty > 0")
     arm = load_arm(args.arm, args.vars)
     setup = ModalSetup(arm)
     kp, kd = args.pd_kp, args.pd_kd

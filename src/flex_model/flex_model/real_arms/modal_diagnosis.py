@@ -199,7 +199,8 @@ class EffectFit:
         return {"effects": [c.name for c in self.candidates],
                 "parameters": [c.parameter for c in self.candidates],
                 "units": [c.unit for c in self.candidates],
-                "nominal": [c.nominal for c in self.candidates],
+                "nominal": [c.nominal if np.isfinite(c.nominal) else None   # None: rigid
+                            for c in self.candidates],
                 "values": self.values.tolist(), "intervals": self.intervals.tolist(),
                 "relative_change": [None if not np.isfinite(r) else float(r)
                                     for r in self.relative_change()],
