@@ -368,6 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
     for module, hook in (("flex_model.comparison.cli", "add_compare_parser"),
                          ("flex_model.diagnosis.cli", "add_diagnose_parser"),
                          ("flex_model.real_arms.cli", "add_real_arm_parsers"),
+                         ("flex_model.real_arms.modal_cli", "add_modal_parsers"),
                          ("flex_planner.cli", "add_plan_parser"),
                          ("flex_control.cli", "add_control_parser")):
         try:
