@@ -1,0 +1,1 @@
+"""Twins of real arms: data import, replay, calibration, validation (issue 9)."""
