@@ -14,6 +14,7 @@ Every reader returns SI units and radians; the data stay in ``../shared`` (never
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -60,6 +61,15 @@ class LabRun:
     def has_gauge(self) -> bool:
         return self.kind == "flexible" and bool(np.any(self.deflection != 0.0))
 
+    def head(self, seconds: float) -> "LabRun":
+        """The first ``seconds`` of the run (same gauge sign and bias as the whole run)."""
+        n = int(round(seconds / self.dt)) + 1
+        cut = {k: getattr(self, k)[:n] for k in ("t", "theta", "deflection", "theta_rate",
+                                                  "deflection_rate", "reference", "voltage")}
+        out = dataclasses.replace(self, name=f"{self.name}[:{seconds:g}s]", **cut)
+        out._sign, out._bias = self.gauge_sign(), self.gauge_bias()
+        return out
+
     def step_indices(self) -> np.ndarray:
         """Sample indices where the square-wave reference jumps."""
         return np.flatnonzero(np.abs(np.diff(self.reference)) > 1e-6) + 1
@@ -72,6 +82,8 @@ class LabRun:
         counter-clockwise positive, as flex_model's) is opposite to the step in the first
         0.3 s. The lab groups wired the gauge both ways (PROVENANCE: two groups).
         """
+        if getattr(self, "_sign", None) is not None:
+            return self._sign
         if not self.has_gauge:
             return 1.0
         score = 0.0
@@ -85,6 +97,8 @@ class LabRun:
     def gauge_bias(self) -> float:
         """Offset of the gauge (m): mean deflection over the 0.5 s before each step, when
         the arm has settled (covington_2017 logs about +31 mm at rest)."""
+        if getattr(self, "_bias", None) is not None:
+            return self._bias
         if not self.has_gauge:
             return 0.0
         n = int(round(0.5 / self.dt))
