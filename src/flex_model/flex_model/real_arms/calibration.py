@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -194,3 +195,60 @@ def calibrate_cuboulder(rigid_arm: ArmDescription, flexible_arm: ArmDescription,
                      progress=progress)
     link.values = {**servo_vals, **link.values}
     return servo, link
+
+
+def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
+    """A nominal arm description (parsed YAML) with the fitted values written in."""
+    out = {**nominal, "name": name}
+    effects = []
+    for e in nominal.get("effects", []):
+        e = dict(e)
+        if e["type"] == "gear" and "rotor_inertia" in values:
+            e["rotor_inertia"] = float(f"{values['rotor_inertia']:.5g}")
+        if e["type"] == "dc_motor" and "torque_constant" in values:
+            e["torque_constant"] = e["back_emf_constant"] = float(
+                f"{values['torque_constant']:.5g}")
+        effects.append(e)
+    j = nominal["joints"][0]["name"]
+    if "coulomb" in values:
+        fc = values["coulomb"]
+        effects.append({"type": "joint_friction", "joint": j,
+                        "viscous": float(f"{values.get('viscous', 0.0):.4g}"),
+                        "coulomb": float(f"{fc:.4g}"),
+                        "static": float(f"{fc + values.get('static_excess', 0.0):.4g}"),
+                        "stribeck_velocity": 0.01, "regularization": 1e-4})
+    links = [dict(lk) for lk in nominal["links"]]
+    if "rayleigh_mass" in values:
+        effects.append({"type": "structural_damping", "link": links[0]["name"],
+                        "rayleigh_mass": float(f"{values['rayleigh_mass']:.4g}")})
+    if "EI" in values:
+        links[0]["section"] = {**links[0]["section"], "EI": float(f"{values['EI']:.5g}")}
+    if "tip_mass" in values:
+        out["payload"] = {**nominal.get("payload", {}),
+                          "mass": float(f"{values['tip_mass']:.4g}")}
+    out["links"], out["effects"] = links, effects
+    return out
+
+
+def write_calibrated_presets(servo: CalibrationResult, link: CalibrationResult,
+                             out_dir) -> list:
+    """quanser_cuboulder_rigid_calibrated.yaml and quanser_cuboulder_calibrated.yaml."""
+    import yaml
+
+    from ..arm import arm_from_dict, resolve_preset
+    from ..config import read_yaml
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for nominal, name, res in (("quanser_cuboulder_rigid", "quanser_cuboulder_rigid_calibrated",
+                                servo), ("quanser_cuboulder_flexible",
+                                         "quanser_cuboulder_calibrated", link)):
+        data = calibrated_dict(read_yaml(resolve_preset(nominal)), res.values, name)
+        path = out_dir / f"{name}.yaml"
+        head = (f"# {name}: {nominal} calibrated by flex-twin real-arm calibrate (issue 9)\n"
+                f"# fit runs: {', '.join(res.runs)}; scaled RMS residual "
+                f"{res.cost_nominal:.3f} -> {res.cost_fitted:.3f}\n")
+        path.write_text(head + yaml.safe_dump(data, sort_keys=False))
+        arm_from_dict(read_yaml(path), str(path))  # validated as any preset
+        paths.append(path)
+    return paths

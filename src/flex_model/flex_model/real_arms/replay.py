@@ -16,7 +16,7 @@ from scipy.optimize import least_squares
 
 from ..dynamics import FlexArmModel
 from ..modes import natural_modes
-from ..simulate import simulate
+from ..simulate import SimulationDivergedError, simulate
 from .quanser_data import LabRun
 
 #: the CU Boulder logs keep 3 decimals: 1 mm of tip deflection
@@ -143,8 +143,14 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
             return [volts[min(int(round(tt / run.dt)), len(volts) - 1)]]
     sign, bias = run.gauge_sign(), run.gauge_bias()
     q0, v0 = initial_state(model, run)
-    res = simulate(model, q0, v0, t_final=float(t[-1]), sample_period=run.dt, policy=policy,
-                   method="fixed", dt=min(dt, run.dt))
+    for k in range(3):  # stick-slip of a strong friction can stall Newton: halve the step
+        try:
+            res = simulate(model, q0, v0, t_final=float(t[-1]), sample_period=run.dt,
+                           policy=policy, method="fixed", dt=min(dt, run.dt) / 2 ** k)
+            break
+        except SimulationDivergedError:
+            if k == 2:
+                raise
     theta = res.joint_angles[:n, 0]
     defl = sign * res.tip_deflections[:n, 0] + bias
     if run.lab == "cuboulder":
