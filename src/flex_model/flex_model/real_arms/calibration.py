@@ -199,7 +199,8 @@ def calibrate_cuboulder(rigid_arm: ArmDescription, flexible_arm: ArmDescription,
 
 def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
     """A nominal arm description (parsed YAML) with the fitted values written in."""
-    out = {**nominal, "name": name}
+    out = {**nominal, "name": name,
+           "description": f"{nominal.get('description', name)}; calibrated (issue 9)"}
     effects = []
     for e in nominal.get("effects", []):
         e = dict(e)
