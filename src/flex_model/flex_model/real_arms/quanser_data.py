@@ -70,9 +70,18 @@ class LabRun:
         out._sign, out._bias = self.gauge_sign(), self.gauge_bias()
         return out
 
-    def step_indices(self) -> np.ndarray:
-        """Sample indices where the square-wave reference jumps."""
+    def reference_changes(self) -> np.ndarray:
+        """Sample indices where the reference changes (every sample of a ramp)."""
         return np.flatnonzero(np.abs(np.diff(self.reference)) > 1e-6) + 1
+
+    def step_indices(self, min_gap: float = 0.1) -> np.ndarray:
+        """Sample indices where the square-wave reference steps: the first change of
+        each group closer than ``min_gap`` (s) (UC Merced ramps over 20 ms)."""
+        k = self.reference_changes()
+        if len(k) == 0:
+            return k
+        keep = np.concatenate([[True], np.diff(k) * self.dt > min_gap])
+        return k[keep]
 
     def gauge_sign(self) -> float:
         """+1 when the lab's deflection has the twin's sign, -1 when it is opposite.
@@ -89,7 +98,7 @@ class LabRun:
         score = 0.0
         n = int(round(0.3 / self.dt))
         for k in self.step_indices():
-            jump = self.reference[k] - self.reference[k - 1]
+            jump = self.reference[min(k + n, len(self.t) - 1)] - self.reference[k - 1]
             seg = self.deflection[k:k + n] - self.deflection[k - 1]
             score += -np.sign(jump) * float(np.mean(seg))
         return 1.0 if score >= 0 else -1.0
@@ -104,6 +113,33 @@ class LabRun:
         n = int(round(0.5 / self.dt))
         segs = [self.deflection[max(k - n, 0):k] for k in self.step_indices() if k > n // 2]
         return float(np.mean(np.concatenate(segs))) if segs else 0.0
+
+
+def repeatability(run: LabRun) -> dict:
+    """The lab's own step-to-step scatter: for every pair of identical steps (same levels)
+    of a run, the RMS of half the difference of the responses over the shortest step
+    window, i.e. the RMS error of the best deterministic prediction of both (their mean).
+    A twin cannot beat it on average. ``{}`` if no step repeats."""
+    steps = run.step_indices()
+    if len(steps) < 3:
+        return {}
+    n = int(np.min(np.diff(np.append(steps, len(run.t)))))
+    levels = [(round(run.reference[k - 1], 6), round(run.reference[k], 6)) for k in steps]
+    hub, tip = [], []
+    for a in range(len(steps)):
+        for b in range(a + 1, len(steps)):
+            if levels[a] != levels[b]:
+                continue
+            sa, sb = slice(steps[a], steps[a] + n), slice(steps[b], steps[b] + n)
+            hub.append(0.5 * (run.theta[sa] - run.theta[sb]))
+            if run.has_gauge:
+                tip.append(0.5 * (run.deflection[sa] - run.deflection[sb]))
+    if not hub:
+        return {}
+    out = {"hub_rms_rad": float(np.sqrt(np.mean(np.square(hub)))), "pairs": len(hub)}
+    if tip:
+        out["tip_rms_m"] = float(np.sqrt(np.mean(np.square(tip))))
+    return out
 
 
 def _cuboulder_kind(path: Path) -> str:

@@ -10,7 +10,7 @@ Topics (message conversions of the model node, flex_model.ros_conversions):
   estimated from the first clamped-hub mode shape (the gauge measures one quantity);
 - ``/effort_controller/commands`` (std_msgs/Float64MultiArray): the voltage (V);
 - ``/flex_planner/trajectory`` (trajectory_msgs/JointTrajectory): the reference, one
-  hold-point message at t = 0 and at every step of the square wave.
+  hold-point message at t = 0 and at every change of the reference.
 
 Stamps and bag times are the run's time from 0 (ns). ROS modules are imported lazily.
 """
@@ -73,7 +73,7 @@ def import_run(run: LabRun, model: FlexArmModel, out) -> dict:
                     [ratio * defl_rate[k]]), t_ns[k])
             bag.write("/effort_controller/commands",
                       Float64MultiArray(data=[float(run.voltage[k])]), t_ns[k])
-        for k in np.concatenate([[0], run.step_indices()]):
+        for k in np.concatenate([[0], run.reference_changes()]):
             msg = JointTrajectory(header=Header(stamp=conv.stamp(run.t[k])),
                                   joint_names=[joint])
             msg.points = [JointTrajectoryPoint(positions=[float(run.reference[k])],
