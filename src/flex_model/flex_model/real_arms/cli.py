@@ -61,7 +61,7 @@ def cmd_replay(args) -> int:
 def cmd_import_quanser(args) -> int:
     from ..arm import load_arm
     from ..dynamics import FlexArmModel
-    from .quanser_import import import_run
+    from .ros_quanser_import import import_run
     from .quanser_twin import load_lab_run, nominal_arm_for
     run = load_lab_run(args.run)
     arm = load_arm(args.arm) if args.arm else nominal_arm_for(run.lab, run.kind)

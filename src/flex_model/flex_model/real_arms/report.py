@@ -11,7 +11,7 @@ import numpy as np
 from ..dynamics import FlexArmModel
 from .calibration import CUBOULDER_SPLIT, apply_parameters
 from .quanser_data import CUBOULDER, KYOTO, read_cuboulder, read_kyoto, repeatability
-from .quanser_twin import (calibrated_arm_for, closed_loop_frf, load_lab_run,
+from .quanser_twin import (calibrated_arm_for, closed_loop_frf, hub_inertia, load_lab_run,
                            nominal_arm_for, stiffness_for_frequency, ucmerced_dir)
 from .replay import plot_replay, replay
 
@@ -71,6 +71,33 @@ def kyoto_comparison(data, out: Path, progress: Callable = print) -> dict:
             "measured_resonance_hz": res, "twin_antiresonance_hz": t_anti,
             "twin_resonance_hz": t_res, "rescaled_EI": ei,
             "rescaled_twin_resonance_hz": t2_res}
+
+
+def twin_parameters() -> dict:
+    """Nominal (handout) and calibrated values of the CU Boulder twins, side by side."""
+    from ..modes import natural_modes
+    out = {}
+    for label, get in (("nominal", nominal_arm_for), ("calibrated", calibrated_arm_for)):
+        flex, rigid = get("cuboulder", "flexible"), get("cuboulder", "rigid")
+        if flex is None or rigid is None:
+            continue
+        j = flex.joint_names[0]
+        fr = flex.effect("joint_friction", j)
+        frr = rigid.effect("joint_friction", j)
+        sd = flex.effect("structural_damping", flex.links[0].name)
+        out[label] = {
+            "servo_inertia_kg_m2": hub_inertia(rigid) - rigid.links[0].J_minus,
+            "torque_constant": flex.effect("dc_motor", j)["torque_constant"],
+            "rigid_bar_coulomb_N_m": frr["coulomb"] if frr else 0.0,
+            "rigid_bar_static_N_m": frr["static"] if frr else 0.0,
+            "flexible_coulomb_N_m": fr["coulomb"] if fr else 0.0,
+            "flexible_static_N_m": fr["static"] if fr else 0.0,
+            "EI_N_m2": flex.links[0].segments[0].dims["EI"][0],
+            "tip_mass_kg": flex.payload_mass,
+            "rayleigh_mass_1_s": sd["rayleigh_mass"] if sd else 0.0,
+            "clamped_f1_hz": float(natural_modes(FlexArmModel(flex), joints="clamped")
+                                   .frequencies_hz[0])}
+    return out
 
 
 def _row(r) -> dict:
@@ -148,6 +175,14 @@ def write_markdown(report: dict, path: Path) -> None:
             f"{_fmt(c.get('tip_rms_m'), 1e3, 3)} | {_fmt(n['ring_freq_measured_hz'], 1, 3)}"
             f" / {_fmt(n['ring_freq_twin_hz'], 1, 3)} / "
             f"{_fmt(c.get('ring_freq_twin_hz'), 1, 3)} |")
+    par = report.get("parameters", {})
+    if par:
+        keys = list(next(iter(par.values())))
+        lines += ["", "## Twin parameters (handout vs calibrated)", "",
+                  "| parameter | " + " | ".join(par) + " |",
+                  "|---|" + "---|" * len(par)]
+        lines += [f"| {k} | " + " | ".join(f"{par[c][k]:.4g}" for c in par) + " |"
+                  for k in keys]
     u = report.get("ucmerced")
     if u:
         lines += ["", "## Second lab (UC Merced), Quanser manual values, gains identified "
@@ -176,7 +211,8 @@ def build_report(data, make_policy: Callable, out, progress: Callable = print) -
     report = {"split": {k: list(v) for k, v in CUBOULDER_SPLIT.items()},
               "cuboulder": held_out_comparison(data, make_policy, out, progress),
               "ucmerced": ucmerced_validation(data, make_policy, out),
-              "kyoto": kyoto_comparison(data, out, progress)}
+              "kyoto": kyoto_comparison(data, out, progress),
+              "parameters": twin_parameters()}
     (out / "report.json").write_text(json.dumps(report, indent=1, default=float))
     write_markdown(report, out / "report.md")
     return report

@@ -12,7 +12,8 @@ Topics (message conversions of the model node, flex_model.ros_conversions):
 - ``/flex_planner/trajectory`` (trajectory_msgs/JointTrajectory): the reference, one
   hold-point message at t = 0 and at every change of the reference.
 
-Stamps and bag times are the run's time from 0 (ns). ROS modules are imported lazily.
+Stamps and bag times are the run's time from 0 (ns). A ros_* module (it builds messages);
+ROS is imported lazily, inside the functions.
 """
 from __future__ import annotations
 
