@@ -156,6 +156,59 @@ def _fmt(x, scale=1.0, digits=4):
     return "-" if x is None else f"{x * scale:.{digits}g}"
 
 
+def summarize(rows) -> dict:
+    """Held-out summary: improvements, medians and how many runs meet the aims."""
+    held = [r for r in rows if r["role"] == "held out" and "calibrated" in r]
+    if not held:
+        return {}
+
+    def col(which, key):
+        return np.array([r[which][key] for r in held if r[which].get(key) is not None])
+    hub_n, hub_c = col("nominal", "hub_rms_rad"), col("calibrated", "hub_rms_rad")
+    tip_n, tip_c = col("nominal", "tip_rms_m"), col("calibrated", "tip_rms_m")
+    ring = [r["nominal"]["ring_freq_measured_hz"] for r in rows
+            if r["nominal"].get("ring_freq_measured_hz") is not None]
+    return {"held_out_runs": len(held), "hub_improved": int(np.sum(hub_c < hub_n)),
+            "hub_median_nominal": float(np.median(hub_n)),
+            "hub_median_calibrated": float(np.median(hub_c)),
+            "hub_aim_met": int(np.sum(hub_c < AIM_HUB_RMS)),
+            "tip_improved": int(np.sum(tip_c < tip_n)), "tip_runs": len(tip_c),
+            "tip_median_nominal": float(np.median(tip_n)),
+            "tip_median_calibrated": float(np.median(tip_c)),
+            "tip_aim_met": int(np.sum(tip_c < AIM_TIP_RMS)),
+            "ring_measured_range_hz": [float(min(ring)), float(max(ring))]}
+
+
+def _findings(report: dict) -> list:
+    s = summarize(report["cuboulder"])
+    if not s:
+        return []
+    return ["", "## Findings", "",
+            f"- Held-out CU Boulder runs: the calibrated twin's hub RMS error is lower on "
+            f"{s['hub_improved']} of {s['held_out_runs']} (median {s['hub_median_nominal']:.4f}"
+            f" -> {s['hub_median_calibrated']:.4f} rad); the aim < {AIM_HUB_RMS} rad is met "
+            f"on {s['hub_aim_met']}. Tip RMS lower on {s['tip_improved']} of {s['tip_runs']} "
+            f"(median {1e3 * s['tip_median_nominal']:.1f} -> "
+            f"{1e3 * s['tip_median_calibrated']:.1f} mm); the aim < {AIM_TIP_RMS * 1e3:g} mm "
+            f"is met on {s['tip_aim_met']}.",
+            "- Why it falls short: the gearbox sticks. The hub stalls short of (or beyond) the"
+            " reference while the lab holds 0.2-0.45 V, and where it stops differs from step "
+            "to step of one run (lab repeatability column: up to 0.011 rad), so a "
+            "deterministic twin cannot follow it sample by sample; the fitted friction "
+            "differs between the rigid-bar and the flexible setup and the cost of the fit is"
+            " rough (stick-slip).",
+            f"- Ring-down: measured {s['ring_measured_range_hz'][0]:.2f}-"
+            f"{s['ring_measured_range_hz'][1]:.2f} Hz against the handout's 1.8 Hz. With the "
+            "hub stuck the link rings at its clamped frequency, lightly damped (K1-only runs: "
+            "1.6-1.7 Hz, zeta 0.01-0.03); when the hub moves, the coupled closed-loop mode "
+            "is lower (1.2-1.4 Hz with K3, K4). The frictionless handout twin always moves "
+            "its hub (1.0 Hz, zeta 0.2); the calibrated one sticks and rings near its clamped"
+            " 1.72 Hz.",
+            "- Tip error floor: the gauge log is quantised to 1 mm (0.29 mm RMS alone); the "
+            "two student groups' gauges have opposite signs and covington_2017 reads +31 mm "
+            "at rest (sign and bias are found from the data, see quanser_data.LabRun)."]
+
+
 def write_markdown(report: dict, path: Path) -> None:
     """The report as markdown (tables of the numbers in ``report``)."""
     lines = ["# Quanser rotary flexible link: nominal vs calibrated twin (issue 9)", "",
@@ -175,6 +228,7 @@ def write_markdown(report: dict, path: Path) -> None:
             f"{_fmt(c.get('tip_rms_m'), 1e3, 3)} | {_fmt(n['ring_freq_measured_hz'], 1, 3)}"
             f" / {_fmt(n['ring_freq_twin_hz'], 1, 3)} / "
             f"{_fmt(c.get('ring_freq_twin_hz'), 1, 3)} |")
+    lines += _findings(report)
     par = report.get("parameters", {})
     if par:
         keys = list(next(iter(par.values())))
@@ -213,6 +267,7 @@ def build_report(data, make_policy: Callable, out, progress: Callable = print) -
               "ucmerced": ucmerced_validation(data, make_policy, out),
               "kyoto": kyoto_comparison(data, out, progress),
               "parameters": twin_parameters()}
+    report["summary"] = summarize(report["cuboulder"])
     (out / "report.json").write_text(json.dumps(report, indent=1, default=float))
     write_markdown(report, out / "report.md")
     return report
