@@ -172,23 +172,26 @@ def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
     x0 = np.clip(start / scale, lo, hi)
     names = [p.name for p in params]
     count = [0]
+    best = [np.inf, x0]  # the cost is rough: keep the best point evaluated, not the last
 
     def fun(x):
         count[0] += 1
         vals = dict(zip(names, x * scale))
         r = replay_residual(apply_parameters(arm, vals), runs, make_policy, t_final)
+        cost = float(np.sqrt(np.mean(r ** 2)))
+        if cost < best[0]:
+            best[:] = [cost, x.copy()]
         if progress is not None:
-            progress(count[0], float(np.sqrt(np.mean(r ** 2))), vals)
+            progress(count[0], cost, vals)
         return r
 
     r0 = replay_residual(arm, runs, make_policy, t_final)  # the uncalibrated twin
-    fit = least_squares(fun, x0, bounds=(lo, hi), diff_step=0.05, max_nfev=max_nfev,
-                        x_scale=1.0)
-    values = {n: float(v) for n, v in zip(names, fit.x * scale)}
+    least_squares(fun, x0, bounds=(lo, hi), diff_step=0.05, max_nfev=max_nfev, x_scale=1.0)
+    values = {n: float(v) for n, v in zip(names, best[1] * scale)}
     return CalibrationResult(stage=stage, values=values, arm=apply_parameters(arm, values),
                              cost_nominal=float(np.sqrt(np.mean(r0 ** 2))),
-                             cost_fitted=float(np.sqrt(np.mean(fit.fun ** 2))),
-                             evaluations=count[0], runs=tuple(r.name for r in runs))
+                             cost_fitted=best[0], evaluations=count[0],
+                             runs=tuple(r.name for r in runs))
 
 
 def calibrate_cuboulder(rigid_arm: ArmDescription, flexible_arm: ArmDescription, runs: dict,
