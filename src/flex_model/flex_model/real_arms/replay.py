@@ -23,6 +23,8 @@ from .quanser_data import LabRun
 GAUGE_RESOLUTION = 1e-3
 #: ring-down window after a step: from the first deflection peak, this long (s)
 RING_WINDOW = 1.6
+#: shortest usable window (s): UC Merced steps every 0.76 s, its last one 0.25 s before the end
+RING_MIN = 0.4
 
 
 @dataclass
@@ -42,14 +44,15 @@ class RingDown:
 def ring_down(t, d, t_step: float, t_end: float) -> RingDown | None:
     """The ring-down after a step at ``t_step`` (window up to ``t_end``): starts at the
     largest |d| within 0.6 s, lasts RING_WINDOW; frequency from a zero-padded FFT, then a
-    least-squares fit of a damped cosine. None if the window holds no oscillation."""
+    least-squares fit of a damped cosine. None if the window is shorter than RING_MIN
+    or holds no oscillation above the gauge's resolution."""
     sel = (t >= t_step) & (t < min(t_end, t_step + 0.6))
     if sel.sum() < 20:
         return None
     k0 = np.flatnonzero(sel)[np.argmax(np.abs(d[sel]))]
     win = (t >= t[k0]) & (t < min(t_end, t[k0] + RING_WINDOW))
     tw, dw = t[win] - t[k0], d[win]
-    if len(tw) < 50 or np.ptp(dw) < 2.5 * GAUGE_RESOLUTION:
+    if tw[-1] < RING_MIN or np.ptp(dw) < 2.5 * GAUGE_RESOLUTION:
         return None
     dt = tw[1] - tw[0]
     spec = np.abs(np.fft.rfft((dw - dw.mean()) * np.hanning(len(dw)), n=2 ** 16))
