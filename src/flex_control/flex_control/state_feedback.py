@@ -1,0 +1,75 @@
+"""The Quanser rotary flexible link lab's state feedback (voltage output, issue 9).
+
+    V = K1 (theta_ref - theta) + K2 (0 - d) - K3 theta_dot - K4 d_dot
+
+with theta the hub angle (rad), d the strain-gauge tip deflection (m, as the lab logs
+it: ``gauge_sign`` times the twin's deflection plus ``gauge_bias``) and V the motor
+voltage (V), optionally clipped to ``voltage_limit``. The reference is a recorded square
+wave held between its samples (zero-order hold, as the lab's 1 kHz loop).
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+
+class TipStateFeedback:
+    """V = K1 (r - theta) - K2 d - K3 theta_dot - K4 d_dot for one joint."""
+
+    def __init__(self, gains, reference_t, reference, gauge_sign: float = 1.0,
+                 gauge_bias: float = 0.0, voltage_limit: float = np.inf):
+        k = np.asarray(gains, float).reshape(-1)
+        if k.shape != (4,) or not np.all(np.isfinite(k)):
+            raise ValueError(f"gains: got {np.asarray(gains).tolist()}; expected 4 finite "
+                             "values K1..K4")
+        if gauge_sign not in (1.0, -1.0):
+            raise ValueError(f"gauge_sign: got {gauge_sign!r}; expected +1 or -1")
+        if not voltage_limit > 0:
+            raise ValueError(f"voltage_limit: got {voltage_limit!r}; expected > 0 V")
+        self.gains = k
+        self.t_ref = np.asarray(reference_t, float)
+        self.ref = np.asarray(reference, float)
+        if self.t_ref.shape != self.ref.shape or self.t_ref.size < 1:
+            raise ValueError("reference: times and values must be equal-length arrays")
+        self.gauge_sign = float(gauge_sign)
+        self.gauge_bias = float(gauge_bias)
+        self.voltage_limit = float(voltage_limit)
+
+    def reference_at(self, t: float) -> float:
+        """The held reference sample at t (rad)."""
+        k = int(np.searchsorted(self.t_ref, t + 1e-9, side="right")) - 1
+        return float(self.ref[max(k, 0)])
+
+    def voltage(self, t: float, theta: float, theta_rate: float, deflection: float,
+                deflection_rate: float) -> float:
+        """The motor voltage (V) for the twin's state (deflection in the twin's sign)."""
+        k1, k2, k3, k4 = self.gains
+        d = self.gauge_sign * deflection + self.gauge_bias
+        dd = self.gauge_sign * deflection_rate
+        v = k1 * (self.reference_at(t) - theta) - k2 * d - k3 * theta_rate - k4 * dd
+        return float(np.clip(v, -self.voltage_limit, self.voltage_limit))
+
+    def policy(self, model) -> Callable:
+        """``policy(t, x) -> [V]`` for :func:`flex_model.simulate.simulate` (single link)."""
+        nq = model.nq
+        g = model.G[0]
+        i = model.tip_deflection_index(0)
+
+        def policy(t, x):
+            q, v = x[:nq], x[nq:]
+            return [self.voltage(t, g @ q, g @ v, q[i], v[i])]
+
+        return policy
+
+
+def lab_controller(run, voltage_limit: float = np.inf) -> TipStateFeedback:
+    """The lab's law of a recorded run (flex_model.real_arms.quanser_data.LabRun): its
+    gains, its reference, its gauge sign and bias."""
+    return TipStateFeedback(run.gains, run.t, run.reference, run.gauge_sign(),
+                            run.gauge_bias(), voltage_limit)
+
+
+def lab_policy_factory(run, model) -> Callable:
+    """The closed-loop policy of a run on a twin (the replay's ``make_policy`` hook)."""
+    return lab_controller(run).policy(model)

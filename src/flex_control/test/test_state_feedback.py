@@ -1,0 +1,34 @@
+"""The Quanser lab's state feedback (issue 9): the law, the held reference, the gauge sign,
+and a closed loop on the handout twin that settles where the law says it must."""
+import numpy as np
+import pytest
+
+from flex_control.state_feedback import TipStateFeedback
+from flex_model.arm import load_arm
+from flex_model.dynamics import FlexArmModel
+from flex_model.simulate import simulate
+
+
+def test_law_and_held_reference():
+    """V = K1 (r - theta) + K2 (0 - d) - K3 theta_dot - K4 d_dot with the lab's sign of d
+    (sign s and bias b: d_lab = s d + b), the reference held between its samples."""
+    law = TipStateFeedback([6.0, -3.0, 0.2, 0.1], [0.0, 1.0], [0.1, -0.1], gauge_sign=-1.0,
+                           gauge_bias=0.002)
+    d_lab, dd_lab = -0.01 + 0.002, -0.5
+    expect = 6.0 * (0.1 - 0.05) + 3.0 * d_lab - 0.2 * 0.4 - 0.1 * dd_lab
+    assert law.voltage(0.999, 0.05, 0.4, 0.01, 0.5) == pytest.approx(expect, rel=1e-14)
+    assert law.reference_at(1.0) == -0.1 and law.reference_at(0.5) == 0.1
+    with pytest.raises(ValueError, match="gains"):
+        TipStateFeedback([1.0, 2.0], [0.0], [0.0])
+
+
+def test_closed_loop_settles_on_the_reference_without_friction():
+    """The frictionless handout twin under the law (K1 = 6, K3 = 0.2) settles on the
+    reference (an integrating plant: zero steady-state error) with the link at rest."""
+    model = FlexArmModel(load_arm("quanser_cuboulder_flexible"))
+    law = TipStateFeedback([6.0, 0.0, 0.2, 0.0], [0.0], [0.1])
+    res = simulate(model, model.q_from_joint_angles([0.0]), t_final=6.0,
+                   sample_period=1e-3, policy=law.policy(model), method="fixed", dt=1e-3)
+    assert res.joint_angles[-1, 0] == pytest.approx(0.1, abs=2e-4)
+    assert abs(res.tip_deflections[-1, 0]) < 1e-4
+    assert np.max(np.abs(res.u[:, 0])) == pytest.approx(0.6, rel=1e-9)  # K1 * 0.1 at t = 0
