@@ -122,21 +122,50 @@ def test_seed000_table2_lumped_mass_and_spring():
     assert round(f, 2) == 8.46
 
 
-def test_lumped_link_in_the_model_stores_the_first_mode_energies():
-    """The lumped chain (4 masses) holds the kinetic and elastic energy of the first mode
-    at its mass points exactly: its Rayleigh quotient is the exact 8.4597 Hz, and its
-    first frequency lies below (a softer model)."""
-    arm = load_arm("seed000_real_arm")
-    model = FlexArmModel(with_discretization(arm, "lumped", 4, mode_type="clamped_mass"))
+def test_seed000_lumped_link_is_one_coordinate_with_the_table2_mass_and_spring():
+    """The lumped link in the model (one mass): its variable is the tip deflection, its
+    mass and stiffness are M_e and K_e of Eqs. (12), (16) (Table 2: 0.008634 kg, 96.7425
+    N/m), its clamped f1 sqrt(K_e / (M_e + M_p)) = 8.4597 Hz (paper 8.46-8.47), and a tip
+    torque gives a tip rotation F'(L) / F(L) times the tip deflection (Eqs. 10, 14)."""
+    arm = with_discretization(load_arm("seed000_real_arm"), "lumped", 1,
+                              mode_type="clamped_mass")
+    model = FlexArmModel(arm)
     b = model.bases[0]
-    y = np.array([0.25, 0.5, 0.75, 1.0]) * 0.28
-    y = b.details["mode"].evaluate(y)[0][:, 0]
-    mass = b.raw_Bw.copy()
-    mass[-1, -1] += arm.payload_mass
-    f_rayleigh = np.sqrt((y @ b.raw_K @ y) / (y @ mass @ y)) / (2 * np.pi)
-    assert f_rayleigh == pytest.approx(8.459714, rel=1e-6)
+    m_e, k_e = lumped_parameters(arm.links[0].profile, 1, "clamped_mass", arm.payload_mass)
+    assert model.nq == 2 and b.Bw[0, 0] == pytest.approx(m_e[0], rel=1e-12)
+    assert b.K[0, 0] == pytest.approx(k_e[0], rel=1e-12)
     f = natural_modes(model, joints="clamped").frequencies_hz[0]
-    assert 7.0 < f < f_rayleigh
+    assert f == pytest.approx(np.sqrt(k_e[0] / (m_e[0] + arm.payload_mass)) / (2 * np.pi),
+                              rel=1e-10)
+    assert f == pytest.approx(8.4597, abs=5e-5)
+    r = static_equilibrium(model, load=TipLoad(torque=0.01), linear=True)
+    ratio = b.details["mode"].evaluate(np.array([0.28]))
+    assert r.tip_rotation / r.tip_displacement == pytest.approx(
+        ratio[1][0, 0] / ratio[0][0, 0], rel=1e-9)
+
+
+def test_lumped_link_converges_to_the_first_mode_with_the_masses():
+    """Seed 000 Eq. (11): the m masses hold the first mode's kinetic and elastic energy
+    for every m, so the clamped f1 is the first-mode (exact, 8.4597 Hz) value for 1, 2, 8
+    masses; with a free joint (no hub) the masses' coupling with the rotation (h, k)
+    matters and f1 tends to the one-mode assumed-mode value (67.61 Hz) as m grows:
+    30.2, 42.0, 56.0 Hz for 2, 8, 32 masses."""
+    arm = load_arm("seed000_real_arm")
+    first_mode = FlexArmModel(with_discretization(arm, "assumed_modes", 1,
+                                                  mode_type="clamped_mass"))
+    f_am = {j: natural_modes(first_mode, joints=j).frequencies_hz for j in ("clamped",
+                                                                            "hinged")}
+    errors = []
+    for m in (1, 2, 8, 32):
+        model = FlexArmModel(with_discretization(arm, "lumped", m,
+                                                 mode_type="clamped_mass"))
+        f_c = natural_modes(model, joints="clamped").frequencies_hz[0]
+        assert f_c == pytest.approx(f_am["clamped"][0], rel=1e-10)
+        errors.append(natural_modes(model, joints="hinged").frequencies_hz[1]
+                      / f_am["hinged"][1] - 1.0)
+    assert f_am["hinged"][1] == pytest.approx(67.609, abs=1e-3)
+    assert errors[1] == pytest.approx(-0.553, abs=1e-3)
+    assert np.all(np.diff(np.abs(errors)) < 0) and abs(errors[-1]) < 0.18
 
 
 def test_remark8_ritz_ill_conditioning_and_wavelets():

@@ -174,7 +174,9 @@ def remark8() -> dict:
 
 def seed000_tables() -> dict:
     """Seed 000 Table 2 (one lumped mass and spring, 8.46-8.47 Hz vs measured 8.24 Hz) and
-    Table 4 frequencies (L = 1 m, payload 0.2 kg: assumed modes vs lumped)."""
+    Table 4 frequencies (L = 1 m, payload 0.2 kg: assumed modes vs lumped); the lumped
+    link with 1, 2, 8 masses clamped (the first mode's f1 for every m) and with a free
+    joint (no hub: tends to the one-mode assumed-mode f1 as m grows)."""
     out = {}
     for preset in ("seed000_real_arm", "seed000_table3"):
         arm = load_arm(preset)
@@ -186,13 +188,18 @@ def seed000_tables() -> dict:
                                      {"mode_type": "clamped_mass"}),
                                     ("f_clamped_free_modes_2_hz", "assumed_modes", 2,
                                      {"mode_type": "clamped_free"}),
-                                    ("f_lumped_2_masses_hz", "lumped", 2,
+                                    ("f_lumped_model_1_2_8_hz", "lumped", (1, 2, 8),
                                      {"mode_type": "clamped_mass"}),
-                                    ("f_lumped_8_masses_hz", "lumped", 8,
+                                    ("f_wavelet_16_hz", "wavelet", 16, {}),
+                                    ("f_free_first_mode_hz", "assumed_modes", 1,
                                      {"mode_type": "clamped_mass"}),
-                                    ("f_wavelet_16_hz", "wavelet", 16, {})):
-            model = FlexArmModel(with_discretization(arm, disc, n, **opt))
-            row[label] = float(natural_modes(model, joints="clamped").frequencies_hz[0])
+                                    ("f_free_lumped_2_8_32_hz", "lumped", (2, 8, 32),
+                                     {"mode_type": "clamped_mass"})):
+            joints = "hinged" if label.startswith("f_free") else "clamped"
+            f = [natural_modes(FlexArmModel(with_discretization(arm, disc, m, **opt)),
+                               joints=joints).frequencies_hz[int(joints == "hinged")]
+                 for m in np.atleast_1d(n)]
+            row[label] = [float(x) for x in f] if isinstance(n, tuple) else float(f[0])
         out[preset] = row
     out["seed000_real_arm"]["paper"] = {"lumped_mass_kg": 0.008634,
                                         "lumped_spring_n_m": 96.7425,
