@@ -168,6 +168,24 @@ def test_lumped_link_converges_to_the_first_mode_with_the_masses():
     assert np.all(np.diff(np.abs(errors)) < 0) and abs(errors[-1]) < 0.18
 
 
+def test_seed000_table4_step_response_lumped_vs_assumed_modes():
+    """Seed 000 Table 4 (L = 1 m, payload 0.2 kg, Eq. 45 step 10 -> 30 deg): the one-mass
+    lumped link and two clamped-mass modes oscillate at the damped first clamped mode
+    (0.8244 Hz sqrt(1 - 0.1^2) = 0.820 Hz; paper 0.813 / 0.7937 Hz) with amplitudes
+    0.2209 / 0.2248 m, 1.8 % apart (paper 0.2032 / 0.1462 m, 28 %): the payload dominates
+    the coupling (k + M_p L) / (B_f + M_p) of both (1.000 / 1.017 m), which sets the
+    amplitude."""
+    step_response = pytest.importorskip("flex_control.step_response").step_response
+    arm = load_arm("seed000_table3")
+    lumped, modes = (step_response(with_discretization(arm, d, n, mode_type="clamped_mass"))
+                     for d, n in (("lumped", 1), ("assumed_modes", 2)))
+    f_damped = 0.82436 * np.sqrt(1 - 0.1 ** 2)
+    assert lumped.tip_frequency_hz == pytest.approx(f_damped, rel=1e-3)
+    assert modes.tip_frequency_hz == pytest.approx(f_damped, rel=1e-3)
+    assert lumped.tip_amplitude_m == pytest.approx(0.2209, abs=5e-4)
+    assert modes.tip_amplitude_m / lumped.tip_amplitude_m == pytest.approx(1.018, abs=2e-3)
+
+
 def test_remark8_ritz_ill_conditioning_and_wavelets():
     """Thesis Remark 8 (single clamped link, L = 5 m, m = 1 kg/m, EI = 1): Ritz with 10
     polynomials cond(B) ~ 1e21 (paper 1.78e21; exactly 7.16e20 for Eq. 50) and
