@@ -89,8 +89,8 @@ def _table_VI(rows, r8) -> list[str]:
             "purely imaginary eigenvalues either way. The Ritz model itself is sound: "
             "the symmetric generalized eigensolver eigh(K, B) gives real omega^2 > 0, "
             "the first five within 2e-4 of the exact ones and the rest above them "
-            f"(Galerkin upper bounds, the highest with round-off; 6th: {r8['omega_ritz_eigh'][5]:.2f} vs {r8['omega_exact'][5]:.2f} "
-            f"rad/s).", "",
+            "(Galerkin upper bounds, the highest with round-off; 6th: "
+            f"{r8['omega_ritz_eigh'][5]:.2f} vs {r8['omega_exact'][5]:.2f} rad/s).", "",
             "![Remark 8](remark8_eigenvalues.png)", ""]
     return out
 
