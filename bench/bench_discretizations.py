@@ -1,12 +1,13 @@
 """Benchmark: the cost of every link discretization on the section E arm (issue 4).
 
 Prints, for wavelets, clamped-free / hinged-free / optimized modes, Ritz polynomials,
-FEM and the lumped chain at 4 and 8 variables per link: microseconds per evaluation of
-the equations of motion (mass matrix, bias, Cholesky solve) and CPU seconds per
-simulated second (generalized-alpha, 1 ms, first 5 s of the scenario) and the highest
-natural frequency of the model (clamped joints), with the growth exponents
-d ln(cost) / d ln(variables) (thesis Tables VII-XI, Remark 9). Every method runs through
-the same compiled kernels, so at equal variables the differences are timing noise.
+FEM at 4 and 8 variables per link and the lumped link (4 and 8 masses, one variable per
+link): microseconds per evaluation of the equations of motion (mass matrix, bias,
+Cholesky solve) and CPU seconds per simulated second (generalized-alpha, 1 ms, first 5 s
+of the scenario) and the highest natural frequency of the model (clamped joints), with the
+growth exponents d ln(cost) / d ln(variables) (thesis Tables VII-XI, Remark 9). Every
+method runs through the same compiled kernels, so at equal variables the differences are
+timing noise.
 
     python bench/bench_discretizations.py [--json out.json]
 """

@@ -33,8 +33,10 @@ A section dimension given as ``[root, tip]`` is linearly tapered; ``segments`` (
 (``assumed_modes``, ``optimized_modes``, with ``mode_type: clamped_free | hinged_free |
 clamped_mass``; clamped_mass takes optional ``tip_mass``, ``tip_inertia``, default M+,
 J+ and the payload), of polynomials (``ritz_polynomials``), of lumped masses (``lumped``,
-seed 000, first mode ``mode_type``, default clamped_mass) or twice the Hermite elements
-(``fem``, even). Every variant needs at least two variables (tip deflection and rotation).
+seed 000: one variable, the first mode ``mode_type``, default clamped_mass, with
+``variables`` masses) or twice the Hermite elements (``fem``, even). Every other variant
+needs at least two variables (tip deflection and rotation); assumed and optimized modes
+may have one (the first mode, the lumped link's limit for many masses).
 """
 from __future__ import annotations
 
@@ -49,6 +51,8 @@ PRESET_DIR = Path(__file__).resolve().parent / "presets"
 #: link discretizations (flex_model.discretizations); wavelet is the thesis's Ch. II model
 DISCRETIZATIONS = ("wavelet", "assumed_modes", "optimized_modes", "ritz_polynomials",
                    "lumped", "fem")
+#: discretizations that may have one variable (the tip deflection of the first mode)
+ONE_VARIABLE = ("lumped", "assumed_modes", "optimized_modes")
 #: discretizations whose variables come in (deflection, rotation) pairs
 PAIRED = ("wavelet", "fem")
 #: small_deflection: the thesis model (Eq. 1); second_order: with the axial shortening of
@@ -213,7 +217,7 @@ def _link(f: Fields, index: int) -> LinkDescription:
             raise f.error("segments", total, f"segment lengths summing to length = {length} m")
         segments = tuple(segments)
     disc = f.string("discretization", "wavelet", choices=list(DISCRETIZATIONS))
-    n_vars = f.integer("variables", 2, min_value=2,
+    n_vars = f.integer("variables", 2, min_value=1 if disc in ONE_VARIABLE else 2,
                        max_value=200, even=disc in PAIRED)
     options = _discretization_options(f, disc)
     ends = f.mapping("end_masses", {})

@@ -13,7 +13,9 @@ the compiled equations of motion (kernels.py) are reused unchanged:
   integrated with the real EI(z) and m(z).
 
 The kernels need the tip deflection and rotation of every link as coordinates (the
-interconnection of thesis Eqs. 20-22). A basis without them is used in the form of
+interconnection of thesis Eqs. 20-22), or, for a one-variable link (the lumped link of
+seed 000), the tip deflection as its variable and the tip rotation proportional to it
+(``tip_rotation_scale``). A basis without them is used in the form of
 thesis Eq. (84): ``q_hat = T q_f`` (Eq. 82), ``w_hat = w T^-1``. This is an exact change
 of variables of the same function space (thesis Remark 15), so frequencies, statics and
 responses are those of the classic assumed-mode model; ``raw_*`` keep the matrices in
@@ -52,6 +54,7 @@ class FunctionBasis(LinkBasis):
     raw_K: np.ndarray = None
     kind: str = ""
     details: dict = field(default_factory=dict)
+    tip_rotation_scale: float = 1.0   # tip rotation per tip deflection of a 1-variable link
 
     @property
     def profile(self) -> SectionProfile:
@@ -102,7 +105,8 @@ def tip_transform(functions, length: float) -> np.ndarray:
 
 
 def function_basis(profile: SectionProfile, functions, cuts, *, kind: str,
-                   tip_form: bool = True, details: dict | None = None) -> FunctionBasis:
+                   tip_form: bool = True, details: dict | None = None,
+                   tip_rotation_scale: float = 1.0) -> FunctionBasis:
     """Integrate the link matrices of thesis Eqs. (8)-(14) for ``functions`` (raw
     variables) and express them in the tip form of thesis Eq. (84) if ``tip_form``."""
     cuts, z, w, ei, m = _quadrature(profile, cuts)
@@ -112,15 +116,17 @@ def function_basis(profile: SectionProfile, functions, cuts, *, kind: str,
            "S1": (dW * w[:, None]).T @ dW, "h": wm @ W, "k": (wm * z) @ W}
     rigid = (float(np.sum(wm)), float(np.sum(wm * z)), float(np.sum(wm * z * z)))
     return basis_from_matrices(profile, functions, cuts, raw, rigid, kind=kind,
-                               tip_form=tip_form, details=details)
+                               tip_form=tip_form, details=details,
+                               tip_rotation_scale=tip_rotation_scale)
 
 
 def basis_from_matrices(profile: SectionProfile, functions, cuts, raw: dict, rigid,
-                        *, kind: str, tip_form: bool = True,
-                        details: dict | None = None) -> FunctionBasis:
+                        *, kind: str, tip_form: bool = True, details: dict | None = None,
+                        tip_rotation_scale: float = 1.0) -> FunctionBasis:
     """A FunctionBasis from its link matrices in the raw variables (``raw``: Bw, K, S1,
     h, k) and the rigid integrals (mass, first and second moment), in tip form (Eq. 84)
-    if ``tip_form``."""
+    if ``tip_form``; a one-variable link (its variable the tip deflection) gives its tip
+    rotation per tip deflection as ``tip_rotation_scale``."""
     n = raw["Bw"].shape[0]
     t = tip_transform(functions, profile.length) if tip_form else np.eye(n)
     t_inv = np.linalg.inv(t)
@@ -131,7 +137,8 @@ def basis_from_matrices(profile: SectionProfile, functions, cuts, raw: dict, rig
         first_moment=rigid[1], second_moment=rigid[2], Bw=cong(raw["Bw"]),
         h=raw["h"] @ t_inv, k=raw["k"] @ t_inv, K=cong(raw["K"]), S1=cong(raw["S1"]),
         elements=(), coeffs=(), section=profile, functions=functions, tip_transform=t,
-        raw_Bw=sym(raw["Bw"]), raw_K=sym(raw["K"]), kind=kind, details=details or {})
+        raw_Bw=sym(raw["Bw"]), raw_K=sym(raw["K"]), kind=kind, details=details or {},
+        tip_rotation_scale=tip_rotation_scale)
 
 
 def assumed_modes_basis(profile: SectionProfile, count: int, mode_type: str = "clamped_free",
@@ -139,12 +146,20 @@ def assumed_modes_basis(profile: SectionProfile, count: int, mode_type: str = "c
                         kind: str = "assumed_modes") -> FunctionBasis:
     """``count`` modes of the uniform link of the same length and mean mass per length
     (thesis Eqs. 55-56; for a variable section the shapes are those of the mean link and
-    the integrals use the real EI(z), m(z))."""
+    the integrals use the real EI(z), m(z)). One mode is scaled to a unit tip deflection,
+    its variable (the limit of seed 000's lumped link for many masses, flex_model.lumped)."""
     length = profile.length
     shapes = link_modes(profile, count, mode_type, tip_mass, tip_inertia)
     cuts = np.linspace(0.0, length, max(8, count) + 1)
-    return function_basis(profile, shapes.evaluate, cuts, kind=kind,
-                          details={"mode_type": mode_type, "beta_L": shapes.roots})
+    details = {"mode_type": mode_type, "beta_L": shapes.roots}
+    if count > 1:
+        return function_basis(profile, shapes.evaluate, cuts, kind=kind, details=details)
+    f_tip, df_tip = (a[0, 0] for a in shapes.evaluate(np.array([length]))[:2])
+
+    def functions(z):
+        return tuple(a / f_tip for a in shapes.evaluate(z))
+    return function_basis(profile, functions, cuts, kind=kind, tip_form=False,
+                          details=details, tip_rotation_scale=float(df_tip / f_tip))
 
 
 def link_modes(profile: SectionProfile, count: int, mode_type: str, tip_mass: float = 0.0,

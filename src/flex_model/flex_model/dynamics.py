@@ -32,6 +32,12 @@ class FlexArmModel:
         self.off = np.concatenate([[0], np.cumsum(self.nf + 1)[:-1]]).astype(np.int64)
         self.n_links = len(self.bases)
         self.nq_arm = int(np.sum(self.nf + 1))
+        # tip rotation per tip deflection of one-variable links (1: its own variable)
+        self.tip_rotation_scale = np.array([getattr(b, "tip_rotation_scale", 1.0)
+                                            for b in self.bases])
+        if arm.kinematics == "second_order" and np.any(self.nf == 1):
+            raise ValueError(f"{arm.source}: kinematics: second_order needs links with at "
+                             "least two variables (a lumped link has one)")
         # elastic joints add a motor coordinate each, after the arm's coordinates
         self.elastic_joints = [i for i, j in enumerate(arm.joint_names)
                                if (e := arm.effect("joint_elasticity", j)) and not e.is_off]
@@ -54,7 +60,7 @@ class FlexArmModel:
             self.G[i, self.off[i]] = 1.0
             if i > 0:
                 self.G[i, self.off[i - 1]] = -1.0
-                self.G[i, self.tip_rotation_index(i - 1)] = -1.0
+                self.G[i, self.tip_rotation_index(i - 1)] = -self.tip_rotation_scale[i - 1]
         # the actuator's coordinate: the joint angle, or the motor angle of an elastic joint
         self.Ga = self.G.copy()
         for m, i in enumerate(self.elastic_joints):
@@ -138,8 +144,9 @@ class FlexArmModel:
                 s = self.flex_slice(i)
                 lk = self.arm.links[i]
                 m_ff = self._Bw[s, s].copy()
-                m_ff[-2, -2] += lk.M_plus
-                m_ff[-1, -1] += lk.J_plus
+                d, g = self.tip_deflection_index(i) - s.start, self.tip_rotation_index(i) - s.start
+                m_ff[d, d] += lk.M_plus
+                m_ff[g, g] += lk.J_plus * self.tip_rotation_scale[i] ** 2
                 self.D[s, s] += e.damping_block(self.bases[i], m_ff)
             elif e.TYPE == "base_tilt":
                 self.gravity = e.gravity(self.gravity)
@@ -164,16 +171,29 @@ class FlexArmModel:
         return slice(int(self.off[i]) + 1, int(self.off[i] + self.nf[i]) + 1)
 
     def tip_deflection_index(self, i: int) -> int:
-        return int(self.off[i] + self.nf[i] - 1)
+        return int(self.off[i] + max(int(self.nf[i]) - 1, 1))
 
     def tip_rotation_index(self, i: int) -> int:
+        """Index of the tip rotation; of a one-variable link, its variable (the tip
+        deflection), the rotation being ``tip_rotation_scale[i]`` times it."""
         return int(self.off[i] + self.nf[i])
+
+    def tip_rotation_matrix(self) -> np.ndarray:
+        """R (n_links x nq): the tip rotations of the links relative to their root
+        tangents are R q."""
+        r = np.zeros((self.n_links, self.nq))
+        for i in range(self.n_links):
+            r[i, self.tip_rotation_index(i)] = self.tip_rotation_scale[i]
+        return r
 
     def coordinate_names(self) -> list[str]:
         """Names of the entries of q: link<i>/alpha, link<i>/delta<k>, link<i>/gamma<k>."""
         names = []
         for lk, n in zip(self.arm.links, self.nf):
             names.append(f"{lk.name}/alpha")
+            if n == 1:
+                names.append(f"{lk.name}/delta")
+                continue
             if n % 2 or lk.discretization not in ("wavelet", "fem"):
                 names += [f"{lk.name}/eta{k + 1}" for k in range(n - 2)]
                 names += [f"{lk.name}/delta", f"{lk.name}/gamma"]
@@ -214,12 +234,13 @@ class FlexArmModel:
             Bp[d, d] += m_plus[i]
             ht[d] += m_plus[i]
             kt[d] += m_plus[i] * L[i]
-            kt[g] += j_plus[i]
+            kt[g] += j_plus[i] * self.tip_rotation_scale[i]
         self.lengths = L
         mode = 1 if self.arm.kinematics == "second_order" else 0
         zq, mu, Wq, Sq = self._quadrature(m_plus) if mode else self._no_quadrature
         jrig = np.array([lk.J_minus for lk in self.arm.links]) + j_plus
-        self.P = (mode, self.off, self.nf, L, mtot, ntot, jrot, j_plus, Bp, ht, kt,
+        jplus_tip = j_plus * self.tip_rotation_scale ** 2  # J+ on the tip rotation variable
+        self.P = (mode, self.off, self.nf, L, mtot, ntot, jrot, jplus_tip, Bp, ht, kt,
                   zq, mu, Wq, Sq, jrig, self.B_const)
 
     _no_quadrature = (np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 1)),
@@ -318,8 +339,7 @@ class FlexArmModel:
         """Generalized force of a unit torque at the arm's end (acts on alpha_nu + gamma_nu)."""
         e = np.zeros(self.nq)
         e[self.alpha_index(self.n_links - 1)] = 1.0
-        e[self.tip_rotation_index(self.n_links - 1)] = 1.0
-        return e
+        return e + self.tip_rotation_matrix()[-1]
 
     def joint_forces(self, q, v=None) -> np.ndarray:
         """Generalized forces of the joint effects: springs (with backlash), friction and
@@ -402,8 +422,7 @@ class FlexArmModel:
 
     def tip_rotations(self, q) -> np.ndarray:
         """Tip rotation gamma_n of every link (rad) relative to its root tangent."""
-        q = np.asarray(q, float)
-        return np.array([q[self.tip_rotation_index(i)] for i in range(self.n_links)])
+        return self.tip_rotation_matrix() @ np.asarray(q, float)
 
     def tip_pose(self, q) -> tuple[float, float, float]:
         """(x, y, phi) of the arm's end: position (m) and tangent angle (rad)."""
@@ -411,7 +430,7 @@ class FlexArmModel:
         x, y = self.link_origins(q)[-1]
         last = self.n_links - 1
         return float(x), float(y), float(q[self.alpha_index(last)]
-                                         + q[self.tip_rotation_index(last)])
+                                         + self.tip_rotation_matrix()[last] @ q)
 
     def tip_specific_force(self, q, v, a) -> np.ndarray:
         """What an accelerometer at the arm's end measures: a_tip - g in the tip frame

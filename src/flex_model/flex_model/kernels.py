@@ -3,7 +3,10 @@
 Coordinates ``q = [alpha_1, q_f1, alpha_2, q_f2, ...]`` (absolute link angles and the
 wavelet deformation variables of each link, thesis Eq. 12 and Eq. 22). Link ``i`` occupies
 ``q[off[i] : off[i] + 1 + nf[i]]``; its tip deflection ``delta_n`` is at
-``off[i] + nf[i] - 1`` and its tip rotation ``gamma_n`` at ``off[i] + nf[i]``.
+``off[i] + nf[i] - 1`` and its tip rotation ``gamma_n`` at ``off[i] + nf[i]``. A link
+with one variable (the lumped link of seed 000) has its tip deflection as that variable,
+``off[i] + 1``, and its tip rotation proportional to it: the model folds the tip inertia's
+share into ``jplus`` and ``kt`` (mode 0 only).
 
 A point of link i at abscissa z is (thesis Eq. 1)
     p = o_i + z e1(alpha_i) + d(z) e2(alpha_i),   d = W(z) q_f,
@@ -41,6 +44,12 @@ import numpy as np
 from numba import njit
 
 _CACHE = True
+
+
+@njit(cache=_CACHE)
+def _tip_index(o, n):
+    """Index of the tip deflection of the link at offset o with n variables."""
+    return o + n - 1 if n > 1 else o + 1
 
 
 @njit(cache=_CACHE)
@@ -118,7 +127,7 @@ def _inverse_dynamics_1(q, v, a, gx, gy, P):
         g = o + n
         f[g] += jplus[i] * a[g]
         # acceleration of the tip = origin of the next link (thesis Eq. 20 differentiated)
-        dl = o + n - 1
+        dl = _tip_index(o, n)
         de = q[dl]
         dd = v[dl]
         da = a[dl]
@@ -136,9 +145,9 @@ def _inverse_dynamics_1(q, v, a, gx, gy, P):
         al = q[o]
         c = np.cos(al)
         s = np.sin(al)
-        de = q[o + n - 1]
+        de = q[_tip_index(o, n)]
         f[o] += (L[i] * (-s) - de * c) * rx + (L[i] * c - de * s) * ry
-        f[o + n - 1] += -s * rx + c * ry
+        f[_tip_index(o, n)] += -s * rx + c * ry
         rx += fox[i]
         ry += foy[i]
     return f
@@ -205,11 +214,11 @@ def _mass_matrix_1(q, P):
             for m2 in range(nc):
                 B[cm, cols[m2]] += mtot[i] * (phx[m] * phx[m2] + phy[m] * phy[m2])
         # this link's interface columns for the links outboard of it
-        de = q[o + n - 1]
+        de = q[_tip_index(o, n)]
         cols[nc] = o
         phx[nc] = L[i] * e2x - de * e1x
         phy[nc] = L[i] * e2y - de * e1y
-        cols[nc + 1] = o + n - 1
+        cols[nc + 1] = _tip_index(o, n)
         phx[nc + 1] = e2x
         phy[nc + 1] = e2y
     return B
@@ -278,7 +287,7 @@ def link_origins(q, P):
         o = off[i]
         c = np.cos(q[o])
         s = np.sin(q[o])
-        de = q[o + nf[i] - 1]
+        de = q[_tip_index(o, nf[i])]
         uL, sL = _tip_point(q, i, P)
         out[i + 1, 0] = out[i, 0] + (L[i] - uL) * c - de * s
         out[i + 1, 1] = out[i, 1] + (L[i] - uL) * s + de * c
@@ -295,15 +304,15 @@ def tip_jacobian(q, P):
         o = off[i]
         c = np.cos(q[o])
         s = np.sin(q[o])
-        de = q[o + nf[i] - 1]
+        de = q[_tip_index(o, nf[i])]
         uL, sL = _tip_point(q, i, P)
         Jt[0, o] = -(L[i] - uL) * s - de * c
         Jt[1, o] = (L[i] - uL) * c - de * s
         for j in range(nf[i]):
             Jt[0, o + 1 + j] -= sL[j] * c
             Jt[1, o + 1 + j] -= sL[j] * s
-        Jt[0, o + nf[i] - 1] += -s
-        Jt[1, o + nf[i] - 1] += c
+        Jt[0, _tip_index(o, nf[i])] += -s
+        Jt[1, _tip_index(o, nf[i])] += c
     return Jt
 
 

@@ -104,7 +104,7 @@ class SimulationResult:
 
     @property
     def tip_rotations(self) -> np.ndarray:
-        return self.q[:, [self.model.tip_rotation_index(i) for i in range(self.model.n_links)]]
+        return self.q @ self.model.tip_rotation_matrix().T
 
     def table(self) -> tuple[list[str], np.ndarray]:
         """Columns of the CSV output and the data (SI units, rad); motor angles ``qm<i>``

@@ -97,8 +97,8 @@ class Stepper:
         """(tip deflections, tip rotations, their rates) of every link."""
         m = self.model
         d = [m.tip_deflection_index(i) for i in range(m.n_links)]
-        r = [m.tip_rotation_index(i) for i in range(m.n_links)]
-        return self.q[d], self.q[r], self.v[d], self.v[r]
+        r = m.tip_rotation_matrix()
+        return self.q[d], r @ self.q, self.v[d], r @ self.v
 
     def tip_pose(self):
         return self.model.tip_pose(self.q)

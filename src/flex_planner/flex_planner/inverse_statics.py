@@ -99,10 +99,7 @@ class StaticInverter:
         self.lengths = np.array([lk.length for lk in model.arm.links])
         kff = np.diag(self.Sf.T @ model.K @ self.Sf)
         self.row_scale = 1.0 / kff
-        e_phi = np.zeros(model.nq)
-        e_phi[model.alpha_index(model.n_links - 1)] = 1.0
-        e_phi[model.tip_rotation_index(model.n_links - 1)] = 1.0
-        self.e_phi_T = e_phi @ self.T
+        self.e_phi_T = model.tip_torque_vector() @ self.T
         self.zero_torque = np.zeros(model.n_links)
 
     # ------------------------------------------------------------------ equations

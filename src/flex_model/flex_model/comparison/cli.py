@@ -11,8 +11,8 @@ from pathlib import Path
 STEP_METHODS = (("wavelet", "wavelet", 8, {}),
                 ("assumed modes (2, clamped with tip mass)", "assumed_modes", 2,
                  {"mode_type": "clamped_mass"}),
-                ("lumped chain (2 masses)", "lumped", 2, {"mode_type": "clamped_mass"}),
-                ("lumped chain (8 masses)", "lumped", 8, {"mode_type": "clamped_mass"}))
+                ("lumped (1 mass)", "lumped", 1, {"mode_type": "clamped_mass"}),
+                ("lumped (8 masses)", "lumped", 8, {"mode_type": "clamped_mass"}))
 
 
 def seed000_step_responses(progress=None):

@@ -42,7 +42,7 @@ def reliable_up_to(freqs_hz, h, h_ref, tol_db: float = 1.0) -> float:
 def frequency_responses(section: str, vars_per_link=(2, 10), freqs_hz=None,
                         progress=None) -> dict:
     """Responses of every method on the section's arm, against the 20-variable wavelet
-    reference; the lumped chain only where it has >= 2 masses."""
+    reference (the lumped link: one variable per link, n masses)."""
     arm = load_arm(ARMS[section])
     if freqs_hz is None:
         freqs_hz = np.logspace(-1, np.log10(200.0), 500)

@@ -139,23 +139,31 @@ def thesis_table_VI() -> list[dict]:
     return rows
 
 
-def _first_order_eigenvalues(mass, stiffness):
+def first_order_eigenvalues(mass, stiffness, inverse: bool = True):
+    """Eigenvalues of the state matrix A = [[0, I], [-B^-1 K, 0]] of thesis Eq. (44) in
+    float64, B^-1 K formed as inv(B) @ K (``inverse``, as MATLAB's inv) or by an LU solve."""
     n = mass.shape[0]
-    a = np.block([[np.zeros((n, n)), np.eye(n)],
-                  [-np.linalg.solve(mass, stiffness), np.zeros((n, n))]])
+    b_inv_k = np.linalg.inv(mass) @ stiffness if inverse else np.linalg.solve(mass, stiffness)
+    a = np.block([[np.zeros((n, n)), np.eye(n)], [-b_inv_k, np.zeros((n, n))]])
     return np.linalg.eigvals(a)
 
 
 def remark8() -> dict:
-    """Thesis Remark 8: the single clamped link of VALIDATION.md A, 10 variables."""
+    """Thesis Remark 8: the single clamped link of VALIDATION.md A, 10 variables. The
+    state matrix of Eq. (44) formed with inv(B) in float64 (the thesis's way) has
+    spurious eigenvalues with large positive real parts for Ritz polynomials (cond B
+    ~ 1e20 > 1/eps), not for wavelets; an LU solve is better, and the symmetric
+    generalized eigensolver eigh(K, B) keeps every omega^2 real and positive."""
     arm = load_arm("thesis_single_link")
     wav = FlexArmModel(with_discretization(arm, "wavelet", 10)).bases[0]
     ritz = FlexArmModel(with_discretization(arm, "ritz_polynomials", 10)).bases[0]
     i = range(2, 12)
     exact = exact_condition_number([[Fraction(5) ** (a + b + 1) / (a + b + 1) for b in i]
                                     for a in i])
-    lam_r = _first_order_eigenvalues(ritz.raw_Bw, ritz.raw_K)
-    lam_w = _first_order_eigenvalues(wav.Bw, wav.K)
+    lam_r = first_order_eigenvalues(ritz.raw_Bw, ritz.raw_K)
+    lam_w = first_order_eigenvalues(wav.Bw, wav.K)
+    lam_r_lu = first_order_eigenvalues(ritz.raw_Bw, ritz.raw_K, inverse=False)
+    w2_ritz = sla.eigh(ritz.raw_K, ritz.raw_Bw, eigvals_only=True)
     length, ei_m = 5.0, 1.0
     omega_exact = mode_roots(10, "clamped_free") ** 2 / length ** 2 * np.sqrt(ei_m)
     return {"cond_wavelet": float(np.linalg.cond(wav.Bw)),
@@ -163,10 +171,14 @@ def remark8() -> dict:
             "cond_ritz_exact": exact,
             "max_real_part_ritz": float(np.max(lam_r.real)),
             "max_abs_real_part_wavelet": float(np.max(np.abs(lam_w.real))),
-            "n_unstable_ritz": int(np.sum(lam_r.real > 0)),
+            "n_unstable_ritz": int(np.sum(lam_r.real > 1e-6)),
+            "spurious_ritz": [[float(x.real), float(x.imag)] for x in lam_r
+                              if x.real > 1e-6],
+            "max_real_part_ritz_lu": float(np.max(lam_r_lu.real)),
+            "min_omega2_ritz_eigh": float(np.min(w2_ritz)),
+            "omega_ritz_eigh": [float(x) for x in np.sqrt(w2_ritz)],
             "omega_wavelet": [float(x) for x in np.sqrt(sla.eigh(wav.K, wav.Bw,
                                                                   eigvals_only=True))],
-            "omega_ritz": [float(x) for x in np.sort(np.abs(lam_r.imag))[::2]],
             "omega_exact": [float(x) for x in omega_exact], "paper": PAPER_REMARK8,
             "eigenvalues_ritz": [[float(x.real), float(x.imag)] for x in lam_r],
             "eigenvalues_wavelet": [[float(x.real), float(x.imag)] for x in lam_w]}
@@ -174,7 +186,9 @@ def remark8() -> dict:
 
 def seed000_tables() -> dict:
     """Seed 000 Table 2 (one lumped mass and spring, 8.46-8.47 Hz vs measured 8.24 Hz) and
-    Table 4 frequencies (L = 1 m, payload 0.2 kg: assumed modes vs lumped)."""
+    Table 4 frequencies (L = 1 m, payload 0.2 kg: assumed modes vs lumped); the lumped
+    link with 1, 2, 8 masses clamped (the first mode's f1 for every m) and with a free
+    joint (no hub: tends to the one-mode assumed-mode f1 as m grows)."""
     out = {}
     for preset in ("seed000_real_arm", "seed000_table3"):
         arm = load_arm(preset)
@@ -186,13 +200,18 @@ def seed000_tables() -> dict:
                                      {"mode_type": "clamped_mass"}),
                                     ("f_clamped_free_modes_2_hz", "assumed_modes", 2,
                                      {"mode_type": "clamped_free"}),
-                                    ("f_lumped_2_masses_hz", "lumped", 2,
+                                    ("f_lumped_model_1_2_8_hz", "lumped", (1, 2, 8),
                                      {"mode_type": "clamped_mass"}),
-                                    ("f_lumped_8_masses_hz", "lumped", 8,
+                                    ("f_wavelet_16_hz", "wavelet", 16, {}),
+                                    ("f_free_first_mode_hz", "assumed_modes", 1,
                                      {"mode_type": "clamped_mass"}),
-                                    ("f_wavelet_16_hz", "wavelet", 16, {})):
-            model = FlexArmModel(with_discretization(arm, disc, n, **opt))
-            row[label] = float(natural_modes(model, joints="clamped").frequencies_hz[0])
+                                    ("f_free_lumped_2_8_32_hz", "lumped", (2, 8, 32),
+                                     {"mode_type": "clamped_mass"})):
+            joints = "hinged" if label.startswith("f_free") else "clamped"
+            f = [natural_modes(FlexArmModel(with_discretization(arm, disc, m, **opt)),
+                               joints=joints).frequencies_hz[int(joints == "hinged")]
+                 for m in np.atleast_1d(n)]
+            row[label] = [float(x) for x in f] if isinstance(n, tuple) else float(f[0])
         out[preset] = row
     out["seed000_real_arm"]["paper"] = {"lumped_mass_kg": 0.008634,
                                         "lumped_spring_n_m": 96.7425,

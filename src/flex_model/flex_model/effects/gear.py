@@ -31,5 +31,5 @@ class Gear(Effect):
         c = self["ratio"] * model.G[joint].copy()
         if joint > 0:  # stator on the tip of link joint-1: Omega = alpha + gamma_n
             c[model.alpha_index(joint - 1)] += 1.0
-            c[model.tip_rotation_index(joint - 1)] += 1.0
+            c += model.tip_rotation_matrix()[joint - 1]
         return self["rotor_inertia"] * np.outer(c, c)
