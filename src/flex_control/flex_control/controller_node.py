@@ -1,23 +1,21 @@
 """ControllerNode: the joint controller of flex-twin (seed 000 Eq. 45 or thesis Eq. 95)."""
 from __future__ import annotations
 
-import signal
 import sys
 from dataclasses import fields, replace
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
+
+from flex_model.ros_main import run_node
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
@@ -168,32 +166,16 @@ class ControllerNode(Node):
         return SetParametersResult(successful=True)
 
 
+def _command_zero(node: ControllerNode) -> None:
+    node.publish_zero()
+    node.get_logger().info("stopped: zero torques commanded")
+
+
 def main(args=None) -> int:
-    """Spin the node; on SIGINT/SIGTERM publish zero torques, then shut down (Jazzy idiom
-    with rclpy's signal handlers replaced by ours, so the context is still valid for the
-    last command)."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, frame: stop.append(signum))
-    node = executor = None
-    try:
-        node = ControllerNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok() and not stop:
-            executor.spin_once(timeout_sec=0.05)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            if rclpy.ok():
-                node.publish_zero()
-                node.get_logger().info("stopped: zero torques commanded")
-            if executor is not None:
-                executor.shutdown()
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Spin the node (``--executor single|events`` before ``--ros-args``); on SIGINT/SIGTERM
+    publish zero torques, then shut down (flex_model.ros_main.run_node: rclpy's signal
+    handlers replaced by ours, so the context is still valid for the last command)."""
+    run_node(ControllerNode, args, on_stop=_command_zero)
     return 0
 
 
