@@ -65,6 +65,7 @@ class ControllerNode(Node):
         self.last_command = np.zeros(self.n)
         self.stale_logged = False
         self.pub = self.create_publisher(Float64MultiArray, "effort_controller/commands", 10)
+        self.msg = Float64MultiArray()  # reused for every command
         self.create_subscription(JointState, "joint_states", self.on_joint_state,
                                  qos_profile_sensor_data)
         self.create_subscription(JointTrajectory, "flex_planner/trajectory",
@@ -108,11 +109,12 @@ class ControllerNode(Node):
         self.get_logger().info(f"trajectory accepted: {len(data.t)} points, "
                                f"{data.duration:.3f} s")
 
-    def _age(self, arrival) -> float:
-        return (self.get_clock().now() - arrival).nanoseconds * 1e-9
-
     def on_timer(self) -> None:
-        if self.state is None or self._age(self.state[2]) > self.params.state_timeout:
+        now = self.get_clock().now()
+
+        def since(stamp) -> float:  # s from stamp to now
+            return (now - stamp).nanoseconds * 1e-9
+        if self.state is None or since(self.state[2]) > self.params.state_timeout:
             if not self.stale_logged:
                 self.get_logger().warn(f"joint states missing or older than "
                                        f"{self.params.state_timeout:g} s: commanding "
@@ -127,10 +129,9 @@ class ControllerNode(Node):
         pos, vel, _ = self.state
         defl = None
         if self.deflections is not None and \
-                self._age(self.deflections[1]) <= self.params.state_timeout:
+                since(self.deflections[1]) <= self.params.state_timeout:
             defl = self.deflections[0]
-        t = 0.0 if self.t_start is None else \
-            (self.get_clock().now() - self.t_start).nanoseconds * 1e-9
+        t = 0.0 if self.t_start is None else since(self.t_start)
         try:
             tau = self.controller.torque(t, pos, vel, defl)
         except ValueError as exc:
@@ -143,7 +144,7 @@ class ControllerNode(Node):
         tau = np.where(np.isfinite(tau), tau, 0.0)
         tau = np.clip(tau, -self.controller.torque_limits, self.controller.torque_limits)
         self.last_command = tau
-        self.pub.publish(commands_msg(tau))
+        self.pub.publish(commands_msg(tau, self.msg))
 
     def publish_zero(self, wait_s: float = 0.5) -> None:
         """Command zero torques and wait (bounded) until subscribers acknowledge them."""
