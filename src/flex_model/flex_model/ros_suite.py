@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import sys
 import time
 
 from .config import ConfigError, read_yaml
@@ -90,11 +91,10 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
 
 
 def run_in_processes(path, names, executor: str = "single") -> int:
-    """One process per node (its console script) with the same parameter file."""
-    scripts = {"flex_model": "flex-model-node", "flex_controller": "flex-controller-node",
-               "flex_planner": "flex-planner-node"}
-    procs = [subprocess.Popen([scripts[n], "--executor", executor, "--ros-args",
-                               "--params-file", str(path)]) for n in names]
+    """One process per node (``python -m`` its module, which works in a pip and in a colcon
+    install alike) with the same parameter file."""
+    procs = [subprocess.Popen([sys.executable, "-m", NODES[n][0], "--executor", executor,
+                               "--ros-args", "--params-file", str(path)]) for n in names]
     try:
         while all(p.poll() is None for p in procs):
             time.sleep(0.2)
