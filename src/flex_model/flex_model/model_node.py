@@ -15,11 +15,13 @@ Parameters: arm, vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz
 loop), publish_rate (Hz), shape_rate (Hz, /flex/shape, at most publish_rate), max_step (s),
 initial_joint_angles_deg, start_static (start deflected at rest under gravity),
 start_paused (until ~/pause false), command_timeout (s, 0 = never), timeout_action (hold |
-zero), lockstep_timeout (s, wall), frame_id, shape_points, publish_clock.
+zero), lockstep_timeout (s, wall), frame_id, shape_points, publish_clock,
+realtime_priority (0 = off; 1-99: SCHED_FIFO priority of the thread that creates and spins
+the node, realtime mode, as ros2_control's thread_priority; needs CAP_SYS_NICE).
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several
-steps; simulation time stays on the step grid, at most one step behind the wall clock).
+steps; simulation time stays on the step grid, within a step of the wall clock).
 /joint_states, /flex/deflections, /flex/tip_pose, /flex/tip_imu go out at publish_rate,
 /flex/shape at shape_rate. lockstep: deterministic; each command advances the model by
 1/rate and publishes the new /joint_states (and /clock) at once, the other topics at their
@@ -29,6 +31,7 @@ built once and updated in place (the per-step cost is what limits the loop rate)
 """
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -58,7 +61,8 @@ class ModelNode(Node):
             ("max_step", 1e-3), ("initial_joint_angles_deg", [0.0]),
             ("command_timeout", 0.0), ("timeout_action", "hold"),
             ("lockstep_timeout", 1.0), ("frame_id", "base_link"), ("shape_points", 15),
-            ("publish_clock", False), ("start_static", False), ("start_paused", False))}
+            ("publish_clock", False), ("start_static", False), ("start_paused", False),
+            ("realtime_priority", 0))}
         if p["mode"] not in ("realtime", "lockstep"):
             raise ValueError(f"parameter mode: got {p['mode']!r}; expected realtime or lockstep")
         if p["timeout_action"] not in ("hold", "zero"):
@@ -111,9 +115,22 @@ class ModelNode(Node):
         # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog
         period = 1.0 / p["rate"] if p["mode"] == "realtime" else 0.05
         self.timer = self.create_timer(period, self.on_tick)
+        if p["mode"] == "realtime" and p["realtime_priority"]:
+            self._set_realtime_priority(int(p["realtime_priority"]))
         self.publish_state(full=True)
         self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates), {p['mode']} "
                                f"at {p['rate']:g} Hz, publishing at {p['publish_rate']:g} Hz")
+
+    def _set_realtime_priority(self, priority: int) -> None:
+        """SCHED_FIFO for this thread (Linux: the other threads, DDS's, keep theirs)."""
+        if not 1 <= priority <= 99:
+            raise ValueError(f"parameter realtime_priority: got {priority}; expected 0 (off) "
+                             "or 1-99")
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        except (OSError, AttributeError) as exc:
+            self.get_logger().warning(f"realtime_priority {priority}: {exc}; running with "
+                                      "the normal scheduler")
 
     # ------------------------------------------------------------- inputs
     def _warn_once(self, key, text):
@@ -153,9 +170,10 @@ class ModelNode(Node):
 
     def on_pause(self, request, response):
         was_paused, self.paused = self.paused, bool(request.data)
-        self.last_wall = time.monotonic()
-        if was_paused and not self.paused and self.p["mode"] == "lockstep":
-            self.step(1.0 / self.p["rate"])  # restart the model-controller loop
+        if self.p["mode"] == "lockstep":  # realtime: paused ticks keep last_wall on the grid
+            self.last_wall = time.monotonic()
+            if was_paused and not self.paused:
+                self.step(1.0 / self.p["rate"])  # restart the model-controller loop
         response.success, response.message = True, "paused" if self.paused else "running"
         return response
 
@@ -173,9 +191,12 @@ class ModelNode(Node):
                             "stepping with the held command")
             self.step(1.0 / self.p["rate"])
             return
+        # the owed wall time in whole steps, with a quarter step of slack: timer jitter about
+        # the step grid must not alternate ticks of 0 and 2 steps (the state may then run
+        # up to h/4 ahead of the wall clock); a stalled process owes at most 0.1 s
         h = self.p["max_step"]
-        self.behind = min(self.behind + elapsed, 0.1)  # cap what a stalled process owes
-        n = int(self.behind / h + 1e-6)
+        self.behind = min(self.behind + elapsed, 0.1)
+        n = int(self.behind / h + 0.25)
         if n:
             self.behind -= n * h
             self.step(n * h)
