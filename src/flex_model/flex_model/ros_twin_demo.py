@@ -3,8 +3,8 @@
 The planner node inverts the four tip waypoints and publishes the joint trajectory with the
 admissible nominal torque, the controller node applies Eq. (95) (h = 25, a = 5) with that
 feed-forward, the model node integrates the arm in lockstep; the three talk over ROS
-topics in one process (one EventsExecutor, flex_model.ros_main). Everything is recorded into a rosbag2 (MCAP) bag
-under runs/<timestamp>/; then a summary table and PNG plots.
+topics in one process (one EventsExecutor, see flex_model.ros_main). Everything is recorded
+into a rosbag2 (MCAP) bag under runs/<timestamp>/; then a summary table and PNG plots.
 
 The arm is ``thesis_example1_motors``: the section F arm with geared motors at the joints
 (a hub-less flexible arm makes the sampled Eq. 95 loop unstable, see the preset).
