@@ -226,13 +226,14 @@ class ModelNode(Node):
             self.publish_state(full=full, shape=shape)
 
     def publish_state(self, full: bool = True, shape: bool = True) -> None:
-        """/clock and /joint_states; with ``full`` the other topics (/flex/shape only with
-        ``shape`` too)."""
+        """/joint_states, then /clock (a sim-time controller, woken by the clock, then has
+        the new state also across processes); with ``full`` the other topics (/flex/shape
+        only with ``shape`` too)."""
         st, t = self.stepper, self.stepper.t
+        self.pub_js.publish(conv.fill_joint_state(self.msg_js, t, *st.joint_state()))
         if self.pub_clock is not None:
             conv.set_time(self.msg_clock.clock, t)
             self.pub_clock.publish(self.msg_clock)
-        self.pub_js.publish(conv.fill_joint_state(self.msg_js, t, *st.joint_state()))
         if not full:
             return
         self.pub_defl.publish(conv.fill_deflection_state(self.msg_defl, t, *st.deflections()))
