@@ -120,6 +120,7 @@ def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
         node.paused = False  # (the paused ticks kept last_wall on the timer's grid)
         _spin_for(ex, 0.5)  # warm up (numba's cached code loads on the first step)
         del ticks[:]
+        published.clear()
         load = os.getloadavg()[0]
         sim0, wall0 = node.stepper.t, time.monotonic()
         _spin_for(ex, seconds)
