@@ -1,93 +1,231 @@
 """Benchmark: the ROS suite (issue 7). Prints figures; not a timed test.
 
-- realtime: the model node alone at 1 kHz on the Ch. V arm (thesis_example1_motors) for a
-  few seconds: share of missed periods (timer gaps over 1.5 periods) and the publish
-  latency of /joint_states above its best case (arrival wall time minus state time);
-- lockstep: model + controller over ROS topics in one process (one executor), the
-  real-time factor (simulated / wall seconds).
+(a) realtime: the model node alone at 1 kHz (SingleThreadedExecutor) on the Ch. V arm
+    (thesis_example1_motors), publishing at 250 Hz (/flex/shape at 50 Hz): the share of
+    missed 1 ms periods (timer callbacks that came one period or more late; the node then
+    integrates the owed steps, so simulation time keeps up), the distribution of tick
+    periods and of the time spent in a tick, the steps per tick, and the /joint_states
+    latency in a subscriber in another process: from the tick that computed the state
+    (its wall time is the state's instant) and from the publish call, to the arrival;
+    with normal scheduling and with the node's realtime_priority 50 (SCHED_FIFO).
+(b) lockstep: the suite of ros2_ws/params/suite.yaml (model + controller in a loop over
+    ROS topics at 500 Hz, the planner idle) started by ``flex-twin up`` in one process and
+    in three (``--processes``), with each executor: the real-time factor (simulated /
+    wall seconds), measured in this process from the stamps of /flex/tip_pose.
 
-    python bench/bench_ros_suite.py [--seconds 5]
+    python bench/bench_ros_suite.py [--seconds 5] [--json]
+
+The machine is shared (2 cores): figures vary from run to run; run it twice.
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
 
-from flex_model.model_node import ModelNode
-from flex_model.ros_suite import node_parameters, run_in_one_process
+ROOT = Path(__file__).resolve().parents[1]
+SUITE = ROOT / "ros2_ws" / "params" / "suite.yaml"
+PERIOD = 1e-3
 
 
-def realtime(seconds: float) -> dict:
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx)
+def _stamp_ns(msg) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def _spin_for(ex, seconds: float, pred=lambda: False) -> None:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end and not pred():
+        ex.spin_once(timeout_sec=0.01)
+
+
+def probe_main(topic: str, seconds: float, out: str) -> None:
+    """Child process: record (stamp ns, arrival monotonic s) of ``topic`` for ``seconds``
+    from the first arrival (giving up 90 s after the start)."""
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import JointState
+
+    from flex_model.ros_main import make_executor
+    rclpy.init()
+    node = rclpy.create_node("bench_probe")
+    rows = []
+    kind = JointState if topic == "/joint_states" else PoseStamped
+    node.create_subscription(kind, topic, lambda m: rows.append(
+        (_stamp_ns(m), time.monotonic())), 1000)
+    ex = make_executor("single")
+    ex.add_node(node)
+    _spin_for(ex, 90.0, lambda: rows)
+    if rows:
+        _spin_for(ex, seconds - (time.monotonic() - rows[0][1]))
+    Path(out).write_text(json.dumps(rows))
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def start_probe(topic: str, seconds: float, out: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, __file__, "--probe", topic, "--seconds",
+                             str(seconds), "--out", str(out)])
+
+
+def _dist(values, scale=1e3) -> dict:
+    v = scale * np.asarray(values)
+    return {"median": float(np.median(v)), "p99": float(np.percentile(v, 99)),
+            "max": float(v.max())}
+
+
+def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
+    """(a): the model node at 1 kHz in this process (``priority``: its realtime_priority
+    parameter), a probe in another."""
+    import rclpy
+    from rclpy.parameter import Parameter
+
+    from flex_model.model_node import ModelNode
+    from flex_model.ros_main import make_executor
+
+    probe = start_probe("/joint_states", seconds + 1.0, tmp / "rt.json")
+    rclpy.init()
     try:
-        node = ModelNode(context=ctx, parameter_overrides=[
+        node = ModelNode(parameter_overrides=[
             Parameter("arm", value="thesis_example1_motors"), Parameter("rate", value=1000.0),
-            Parameter("publish_rate", value=250.0),
-            Parameter("initial_joint_angles_deg", value=[150.0, 130.0])])
-        probe = rclpy.create_node("bench_probe", context=ctx)
-        arrivals = []
-        probe.create_subscription(JointState, "/joint_states", lambda m: arrivals.append(
-            (time.monotonic(), m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec)), 100)
-        ticks = []
-        tick = node.on_tick
+            Parameter("publish_rate", value=250.0), Parameter("shape_rate", value=50.0),
+            Parameter("initial_joint_angles_deg", value=[150.0, 130.0]),
+            Parameter("start_paused", value=True),
+            Parameter("realtime_priority", value=priority)])
+        ex = make_executor("single")
+        ex.add_node(node)
+        _spin_for(ex, 30.0, lambda: node.pub_js.get_subscription_count() > 0)
+        _spin_for(ex, 1.0)  # the probe's subscription settles
+        ticks, published = [], {}  # (start, duration, simulated), {stamp: (tick, publish)}
+        tick, publish = node.on_tick, node.pub_js.publish
 
         def timed_tick():
-            ticks.append(time.monotonic())
+            t0, sim0 = time.monotonic(), node.stepper.t
+            ticks.append((t0, 0.0, 0.0))
             tick()
+            ticks[-1] = (t0, time.monotonic() - t0, node.stepper.t - sim0)
+
+        def timed_publish(msg):
+            published[_stamp_ns(msg)] = (ticks[-1][0], time.monotonic())
+            publish(msg)
         node.timer.callback = timed_tick
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
-        ex.add_node(probe)
-        start = time.monotonic()
-        sim0 = node.stepper.t
-        while time.monotonic() - start < seconds:
-            ex.spin_once(timeout_sec=0.001)
-        wall = time.monotonic() - start
-        gaps = np.diff(ticks)
-        # arrival wall time minus state time: up to a constant offset (the clocks' origins),
-        # so report it above its best case (the delivery delay beyond the fastest one)
-        lat = np.array([a - s for a, s in arrivals[5:]])
-        lat -= lat.min()
-        out = {"ticks": len(ticks), "missed_share": float(np.mean(gaps > 1.5e-3)),
-               "mean_period_ms": float(1e3 * gaps.mean()),
-               "sim_over_wall": (node.stepper.t - sim0) / wall,
-               "latency_ms_median": float(1e3 * np.median(lat)),
-               "latency_ms_p99": float(1e3 * np.percentile(lat, 99))}
+        node.pub_js.publish = timed_publish
+        node.paused = False  # (the paused ticks kept last_wall on the timer's grid)
+        _spin_for(ex, 0.5)  # warm up (numba's cached code loads on the first step)
+        del ticks[:]
+        published.clear()
+        load = os.getloadavg()[0]
+        sim0, wall0 = node.stepper.t, time.monotonic()
+        _spin_for(ex, seconds)
+        wall, sim = time.monotonic() - wall0, node.stepper.t - sim0
+        node.paused = True
+        ex.shutdown()
         node.destroy_node()
-        probe.destroy_node()
-        return out
     finally:
-        rclpy.try_shutdown(context=ctx)
+        rclpy.try_shutdown()
+        if priority:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    probe.wait(timeout=60)
+    arrivals = json.loads((tmp / "rt.json").read_text())
+    start = np.array([t[0] for t in ticks])
+    gaps = np.diff(start)
+    missed = np.maximum(np.rint(gaps / PERIOD) - 1, 0).sum()
+    steps = np.rint(np.array([t[2] for t in ticks]) / PERIOD)
+    lat_tick, lat_pub = [], []
+    for stamp, arrival in arrivals:
+        if stamp in published:
+            t_tick, t_pub = published[stamp]
+            lat_tick.append(arrival - t_tick)
+            lat_pub.append(arrival - t_pub)
+    return {"priority": priority, "load_average": load,
+            "seconds": wall, "ticks": len(ticks), "periods": wall / PERIOD,
+            "missed_share": float(missed / (wall / PERIOD)),
+            "tick_period_ms": _dist(gaps), "tick_time_ms": _dist([t[1] for t in ticks]),
+            "ticks_with_catch_up_share": float(np.mean(steps > 1)),
+            "max_steps_per_tick": int(steps.max()), "sim_over_wall": sim / wall,
+            "published": len(published), "received": len(lat_tick),
+            "latency_from_tick_ms": _dist(lat_tick), "latency_from_publish_ms": _dist(lat_pub)}
 
 
-def lockstep(seconds: float) -> dict:
-    params = node_parameters("ros2_ws/params/suite.yaml")
-    params.pop("flex_planner")
-    t0 = time.perf_counter()
-    run_in_one_process(params, duration=seconds)
-    wall = time.perf_counter() - t0
-    return {"simulated_s": seconds, "wall_s": wall, "real_time_factor": seconds / wall}
+def lockstep(seconds: float, processes: bool, executor: str, tmp: Path) -> dict:
+    """(b): ``flex-twin up`` the suite; the real-time factor from /flex/tip_pose stamps."""
+    cmd = ["flex-twin", "up", str(SUITE), "--executor", executor]
+    if processes:
+        cmd.append("--processes")
+    out = tmp / f"ls_{processes}_{executor}.json"
+    probe = start_probe("/flex/tip_pose", seconds + 1.0, out)
+    load = os.getloadavg()[0]
+    suite = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        probe.wait(timeout=seconds + 100.0)
+    finally:
+        suite.send_signal(signal.SIGINT)
+        try:
+            suite.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            suite.kill()
+    rows = np.array(json.loads(out.read_text()), dtype=float)
+    if len(rows) < 10:
+        return {"processes": 3 if processes else 1, "executor": executor,
+                "error": f"only {len(rows)} /flex/tip_pose messages received"}
+    stamp, wall = 1e-9 * rows[:, 0], rows[:, 1]
+    keep = (wall >= wall[0] + 1.0) & (wall <= wall[0] + 1.0 + seconds)  # skip the start
+    stamp, wall = stamp[keep], wall[keep]
+    return {"processes": 3 if processes else 1, "executor": executor, "load_average": load,
+            "simulated_s": float(stamp[-1] - stamp[0]), "wall_s": float(wall[-1] - wall[0]),
+            "real_time_factor": float((stamp[-1] - stamp[0]) / (wall[-1] - wall[0]))}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=5.0)
+    ap.add_argument("--seconds", type=float, default=5.0, help="wall seconds per figure")
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--probe", help=argparse.SUPPRESS)
+    ap.add_argument("--out", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
-    rt = realtime(args.seconds)
-    print(f"realtime model node at 1 kHz for {args.seconds:g} s: {rt['ticks']} ticks, mean "
-          f"period {rt['mean_period_ms']:.3f} ms, missed periods {100 * rt['missed_share']:.2f} "
-          f"%, simulated/wall {rt['sim_over_wall']:.3f}, /joint_states latency above best: median "
-          f"{rt['latency_ms_median']:.2f} ms, p99 {rt['latency_ms_p99']:.2f} ms")
-    ls = lockstep(args.seconds)
-    print(f"lockstep model + controller (one process): {ls['simulated_s']:g} s simulated in "
-          f"{ls['wall_s']:.2f} s: real-time factor {ls['real_time_factor']:.2f} (aim: 5)")
+    if args.probe:
+        probe_main(args.probe, args.seconds, args.out)
+        return 0
+    os.chdir(ROOT)
+    with tempfile.TemporaryDirectory() as tmp:
+        rt = [realtime(args.seconds, Path(tmp), prio) for prio in (0, 50)]
+        ls = [lockstep(args.seconds, p, ex, Path(tmp))
+              for p, ex in ((False, "events"), (False, "single"), (True, "events"),
+                            (True, "single"))]
+    if args.json:
+        print(json.dumps({"realtime": rt, "lockstep": ls}, indent=1))
+        return 0
+    f = "{median:.3f} / {p99:.3f} / {max:.3f}".format
+    for r in rt:
+        how = f"SCHED_FIFO {r['priority']}" if r["priority"] else "normal scheduling"
+        print(f"(a) realtime model node at 1 kHz, {how}, {r['seconds']:.1f} s (load average "
+              f"{r['load_average']:.1f}): {r['ticks']} ticks for {r['periods']:.0f} periods, "
+              f"missed periods {100 * r['missed_share']:.2f} % (aim < 1 %), simulated/wall "
+              f"{r['sim_over_wall']:.4f}")
+        print(f"    tick period ms (median / p99 / max): {f(**r['tick_period_ms'])}")
+        print(f"    time in a tick ms:                   {f(**r['tick_time_ms'])}")
+        print(f"    ticks that caught up missed steps: {100 * r['ticks_with_catch_up_share']:.2f}"
+              f" % (at most {r['max_steps_per_tick']} steps)")
+        print(f"    /joint_states at 250 Hz in another process ({r['received']} of "
+              f"{r['published']}), latency ms from the tick: {f(**r['latency_from_tick_ms'])}")
+        print(f"    {'':56s}from the publish: {f(**r['latency_from_publish_ms'])}")
+    print("(b) lockstep suite (model + controller at 500 Hz, planner idle), flex-twin up:")
+    for r in ls:
+        where = f"{r['processes']} process{'es' if r['processes'] > 1 else ''}, " \
+                f"{r['executor']} executor"
+        if "error" in r:
+            print(f"    {where:34s}: {r['error']}")
+            continue
+        print(f"    {where:34s}: {r['simulated_s']:.2f} s simulated in {r['wall_s']:.2f} s "
+              f"wall, real-time factor {r['real_time_factor']:.2f} (aim >= 5; load average "
+              f"{r['load_average']:.1f})")
     return 0
 
 

@@ -1,6 +1,10 @@
-"""flex-twin up: model and controller nodes from the suite's parameter file, one process,
-lockstep; the loop settles at the static equilibrium of the arm held by the PD of Eq. (95)
-(Kp = h a^2 per joint, seen at the joints through the sampled loop)."""
+"""flex-twin up: model and controller nodes from the suite's parameter file, lockstep, in
+one process and in three; the loop settles at the static equilibrium of the arm held by the
+PD of Eq. (95) (Kp = h a^2 per joint, seen at the joints through the sampled loop)."""
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -15,19 +19,58 @@ from flex_model.statics import static_equilibrium
 PARAMS = Path(__file__).resolve().parents[1] / "ros2_ws" / "params" / "suite.yaml"
 
 
+def pd_equilibrium_deg(params):
+    arm = FlexArmModel(load_arm(params["flex_model"]["arm"]))
+    h, a = np.array(params["flex_controller"]["h"]), np.array(params["flex_controller"]["a"])
+    set_deg = params["flex_model"]["initial_joint_angles_deg"]
+    eq = static_equilibrium(arm, np.radians(set_deg), joints="pd", kp=h * a * a)
+    assert np.degrees(np.abs(eq.joint_angles - np.radians(set_deg))).max() > 0.1  # it sags
+    return np.degrees(eq.joint_angles)
+
+
 def test_model_and_controller_hold_the_static_pd_equilibrium():
     params = node_parameters(PARAMS)
     params.pop("flex_planner")
     nodes = run_in_one_process(params, duration=2.0)
     model = nodes["flex_model"]
     theta = model.model.joint_angles(model.stepper.q)
-    arm = FlexArmModel(load_arm(params["flex_model"]["arm"]))
-    h, a = np.array(params["flex_controller"]["h"]), np.array(params["flex_controller"]["a"])
-    set_deg = params["flex_model"]["initial_joint_angles_deg"]
-    eq = static_equilibrium(arm, np.radians(set_deg), joints="pd", kp=h * a * a)
     assert model.stepper.t == pytest.approx(2.0, abs=2e-3)
-    np.testing.assert_allclose(np.degrees(theta), np.degrees(eq.joint_angles), atol=0.02)
-    assert np.degrees(np.abs(eq.joint_angles - np.radians(set_deg))).max() > 0.1  # it sags
+    np.testing.assert_allclose(np.degrees(theta), pd_equilibrium_deg(params), atol=0.02)
+
+
+def test_three_processes_hold_the_same_equilibrium():
+    """``--processes``: each node its own process (python -m, EventsExecutor); the
+    equilibrium is the same (the loop over DDS between processes is not deterministic: a
+    tick may see the previous state, which does not move a static equilibrium)."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+
+    params = node_parameters(PARAMS)
+    proc = subprocess.Popen([sys.executable, "-m", "flex_model.cli", "up", str(PARAMS),
+                             "--processes"])
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = rclpy.create_node("probe_up", context=ctx)
+        states = []
+        node.create_subscription(JointState, "/joint_states", states.append, 10)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        end = time.monotonic() + 60.0
+        while not (states and states[-1].header.stamp.sec >= 2):
+            assert time.monotonic() < end and proc.poll() is None, "no lockstep progress"
+            ex.spin_once(timeout_sec=0.05)
+            del states[:-1]
+        theta = np.degrees(states[-1].position)
+        ex.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=30)
+    assert code == 0
+    np.testing.assert_allclose(theta, pd_equilibrium_deg(params), atol=0.02)
 
 
 def test_parameter_file_errors_name_the_node(tmp_path):

@@ -1,6 +1,11 @@
 """Launch the flex-twin suite (model, controller, planner) with ros2_ws/params/suite.yaml.
 
     ros2 launch ros2_ws/launch/suite.launch.py [params:=/path/to/params.yaml]
+        [executor:=events|single]
+
+``executor`` is passed to every node (``--executor`` before ``--ros-args``): ``events``
+(default) suits the lockstep loop of suite.yaml, ``single`` a realtime 1 kHz model node
+(flex_model.ros_main).
 """
 from pathlib import Path
 
@@ -10,16 +15,21 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 PARAMS = str(Path(__file__).resolve().parents[1] / "params" / "suite.yaml")
+NODES = (("flex_model", "model_node", "flex_model"),
+         ("flex_control", "controller_node", "flex_controller"),
+         ("flex_planner", "planner_node", "flex_planner"))
 
 
 def generate_launch_description():
     params = LaunchConfiguration("params")
+    executor = LaunchConfiguration("executor")
     return LaunchDescription([
-        DeclareLaunchArgument("params", default_value=PARAMS),
-        Node(package="flex_model", executable="model_node", name="flex_model",
-             parameters=[params], output="screen"),
-        Node(package="flex_control", executable="controller_node", name="flex_controller",
-             parameters=[params], output="screen"),
-        Node(package="flex_planner", executable="planner_node", name="flex_planner",
-             parameters=[params], output="screen"),
+        DeclareLaunchArgument("params", default_value=PARAMS,
+                              description="node parameter file (<node>: ros__parameters)"),
+        DeclareLaunchArgument("executor", default_value="events",
+                              choices=["events", "single"],
+                              description="rclpy executor of every node"),
+        *(Node(package=package, executable=executable, name=name, parameters=[params],
+               arguments=["--executor", executor], output="screen")
+          for package, executable, name in NODES),
     ])

@@ -1,23 +1,21 @@
 """ControllerNode: the joint controller of flex-twin (seed 000 Eq. 45 or thesis Eq. 95)."""
 from __future__ import annotations
 
-import signal
 import sys
 from dataclasses import fields, replace
 
 import numpy as np
-import rclpy
 from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.signals import SignalHandlerOptions
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
+
+from flex_model.ros_main import run_node
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
@@ -67,6 +65,7 @@ class ControllerNode(Node):
         self.last_command = np.zeros(self.n)
         self.stale_logged = False
         self.pub = self.create_publisher(Float64MultiArray, "effort_controller/commands", 10)
+        self.msg = Float64MultiArray()  # reused for every command
         self.create_subscription(JointState, "joint_states", self.on_joint_state,
                                  qos_profile_sensor_data)
         self.create_subscription(JointTrajectory, "flex_planner/trajectory",
@@ -110,11 +109,12 @@ class ControllerNode(Node):
         self.get_logger().info(f"trajectory accepted: {len(data.t)} points, "
                                f"{data.duration:.3f} s")
 
-    def _age(self, arrival) -> float:
-        return (self.get_clock().now() - arrival).nanoseconds * 1e-9
-
     def on_timer(self) -> None:
-        if self.state is None or self._age(self.state[2]) > self.params.state_timeout:
+        now = self.get_clock().now()
+
+        def since(stamp) -> float:  # s from stamp to now
+            return (now - stamp).nanoseconds * 1e-9
+        if self.state is None or since(self.state[2]) > self.params.state_timeout:
             if not self.stale_logged:
                 self.get_logger().warn(f"joint states missing or older than "
                                        f"{self.params.state_timeout:g} s: commanding "
@@ -129,10 +129,9 @@ class ControllerNode(Node):
         pos, vel, _ = self.state
         defl = None
         if self.deflections is not None and \
-                self._age(self.deflections[1]) <= self.params.state_timeout:
+                since(self.deflections[1]) <= self.params.state_timeout:
             defl = self.deflections[0]
-        t = 0.0 if self.t_start is None else \
-            (self.get_clock().now() - self.t_start).nanoseconds * 1e-9
+        t = 0.0 if self.t_start is None else since(self.t_start)
         try:
             tau = self.controller.torque(t, pos, vel, defl)
         except ValueError as exc:
@@ -145,7 +144,7 @@ class ControllerNode(Node):
         tau = np.where(np.isfinite(tau), tau, 0.0)
         tau = np.clip(tau, -self.controller.torque_limits, self.controller.torque_limits)
         self.last_command = tau
-        self.pub.publish(commands_msg(tau))
+        self.pub.publish(commands_msg(tau, self.msg))
 
     def publish_zero(self, wait_s: float = 0.5) -> None:
         """Command zero torques and wait (bounded) until subscribers acknowledge them."""
@@ -168,32 +167,16 @@ class ControllerNode(Node):
         return SetParametersResult(successful=True)
 
 
+def _command_zero(node: ControllerNode) -> None:
+    node.publish_zero()
+    node.get_logger().info("stopped: zero torques commanded")
+
+
 def main(args=None) -> int:
-    """Spin the node; on SIGINT/SIGTERM publish zero torques, then shut down (Jazzy idiom
-    with rclpy's signal handlers replaced by ours, so the context is still valid for the
-    last command)."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, frame: stop.append(signum))
-    node = executor = None
-    try:
-        node = ControllerNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok() and not stop:
-            executor.spin_once(timeout_sec=0.05)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            if rclpy.ok():
-                node.publish_zero()
-                node.get_logger().info("stopped: zero torques commanded")
-            if executor is not None:
-                executor.shutdown()
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Spin the node (``--executor single|events`` before ``--ros-args``); on SIGINT/SIGTERM
+    publish zero torques, then shut down (flex_model.ros_main.run_node: rclpy's signal
+    handlers replaced by ours, so the context is still valid for the last command)."""
+    run_node(ControllerNode, args, on_stop=_command_zero)
     return 0
 
 

@@ -7,6 +7,8 @@ lengths and finiteness are checked here.
 """
 from __future__ import annotations
 
+from array import array
+
 import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -90,6 +92,9 @@ def trajectory_from_msg(msg: JointTrajectory, joint_names) -> JointTrajectoryDat
                                accelerations=arrays["accelerations"], efforts=arrays["effort"])
 
 
-def commands_msg(tau) -> Float64MultiArray:
-    """Joint torques (N m) as the effort controller's Float64MultiArray (joint order)."""
-    return Float64MultiArray(data=[float(x) for x in tau])
+def commands_msg(tau, msg: Float64MultiArray | None = None) -> Float64MultiArray:
+    """Joint torques (N m) as the effort controller's Float64MultiArray (joint order),
+    written into ``msg`` if given (float64[] takes an array.array('d') as it is)."""
+    msg = Float64MultiArray() if msg is None else msg
+    msg.data = array("d", np.asarray(tau, dtype=float).tobytes())
+    return msg

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from array import array
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -13,48 +14,87 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 def stamp(t: float) -> Time:
     """builtin_interfaces/Time of a simulation time t (s), rounded to the nanosecond."""
-    sec, nanosec = divmod(int(round(t * 1e9)), 1_000_000_000)
-    return Time(sec=sec, nanosec=nanosec)
+    return set_time(Time(), t)
+
+
+def set_time(msg: Time, t: float) -> Time:
+    """Write the simulation time t (s) into a Time message in place."""
+    msg.sec, msg.nanosec = divmod(int(round(t * 1e9)), 1_000_000_000)
+    return msg
+
+
+def _doubles(values) -> array:
+    """A float64[] field value: array.array('d') is stored as is by the message setters."""
+    return array("d", np.asarray(values, dtype=float).tobytes())
 
 
 def joint_state(t, names, position, velocity, effort) -> JointState:
-    return JointState(header=Header(stamp=stamp(t)), name=list(names),
-                      position=[float(x) for x in position],
-                      velocity=[float(x) for x in velocity],
-                      effort=[float(x) for x in effort])
+    msg = JointState(name=list(names))
+    fill_joint_state(msg, t, position, velocity, effort)
+    return msg
+
+
+def fill_joint_state(msg: JointState, t, position, velocity, effort=None) -> JointState:
+    """Update a JointState in place (its names stay)."""
+    set_time(msg.header.stamp, t)
+    msg.position, msg.velocity = _doubles(position), _doubles(velocity)
+    if effort is not None:
+        msg.effort = _doubles(effort)
+    return msg
+
+
+def deflection_names(link_names) -> list[str]:
+    return [f"{n}/{q}" for n in link_names for q in ("tip_deflection", "tip_rotation")]
 
 
 def deflection_state(t, link_names, deflection, rotation, d_rate, r_rate) -> JointState:
     """link<i>/tip_deflection (m) and link<i>/tip_rotation (rad) with their rates."""
-    names, pos, vel = [], [], []
-    for n, d, r, dd, rr in zip(link_names, deflection, rotation, d_rate, r_rate):
-        names += [f"{n}/tip_deflection", f"{n}/tip_rotation"]
-        pos += [float(d), float(r)]
-        vel += [float(dd), float(rr)]
-    return JointState(header=Header(stamp=stamp(t)), name=names, position=pos, velocity=vel)
+    msg = JointState(name=deflection_names(link_names))
+    fill_deflection_state(msg, t, deflection, rotation, d_rate, r_rate)
+    return msg
 
 
-def tip_pose(t, x, y, phi, frame="base_link") -> PoseStamped:
-    msg = PoseStamped(header=Header(stamp=stamp(t), frame_id=frame))
+def fill_deflection_state(msg: JointState, t, deflection, rotation, d_rate, r_rate):
+    """Update a deflection JointState in place: per link (deflection, rotation)."""
+    return fill_joint_state(msg, t, np.column_stack([deflection, rotation]).ravel(),
+                            np.column_stack([d_rate, r_rate]).ravel())
+
+
+def fill_tip_pose(msg: PoseStamped, t, x, y, phi) -> PoseStamped:
+    set_time(msg.header.stamp, t)
     msg.pose.position.x, msg.pose.position.y = float(x), float(y)
     msg.pose.orientation.z, msg.pose.orientation.w = math.sin(phi / 2), math.cos(phi / 2)
     return msg
 
 
-def shape_markers(t, shapes, chords, frame="base_link", ns="flex") -> MarkerArray:
-    """Deflected centre line of every link (LINE_STRIP) and its rigid chord (thin)."""
-    out = MarkerArray()
-    for i, (line, chord) in enumerate(zip(shapes, chords)):
-        for k, (pts, width, color) in enumerate(
-                ((line, 0.02, ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0)),
-                 (chord, 0.005, ColorRGBA(r=0.6, g=0.6, b=0.6, a=0.8)))):
-            m = Marker(header=Header(stamp=stamp(t), frame_id=frame), ns=f"{ns}/link{i + 1}",
-                       id=2 * i + k, type=Marker.LINE_STRIP, action=Marker.ADD, color=color)
-            m.scale.x = width
-            m.pose.orientation.w = 1.0
-            m.points = [Point(x=float(p[0]), y=float(p[1]), z=0.0) for p in pts]
-            out.markers.append(m)
-    return out
+class ShapeMarkers:
+    """The /flex/shape MarkerArray, built once and updated in place: the deflected centre
+    line of every link (LINE_STRIP) and its rigid chord (thin)."""
+
+    def __init__(self, n_links: int, points: int, frame="base_link", ns="flex"):
+        self.msg = MarkerArray()
+        for i in range(n_links):
+            for k, (n, width, color) in enumerate(
+                    ((points, 0.02, ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0)),
+                     (2, 0.005, ColorRGBA(r=0.6, g=0.6, b=0.6, a=0.8)))):
+                m = Marker(header=Header(frame_id=frame), ns=f"{ns}/link{i + 1}",
+                           id=2 * i + k, type=Marker.LINE_STRIP, action=Marker.ADD,
+                           color=color)
+                m.scale.x = width
+                m.pose.orientation.w = 1.0
+                m.points = [Point() for _ in range(n)]
+                self.msg.markers.append(m)
+
+    def update(self, t, shapes) -> MarkerArray:
+        """Stamp t and the centre lines ``shapes`` (list of (points, 2) arrays, m)."""
+        markers = self.msg.markers
+        for i, line in enumerate(shapes):
+            xy = line.tolist()
+            for m, pts in ((markers[2 * i], xy), (markers[2 * i + 1], (xy[0], xy[-1]))):
+                set_time(m.header.stamp, t)
+                for p, (x, y) in zip(m.points, pts):
+                    p.x, p.y = x, y
+        return self.msg
 
 
 def imu(t, specific_force, angular_rate, phi, frame="tip") -> Imu:

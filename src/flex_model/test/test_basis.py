@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from scipy.integrate import trapezoid  # np.trapezoid needs numpy 2 (ROS images: 1.26)
 
 from flex_model.basis import link_basis
 from flex_model.sections import Segment, SectionProfile
@@ -50,7 +51,7 @@ def test_theorem1_tapered_tip_load_exact(n_intervals):
     # closed form: delta = int_0^L (L - z)^2 / EI(z) dz, by dense quadrature
     z = np.linspace(0, 2.5, 200001)
     ei = seg.properties(z / 2.5)[0]
-    exact = np.trapezoid((2.5 - z) ** 2 / ei, z)
+    exact = trapezoid((2.5 - z) ** 2 / ei, z)
     assert tip == pytest.approx(exact, rel=1e-8)
 
 

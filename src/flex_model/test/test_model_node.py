@@ -128,3 +128,31 @@ def test_stamps_round_to_the_nanosecond_without_wrapping():
                     (12.5, (12, 500000000))):
         s = stamp(t)
         assert (s.sec, s.nanosec) == want
+
+
+def test_realtime_ticks_integrate_whole_steps_and_catch_up(monkeypatch):
+    """A tick integrates the wall time owed in steps of exactly max_step: late ticks catch
+    up (rcl timers skip missed periods), the remainder waits, a tick up to a quarter step
+    early still steps; the state equals the core stepper's after the same number of 1 ms
+    steps, published at publish_rate."""
+    h = Harness(arm="thesis_example1", mode="realtime", rate=1000.0, publish_rate=250.0,
+                initial_joint_angles_deg=[10.0, -20.0])
+    try:
+        node, clock = h.node, [100.0]
+        monkeypatch.setattr("flex_model.model_node.time.monotonic", lambda: clock[0])
+        node.last_wall = clock[0]
+        published = []
+        node.pub_js.publish = lambda m: published.append(stamp_s(m))  # messages are reused
+        for elapsed_ms, t_ms in ((1.0, 1), (3.4, 4), (0.7, 5), (0.95, 6), (0.2, 6), (0.55, 7)):
+            clock[0] += 1e-3 * elapsed_ms
+            node.on_tick()
+            assert node.stepper.t == pytest.approx(1e-3 * t_ms, abs=1e-12)
+        assert node.behind == pytest.approx(-0.2e-3, abs=1e-12)
+        ref = Stepper(node.model, node.stepper.q0)
+        for _ in range(7):
+            ref.advance(1e-3)
+        np.testing.assert_allclose(node.stepper.x, ref.x, rtol=0, atol=1e-12)
+        # 250 Hz: at 1 ms (the first step) and at 5 ms
+        assert published == pytest.approx([1e-3, 5e-3], abs=1e-9)
+    finally:
+        h.close()
