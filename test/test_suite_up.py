@@ -39,7 +39,7 @@ def test_model_and_controller_hold_the_static_pd_equilibrium():
 
 
 def test_three_processes_hold_the_same_equilibrium():
-    """``--processes``: each node its own process (python -m, EventsExecutor); the
+    """``--processes``: each node its own process (python -m); the
     equilibrium is the same (the loop over DDS between processes is not deterministic: a
     tick may see the previous state, which does not move a static equilibrium)."""
     import rclpy

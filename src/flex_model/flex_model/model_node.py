@@ -17,7 +17,11 @@ initial_joint_angles_deg, start_static (start deflected at rest under gravity),
 start_paused (until ~/pause false), command_timeout (s, 0 = never), timeout_action (hold |
 zero), lockstep_timeout (s, wall), frame_id, shape_points, publish_clock,
 realtime_priority (0 = off; 1-99: SCHED_FIFO priority of the thread that creates and spins
-the node, realtime mode, as ros2_control's thread_priority; needs CAP_SYS_NICE).
+the node, realtime mode, as ros2_control's thread_priority; needs CAP_SYS_NICE),
+parameter_services and qos_event_warnings (default true; false: the node has no parameter
+services, resp. no QoS-event handlers, which only log incompatible QoS or types: fewer
+entities in every wait of the SingleThreadedExecutor, a faster lockstep loop, see
+flex_model.ros_main).
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several
@@ -26,8 +30,10 @@ steps; simulation time stays on the step grid, within a step of the wall clock).
 /flex/shape at shape_rate. lockstep: deterministic; each command advances the model by
 1/rate and publishes the new /joint_states (and /clock) at once, the other topics at their
 rates, so simulation time moves only as the model-controller loop completes; without a
-command for ``lockstep_timeout`` (wall) the model steps with the held one. Messages are
-built once and updated in place (the per-step cost is what limits the loop rate).
+command for ``lockstep_timeout`` (wall) the model steps with the held one (a warning once
+the loop ran; before the first command this is the start: a controller timed by /clock
+needs that first step). Messages are built once and updated in place (the per-step cost
+is what limits the loop rate).
 """
 from __future__ import annotations
 
@@ -46,7 +52,7 @@ from visualization_msgs.msg import MarkerArray
 from . import ros_conversions as conv
 from .arm import load_arm
 from .dynamics import FlexArmModel
-from .ros_main import run_node
+from .ros_main import event_callbacks, lean_node, run_node
 from .stepper import Stepper
 
 
@@ -62,7 +68,9 @@ class ModelNode(Node):
             ("command_timeout", 0.0), ("timeout_action", "hold"),
             ("lockstep_timeout", 1.0), ("frame_id", "base_link"), ("shape_points", 15),
             ("publish_clock", False), ("start_static", False), ("start_paused", False),
-            ("realtime_priority", 0))}
+            ("realtime_priority", 0), ("parameter_services", True),
+            ("qos_event_warnings", True))}
+        lean_node(self, p["parameter_services"])
         if p["mode"] not in ("realtime", "lockstep"):
             raise ValueError(f"parameter mode: got {p['mode']!r}; expected realtime or lockstep")
         if p["timeout_action"] not in ("hold", "zero"):
@@ -88,6 +96,7 @@ class ModelNode(Node):
         self.has_imu = any(s.kind == "tip_accelerometer" for s in arm.sensors)
         self.paused = bool(p["start_paused"])
         self.command_time = 0.0
+        self.commanded = False  # a valid command has arrived (lockstep: the loop runs)
         self.next_publish = self.next_shape = 0.0
         self.behind = 0.0  # realtime: wall time not yet integrated (s)
         self.warned = set()
@@ -98,17 +107,21 @@ class ModelNode(Node):
         self.msg_shape = conv.ShapeMarkers(self.model.n_links, int(p["shape_points"]), frame)
         self.msg_clock = Clock()
         qos = 10
-        self.pub_js = self.create_publisher(JointState, "/joint_states", qos)
-        self.pub_defl = self.create_publisher(JointState, "/flex/deflections", qos)
-        self.pub_tip = self.create_publisher(PoseStamped, "/flex/tip_pose", qos)
-        self.pub_shape = self.create_publisher(MarkerArray, "/flex/shape", qos)
-        self.pub_imu = self.create_publisher(Imu, "/flex/tip_imu", qos) if self.has_imu \
-            else None
-        self.pub_clock = self.create_publisher(Clock, "/clock", qos) \
+        pub_kw, sub_kw = event_callbacks(p["qos_event_warnings"])
+
+        def publisher(kind, topic):
+            return self.create_publisher(kind, topic, qos, **pub_kw)
+        self.pub_js = publisher(JointState, "/joint_states")
+        self.pub_defl = publisher(JointState, "/flex/deflections")
+        self.pub_tip = publisher(PoseStamped, "/flex/tip_pose")
+        self.pub_shape = publisher(MarkerArray, "/flex/shape")
+        self.pub_imu = publisher(Imu, "/flex/tip_imu") if self.has_imu else None
+        self.pub_clock = publisher(Clock, "/clock") \
             if p["mode"] == "lockstep" or p["publish_clock"] else None
         self.create_subscription(Float64MultiArray, "/effort_controller/commands",
-                                 self.on_command, qos)
-        self.create_subscription(Float64MultiArray, "/flex/payload", self.on_payload, qos)
+                                 self.on_command, qos, **sub_kw)
+        self.create_subscription(Float64MultiArray, "/flex/payload", self.on_payload, qos,
+                                 **sub_kw)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.last_wall = time.monotonic()
@@ -133,10 +146,10 @@ class ModelNode(Node):
                                       "the normal scheduler")
 
     # ------------------------------------------------------------- inputs
-    def _warn_once(self, key, text):
+    def _warn_once(self, key, text, level="warning"):
         if key not in self.warned:
             self.warned.add(key)
-            self.get_logger().warning(text)
+            getattr(self.get_logger(), level)(text)
 
     def on_command(self, msg: Float64MultiArray) -> None:
         try:
@@ -147,7 +160,7 @@ class ModelNode(Node):
                                       throttle_duration_sec=1.0)
             return
         self.stepper.set_command(u)
-        self.command_time = self.stepper.t
+        self.command_time, self.commanded = self.stepper.t, True
         if self.p["mode"] == "lockstep" and not self.paused:
             self.last_wall = time.monotonic()
             self.step(1.0 / self.p["rate"])
@@ -187,8 +200,12 @@ class ModelNode(Node):
             if elapsed < self.p["lockstep_timeout"]:
                 self.last_wall -= elapsed  # keep measuring from the last step
                 return
-            self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
-                            "stepping with the held command")
+            if self.commanded:  # the loop stalled
+                self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
+                                "stepping with the held command")
+            else:  # the start: a time-triggered controller waits for this first step
+                self._warn_once("start", "lockstep: no command yet; stepping with the held "
+                                "command every lockstep_timeout until one arrives", "info")
             self.step(1.0 / self.p["rate"])
             return
         # the owed wall time in whole steps, with a quarter step of slack: timer jitter about

@@ -1,47 +1,45 @@
-"""The Jazzy ``main()`` idiom shared by the suite's nodes, with this workplace's ROS setup,
-and the choice of executor.
+"""The Jazzy ``main()`` idiom shared by the suite's nodes, with this workplace's ROS setup.
 
-Executors: ``single`` is rclpy's SingleThreadedExecutor (the realtime 1 kHz model loop);
-``events`` is rclpy.experimental.EventsExecutor, which dispatches callbacks from C++
-without rebuilding a wait set each time: about 30 instead of 200 us between two callbacks
-here, which makes the lockstep model-controller loop 2.5 times faster (see
-bench/bench_ros_suite.py). A node's console script takes ``--executor single|events``
-before ``--ros-args``.
+Every node of the suite spins in rclpy's SingleThreadedExecutor (the stack's rule: the
+experimental EventsExecutor cannot be stopped). That executor rebuilds its wait set in
+Python on every wait, at a cost proportional to the number of entities of all its nodes,
+so the nodes keep that number small (see :func:`lean_node`, :func:`event_callbacks` and
+bench/bench_ros_suite.py).
 """
 from __future__ import annotations
 
-import argparse
 import signal
 
 import rclpy
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
-EXECUTORS = ("single", "events")
+
+def event_callbacks(warnings: bool) -> tuple[dict, dict]:
+    """(``create_publisher``, ``create_subscription``) keyword arguments: with ``warnings``
+    rclpy's defaults (a handler each for incompatible QoS and incompatible types, which
+    only log), without them none. Each handler is a waitable that the
+    SingleThreadedExecutor adds to every wait set."""
+    if warnings:
+        return {}, {}
+    return ({"event_callbacks": PublisherEventCallbacks(use_default_callbacks=False)},
+            {"event_callbacks": SubscriptionEventCallbacks(use_default_callbacks=False)})
 
 
-def make_executor(kind: str = "single", context=None):
-    """A SingleThreadedExecutor (``single``) or an EventsExecutor (``events``)."""
-    if kind == "events":
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor(context=context)
-    if kind != "single":
-        raise ValueError(f"executor: got {kind!r}; expected one of {', '.join(EXECUTORS)}")
-    return SingleThreadedExecutor(context=context)
-
-
-def executor_option(args=None) -> str:
-    """The ``--executor`` option among a node's non-ROS command line arguments."""
-    from rclpy.utilities import remove_ros_args
-    ap = argparse.ArgumentParser(add_help=False)
-    ap.add_argument("--executor", choices=EXECUTORS, default="single")
-    return ap.parse_known_args(remove_ros_args(args)[1:])[0].executor
+def lean_node(node, parameter_services: bool) -> None:
+    """Without ``parameter_services``, destroy the six parameter services rclpy created
+    for ``node`` (call it right after ``Node.__init__``, before the node makes its own
+    services): its parameters can then not be listed or set from outside."""
+    if not parameter_services:
+        for srv in list(node.services):
+            node.destroy_service(srv)
 
 
 def run_node(factory, args=None, on_stop=None) -> None:
-    """init, spin the node made by ``factory`` with the ``--executor`` of the command line
-    until SIGINT or SIGTERM, call ``on_stop(node)`` while the context is still valid (the
-    controller commands zero torques there), destroy, shut down.
+    """init, spin the node made by ``factory`` in a SingleThreadedExecutor until SIGINT or
+    SIGTERM, call ``on_stop(node)`` while the context is still valid (the controller
+    commands zero torques there), destroy, shut down.
 
     rclpy's signal handlers are replaced by a flag checked between callbacks, so no
     callback runs into a context that Ctrl-C has already shut down. The ROS environment
@@ -53,7 +51,7 @@ def run_node(factory, args=None, on_stop=None) -> None:
         signal.signal(sig, lambda signum, frame: stop.append(signum))
     node = executor = None
     try:
-        executor = make_executor(executor_option(args))
+        executor = SingleThreadedExecutor()
         node = factory()
         executor.add_node(node)
         while rclpy.ok() and not stop:

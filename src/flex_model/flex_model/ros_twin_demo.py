@@ -3,8 +3,9 @@
 The planner node inverts the four tip waypoints and publishes the joint trajectory with the
 admissible nominal torque, the controller node applies Eq. (95) (h = 25, a = 5) with that
 feed-forward, the model node integrates the arm in lockstep; the three talk over ROS
-topics in one process (one EventsExecutor, see flex_model.ros_main). Everything is recorded
-into a rosbag2 (MCAP) bag under runs/<timestamp>/; then a summary table and PNG plots.
+topics in one process (one SingleThreadedExecutor, see flex_model.ros_main). Everything is
+recorded into a rosbag2 (MCAP) bag under runs/<timestamp>/; then a summary table and PNG
+plots.
 
 The arm is ``thesis_example1_motors``: the section F arm with geared motors at the joints
 (a hub-less flexible arm makes the sampled Eq. 95 loop unstable, see the preset).
@@ -49,6 +50,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     import json
 
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
     from geometry_msgs.msg import PoseStamped
@@ -61,7 +63,6 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     from . import ros_conversions as conv
     from .bags import BagWriter, Recorder
     from .model_node import ModelNode
-    from .ros_main import make_executor
 
     out_dir = Path(out_dir or Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-twin-demo")
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -79,7 +80,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             P("use_sim_time", value=True), P("state_timeout", value=0.5)])
         probe = rclpy.create_node("demo_probe", context=ctx)
         nodes += [planner, controller, probe]
-        ex = make_executor("events", context=ctx)
+        ex = SingleThreadedExecutor(context=ctx)
         for n in nodes:
             ex.add_node(n)
         plans = []
