@@ -15,7 +15,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.ros_main import event_callbacks, lean_node, run_node
+from flex_model.ros_main import lean_node, run_node
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
@@ -52,10 +52,6 @@ class ControllerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("flex_controller", **kwargs)
-        node = {name: self.declare_parameter(name, default).value
-                for name, default in NODE_PARAMETERS}
-        lean_node(self, node["parameter_services"])
-        pub_kw, sub_kw = event_callbacks(node["qos_event_warnings"])
         values = {}
         for f in fields(ControllerParams):
             rng = f.metadata.get("range")
@@ -73,20 +69,20 @@ class ControllerNode(Node):
         self.deflections = None      # (array, arrival Time)
         self.last_command = np.zeros(self.n)
         self.stale_logged = False
-        self.pub = self.create_publisher(Float64MultiArray, "effort_controller/commands", 10,
-                                         **pub_kw)
+        self.pub = self.create_publisher(Float64MultiArray, "effort_controller/commands", 10)
         self.msg = Float64MultiArray()  # reused for every command
         self.create_subscription(JointState, "joint_states", self.on_joint_state,
-                                 qos_profile_sensor_data, **sub_kw)
+                                 qos_profile_sensor_data)
         self.create_subscription(JointTrajectory, "flex_planner/trajectory",
                                  self.on_trajectory,
-                                 QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE),
-                                 **sub_kw)
+                                 QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
         if self.params.use_deflections:
             self.create_subscription(JointState, "flex/deflections", self.on_deflections,
-                                     qos_profile_sensor_data, **sub_kw)
+                                     qos_profile_sensor_data)
+        lean = [self.declare_parameter(name, default).value for name, default in NODE_PARAMETERS]
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.timer = self.create_timer(1.0 / self.params.rate_hz, self.on_timer)
+        lean_node(self, *lean)
         self.get_logger().info(f"law {self.params.law} on {list(self.params.joint_names)} at "
                                f"{self.params.rate_hz:g} Hz")
 

@@ -52,7 +52,7 @@ from visualization_msgs.msg import MarkerArray
 from . import ros_conversions as conv
 from .arm import load_arm
 from .dynamics import FlexArmModel
-from .ros_main import event_callbacks, lean_node, run_node
+from .ros_main import lean_node, run_node
 from .stepper import Stepper
 
 
@@ -70,7 +70,6 @@ class ModelNode(Node):
             ("publish_clock", False), ("start_static", False), ("start_paused", False),
             ("realtime_priority", 0), ("parameter_services", True),
             ("qos_event_warnings", True))}
-        lean_node(self, p["parameter_services"])
         if p["mode"] not in ("realtime", "lockstep"):
             raise ValueError(f"parameter mode: got {p['mode']!r}; expected realtime or lockstep")
         if p["timeout_action"] not in ("hold", "zero"):
@@ -107,21 +106,17 @@ class ModelNode(Node):
         self.msg_shape = conv.ShapeMarkers(self.model.n_links, int(p["shape_points"]), frame)
         self.msg_clock = Clock()
         qos = 10
-        pub_kw, sub_kw = event_callbacks(p["qos_event_warnings"])
-
-        def publisher(kind, topic):
-            return self.create_publisher(kind, topic, qos, **pub_kw)
-        self.pub_js = publisher(JointState, "/joint_states")
-        self.pub_defl = publisher(JointState, "/flex/deflections")
-        self.pub_tip = publisher(PoseStamped, "/flex/tip_pose")
-        self.pub_shape = publisher(MarkerArray, "/flex/shape")
-        self.pub_imu = publisher(Imu, "/flex/tip_imu") if self.has_imu else None
-        self.pub_clock = publisher(Clock, "/clock") \
+        self.pub_js = self.create_publisher(JointState, "/joint_states", qos)
+        self.pub_defl = self.create_publisher(JointState, "/flex/deflections", qos)
+        self.pub_tip = self.create_publisher(PoseStamped, "/flex/tip_pose", qos)
+        self.pub_shape = self.create_publisher(MarkerArray, "/flex/shape", qos)
+        self.pub_imu = self.create_publisher(Imu, "/flex/tip_imu", qos) if self.has_imu \
+            else None
+        self.pub_clock = self.create_publisher(Clock, "/clock", qos) \
             if p["mode"] == "lockstep" or p["publish_clock"] else None
         self.create_subscription(Float64MultiArray, "/effort_controller/commands",
-                                 self.on_command, qos, **sub_kw)
-        self.create_subscription(Float64MultiArray, "/flex/payload", self.on_payload, qos,
-                                 **sub_kw)
+                                 self.on_command, qos)
+        self.create_subscription(Float64MultiArray, "/flex/payload", self.on_payload, qos)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.last_wall = time.monotonic()
@@ -130,6 +125,7 @@ class ModelNode(Node):
         self.timer = self.create_timer(period, self.on_tick)
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
+        lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.publish_state(full=True)
         self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates), {p['mode']} "
                                f"at {p['rate']:g} Hz, publishing at {p['publish_rate']:g} Hz")

@@ -3,37 +3,40 @@
 Every node of the suite spins in rclpy's SingleThreadedExecutor (the stack's rule: the
 experimental EventsExecutor cannot be stopped). That executor rebuilds its wait set in
 Python on every wait, at a cost proportional to the number of entities of all its nodes,
-so the nodes keep that number small (see :func:`lean_node`, :func:`event_callbacks` and
-bench/bench_ros_suite.py).
+so the nodes keep that number small (see :func:`lean_node` and bench/bench_ros_suite.py).
 """
 from __future__ import annotations
 
 import signal
 
 import rclpy
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 
-def event_callbacks(warnings: bool) -> tuple[dict, dict]:
-    """(``create_publisher``, ``create_subscription``) keyword arguments: with ``warnings``
-    rclpy's defaults (a handler each for incompatible QoS and incompatible types, which
-    only log), without them none. Each handler is a waitable that the
-    SingleThreadedExecutor adds to every wait set."""
-    if warnings:
-        return {}, {}
-    return ({"event_callbacks": PublisherEventCallbacks(use_default_callbacks=False)},
-            {"event_callbacks": SubscriptionEventCallbacks(use_default_callbacks=False)})
+PARAMETER_SERVICES = ("describe_parameters", "get_parameter_types", "get_parameters",
+                      "list_parameters", "set_parameters", "set_parameters_atomically")
 
 
-def lean_node(node, parameter_services: bool) -> None:
-    """Without ``parameter_services``, destroy the six parameter services rclpy created
-    for ``node`` (call it right after ``Node.__init__``, before the node makes its own
-    services): its parameters can then not be listed or set from outside."""
+def lean_node(node, parameter_services: bool, qos_event_warnings: bool) -> None:
+    """Take entities the executor would wait on out of ``node`` (call it at the end of
+    the node's ``__init__``).
+
+    Without ``parameter_services`` the six parameter services rclpy made are destroyed
+    (parameters can then not be listed or set from outside the process). Without
+    ``qos_event_warnings`` the node's QoS-event handlers (rclpy gives every publisher and
+    subscription one for incompatible QoS and one for incompatible types, which only log a
+    warning) are destroyed, so no wait set gathers them."""
     if not parameter_services:
         for srv in list(node.services):
-            node.destroy_service(srv)
+            if srv.srv_name.rsplit("/", 1)[-1] in PARAMETER_SERVICES:
+                node.destroy_service(srv)
+    if not qos_event_warnings:
+        for entity in (*node.publishers, *node.subscriptions):
+            for handler in entity.event_handlers:
+                node.remove_waitable(handler)
+                handler.destroy()
+            entity.event_handlers = []
 
 
 def run_node(factory, args=None, on_stop=None) -> None:
