@@ -158,6 +158,12 @@ class ControllerNode(Node):
         self.publish(np.zeros(self.n))
         self.pub.wait_for_all_acked(Duration(seconds=wait_s))
 
+    def stop(self) -> None:
+        """The last act of a stopping node (SIGINT/SIGTERM, ``flex-twin up``'s end):
+        zero torques."""
+        self.publish_zero()
+        self.get_logger().info("stopped: zero torques commanded")
+
     def on_set_parameters(self, changes) -> SetParametersResult:
         values = {p.name: (tuple(p.value) if isinstance(p.value, (list, tuple)) else p.value)
                   for p in changes}
@@ -175,16 +181,11 @@ class ControllerNode(Node):
         return SetParametersResult(successful=True)
 
 
-def _command_zero(node: ControllerNode) -> None:
-    node.publish_zero()
-    node.get_logger().info("stopped: zero torques commanded")
-
-
 def main(args=None) -> int:
     """Spin the node (SingleThreadedExecutor); on SIGINT/SIGTERM publish zero torques, then
     shut down (flex_model.ros_main.run_node: rclpy's signal handlers replaced by ours, so
     the context is still valid for the last command)."""
-    run_node(ControllerNode, args, on_stop=_command_zero)
+    run_node(ControllerNode, args, on_stop=ControllerNode.stop)
     return 0
 
 

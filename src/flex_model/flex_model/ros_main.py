@@ -8,6 +8,7 @@ so the nodes keep that number small (see :func:`lean_node` and bench/bench_ros_s
 from __future__ import annotations
 
 import signal
+from contextlib import contextmanager
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -39,26 +40,39 @@ def lean_node(node, parameter_services: bool, qos_event_warnings: bool) -> None:
             entity.event_handlers = []
 
 
+@contextmanager
+def stop_on_signals():
+    """A list that SIGINT and SIGTERM append to while inside (the previous handlers come
+    back on exit): spin loops check it between callbacks, so nothing interrupts a
+    callback and the context stays valid for a last command."""
+    stop = []
+    old = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum))
+           for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
 def run_node(factory, args=None, on_stop=None) -> None:
     """init, spin the node made by ``factory`` in a SingleThreadedExecutor until SIGINT or
     SIGTERM, call ``on_stop(node)`` while the context is still valid (the controller
     commands zero torques there), destroy, shut down.
 
-    rclpy's signal handlers are replaced by a flag checked between callbacks, so no
-    callback runs into a context that Ctrl-C has already shut down. The ROS environment
+    rclpy's signal handlers are replaced by :func:`stop_on_signals`, so no callback runs
+    into a context that Ctrl-C has already shut down. The ROS environment
     (LOCALHOST discovery, per-run domain) is set when flex_model is imported, before
     rclpy."""
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, frame: stop.append(signum))
     node = executor = None
     try:
-        executor = SingleThreadedExecutor()
-        node = factory()
-        executor.add_node(node)
-        while rclpy.ok() and not stop:
-            executor.spin_once(timeout_sec=0.05)
+        with stop_on_signals() as stop:
+            executor = SingleThreadedExecutor()
+            node = factory()
+            executor.add_node(node)
+            while rclpy.ok() and not stop:
+                executor.spin_once(timeout_sec=0.05)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

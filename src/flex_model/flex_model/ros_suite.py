@@ -38,37 +38,42 @@ def node_parameters(path) -> dict:
 def run_in_one_process(params: dict, duration: float | None = None, progress=None):
     """Create the nodes in one context and spin them with one SingleThreadedExecutor;
     returns the nodes (for callers that want to inspect them) after the duration
-    (simulation time) or Ctrl-C."""
+    (simulation time) or SIGINT/SIGTERM; then each node's ``stop()``, if it has one, runs
+    while the context is valid (the controller commands zero torques)."""
     import importlib
 
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
+    from .ros_main import stop_on_signals
+
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     nodes, ex = {}, None
     try:
-        for name, values in params.items():
-            module, cls = NODES[name]
-            node_cls = getattr(importlib.import_module(module), cls)
-            nodes[name] = node_cls(context=ctx, parameter_overrides=[
-                Parameter(k, value=v) for k, v in values.items()])
-        ex = SingleThreadedExecutor(context=ctx)
-        for n in nodes.values():
-            ex.add_node(n)
-        model = nodes.get("flex_model")
-        next_mark = 0.0
-        while ctx.ok():
-            ex.spin_once(timeout_sec=0.01)
-            if model is not None and duration is not None:
-                if progress is not None and model.stepper.t >= next_mark:
-                    progress(model.stepper.t, duration)
-                    next_mark += duration / 10
-                if model.stepper.t >= duration:
-                    break
-    except KeyboardInterrupt:
-        pass
+        with stop_on_signals() as stop:
+            for name, values in params.items():
+                module, cls = NODES[name]
+                node_cls = getattr(importlib.import_module(module), cls)
+                nodes[name] = node_cls(context=ctx, parameter_overrides=[
+                    Parameter(k, value=v) for k, v in values.items()])
+            ex = SingleThreadedExecutor(context=ctx)
+            for n in nodes.values():
+                ex.add_node(n)
+            model = nodes.get("flex_model")
+            next_mark = 0.0
+            while ctx.ok() and not stop:
+                ex.spin_once(timeout_sec=0.01)
+                if model is not None and duration is not None:
+                    if progress is not None and model.stepper.t >= next_mark:
+                        progress(model.stepper.t, duration)
+                        next_mark += duration / 10
+                    if model.stepper.t >= duration:
+                        break
+            for n in nodes.values():
+                if hasattr(n, "stop") and ctx.ok():
+                    n.stop()
     finally:
         if ex is not None:
             ex.shutdown()

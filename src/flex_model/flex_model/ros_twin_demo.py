@@ -70,14 +70,17 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     P = Parameter
+    # lean nodes (flex_model.ros_main.lean_node, as ros2_ws/params/suite.yaml): a faster loop
+    lean = [P(name, value=False) for name in (
+        "parameter_services", "qos_event_warnings", "start_type_description_service")]
     nodes, ex = [], None
     wall0 = time.perf_counter()
     try:
         planner = PlannerNode(context=ctx, parameter_overrides=[
-            P("arm", value=arm), P("sample_period", value=1.0 / rate)])
+            P("arm", value=arm), P("sample_period", value=1.0 / rate), *lean])
         controller = ControllerNode(context=ctx, parameter_overrides=[
             P("h", value=[25.0, 25.0]), P("a", value=[5.0, 5.0]), P("rate_hz", value=rate),
-            P("use_sim_time", value=True), P("state_timeout", value=0.5)])
+            P("use_sim_time", value=True), P("state_timeout", value=0.5), *lean])
         probe = rclpy.create_node("demo_probe", context=ctx)
         nodes += [planner, controller, probe]
         ex = SingleThreadedExecutor(context=ctx)
@@ -109,7 +112,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         model = ModelNode(context=ctx, parameter_overrides=[
             P("arm", value=arm), P("mode", value="lockstep"), P("rate", value=rate),
             P("publish_rate", value=50.0), P("initial_joint_angles_deg", value=list(first)),
-            P("start_static", value=True), P("lockstep_timeout", value=0.5)])
+            P("start_static", value=True), P("lockstep_timeout", value=0.5), *lean])
         nodes.append(model)
         ex.add_node(model)
         with BagWriter(out_dir / "bag") as bag:
