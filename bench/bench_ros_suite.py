@@ -13,7 +13,9 @@
     in three (``--processes``): the real-time factor (simulated / wall seconds), measured
     in this process from the stamps of /flex/tip_pose.
 
-Every node spins in a SingleThreadedExecutor (flex_model.ros_main).
+Every node spins in a SingleThreadedExecutor (flex_model.ros_main); suite.yaml makes the
+nodes lean (no parameter services, type description service or QoS-event handlers: about
+half the CPU time per control period in one process).
 
     python bench/bench_ros_suite.py [--seconds 5] [--json]
 
