@@ -10,8 +10,12 @@
     with normal scheduling and with the node's realtime_priority 50 (SCHED_FIFO).
 (b) lockstep: the suite of ros2_ws/params/suite.yaml (model + controller in a loop over
     ROS topics at 500 Hz, the planner idle) started by ``flex-twin up`` in one process and
-    in three (``--processes``), with each executor: the real-time factor (simulated /
-    wall seconds), measured in this process from the stamps of /flex/tip_pose.
+    in three (``--processes``): the real-time factor (simulated / wall seconds), measured
+    in this process from the stamps of /flex/tip_pose.
+
+Every node spins in a SingleThreadedExecutor (flex_model.ros_main); suite.yaml makes the
+nodes lean (no parameter services, type description service or QoS-event handlers: about
+half the CPU time per control period in one process).
 
     python bench/bench_ros_suite.py [--seconds 5] [--json]
 
@@ -53,14 +57,14 @@ def probe_main(topic: str, seconds: float, out: str) -> None:
     from geometry_msgs.msg import PoseStamped
     from sensor_msgs.msg import JointState
 
-    from flex_model.ros_main import make_executor
+    from rclpy.executors import SingleThreadedExecutor
     rclpy.init()
     node = rclpy.create_node("bench_probe")
     rows = []
     kind = JointState if topic == "/joint_states" else PoseStamped
     node.create_subscription(kind, topic, lambda m: rows.append(
         (_stamp_ns(m), time.monotonic())), 1000)
-    ex = make_executor("single")
+    ex = SingleThreadedExecutor()
     ex.add_node(node)
     _spin_for(ex, 90.0, lambda: rows)
     if rows:
@@ -85,10 +89,10 @@ def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
     """(a): the model node at 1 kHz in this process (``priority``: its realtime_priority
     parameter), a probe in another."""
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
     from flex_model.model_node import ModelNode
-    from flex_model.ros_main import make_executor
 
     probe = start_probe("/joint_states", seconds + 1.0, tmp / "rt.json")
     rclpy.init()
@@ -99,7 +103,7 @@ def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
             Parameter("initial_joint_angles_deg", value=[150.0, 130.0]),
             Parameter("start_paused", value=True),
             Parameter("realtime_priority", value=priority)])
-        ex = make_executor("single")
+        ex = SingleThreadedExecutor()
         ex.add_node(node)
         _spin_for(ex, 30.0, lambda: node.pub_js.get_subscription_count() > 0)
         _spin_for(ex, 1.0)  # the probe's subscription settles
@@ -154,12 +158,12 @@ def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
             "latency_from_tick_ms": _dist(lat_tick), "latency_from_publish_ms": _dist(lat_pub)}
 
 
-def lockstep(seconds: float, processes: bool, executor: str, tmp: Path) -> dict:
+def lockstep(seconds: float, processes: bool, tmp: Path) -> dict:
     """(b): ``flex-twin up`` the suite; the real-time factor from /flex/tip_pose stamps."""
-    cmd = ["flex-twin", "up", str(SUITE), "--executor", executor]
+    cmd = ["flex-twin", "up", str(SUITE)]
     if processes:
         cmd.append("--processes")
-    out = tmp / f"ls_{processes}_{executor}.json"
+    out = tmp / f"ls_{processes}.json"
     probe = start_probe("/flex/tip_pose", seconds + 1.0, out)
     load = os.getloadavg()[0]
     suite = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -173,12 +177,12 @@ def lockstep(seconds: float, processes: bool, executor: str, tmp: Path) -> dict:
             suite.kill()
     rows = np.array(json.loads(out.read_text()), dtype=float)
     if len(rows) < 10:
-        return {"processes": 3 if processes else 1, "executor": executor,
+        return {"processes": 3 if processes else 1,
                 "error": f"only {len(rows)} /flex/tip_pose messages received"}
     stamp, wall = 1e-9 * rows[:, 0], rows[:, 1]
     keep = (wall >= wall[0] + 1.0) & (wall <= wall[0] + 1.0 + seconds)  # skip the start
     stamp, wall = stamp[keep], wall[keep]
-    return {"processes": 3 if processes else 1, "executor": executor, "load_average": load,
+    return {"processes": 3 if processes else 1, "load_average": load,
             "simulated_s": float(stamp[-1] - stamp[0]), "wall_s": float(wall[-1] - wall[0]),
             "real_time_factor": float((stamp[-1] - stamp[0]) / (wall[-1] - wall[0]))}
 
@@ -196,9 +200,7 @@ def main(argv=None) -> int:
     os.chdir(ROOT)
     with tempfile.TemporaryDirectory() as tmp:
         rt = [realtime(args.seconds, Path(tmp), prio) for prio in (0, 50)]
-        ls = [lockstep(args.seconds, p, ex, Path(tmp))
-              for p, ex in ((False, "events"), (False, "single"), (True, "events"),
-                            (True, "single"))]
+        ls = [lockstep(args.seconds, p, Path(tmp)) for p in (False, True)]
     if args.json:
         print(json.dumps({"realtime": rt, "lockstep": ls}, indent=1))
         return 0
@@ -218,12 +220,11 @@ def main(argv=None) -> int:
         print(f"    {'':56s}from the publish: {f(**r['latency_from_publish_ms'])}")
     print("(b) lockstep suite (model + controller at 500 Hz, planner idle), flex-twin up:")
     for r in ls:
-        where = f"{r['processes']} process{'es' if r['processes'] > 1 else ''}, " \
-                f"{r['executor']} executor"
+        where = f"{r['processes']} process{'es' if r['processes'] > 1 else ''}"
         if "error" in r:
-            print(f"    {where:34s}: {r['error']}")
+            print(f"    {where:11s}: {r['error']}")
             continue
-        print(f"    {where:34s}: {r['simulated_s']:.2f} s simulated in {r['wall_s']:.2f} s "
+        print(f"    {where:11s}: {r['simulated_s']:.2f} s simulated in {r['wall_s']:.2f} s "
               f"wall, real-time factor {r['real_time_factor']:.2f} (aim >= 5; load average "
               f"{r['load_average']:.1f})")
     return 0

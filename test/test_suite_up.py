@@ -1,6 +1,7 @@
 """flex-twin up: model and controller nodes from the suite's parameter file, lockstep, in
 one process and in three; the loop settles at the static equilibrium of the arm held by the
-PD of Eq. (95) (Kp = h a^2 per joint, seen at the joints through the sampled loop)."""
+PD of Eq. (95) (Kp = h a^2 per joint, seen at the joints through the sampled loop); Ctrl-C
+leaves zero torques commanded."""
 import signal
 import subprocess
 import sys
@@ -13,7 +14,7 @@ import pytest
 from flex_model.arm import load_arm
 from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_model.ros_suite import node_parameters, run_in_one_process
+from flex_model.ros_suite import node_parameters
 from flex_model.statics import static_equilibrium
 
 PARAMS = Path(__file__).resolve().parents[1] / "ros2_ws" / "params" / "suite.yaml"
@@ -28,48 +29,50 @@ def pd_equilibrium_deg(params):
     return np.degrees(eq.joint_angles)
 
 
-def test_model_and_controller_hold_the_static_pd_equilibrium():
-    params = node_parameters(PARAMS)
-    params.pop("flex_planner")
-    nodes = run_in_one_process(params, duration=2.0)
-    model = nodes["flex_model"]
-    theta = model.model.joint_angles(model.stepper.q)
-    assert model.stepper.t == pytest.approx(2.0, abs=2e-3)
-    np.testing.assert_allclose(np.degrees(theta), pd_equilibrium_deg(params), atol=0.02)
-
-
-def test_three_processes_hold_the_same_equilibrium():
-    """``--processes``: each node its own process (python -m, EventsExecutor); the
-    equilibrium is the same (the loop over DDS between processes is not deterministic: a
-    tick may see the previous state, which does not move a static equilibrium)."""
+@pytest.mark.parametrize("processes", [True, False], ids=["three", "one"])
+def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
+    """``flex-twin up`` as a process, with ``--processes`` (each node its own process,
+    python -m) or without: the equilibrium is the same (the loop over DDS between processes
+    is not deterministic: a tick may see the previous state, which does not move a static
+    equilibrium); SIGINT makes the controller command zero torques and everything exit 0."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64MultiArray
 
     params = node_parameters(PARAMS)
-    proc = subprocess.Popen([sys.executable, "-m", "flex_model.cli", "up", str(PARAMS),
-                             "--processes"])
+    proc = subprocess.Popen([sys.executable, "-m", "flex_model.cli", "up", str(PARAMS)]
+                            + ["--processes"] * processes)
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
         node = rclpy.create_node("probe_up", context=ctx)
-        states = []
+        states, commands = [], []
         node.create_subscription(JointState, "/joint_states", states.append, 10)
+        node.create_subscription(Float64MultiArray, "/effort_controller/commands",
+                                 lambda m: commands.append(list(m.data)), 10)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         end = time.monotonic() + 60.0
         while not (states and states[-1].header.stamp.sec >= 2):
             assert time.monotonic() < end and proc.poll() is None, "no lockstep progress"
             ex.spin_once(timeout_sec=0.05)
-            del states[:-1]
+            del states[:-1], commands[:-1]
         theta = np.degrees(states[-1].position)
+        assert np.abs(commands[-1]).max() > 1.0   # N m: holding the arm against gravity
+        proc.send_signal(signal.SIGINT)
+        while proc.poll() is None:
+            assert time.monotonic() < end + 30.0, "flex-twin up did not stop"
+            ex.spin_once(timeout_sec=0.05)
+        ex.spin_once(timeout_sec=0.1)
         ex.shutdown()
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
-        proc.send_signal(signal.SIGINT)
-        code = proc.wait(timeout=30)
-    assert code == 0
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0
+    assert commands[-1] == [0.0, 0.0]
     np.testing.assert_allclose(theta, pd_equilibrium_deg(params), atol=0.02)
 
 

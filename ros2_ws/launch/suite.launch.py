@@ -1,11 +1,8 @@
 """Launch the flex-twin suite (model, controller, planner) with ros2_ws/params/suite.yaml.
 
     ros2 launch ros2_ws/launch/suite.launch.py [params:=/path/to/params.yaml]
-        [executor:=events|single]
 
-``executor`` is passed to every node (``--executor`` before ``--ros-args``): ``events``
-(default) suits the lockstep loop of suite.yaml, ``single`` a realtime 1 kHz model node
-(flex_model.ros_main).
+Every node spins in a SingleThreadedExecutor (flex_model.ros_main).
 """
 from pathlib import Path
 
@@ -22,14 +19,10 @@ NODES = (("flex_model", "model_node", "flex_model"),
 
 def generate_launch_description():
     params = LaunchConfiguration("params")
-    executor = LaunchConfiguration("executor")
     return LaunchDescription([
         DeclareLaunchArgument("params", default_value=PARAMS,
                               description="node parameter file (<node>: ros__parameters)"),
-        DeclareLaunchArgument("executor", default_value="events",
-                              choices=["events", "single"],
-                              description="rclpy executor of every node"),
         *(Node(package=package, executable=executable, name=name, parameters=[params],
-               arguments=["--executor", executor], output="screen")
+               output="screen")
           for package, executable, name in NODES),
     ])

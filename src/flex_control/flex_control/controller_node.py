@@ -15,7 +15,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.ros_main import run_node
+from flex_model.ros_main import lean_node, run_node
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
@@ -23,6 +23,7 @@ from .ros_conversions import (commands_msg, deflection_array, joint_state_arrays
                               trajectory_from_msg)
 
 THROTTLE_S = 1.0
+NODE_PARAMETERS = (("parameter_services", True), ("qos_event_warnings", True))
 
 
 class ControllerNode(Node):
@@ -30,13 +31,17 @@ class ControllerNode(Node):
 
     Subscriptions: ``joint_states`` (sensor_msgs/JointState), ``flex_planner/trajectory``
     (trajectory_msgs/JointTrajectory; its start is ``header.stamp``, or the arrival time if
-    zero), ``flex/deflections`` (std_msgs/Float64MultiArray, link tip deflections in m; only
-    with ``use_deflections``). Publication: ``effort_controller/commands``
-    (std_msgs/Float64MultiArray, torques in N m in ``joint_names`` order). Names are relative,
+    zero), ``flex/deflections`` (sensor_msgs/JointState as the model node publishes it: the
+    positions named ``link<i>/tip_deflection``, m; only with ``use_deflections``).
+    Publication: ``effort_controller/commands`` (std_msgs/Float64MultiArray, torques in
+    N m in ``joint_names`` order). Names are relative,
     so a namespace moves them all. Parameters: the fields of
     :class:`flex_control.params.ControllerParams` (law, gains or schedule file, torque
     limits, rate, timeout, stale action); gains and limits may be set at run time and are
-    validated before they are swapped in.
+    validated before they are swapped in (with the parameter services, default). Node
+    parameters ``parameter_services`` and ``qos_event_warnings`` (default true): false
+    leaves out rclpy's parameter services (no run-time changes then), resp. its QoS-event
+    handlers, for a faster lockstep loop (flex_model.ros_main).
 
     Safety: until a trajectory arrives the controller holds the first measured pose; joint
     states older than ``state_timeout`` (by arrival time) give zero torques (or the last
@@ -72,10 +77,12 @@ class ControllerNode(Node):
                                  self.on_trajectory,
                                  QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
         if self.params.use_deflections:
-            self.create_subscription(Float64MultiArray, "flex/deflections",
-                                     self.on_deflections, qos_profile_sensor_data)
+            self.create_subscription(JointState, "flex/deflections", self.on_deflections,
+                                     qos_profile_sensor_data)
+        lean = [self.declare_parameter(name, default).value for name, default in NODE_PARAMETERS]
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.timer = self.create_timer(1.0 / self.params.rate_hz, self.on_timer)
+        lean_node(self, *lean)
         self.get_logger().info(f"law {self.params.law} on {list(self.params.joint_names)} at "
                                f"{self.params.rate_hz:g} Hz")
 
@@ -90,7 +97,7 @@ class ControllerNode(Node):
             self.controller.set_reference(hold_reference(self.params.joint_names, pos))
         self.state = (pos, vel, self.get_clock().now())
 
-    def on_deflections(self, msg: Float64MultiArray) -> None:
+    def on_deflections(self, msg: JointState) -> None:
         try:
             self.deflections = (deflection_array(msg, self.n), self.get_clock().now())
         except ValueError as exc:
@@ -151,10 +158,17 @@ class ControllerNode(Node):
         self.publish(np.zeros(self.n))
         self.pub.wait_for_all_acked(Duration(seconds=wait_s))
 
+    def stop(self) -> None:
+        """The last act of a stopping node (SIGINT/SIGTERM, ``flex-twin up``'s end):
+        zero torques."""
+        self.publish_zero()
+        self.get_logger().info("stopped: zero torques commanded")
+
     def on_set_parameters(self, changes) -> SetParametersResult:
         values = {p.name: (tuple(p.value) if isinstance(p.value, (list, tuple)) else p.value)
                   for p in changes}
-        fixed = {"joint_names", "law", "rate_hz", "use_deflections"} & set(values)
+        fixed = {"joint_names", "law", "rate_hz", "use_deflections",
+                 *dict(NODE_PARAMETERS)} & set(values)
         if fixed:
             return SetParametersResult(successful=False,
                                        reason=f"{sorted(fixed)}: read-only at run time")
@@ -167,16 +181,11 @@ class ControllerNode(Node):
         return SetParametersResult(successful=True)
 
 
-def _command_zero(node: ControllerNode) -> None:
-    node.publish_zero()
-    node.get_logger().info("stopped: zero torques commanded")
-
-
 def main(args=None) -> int:
-    """Spin the node (``--executor single|events`` before ``--ros-args``); on SIGINT/SIGTERM
-    publish zero torques, then shut down (flex_model.ros_main.run_node: rclpy's signal
-    handlers replaced by ours, so the context is still valid for the last command)."""
-    run_node(ControllerNode, args, on_stop=_command_zero)
+    """Spin the node (SingleThreadedExecutor); on SIGINT/SIGTERM publish zero torques, then
+    shut down (flex_model.ros_main.run_node: rclpy's signal handlers replaced by ours, so
+    the context is still valid for the last command)."""
+    run_node(ControllerNode, args, on_stop=ControllerNode.stop)
     return 0
 
 

@@ -45,12 +45,21 @@ def joint_state_arrays(msg: JointState, joint_names) -> tuple[np.ndarray, np.nda
     return pos, vel
 
 
-def deflection_array(msg: Float64MultiArray, n: int) -> np.ndarray:
-    """Link tip deflections (m) from a Float64MultiArray of length ``n``."""
-    if len(msg.data) != n:
-        raise ValueError(f"deflections.data: got {len(msg.data)} values; expected {n} "
-                         "(one tip deflection per link, m)")
-    return _finite("deflections.data", msg.data)
+def deflection_array(msg: JointState, n: int) -> np.ndarray:
+    """Link tip deflections (m) of links 1..n from the model's /flex/deflections
+    JointState: the positions named ``link<i>/tip_deflection`` (the message also carries
+    ``link<i>/tip_rotation``, and the rates as velocities)."""
+    names = list(msg.name)
+    if len(msg.position) != len(names):
+        raise ValueError(f"deflections.position: got {len(msg.position)} values for "
+                         f"{len(names)} names; expected one per name")
+    want = [f"link{i + 1}/tip_deflection" for i in range(n)]
+    missing = [w for w in want if w not in names]
+    if missing:
+        raise ValueError(f"deflections.name: got {names}; expected to contain {want} "
+                         f"(missing {missing})")
+    return _finite("deflections.position",
+                   np.asarray(msg.position, float)[[names.index(w) for w in want]])
 
 
 def trajectory_from_msg(msg: JointTrajectory, joint_names) -> JointTrajectoryData:

@@ -64,8 +64,7 @@ class Harness:
         self.js_pub = self.probe.create_publisher(JointState, "joint_states", RELIABLE)
         self.traj_pub = self.probe.create_publisher(JointTrajectory, "flex_planner/trajectory",
                                                     RELIABLE)
-        self.defl_pub = self.probe.create_publisher(Float64MultiArray, "flex/deflections",
-                                                    RELIABLE)
+        self.defl_pub = self.probe.create_publisher(JointState, "flex/deflections", RELIABLE)
         self.executor = SingleThreadedExecutor(context=ctx)
         self.executor.add_node(self.node)
         self.executor.add_node(self.probe)
@@ -196,24 +195,74 @@ def test_nan_and_wrong_length_states_are_rejected(make_harness):
     h.spin_until(lambda: h.log.count("warn", "JointState.velocity[0]") == 1, "inf rejection")
     h.send_state([0.0], [0.0], names=["joint1"])
     h.spin_until(lambda: h.log.count("warn", "missing ['joint2']") == 1, "missing joint")
-    h.defl_pub.publish(Float64MultiArray(data=[0.0]))   # not subscribed: use_deflections off
+    h.defl_pub.publish(deflection_msg([0.0, 0.0]))   # not subscribed: use_deflections off
     after = h.next_command()
     cmds = np.array(h.commands)
     assert np.all(np.isfinite(cmds))
     np.testing.assert_allclose(after, good)             # still the last valid state's torque
 
 
-def test_deflections_wrong_length_and_nan_rejected(make_harness):
+def deflection_msg(deflections, names=None):
+    """/flex/deflections as the model node publishes it (rotations 0.5 rad, a marker)."""
+    names = names or [f"link{i + 1}/{q}" for i in range(len(deflections))
+                      for q in ("tip_deflection", "tip_rotation")]
+    pos = [v for d in deflections for v in (float(d), 0.5)]
+    return JointState(name=names, position=pos[:len(names)], velocity=[0.0] * len(names))
+
+
+def test_deflections_malformed_rejected_and_picked_by_name(make_harness):
     h = make_harness(use_deflections=True)
     h.spin_until(lambda: h.defl_pub.get_subscription_count() > 0, "deflection subscription")
-    h.defl_pub.publish(Float64MultiArray(data=[0.01]))
-    h.spin_until(lambda: h.log.count("warn", "deflections.data: got 1 values") == 1, "length")
-    h.defl_pub.publish(Float64MultiArray(data=[0.01, float("nan")]))
-    h.spin_until(lambda: h.log.count("warn", "deflections.data[1]") == 1, "NaN")
+    h.defl_pub.publish(deflection_msg([0.01], names=["link1/tip_deflection",
+                                                     "link1/tip_rotation"]))
+    h.spin_until(lambda: h.log.count("warn", "missing ['link2/tip_deflection']") == 1,
+                 "missing link")
+    bad = deflection_msg([0.01, 0.02])
+    bad.position = bad.position[:3]
+    h.defl_pub.publish(bad)
+    h.spin_until(lambda: h.log.count("warn", "deflections.position: got 3 values") == 1,
+                 "length")
+    h.defl_pub.publish(deflection_msg([0.01, float("nan")]))
+    h.spin_until(lambda: h.log.count("warn", "deflections.position[1]") == 1, "NaN")
     assert h.node.deflections is None
-    h.defl_pub.publish(Float64MultiArray(data=[0.01, -0.02]))
+    msg = deflection_msg([0.01, -0.02])
+    msg.name, msg.position = msg.name[::-1], msg.position[::-1]   # any order
+    h.defl_pub.publish(msg)
     h.spin_until(lambda: h.node.deflections is not None, "valid deflections")
     np.testing.assert_array_equal(h.node.deflections[0], [0.01, -0.02])
+
+
+def test_controller_takes_the_model_nodes_deflections():
+    """The two nodes connect on flex/deflections (sensor_msgs/JointState): the controller
+    holds the model's tip deflections under gravity (the arm at rest, deflected)."""
+    from flex_model.model_node import ModelNode
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        model = ModelNode(context=ctx, parameter_overrides=[
+            Parameter("arm", value="thesis_example1"), Parameter("mode", value="lockstep"),
+            Parameter("start_static", value=True), Parameter("start_paused", value=True)])
+        ctrl = ControllerNode(context=ctx, parameter_overrides=[
+            Parameter("use_deflections", value=True), Parameter("state_timeout", value=5.0)])
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(model)
+        ex.add_node(ctrl)
+        deadline = time.monotonic() + TIMEOUT_S
+        while model.pub_defl.get_subscription_count() == 0:
+            assert time.monotonic() < deadline, "the controller never subscribed"
+            ex.spin_once(timeout_sec=0.01)
+        model.publish_state(full=True)
+        while ctrl.deflections is None:
+            assert time.monotonic() < deadline, "no deflections reached the controller"
+            ex.spin_once(timeout_sec=0.01)
+        want = model.stepper.deflections()[0]
+        assert np.abs(want).min() > 1e-3   # m: a real sag, not zeros
+        np.testing.assert_array_equal(ctrl.deflections[0], want)
+        ex.shutdown()
+        model.destroy_node()
+        ctrl.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
 
 
 def test_trajectory_with_other_joint_names_is_rejected(make_harness):

@@ -17,7 +17,11 @@ initial_joint_angles_deg, start_static (start deflected at rest under gravity),
 start_paused (until ~/pause false), command_timeout (s, 0 = never), timeout_action (hold |
 zero), lockstep_timeout (s, wall), frame_id, shape_points, publish_clock,
 realtime_priority (0 = off; 1-99: SCHED_FIFO priority of the thread that creates and spins
-the node, realtime mode, as ros2_control's thread_priority; needs CAP_SYS_NICE).
+the node, realtime mode, as ros2_control's thread_priority; needs CAP_SYS_NICE),
+parameter_services and qos_event_warnings (default true; false: the node has no parameter
+services, resp. no QoS-event handlers, which only log incompatible QoS or types: fewer
+entities in every wait of the SingleThreadedExecutor, a faster lockstep loop, see
+flex_model.ros_main).
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several
@@ -26,8 +30,10 @@ steps; simulation time stays on the step grid, within a step of the wall clock).
 /flex/shape at shape_rate. lockstep: deterministic; each command advances the model by
 1/rate and publishes the new /joint_states (and /clock) at once, the other topics at their
 rates, so simulation time moves only as the model-controller loop completes; without a
-command for ``lockstep_timeout`` (wall) the model steps with the held one. Messages are
-built once and updated in place (the per-step cost is what limits the loop rate).
+command for ``lockstep_timeout`` (wall) the model steps with the held one (a warning once
+the loop ran; before the first command this is the start: a controller timed by /clock
+needs that first step). Messages are built once and updated in place (the per-step cost
+is what limits the loop rate).
 """
 from __future__ import annotations
 
@@ -46,7 +52,7 @@ from visualization_msgs.msg import MarkerArray
 from . import ros_conversions as conv
 from .arm import load_arm
 from .dynamics import FlexArmModel
-from .ros_main import run_node
+from .ros_main import lean_node, run_node
 from .stepper import Stepper
 
 
@@ -62,7 +68,8 @@ class ModelNode(Node):
             ("command_timeout", 0.0), ("timeout_action", "hold"),
             ("lockstep_timeout", 1.0), ("frame_id", "base_link"), ("shape_points", 15),
             ("publish_clock", False), ("start_static", False), ("start_paused", False),
-            ("realtime_priority", 0))}
+            ("realtime_priority", 0), ("parameter_services", True),
+            ("qos_event_warnings", True))}
         if p["mode"] not in ("realtime", "lockstep"):
             raise ValueError(f"parameter mode: got {p['mode']!r}; expected realtime or lockstep")
         if p["timeout_action"] not in ("hold", "zero"):
@@ -88,6 +95,7 @@ class ModelNode(Node):
         self.has_imu = any(s.kind == "tip_accelerometer" for s in arm.sensors)
         self.paused = bool(p["start_paused"])
         self.command_time = 0.0
+        self.commanded = False  # a valid command has arrived (lockstep: the loop runs)
         self.next_publish = self.next_shape = 0.0
         self.behind = 0.0  # realtime: wall time not yet integrated (s)
         self.warned = set()
@@ -117,6 +125,7 @@ class ModelNode(Node):
         self.timer = self.create_timer(period, self.on_tick)
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
+        lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.publish_state(full=True)
         self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates), {p['mode']} "
                                f"at {p['rate']:g} Hz, publishing at {p['publish_rate']:g} Hz")
@@ -133,10 +142,10 @@ class ModelNode(Node):
                                       "the normal scheduler")
 
     # ------------------------------------------------------------- inputs
-    def _warn_once(self, key, text):
+    def _warn_once(self, key, text, level="warning"):
         if key not in self.warned:
             self.warned.add(key)
-            self.get_logger().warning(text)
+            getattr(self.get_logger(), level)(text)
 
     def on_command(self, msg: Float64MultiArray) -> None:
         try:
@@ -147,7 +156,7 @@ class ModelNode(Node):
                                       throttle_duration_sec=1.0)
             return
         self.stepper.set_command(u)
-        self.command_time = self.stepper.t
+        self.command_time, self.commanded = self.stepper.t, True
         if self.p["mode"] == "lockstep" and not self.paused:
             self.last_wall = time.monotonic()
             self.step(1.0 / self.p["rate"])
@@ -187,8 +196,12 @@ class ModelNode(Node):
             if elapsed < self.p["lockstep_timeout"]:
                 self.last_wall -= elapsed  # keep measuring from the last step
                 return
-            self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
-                            "stepping with the held command")
+            if self.commanded:  # the loop stalled
+                self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
+                                "stepping with the held command")
+            else:  # the start: a time-triggered controller waits for this first step
+                self._warn_once("start", "lockstep: no command yet; stepping with the held "
+                                "command every lockstep_timeout until one arrives", "info")
             self.step(1.0 / self.p["rate"])
             return
         # the owed wall time in whole steps, with a quarter step of slack: timer jitter about

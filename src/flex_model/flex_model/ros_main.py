@@ -1,63 +1,78 @@
-"""The Jazzy ``main()`` idiom shared by the suite's nodes, with this workplace's ROS setup,
-and the choice of executor.
+"""The Jazzy ``main()`` idiom shared by the suite's nodes, with this workplace's ROS setup.
 
-Executors: ``single`` is rclpy's SingleThreadedExecutor (the realtime 1 kHz model loop);
-``events`` is rclpy.experimental.EventsExecutor, which dispatches callbacks from C++
-without rebuilding a wait set each time: about 30 instead of 200 us between two callbacks
-here, which makes the lockstep model-controller loop 2.5 times faster (see
-bench/bench_ros_suite.py). A node's console script takes ``--executor single|events``
-before ``--ros-args``.
+Every node of the suite spins in rclpy's SingleThreadedExecutor (the stack's rule: the
+experimental EventsExecutor cannot be stopped). That executor rebuilds its wait set in
+Python on every wait, at a cost proportional to the number of entities of all its nodes,
+so the nodes keep that number small (see :func:`lean_node` and bench/bench_ros_suite.py).
 """
 from __future__ import annotations
 
-import argparse
 import signal
+from contextlib import contextmanager
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
-EXECUTORS = ("single", "events")
+
+PARAMETER_SERVICES = ("describe_parameters", "get_parameter_types", "get_parameters",
+                      "list_parameters", "set_parameters", "set_parameters_atomically")
 
 
-def make_executor(kind: str = "single", context=None):
-    """A SingleThreadedExecutor (``single``) or an EventsExecutor (``events``)."""
-    if kind == "events":
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor(context=context)
-    if kind != "single":
-        raise ValueError(f"executor: got {kind!r}; expected one of {', '.join(EXECUTORS)}")
-    return SingleThreadedExecutor(context=context)
+def lean_node(node, parameter_services: bool, qos_event_warnings: bool) -> None:
+    """Take entities the executor would wait on out of ``node`` (call it at the end of
+    the node's ``__init__``).
+
+    Without ``parameter_services`` the six parameter services rclpy made are destroyed
+    (parameters can then not be listed or set from outside the process). Without
+    ``qos_event_warnings`` the node's QoS-event handlers (rclpy gives every publisher and
+    subscription one for incompatible QoS and one for incompatible types, which only log a
+    warning) are destroyed, so no wait set gathers them."""
+    if not parameter_services:
+        for srv in list(node.services):
+            if srv.srv_name.rsplit("/", 1)[-1] in PARAMETER_SERVICES:
+                node.destroy_service(srv)
+    if not qos_event_warnings:
+        for entity in (*node.publishers, *node.subscriptions):
+            for handler in entity.event_handlers:
+                node.remove_waitable(handler)
+                handler.destroy()
+            entity.event_handlers = []
 
 
-def executor_option(args=None) -> str:
-    """The ``--executor`` option among a node's non-ROS command line arguments."""
-    from rclpy.utilities import remove_ros_args
-    ap = argparse.ArgumentParser(add_help=False)
-    ap.add_argument("--executor", choices=EXECUTORS, default="single")
-    return ap.parse_known_args(remove_ros_args(args)[1:])[0].executor
+@contextmanager
+def stop_on_signals():
+    """A list that SIGINT and SIGTERM append to while inside (the previous handlers come
+    back on exit): spin loops check it between callbacks, so nothing interrupts a
+    callback and the context stays valid for a last command."""
+    stop = []
+    old = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum))
+           for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
 
 
 def run_node(factory, args=None, on_stop=None) -> None:
-    """init, spin the node made by ``factory`` with the ``--executor`` of the command line
-    until SIGINT or SIGTERM, call ``on_stop(node)`` while the context is still valid (the
-    controller commands zero torques there), destroy, shut down.
+    """init, spin the node made by ``factory`` in a SingleThreadedExecutor until SIGINT or
+    SIGTERM, call ``on_stop(node)`` while the context is still valid (the controller
+    commands zero torques there), destroy, shut down.
 
-    rclpy's signal handlers are replaced by a flag checked between callbacks, so no
-    callback runs into a context that Ctrl-C has already shut down. The ROS environment
+    rclpy's signal handlers are replaced by :func:`stop_on_signals`, so no callback runs
+    into a context that Ctrl-C has already shut down. The ROS environment
     (LOCALHOST discovery, per-run domain) is set when flex_model is imported, before
     rclpy."""
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = []
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, frame: stop.append(signum))
     node = executor = None
     try:
-        executor = make_executor(executor_option(args))
-        node = factory()
-        executor.add_node(node)
-        while rclpy.ok() and not stop:
-            executor.spin_once(timeout_sec=0.05)
+        with stop_on_signals() as stop:
+            executor = SingleThreadedExecutor()
+            node = factory()
+            executor.add_node(node)
+            while rclpy.ok() and not stop:
+                executor.spin_once(timeout_sec=0.05)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

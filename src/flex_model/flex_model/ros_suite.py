@@ -2,11 +2,9 @@
 
 The file has the usual form ``<node name>: {ros__parameters: {...}}`` for the nodes
 ``flex_model``, ``flex_controller`` and ``flex_planner`` (the ones present are started),
-as ``ros2 launch`` would pass it with ``--params-file``. One executor runs them all
-(``--processes`` starts one process per node with the same file instead, each with that
-executor). ``--executor auto`` takes the EventsExecutor when the model node is in lockstep
-(its loop is bound by the cost per callback) and the SingleThreadedExecutor otherwise (the
-realtime 1 kHz loop). The run ends on Ctrl-C, or when the model's simulation time reaches
+as ``ros2 launch`` would pass it with ``--params-file``. One SingleThreadedExecutor runs
+them all (``--processes`` starts one process per node with the same file instead, each
+spinning its own). The run ends on Ctrl-C, or when the model's simulation time reaches
 ``--duration`` (one process).
 """
 from __future__ import annotations
@@ -37,50 +35,45 @@ def node_parameters(path) -> dict:
     return out
 
 
-def executor_kind(params: dict, choice: str = "auto") -> str:
-    """``single`` or ``events`` for the suite ``params`` (``auto``: events in lockstep)."""
-    if choice != "auto":
-        return choice
-    lockstep = params.get("flex_model", {}).get("mode") == "lockstep"
-    return "events" if lockstep else "single"
-
-
-def run_in_one_process(params: dict, duration: float | None = None, progress=None,
-                       executor: str = "auto"):
-    """Create the nodes in one context and spin them with one executor (see
-    :func:`executor_kind`); returns the nodes (for callers that want to inspect them)
-    after the duration (simulation time) or Ctrl-C."""
+def run_in_one_process(params: dict, duration: float | None = None, progress=None):
+    """Create the nodes in one context and spin them with one SingleThreadedExecutor;
+    returns the nodes (for callers that want to inspect them) after the duration
+    (simulation time) or SIGINT/SIGTERM; then each node's ``stop()``, if it has one, runs
+    while the context is valid (the controller commands zero torques)."""
     import importlib
 
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
-    from .ros_main import make_executor
+    from .ros_main import stop_on_signals
 
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     nodes, ex = {}, None
     try:
-        for name, values in params.items():
-            module, cls = NODES[name]
-            node_cls = getattr(importlib.import_module(module), cls)
-            nodes[name] = node_cls(context=ctx, parameter_overrides=[
-                Parameter(k, value=v) for k, v in values.items()])
-        ex = make_executor(executor_kind(params, executor), context=ctx)
-        for n in nodes.values():
-            ex.add_node(n)
-        model = nodes.get("flex_model")
-        next_mark = 0.0
-        while ctx.ok():
-            ex.spin_once(timeout_sec=0.01)
-            if model is not None and duration is not None:
-                if progress is not None and model.stepper.t >= next_mark:
-                    progress(model.stepper.t, duration)
-                    next_mark += duration / 10
-                if model.stepper.t >= duration:
-                    break
-    except KeyboardInterrupt:
-        pass
+        with stop_on_signals() as stop:
+            for name, values in params.items():
+                module, cls = NODES[name]
+                node_cls = getattr(importlib.import_module(module), cls)
+                nodes[name] = node_cls(context=ctx, parameter_overrides=[
+                    Parameter(k, value=v) for k, v in values.items()])
+            ex = SingleThreadedExecutor(context=ctx)
+            for n in nodes.values():
+                ex.add_node(n)
+            model = nodes.get("flex_model")
+            next_mark = 0.0
+            while ctx.ok() and not stop:
+                ex.spin_once(timeout_sec=0.01)
+                if model is not None and duration is not None:
+                    if progress is not None and model.stepper.t >= next_mark:
+                        progress(model.stepper.t, duration)
+                        next_mark += duration / 10
+                    if model.stepper.t >= duration:
+                        break
+            for n in nodes.values():
+                if hasattr(n, "stop") and ctx.ok():
+                    n.stop()
     finally:
         if ex is not None:
             ex.shutdown()
@@ -90,11 +83,11 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
     return nodes
 
 
-def run_in_processes(path, names, executor: str = "single") -> int:
+def run_in_processes(path, names) -> int:
     """One process per node (``python -m`` its module, which works in a pip and in a colcon
     install alike) with the same parameter file."""
-    procs = [subprocess.Popen([sys.executable, "-m", NODES[n][0], "--executor", executor,
-                               "--ros-args", "--params-file", str(path)]) for n in names]
+    procs = [subprocess.Popen([sys.executable, "-m", NODES[n][0], "--ros-args",
+                               "--params-file", str(path)]) for n in names]
     try:
         while all(p.poll() is None for p in procs):
             time.sleep(0.2)
@@ -114,10 +107,9 @@ def run_in_processes(path, names, executor: str = "single") -> int:
 
 def cmd_up(args) -> int:
     params = node_parameters(args.config)
-    kind = executor_kind(params, args.executor)
     if args.processes:
-        return run_in_processes(args.config, list(params), kind)
-    run_in_one_process(params, args.duration, executor=kind)
+        return run_in_processes(args.config, list(params))
+    run_in_one_process(params, args.duration)
     return 0
 
 
@@ -128,7 +120,5 @@ def add_up_parser(sub) -> None:
     sp.add_argument("--duration", type=float, default=None,
                     help="stop when the model's simulation time reaches this (s; one "
                     "process)")
-    sp.add_argument("--executor", choices=("auto", "single", "events"), default="auto",
-                    help="rclpy executor (auto: events in lockstep, else single)")
     sp.set_defaults(func=cmd_up)
 

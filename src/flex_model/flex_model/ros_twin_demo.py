@@ -3,8 +3,9 @@
 The planner node inverts the four tip waypoints and publishes the joint trajectory with the
 admissible nominal torque, the controller node applies Eq. (95) (h = 25, a = 5) with that
 feed-forward, the model node integrates the arm in lockstep; the three talk over ROS
-topics in one process (one EventsExecutor, see flex_model.ros_main). Everything is recorded
-into a rosbag2 (MCAP) bag under runs/<timestamp>/; then a summary table and PNG plots.
+topics in one process (one SingleThreadedExecutor, see flex_model.ros_main). Everything is
+recorded into a rosbag2 (MCAP) bag under runs/<timestamp>/; then a summary table and PNG
+plots.
 
 The arm is ``thesis_example1_motors``: the section F arm with geared motors at the joints
 (a hub-less flexible arm makes the sampled Eq. 95 loop unstable, see the preset).
@@ -49,6 +50,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     import json
 
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
     from geometry_msgs.msg import PoseStamped
@@ -61,7 +63,6 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     from . import ros_conversions as conv
     from .bags import BagWriter, Recorder
     from .model_node import ModelNode
-    from .ros_main import make_executor
 
     out_dir = Path(out_dir or Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-twin-demo")
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -69,17 +70,20 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     P = Parameter
+    # lean nodes (flex_model.ros_main.lean_node, as ros2_ws/params/suite.yaml): a faster loop
+    lean = [P(name, value=False) for name in (
+        "parameter_services", "qos_event_warnings", "start_type_description_service")]
     nodes, ex = [], None
     wall0 = time.perf_counter()
     try:
         planner = PlannerNode(context=ctx, parameter_overrides=[
-            P("arm", value=arm), P("sample_period", value=1.0 / rate)])
+            P("arm", value=arm), P("sample_period", value=1.0 / rate), *lean])
         controller = ControllerNode(context=ctx, parameter_overrides=[
             P("h", value=[25.0, 25.0]), P("a", value=[5.0, 5.0]), P("rate_hz", value=rate),
-            P("use_sim_time", value=True), P("state_timeout", value=0.5)])
+            P("use_sim_time", value=True), P("state_timeout", value=0.5), *lean])
         probe = rclpy.create_node("demo_probe", context=ctx)
         nodes += [planner, controller, probe]
-        ex = make_executor("events", context=ctx)
+        ex = SingleThreadedExecutor(context=ctx)
         for n in nodes:
             ex.add_node(n)
         plans = []
@@ -108,7 +112,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         model = ModelNode(context=ctx, parameter_overrides=[
             P("arm", value=arm), P("mode", value="lockstep"), P("rate", value=rate),
             P("publish_rate", value=50.0), P("initial_joint_angles_deg", value=list(first)),
-            P("start_static", value=True), P("lockstep_timeout", value=0.5)])
+            P("start_static", value=True), P("lockstep_timeout", value=0.5), *lean])
         nodes.append(model)
         ex.add_node(model)
         with BagWriter(out_dir / "bag") as bag:

@@ -156,3 +156,28 @@ def test_realtime_ticks_integrate_whole_steps_and_catch_up(monkeypatch):
         assert published == pytest.approx([1e-3, 5e-3], abs=1e-9)
     finally:
         h.close()
+
+
+def test_lean_node_leaves_only_its_own_entities():
+    """parameter_services / qos_event_warnings false (ros2_ws/params/suite.yaml): of the
+    services only ~/reset and ~/pause remain and no QoS-event waitables (rclpy makes one
+    per publisher and subscription for incompatible QoS and one for incompatible types);
+    the lockstep loop still runs (a command steps the model)."""
+    full = Harness(arm="thesis_example1", mode="lockstep")
+    try:
+        n_entities = len([*full.node.publishers, *full.node.subscriptions])
+        assert len([*full.node.waitables]) == 2 * n_entities
+        assert len([*full.node.services]) == 2 + 6 + 1   # own, parameters, type description
+    finally:
+        full.close()
+    h = Harness(arm="thesis_example1", mode="lockstep", lockstep_timeout=30.0,
+                parameter_services=False, qos_event_warnings=False)
+    try:
+        assert sorted(s.srv_name.rsplit("/", 1)[-1] for s in h.node.services) == [
+            "get_type_description", "pause", "reset"]
+        assert not [*h.node.waitables]
+        h.cmd.publish(Float64MultiArray(data=[0.0, 0.0]))
+        h.spin_until(lambda: h.node.stepper.t > 0, "a lockstep step")
+        assert h.node.stepper.t == pytest.approx(1e-3)
+    finally:
+        h.close()

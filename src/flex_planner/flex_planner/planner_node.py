@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
-from flex_model.ros_main import run_node
+from flex_model.ros_main import lean_node, run_node
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
@@ -33,7 +33,9 @@ class PlannerNode(Node):
     :class:`flex_planner.config.PlannerConfig` (``arm``, ``vars_per_link`` read-only;
     ``sample_period``, ``elbow``, ``frame_id`` validated when set). A bad request
     (unreachable point, times not increasing, empty path, wrong frame) is logged as an error
-    naming the point, nothing is published for it, and the node keeps serving.
+    naming the point, nothing is published for it, and the node keeps serving. Node
+    parameters ``parameter_services`` and ``qos_event_warnings`` (default true):
+    flex_model.ros_main.lean_node.
     """
 
     def __init__(self, **kwargs):
@@ -58,7 +60,10 @@ class PlannerNode(Node):
         self.pub_deflections = self.create_publisher(JointTrajectory, "~/nominal_deflections",
                                                      latched)
         self.create_subscription(Path, "~/waypoints", self.on_waypoints, reliable)
+        lean = [self.declare_parameter(name, True).value
+                for name in ("parameter_services", "qos_event_warnings")]
         self.add_on_set_parameters_callback(self.on_set_parameters)
+        lean_node(self, *lean)
         self.get_logger().info(f"planning for {self.model.arm.name} ({self.model.nq} "
                                f"coordinates) in frame {self.config.frame_id!r}")
 
