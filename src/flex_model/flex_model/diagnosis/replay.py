@@ -20,7 +20,7 @@ from numba import njit
 from ..dynamics import FlexArmModel
 from ..integrators import consistent_acceleration, generalized_alpha, joint_torques
 from ..simulate import SimulationDivergedError, _input_data
-from ..statics import static_equilibrium
+from ..statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
 
 DEFAULT_STEP = 1e-3
@@ -77,9 +77,26 @@ class Prediction:
 def initial_state(model: FlexArmModel, theta0, rates0=None) -> np.ndarray:
     """[q; v]: joints at ``theta0`` with the links in static equilibrium under gravity
     (joints clamped), moving with the joint rates ``rates0`` (undeformed velocity field)."""
-    q = static_equilibrium(model, np.asarray(theta0, float), joints="clamped").q
+    theta0 = np.asarray(theta0, float)
+    try:
+        q = static_equilibrium(model, theta0, joints="clamped").q
+    except (StaticConvergenceError, np.linalg.LinAlgError):
+        q = static_equilibrium(model, theta0, joints="clamped", linear=True).q
     v = model.v_from_joint_rates(np.zeros(model.n_links) if rates0 is None else rates0)
     return np.concatenate([q, v])
+
+
+def measured_start(rec, window: float = 0.05):
+    """Joint angles and rates at the first sample, from a straight-line fit over the first
+    ``window`` seconds (averages the sensor noise out of the replay's initial state)."""
+    n = max(2, min(len(rec.t), int(round(window / rec.dt)) + 1))
+    t = rec.t[:n] - rec.t[0]
+    A = np.column_stack([np.ones(n), t])
+    out = []
+    for kind in ("q", "v"):
+        coef, *_ = np.linalg.lstsq(A, rec.stack(kind)[:n], rcond=None)
+        out.append(coef[0])
+    return out
 
 
 def _delay_periods(model: FlexArmModel, period: float) -> np.ndarray:
@@ -166,7 +183,7 @@ def replay(model: FlexArmModel, controller: ControllerDescription, rec, *,
             if controller.feedforward_mode == "recorded" else None
         ff = controller.feedforward(nominal_model or model, qset, recorded)
     if x0 is None:
-        x0 = initial_state(model, rec.stack("q")[0], rec.stack("v")[0])
+        x0 = initial_state(model, *measured_start(rec))
     X, TAU = simulate_closed_loop(model, controller, x0, t_final, qset, ff,
                                   sample_period=rec.dt, dt=dt, sensor_bias=sensor_bias)
     n = min(len(X), len(rec.t))

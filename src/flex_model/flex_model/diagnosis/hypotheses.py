@@ -1,0 +1,194 @@
+"""The hypotheses of the diagnosis: effects of flex_model.effects with 1-3 free parameters.
+
+Each effect type of the library (``Effect.LIBRARY``) that can act on a torque-controlled
+planar arm becomes one hypothesis per target (joint, link or arm), with the parameters the
+fit frees, their bounds and scales taken from the data (torque and speed levels), and the
+equivalence class the effect declares (``Effect.EQUIVALENT``; a named effect counts as
+right when it is the hidden one or in its class). Parameters not freed keep their "off"
+or a stated fixed value:
+
+==================== ========================================= ===========================
+hypothesis           free parameters                           fixed
+==================== ========================================= ===========================
+joint_friction       viscous, coulomb                          static = coulomb,
+                                                               regularization 1e-3 rad/s
+gear                 rotor_inertia (ratio of the nominal, or 1)
+joint_elasticity     stiffness, damping                        motor_inertia 1e-3 kg m^2
+backlash             half_width, stiffness (of its spring)     damping 0, smoothing 1e-4
+torque_saturation    limit
+actuator_delay       delay (quantized to the control period)
+structural_damping   rayleigh_mass, rayleigh_stiffness
+base_tilt            angle
+contact_surface      y (floor height), stiffness               x 0, normal up, damping 0
+payload              mass (arm field, not an effect)
+joint_encoder bias   bias (a sensor, seen by the controller)
+==================== ========================================= ===========================
+
+Left out: ``dc_motor`` under a torque command (its parameters act only on a voltage
+command), ``timoshenko`` (slender links: beta >> 100, no measurable effect), ``cogging``
+(``LIBRARY = False``: the out-of-library case).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..effects import EFFECT_TYPES
+from ..sensors import Sensor
+
+FRICTION_EPS = 1e-3
+MOTOR_INERTIA = 1e-3
+BACKLASH_SMOOTHING = 1e-4
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """An effect on a target with free parameters (values = x * scale)."""
+
+    kind: str
+    target: str
+    names: tuple
+    scale: tuple
+    lower: tuple          # bounds of x (scaled)
+    upper: tuple
+    starts: tuple         # start points of x (multi-start where non-convex)
+    probe: tuple          # x of the screening probe
+    discrete: bool = False  # actuator delay: x in whole control periods
+
+    @property
+    def label(self) -> str:
+        return f"{self.kind}@{self.target}" if self.target else self.kind
+
+    @property
+    def klass(self) -> str:
+        """Equivalence class: the effect type (the declared EQUIVALENT entries are shown
+        in the report)."""
+        return self.kind
+
+    @property
+    def equivalent(self) -> list:
+        cls = EFFECT_TYPES.get(self.kind)
+        return list(cls.EQUIVALENT) if cls else []
+
+    def values(self, x) -> np.ndarray:
+        return np.asarray(x, float) * np.asarray(self.scale)
+
+    def off(self) -> np.ndarray:
+        """x of the "off" value (no effect)."""
+        if self.kind == "torque_saturation":
+            return np.array(self.upper, float)
+        if self.kind == "joint_elasticity":
+            return np.array([self.upper[0], 0.0])
+        if self.kind == "backlash":
+            return np.array([0.0, self.upper[1]])
+        return np.zeros(len(self.names))
+
+    def apply(self, arm, x):
+        """(arm with the effect, sensors bias vector or None)."""
+        v = self.values(x)
+        E = EFFECT_TYPES
+        k = self.kind
+        if k == "payload":
+            return dataclasses.replace(arm, payload_mass=arm.payload_mass + v[0]), None
+        if k == "sensor_bias":
+            s = Sensor(name=f"{self.target}/joint_encoder", kind="joint_encoder",
+                       target=self.target, bias=float(v[0]))
+            return dataclasses.replace(arm, sensors=arm.sensors + (s,)), None
+        if k == "joint_friction":
+            eff = (E[k](self.target, (v[0], v[1], v[1], 0.01, FRICTION_EPS)),)
+        elif k == "gear":
+            old = arm.effect("gear", self.target)
+            ratio = old["ratio"] if old else 1.0
+            eff = (E[k](self.target, (ratio, v[0])),)
+        elif k == "joint_elasticity":
+            eff = (E[k](self.target, (v[0], v[1], MOTOR_INERTIA)),)
+        elif k == "backlash":
+            eff = (E["joint_elasticity"](self.target, (v[1], 0.0, MOTOR_INERTIA)),
+                   E[k](self.target, (v[0], BACKLASH_SMOOTHING)))
+        elif k == "torque_saturation":
+            eff = (E[k](self.target, (v[0],)),)
+        elif k == "actuator_delay":
+            eff = (E[k](self.target, (v[0],)),)
+        elif k == "structural_damping":
+            eff = (E[k](self.target, (0.0, v[0], v[1])),)
+        elif k == "base_tilt":
+            eff = (E[k]("", (v[0],)),)
+        elif k == "contact_surface":
+            eff = (E[k]("", (0.0, v[0], np.pi / 2, v[1], 0.0)),)
+        else:
+            raise ValueError(f"unknown hypothesis {k}")
+        return arm.with_effects(*eff), None
+
+    def effect_dicts(self, arm, values) -> list:
+        """The ``effects:``/``sensors:`` entries of the updated arm YAML."""
+        probe, _ = self.apply(arm, np.asarray(values) / np.asarray(self.scale))
+        if self.kind == "payload":
+            return []
+        if self.kind == "sensor_bias":
+            return [{"sensor": {"kind": "joint_encoder", "joint": self.target,
+                                "bias": float(values[0])}}]
+        out = []
+        new = [e for e in probe.effects if e not in arm.effects]
+        for e in new:
+            d = {"type": e.TYPE}
+            if e.TARGET in ("joint", "link"):
+                d[e.TARGET] = e.target
+            for p, val in zip(e.PARAMETERS, e.values):
+                if val != p.off and np.isfinite(val):
+                    d[p.name] = float(val)
+            out.append(d)
+        return out
+
+
+def _h(kind, target, names, scale, lower, upper, starts, probe, discrete=False):
+    return Hypothesis(kind, target, tuple(names), tuple(float(s) for s in scale),
+                      tuple(lower), tuple(upper), tuple(tuple(s) for s in starts),
+                      tuple(probe), discrete)
+
+
+def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
+    """Every hypothesis for this arm and recording (scales from the measured torque and
+    speed levels); ``exclude``: labels already accepted."""
+    taus = rec.stack("tau")
+    rates = rec.stack("v")
+    out = []
+    voltage = controller.output == "voltage"
+    for j, name in enumerate(arm.joint_names):
+        tmax = max(float(np.max(np.abs(taus[:, j]))), 1e-3)
+        trms = max(float(np.sqrt(np.mean(taus[:, j] ** 2))), 1e-3)
+        wrms = max(float(np.sqrt(np.mean(rates[:, j] ** 2))), 1e-3)
+        rotor = arm.effect("gear", name)
+        j_ref = rotor["ratio"] ** 2 * rotor["rotor_inertia"] if rotor else 0.1
+        j_ref = j_ref or 0.1
+        k_ref = max(trms, 1.0) / 1e-3          # 1 mrad of twist at the rms torque
+        out += [
+            _h("joint_friction", name, ("viscous", "coulomb"), (0.1 * trms / wrms,
+               0.1 * trms), (0, 0), (50, 20), [(1.0, 1.0)], (1.0, 1.0)),
+            _h("gear", name, ("rotor_inertia",),
+               ((rotor["rotor_inertia"] if rotor and rotor["rotor_inertia"] else 0.1),),
+               (0.2,), (20,), [(1.0,)], (1.5,)),
+            _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 1e-3),
+               (1e-3, 0), (1e3, 100), [(1.0, 1.0), (0.05, 1.0)], (1.0, 1.0)),
+            _h("backlash", name, ("half_width", "stiffness"), (1e-3, 10 * k_ref),
+               (0, 1e-3), (100, 100), [(1.0, 1.0), (5.0, 1.0)], (1.0, 1.0)),
+            _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
+               [(0.9,), (0.6,)], (0.8,)),
+            _h("actuator_delay", name, ("delay",), (controller.period,), (0,), (25,),
+               [(1.0,)], (1.0,), discrete=True),
+            _h("sensor_bias", name, ("bias",), (1e-3,), (-100,), (100,), [(0.0,)], (1.0,)),
+        ]
+        del j_ref
+    for lk in arm.links:
+        out.append(_h("structural_damping", lk.name, ("rayleigh_mass", "rayleigh_stiffness"),
+                      (0.1, 1e-3), (0, 0), (100, 100), [(1.0, 1.0)], (1.0, 1.0)))
+    out.append(_h("base_tilt", "", ("angle",), (0.01,), (-20,), (20,), [(0.0,)], (1.0,)))
+    out.append(_h("payload", "", ("mass",), (0.1,), (0,), (100,), [(1.0,)], (1.0,)))
+    if rec.has("tip_y"):
+        ymin = float(np.min(rec.channels["tip_y"]))
+        out.append(_h("contact_surface", "", ("y", "stiffness"), (1.0, 1e4),
+                      (ymin - 0.05, 1e-2), (ymin + 0.05, 1e3), [(ymin, 1.0), (ymin, 30.0)],
+                      (ymin + 0.002, 1.0)))
+    del voltage
+    return [h for h in out if h.label not in exclude]
