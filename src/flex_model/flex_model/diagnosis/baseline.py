@@ -41,9 +41,10 @@ def baseline_parameters(arm: ArmDescription) -> list[ScaleParameter]:
     tol_sec = arm.tolerance("section")
     out = []
     for i, lk in enumerate(arm.links):
-        out.append(ScaleParameter(f"{lk.name}.EI", "EI", i,
-                                  arm.tolerance("E") + 4 * tol_sec))
-        out.append(ScaleParameter(f"{lk.name}.m", "m", i, arm.tolerance("rho") + 2 * tol_sec))
+        out.append(ScaleParameter(f"{lk.name}.EI", "EI", i, float(np.sqrt(
+            arm.tolerance("E") ** 2 + 10 * tol_sec ** 2))))
+        out.append(ScaleParameter(f"{lk.name}.m", "m", i, float(np.sqrt(
+            arm.tolerance("rho") ** 2 + 2 * tol_sec ** 2))))
     for e in arm.effects:
         for p, v in zip(e.PARAMETERS, e.values):
             if p.tolerance > 0 and np.isfinite(v) and v != 0:

@@ -166,8 +166,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 half, cond = confidence_intervals(fit, n_eff)
                 x = fit.x if fit.x is not None else np.zeros(len(h.names))
                 if h.discrete:
-                    half = np.array([0.5 - 1e-9])
-                    x = x - 0.5       # the delay lies in ((d - 1) T, d T]
+                    half = np.array([0.5 - 1e-9])   # whole periods: d T exactly
                 off = h.off()
                 excl = bool(np.any(np.abs(x - off) > half)) if half is not None else False
                 share = (cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)

@@ -5,8 +5,14 @@ A twin is the nominal arm with baseline scales (:mod:`.baseline`) and accepted o
 candidate effects (:mod:`.hypotheses`). Residuals are weighted per channel by the
 channel's white-noise level sigma_c, estimated from the data by the second difference
 (sigma^2 = var(y[k+1] - 2 y[k] + y[k-1]) / 6, exact for white noise on a smooth signal),
-so the cost J = mean_c mean_k (r_c,k / sigma_c)^2 is about 1 for a perfect twin under
-white noise; its excess J - 1 is the model error in units of the noise power.
+times the ratio kappa_c of a healthy twin's residual to that white noise (coloured sensor
+noise, quantisation and the drives' torque ripple, which the closed loop turns into
+motion no replay can predict): sigma_eff = kappa_c sigma_c. kappa is calibrated on healthy
+runs (:data:`HEALTHY_RATIO`: the synthetic two-link cases of :mod:`.synthetic` at nominal
+noise, seeds 1-3, baseline twin, fit and held-out recordings), so the cost
+J = mean_c mean_k (r_c,k / sigma_eff_c)^2 is about 1 for a healthy unit at the data's noise
+level and the excess J - 1 is the model error in units of that noise power. Another arm or
+controller recalibrates with ``noise_ratios`` (a mapping channel -> kappa).
 
 Executor: anything with ``map(fn, iterable)`` returning results in order
 (``concurrent.futures`` executors, ``dask.distributed.Client`` via its
@@ -26,10 +32,15 @@ from ..simulate import SimulationDivergedError
 from ..statics import StaticConvergenceError
 from .baseline import apply_scales
 from .controller import ControllerDescription
-from .replay import _held, replay
+from .replay import _held, initial_state, measured_start, replay
 
 #: absolute noise floors per channel kind (rad, rad/s, N m, m)
 FLOORS = {"q": 1e-6, "v": 1e-5, "tau": 1e-4, "w": 1e-6, "tip": 1e-6}
+#: residual RMS of healthy baseline twins / white-noise estimate, per channel (see above)
+HEALTHY_RATIO = {"q1": 9.3, "q2": 22.1, "v1": 1.07, "v2": 1.47, "tau1": 1.28, "tau2": 1.88,
+                 "w1": 2.86, "w2": 2.14, "tip_x": 2.42, "tip_y": 1.75}
+#: the same by channel kind, for channels not in the table
+HEALTHY_RATIO_KIND = {"q": 15.0, "v": 1.3, "tau": 1.6, "w": 2.5, "tip": 2.1}
 #: a diverged candidate costs this much (it is not a plausible twin)
 DIVERGED_COST = 1e12
 
@@ -41,15 +52,25 @@ def _floor(name: str) -> float:
     return 1e-6
 
 
-def noise_levels(rec) -> dict:
-    """White-noise standard deviation per residual channel (second-difference estimate)."""
+def healthy_ratio(name: str, table=None) -> float:
+    table = HEALTHY_RATIO if table is None else table
+    if name in table:
+        return float(table[name])
+    kind = "tip" if name.startswith("tip") else name.rstrip("0123456789")
+    return HEALTHY_RATIO_KIND.get(kind, 1.0)
+
+
+def noise_levels(rec, noise_ratios=None) -> dict:
+    """Effective noise level per residual channel: the white-noise standard deviation
+    (second-difference estimate) times the healthy ratio kappa."""
     out = {}
     for name in rec.residual_channels:
         y = rec.channels[name]
         d2 = y[2:] - 2 * y[1:-1] + y[:-2]
         # a robust scale (median absolute deviation) ignores the rare steps of a move
         s = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
-        out[name] = float(max(s, _floor(name), 1e-6 * np.std(y)))
+        out[name] = float(max(s, _floor(name), 1e-6 * np.std(y))
+                          * healthy_ratio(name, noise_ratios))
     return out
 
 
@@ -70,7 +91,7 @@ class Context:
         model = FlexArmModel(nominal)
         period = controller.period
         t_rel = rec.t - rec.t[0]
-        instants = np.arange(int(round(t_rel[-1] / period))) * period
+        instants = np.arange(int(round(t_rel[-1] / period)) + 1) * period
         qset = _held(t_rel, rec.stack("qset"), instants)
         recorded = _held(t_rel, rec.stack("tau_ff"), instants) \
             if controller.feedforward_mode == "recorded" else None
@@ -87,31 +108,41 @@ def twin_arm(ctx: Context, scales, effects=()) -> ArmDescription:
     return arm
 
 
-def _encoder_bias(arm: ArmDescription) -> np.ndarray:
+def encoder_faults(arm: ArmDescription) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint: bias (rad) and delay (s) of the arm's joint_encoder sensors."""
     b = np.zeros(arm.n_links)
+    d = np.zeros(arm.n_links)
     for s in arm.sensors:
         if s.kind == "joint_encoder":
-            b[arm.joint_names.index(s.target)] += s.bias
-    return b
+            j = arm.joint_names.index(s.target)
+            b[j] += s.bias
+            d[j] = max(d[j], s.delay)
+    return b, d
 
 
 def predict_channels(ctx: Context, arm: ArmDescription):
-    """The twin's channels on the context's recording (encoder biases included)."""
+    """The twin's channels on the context's recording. Encoder bias and delay (sensors of
+    the arm) act on what the controller reads and on the recorded q<i>, v<i>."""
     model = FlexArmModel(arm)
-    bias = _encoder_bias(arm)
-    cbias = np.array([bias[int(c[1:]) - 1] if c[0] == "q" else 0.0
-                      for c in ctx.controller.channels])
+    bias, delay = encoder_faults(arm)
     rec = ctx.rec
-    x0 = None
-    if np.any(bias):
-        from .replay import initial_state, measured_start
-        q0, v0 = measured_start(rec)
-        x0 = initial_state(model, q0 - bias, v0)
+    joint_of = [int(c[1:]) - 1 if c[0] == "q" else None for c in ctx.controller.channels]
+    cbias = np.array([bias[j] if j is not None else 0.0 for j in joint_of])
+    periods = np.rint(delay / ctx.controller.period).astype(np.int64)
+    cdelay = np.array([periods[j] if j is not None else 0 for j in joint_of], np.int64)
+    q0, v0 = measured_start(rec)
+    x0 = initial_state(model, q0 - bias, v0)
     pred = replay(model, ctx.controller, rec, ff=ctx.ff, dt=ctx.dt, sensor_bias=cbias,
-                  x0=x0)
+                  sensor_delay=cdelay, x0=x0)
+    samples = np.rint(delay / rec.dt).astype(int)
     for i in range(arm.n_links):
-        if f"q{i + 1}" in pred.channels:
-            pred.channels[f"q{i + 1}"] = pred.channels[f"q{i + 1}"] + bias[i]
+        for kind, add in (("q", bias[i]), ("v", 0.0)):
+            name = f"{kind}{i + 1}"
+            if name in pred.channels:
+                y = pred.channels[name]
+                if samples[i]:
+                    y = np.concatenate([np.full(samples[i], y[0]), y[:-samples[i]]])
+                pred.channels[name] = y + add
     return pred
 
 

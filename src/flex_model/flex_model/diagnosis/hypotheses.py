@@ -21,7 +21,9 @@ structural_damping   rayleigh_mass, rayleigh_stiffness
 base_tilt            angle
 contact_surface      y (floor height), stiffness               x 0, normal up, damping 0
 payload              mass (arm field, not an effect)
-joint_encoder bias   bias (a sensor, seen by the controller)
+sensor_bias          bias of the joint encoder (seen by the controller too)
+sensor_delay         delay of the joint encoder and rate (whole control periods)
+stiffness            relative change of a link's E beyond its tolerance
 ==================== ========================================= ===========================
 
 Left out: ``dc_motor`` under a torque command (its parameters act only on a voltage
@@ -92,10 +94,17 @@ class Hypothesis:
         k = self.kind
         if k == "payload":
             return dataclasses.replace(arm, payload_mass=arm.payload_mass + v[0]), None
-        if k == "sensor_bias":
+        if k in ("sensor_bias", "sensor_delay"):
+            field = "bias" if k == "sensor_bias" else "delay"
             s = Sensor(name=f"{self.target}/joint_encoder", kind="joint_encoder",
-                       target=self.target, bias=float(v[0]))
+                       target=self.target, **{field: float(v[0])})
             return dataclasses.replace(arm, sensors=arm.sensors + (s,)), None
+        if k == "stiffness":
+            i = [lk.name for lk in arm.links].index(self.target)
+            links = list(arm.links)
+            links[i] = dataclasses.replace(links[i], segments=tuple(
+                dataclasses.replace(sg, E=sg.E * (1.0 + v[0])) for sg in links[i].segments))
+            return dataclasses.replace(arm, links=tuple(links)), None
         if k == "joint_friction":
             eff = (E[k](self.target, (v[0], v[1], v[1], 0.01, FRICTION_EPS)),)
         elif k == "gear":
@@ -126,9 +135,12 @@ class Hypothesis:
         probe, _ = self.apply(arm, np.asarray(values) / np.asarray(self.scale))
         if self.kind == "payload":
             return []
-        if self.kind == "sensor_bias":
+        if self.kind in ("sensor_bias", "sensor_delay"):
+            field = "bias" if self.kind == "sensor_bias" else "delay"
             return [{"sensor": {"kind": "joint_encoder", "joint": self.target,
-                                "bias": float(values[0])}}]
+                                field: float(values[0])}}]
+        if self.kind == "stiffness":
+            return [{"stiffness": {"link": self.target, "relative_change": float(values[0])}}]
         out = []
         new = [e for e in probe.effects if e not in arm.effects]
         for e in new:
@@ -154,14 +166,11 @@ def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
     taus = rec.stack("tau")
     rates = rec.stack("v")
     out = []
-    voltage = controller.output == "voltage"
     for j, name in enumerate(arm.joint_names):
         tmax = max(float(np.max(np.abs(taus[:, j]))), 1e-3)
         trms = max(float(np.sqrt(np.mean(taus[:, j] ** 2))), 1e-3)
         wrms = max(float(np.sqrt(np.mean(rates[:, j] ** 2))), 1e-3)
         rotor = arm.effect("gear", name)
-        j_ref = rotor["ratio"] ** 2 * rotor["rotor_inertia"] if rotor else 0.1
-        j_ref = j_ref or 0.1
         k_ref = max(trms, 1.0) / 1e-3          # 1 mrad of twist at the rms torque
         out += [
             _h("joint_friction", name, ("viscous", "coulomb"), (0.1 * trms / wrms,
@@ -178,9 +187,12 @@ def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
             _h("actuator_delay", name, ("delay",), (controller.period,), (0,), (25,),
                [(1.0,)], (1.0,), discrete=True),
             _h("sensor_bias", name, ("bias",), (1e-3,), (-100,), (100,), [(0.0,)], (1.0,)),
+            _h("sensor_delay", name, ("delay",), (controller.period,), (0,), (25,),
+               [(1.0,)], (1.0,), discrete=True),
         ]
-        del j_ref
     for lk in arm.links:
+        out.append(_h("stiffness", lk.name, ("relative_change",), (0.1,), (-7,), (20,),
+                      [(0.0,)], (1.0,)))
         out.append(_h("structural_damping", lk.name, ("rayleigh_mass", "rayleigh_stiffness"),
                       (0.1, 1e-3), (0, 0), (100, 100), [(1.0, 1.0)], (1.0, 1.0)))
     out.append(_h("base_tilt", "", ("angle",), (0.01,), (-20,), (20,), [(0.0,)], (1.0,)))
@@ -190,5 +202,4 @@ def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
         out.append(_h("contact_surface", "", ("y", "stiffness"), (1.0, 1e4),
                       (ymin - 0.05, 1e-2), (ymin + 0.05, 1e3), [(ymin, 1.0), (ymin, 30.0)],
                       (ymin + 0.002, 1.0)))
-    del voltage
     return [h for h in out if h.label not in exclude]

@@ -2,7 +2,8 @@
 
 The twin runs with the recorded reference and the same sampled controller as the arm
 (:mod:`flex_model.diagnosis.controller`): at every control instant t_k the law reads the
-twin's measured channels, its output is held (zero-order hold) and, with an
+twin's measured channels, its output (the recorded command ``tau<i>``) is held
+(zero-order hold) and, with an
 ``actuator_delay`` effect on joint j, applied d_j = ceil(delay_j / period) periods later
 (0 before the first command is old enough), exactly as :func:`flex_model.simulate.simulate`
 with a ``policy`` and ``method='fixed'`` does. The whole loop is compiled (numba), calling
@@ -28,40 +29,50 @@ DEFAULT_STEP = 1e-3
 
 @njit(cache=True)
 def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff, bias,
-                 delay, out_stride):
-    """Run n_periods control periods of per_period steps; return the states and applied
-    actuator torques every out_stride steps, and a status (0 ok, 1 diverged, 2 Newton)."""
+                 delay, sdelay, out_stride):
+    """Run n_periods control periods of per_period steps; return the states every
+    out_stride steps, the commands at the n_periods + 1 instants (the last one at the
+    final state) and a status (0 ok, 1 diverged, 2 Newton failed)."""
     nx = x0.shape[0]
     n = nx // 2
     nj = Kp.shape[0]
+    nc = C.shape[0]
     n_steps = n_periods * per_period
     n_out = n_steps // out_stride + 1
     X = np.full((n_out, nx), np.nan)
-    TAU = np.full((n_out, nj), np.nan)
-    cmd = np.zeros((n_periods, nj))
+    cmd = np.zeros((n_periods + 1, nj))
+    Y = np.zeros((n_periods + 1, nc))
+    YD = np.zeros((n_periods + 1, nc))
     u = E[8]
     x = x0.copy()
     X[0] = x
-    for k in range(n_periods):
-        t = k * per_period * h
-        y = C @ x[:n] + bias
-        cmd[k] = ff[k] + Kp @ (ref[k] - y) - Kd @ (C @ x[n:])
+    for k in range(n_periods + 1):
+        Y[k] = C @ x[:n] + bias
+        YD[k] = C @ x[n:]
+        y = np.empty(nc)
+        yd = np.empty(nc)
+        for c in range(nc):
+            kk = max(k - sdelay[c], 0)
+            y[c] = Y[kk, c]
+            yd[c] = YD[kk, c]
+        cmd[k] = ff[min(k, ff.shape[0] - 1)] + Kp @ (ref[min(k, ref.shape[0] - 1)] - y) \
+            - Kd @ yd
+        if k == n_periods:
+            break
         for j in range(nj):
             u[j] = cmd[k - delay[j], j] if k >= delay[j] else 0.0
-        if k == 0:
-            TAU[0] = joint_torques(t, x[:n], x[n:], E)
+        t = k * per_period * h
         a = consistent_acceleration(t, x, P, E)
         Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
             t, x, a, a.copy(), h, per_period, 1, rho_inf, 1e-10, 1e6, P, E)
         if status != 0:
-            return X, TAU, status, t_stop
+            return X, cmd, status, t_stop
         for s in range(1, per_period + 1):
             g = k * per_period + s
             if g % out_stride == 0:
                 X[g // out_stride] = Xs[s]
-                TAU[g // out_stride] = joint_torques(t + s * h, Xs[s, :n], Xs[s, n:], E)
         x = x_stop
-    return X, TAU, 0, n_steps * h
+    return X, cmd, 0, n_steps * h
 
 
 @dataclass
@@ -108,12 +119,14 @@ def _delay_periods(model: FlexArmModel, period: float) -> np.ndarray:
 def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription, x0,
                          t_final: float, qset_at_instants, ff_at_instants, *,
                          sample_period: float, dt: float = DEFAULT_STEP, rho_inf: float = 0.9,
-                         sensor_bias=None):
-    """(X, TAU) every ``sample_period`` over [0, t_final]: the arm under the sampled law.
+                         sensor_bias=None, sensor_delay=None):
+    """(X, CMD) every ``sample_period`` over [0, t_final]: the states of the arm under the
+    sampled law and the command issued at the latest control instant.
 
-    ``qset_at_instants``/``ff_at_instants``: (n_periods, n_joints) reference and
-    feed-forward at the control instants k * period; ``sensor_bias`` is added to the
-    controller's channels (an encoder bias the twin's controller also sees).
+    ``qset_at_instants``/``ff_at_instants``: (n_periods + 1, n_joints) reference and
+    feed-forward at the control instants k * period; ``sensor_bias`` (per controller
+    channel) is added to what the controller reads, ``sensor_delay`` (per channel, whole
+    control periods) delays it (the first reading before the record starts).
     """
     period = controller.period
     per_period = max(1, int(np.ceil(period / dt - 1e-9)))
@@ -125,18 +138,21 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
     n_periods = int(round(t_final / period))
     E = _input_data(model, None, (), np.zeros(model.n_links))
     C = controller.channel_matrix(model)
-    ref = controller.reference(qset_at_instants[:n_periods])
-    bias = np.zeros(len(controller.channels)) if sensor_bias is None else \
-        np.asarray(sensor_bias, float)
-    X, TAU, status, t_stop = _closed_loop(
+    nc = len(controller.channels)
+    ref = controller.reference(qset_at_instants[:n_periods + 1])
+    bias = np.zeros(nc) if sensor_bias is None else np.asarray(sensor_bias, float)
+    sdelay = np.zeros(nc, np.int64) if sensor_delay is None else \
+        np.asarray(sensor_delay, np.int64)
+    X, cmd, status, t_stop = _closed_loop(
         np.asarray(x0, float), model.P, E, h, per_period, n_periods, rho_inf, C,
         np.ascontiguousarray(controller.gains), np.ascontiguousarray(controller.rate_gains),
-        np.ascontiguousarray(ref), np.ascontiguousarray(ff_at_instants[:n_periods]), bias,
-        _delay_periods(model, period), stride)
+        np.ascontiguousarray(ref), np.ascontiguousarray(ff_at_instants[:n_periods + 1]),
+        bias, _delay_periods(model, period), sdelay, stride)
     if status != 0:
         raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
                                       f"(status {status}: diverged or Newton failed)")
-    return X, TAU
+    k = np.floor(np.arange(len(X)) * sample_period / period + 1e-9).astype(int)
+    return X, cmd[np.minimum(k, n_periods)]
 
 
 def _held(t_rec, values, instants):
@@ -147,7 +163,7 @@ def _held(t_rec, values, instants):
 
 def predict(model: FlexArmModel, x: np.ndarray, tau: np.ndarray, t: np.ndarray,
             want) -> Prediction:
-    """The channels ``want`` of states x (n, 2 nq) and torques tau (n, n_joints)."""
+    """The channels ``want`` of states x (n, 2 nq) and commands tau (n, n_joints)."""
     nq = model.nq
     q, v = x[:, :nq], x[:, nq:]
     ch = {}
@@ -165,18 +181,18 @@ def predict(model: FlexArmModel, x: np.ndarray, tau: np.ndarray, t: np.ndarray,
 
 def replay(model: FlexArmModel, controller: ControllerDescription, rec, *,
            nominal_model: FlexArmModel | None = None, dt: float = DEFAULT_STEP,
-           sensor_bias=None, ff=None, x0=None) -> Prediction:
+           sensor_bias=None, sensor_delay=None, ff=None, x0=None) -> Prediction:
     """Replay the Recording ``rec`` in closed loop through ``model``.
 
     The reference is the recorded ``qset`` (held at the control instants); the gravity
     feed-forward uses ``nominal_model`` (the controller's model; default ``model``), or
-    pass ``ff`` (n_periods, n_joints) precomputed. The twin starts at the measured joint
+    pass ``ff`` (n_periods + 1, n_joints) precomputed. The twin starts at the measured joint
     angles and rates of the first sample with its links in static equilibrium.
     """
     period = controller.period
     t_rel = rec.t - rec.t[0]
     t_final = t_rel[-1]
-    instants = np.arange(int(round(t_final / period))) * period
+    instants = np.arange(int(round(t_final / period)) + 1) * period
     qset = _held(t_rel, rec.stack("qset"), instants)
     if ff is None:
         recorded = _held(t_rel, rec.stack("tau_ff"), instants) \
@@ -185,7 +201,8 @@ def replay(model: FlexArmModel, controller: ControllerDescription, rec, *,
     if x0 is None:
         x0 = initial_state(model, *measured_start(rec))
     X, TAU = simulate_closed_loop(model, controller, x0, t_final, qset, ff,
-                                  sample_period=rec.dt, dt=dt, sensor_bias=sensor_bias)
+                                  sample_period=rec.dt, dt=dt, sensor_bias=sensor_bias,
+                                  sensor_delay=sensor_delay)
     n = min(len(X), len(rec.t))
     return predict(model, X[:n], TAU[:n], rec.t[:n], rec.residual_channels)
 
