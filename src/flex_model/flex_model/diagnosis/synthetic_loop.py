@@ -9,9 +9,10 @@ The controller reads the measured joint angles and rates at its instants (every
 the ``law: pd`` of :mod:`flex_model.diagnosis.controller` with ``feedforward: gravity``
 (the gravity torque of the *nominal*, undeformed arm at the reference), q_k and v_k the
 measured actuator coordinates (the link-side joint angle, or the motor angle / n of an
-elastic joint: the encoder sits on the motor) and their rates. The drives add process noise (torque ripple) to the command;
-the arm's ``actuator_delay`` and ``torque_saturation`` effects act on what arrives. The
-recording holds the measured channels and the command, never the true state.
+elastic joint: the encoder sits on the motor) and their rates. The drives add process
+noise (torque ripple) to the command; the arm's ``actuator_delay`` and
+``torque_saturation`` effects act on what arrives. The recording holds the measured
+channels and the command, never the true state.
 """
 from __future__ import annotations
 

@@ -30,7 +30,8 @@ def reference(rng: np.random.Generator, duration: float, rate: float,
     """(t, qset): a joint reference (rad) at ``rate`` Hz over ``duration`` s.
 
     Starts with a hold of 0.5-1 s at a random pose, then a random sequence of moves by up
-    to 0.8 rad per joint (1.5-3 s, or slow ones of 3.5-5 s), holds (0.4-1.5 s) and
+    to 0.8 rad per joint (1.5-3 s, or slow ones of 3.5-5 s), jogs (0.3-0.5 s moves by up
+    to 0.15 rad and a 1.5 s hold: the arm rings out), holds (0.5-3 s) and
     reversals (1-2 cycles of a sine of 0.2-0.5 Hz and 0.1-0.3 rad per joint). Every joint
     stays in ``workspace``. The arm's first flexible mode is near 1 Hz: faster moves
     than these leave tracking errors of tenths of a radian with a joint PD.
@@ -44,18 +45,22 @@ def reference(rng: np.random.Generator, duration: float, rate: float,
     pose = lo + (hi - lo) * rng.uniform(0.25, 0.75, nj)
     k = int(round(rng.uniform(0.5, 1.0) * rate))
     qset[:k] = pose
-    kinds = ("move", "move", "slow_move", "hold", "reversal")
+    kinds = ("move", "move", "slow_move", "hold", "reversal", "jog")
     while k < n:
         kind = kinds[rng.integers(len(kinds))]
         if kind == "hold":
-            m = int(round(rng.uniform(0.4, 1.5) * rate))
+            m = int(round(rng.uniform(0.5, 3.0) * rate))
             seg = np.broadcast_to(pose, (m, nj))
-        elif kind in ("move", "slow_move"):
-            T = rng.uniform(1.5, 3.0) if kind == "move" else rng.uniform(3.5, 5.0)
+        elif kind in ("move", "slow_move", "jog"):
+            T, step = {"move": (rng.uniform(1.5, 3.0), 0.8), "jog": (rng.uniform(0.3, 0.5), 0.15),
+                       "slow_move": (rng.uniform(3.5, 5.0), 0.8)}[kind]
             m = int(round(T * rate))
-            target = np.clip(pose + rng.uniform(-0.8, 0.8, nj), lo, hi)
+            target = np.clip(pose + rng.uniform(-step, step, nj), lo, hi)
             s = _quintic(np.arange(1, m + 1) / m)[:, None]
             seg = pose + s * (target - pose)
+            if kind == "jog":  # a quick small move and a hold to watch the arm ring out
+                seg = np.vstack([seg, np.broadcast_to(target, (int(1.5 * rate), nj))])
+                m = len(seg)
         else:
             f = rng.uniform(0.2, 0.5)
             cycles = int(rng.integers(1, 3))
