@@ -21,10 +21,9 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-import numpy as np
-
 from flex_model.diagnosis.synthetic import CASE_KINDS, parse_kind
 from flex_model.diagnosis.synthetic_scoring import DEFAULT_TWO, report, run_one, summarise
+
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -38,18 +37,28 @@ def main(argv=None) -> int:
     ap.add_argument("--seed0", type=int, default=1000)
     ap.add_argument("--no-materiality", action="store_true",
                     help="skip the healthy twin run that measures materiality")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the runs of DIR/results.json and run only the missing ones")
+    ap.add_argument("--summary-only", action="store_true",
+                    help="summarise DIR/results.json without running anything")
     args = ap.parse_args(argv)
     kinds = args.cases or list(CASE_KINDS) + list(DEFAULT_TWO)
     for k in kinds:
         parse_kind(k)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    jobs = [(k, args.seed0 + s) for s in range(args.runs) for k in kinds]
     results = []
+    if args.resume or args.summary_only:
+        done = out / "results.json"
+        results = json.loads(done.read_text()) if done.exists() else []
+    have = {(r["kind"], r["seed"]) for r in results}
+    jobs = [(k, args.seed0 + s) for s in range(args.runs) for k in kinds
+            if (k, args.seed0 + s) not in have and not args.summary_only]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
         futs = {pool.submit(run_one, k, s, str(out), args.noise, not args.no_materiality):
                 (k, s) for k, s in jobs}
+        # submitted seed by seed: every kind gets its first runs before any its later ones
         for i, fut in enumerate(as_completed(futs), start=1):
             r = fut.result()
             results.append(r)

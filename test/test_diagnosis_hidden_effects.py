@@ -43,7 +43,7 @@ def healthy_start(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def healthy_noisy(tmp_path_factory):
-    return generate_case("healthy", SEED, tmp_path_factory.mktemp("noisy"), duration=10.0)
+    return generate_case("healthy", SEED, tmp_path_factory.mktemp("noisy"), duration=6.0)
 
 
 def _hold_ends(qset, min_hold):
@@ -107,7 +107,7 @@ def test_recorded_noise_matches_the_noise_model(healthy_noisy):
     dv = _cols(rec, "v") - rec.true["joint_rates"]
     nq, nv = model["q"], model["v"]
     sq = np.sqrt(nq["white"] ** 2 + nq["coloured"] ** 2 + nq["resolution"] ** 2 / 12)
-    # AR(1) with a 0.1 s correlation time: ~100 independent values in 10 s, 10 % on its std
+    # AR(1) with a 0.1 s correlation time: ~60 independent values in 6 s, 10 % on its std
     assert np.std(dq) == pytest.approx(sq, rel=0.15)
     assert np.std(dv) == pytest.approx(np.hypot(nv["white"], nv["coloured"]), rel=0.1)
     assert np.max(np.abs(dq)) < 8 * sq

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .synthetic import CASE_KINDS, CONTROLLER, NOMINAL_PAYLOAD, generate_case, parse_kind
+from .synthetic import (CASE_KINDS, CONTROLLER, NOMINAL_E, NOMINAL_PAYLOAD, generate_case,
+                        parse_kind)
 
 DEFAULT_TWO = ("two:payload+joint_friction", "two:sensor_bias+joint_elasticity",
                "two:gear+torque_saturation", "two:stiffness+actuator_delay")
@@ -72,6 +73,21 @@ def _same_target(named: dict, hidden: dict) -> bool:
     return not (named["target"] and hidden["target"]) or named["target"] == hidden["target"]
 
 
+def _fitted_value(kind: str, name: str, fitted: dict):
+    """The engine's fitted value of a truth parameter, in the truth's terms: a payload is
+    fitted as the mass added to the nominal tool, a stiffness as the relative change of
+    the nominal E, a delay is known to whole controller periods (the replay applies
+    ceil(delay / period) periods; the engine reports the middle of that interval)."""
+    if kind == "payload" and "mass" in fitted:
+        return NOMINAL_PAYLOAD + fitted["mass"]
+    if kind == "stiffness" and "relative_change" in fitted:
+        return NOMINAL_E * (1.0 + fitted["relative_change"])
+    if name == "delay" and "delay" in fitted:
+        period = CONTROLLER["period"]
+        return np.ceil(fitted["delay"] / period - 1e-9) * period
+    return fitted.get(name)
+
+
 def score(truth: dict, verdict: str, named: list, J: dict) -> dict:
     """Score one diagnosis: named decisions in class, right effect, verdicts, parameters."""
     hidden = [h for h in truth["hidden"] if h["kind"] != "cogging"]
@@ -87,12 +103,10 @@ def score(truth: dict, verdict: str, named: list, J: dict) -> dict:
         for n in named:
             if n["kind"] != h["kind"] or not _same_target(n, h):
                 continue
-            for p in h["key_parameters"]:
-                if p in n["parameters"] and h["parameters"].get(p):
-                    fitted = n["parameters"][p]
-                    if h["kind"] == "payload":   # the engine fits the mass added to nominal
-                        fitted = fitted + NOMINAL_PAYLOAD
-                    errors.append(abs(fitted - h["parameters"][p]) / abs(h["parameters"][p]))
+            for p, truth_value in h["parameters"].items():
+                fitted = _fitted_value(h["kind"], p, n["parameters"])
+                if p in h["key_parameters"] and fitted is not None and truth_value:
+                    errors.append(abs(fitted - truth_value) / abs(truth_value))
     red = None
     if J and "nominal_holdout" in J and "final_holdout" in J:
         ex0 = J["nominal_holdout"] - 1.0
