@@ -57,8 +57,9 @@ def cmd_diagnose(args) -> int:
     if args.json:
         print(json.dumps(s, indent=1, default=float))
     else:
-        named = ", ".join(f"{c['label']} ({', '.join(f'{k} {v:.4g}' for k, v in c['parameters'].items())})"
-                          for c in s["named"]) or "-"
+        named = ", ".join(
+            c["label"] + " (" + ", ".join(f"{k} {v:.4g}" for k, v in c["parameters"].items())
+            + ")" for c in s["named"]) or "-"
         print(f"verdict: {d.verdict}; named: {named}; held-out error reduced by "
               f"{100 * s['holdout_error_reduction']:.1f} %; report {args.out}/report.md",
               file=sys.stdout)

@@ -6,8 +6,9 @@
    held-out data (J in units of the noise power, :mod:`.evaluation`) exceeds ``gate``
    (practical significance: the model error power as a fraction of the noise power,
    calibrated on healthy runs; :data:`DEFAULT_GATE`).
-3. Screen every hypothesis with one probe replay per parameter: the cost reduction of the
-   linearized joint fit with the baseline (columns J_b and the probe's finite difference).
+3. Screen every hypothesis with one probe replay per parameter (or per declared probe
+   point): the cost reduction of the linearized joint fit with the baseline (columns J_b
+   and the probes' differences), or the best probe's cost for on/off effects.
 4. Fit the ``top`` screened candidates jointly with the baseline, evaluate each on the
    held-out recording; rank by the share of the held-out excess error explained; an
    information criterion (BIC on the fit data) is necessary, parsimony decides near-ties
@@ -25,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .baseline import baseline_parameters
-from .evaluation import Context, cost, default_executor, evaluate
+from .evaluation import Context, cost, default_executor, evaluate, twin_arm
 from .fitting import confidence_intervals, fit_baseline, fit_task
 from .hypotheses import library_hypotheses
 from .localise import effective_samples, localise
@@ -43,9 +44,10 @@ class Candidate:
     label: str
     kind: str
     target: str
-    names: tuple
+    names: tuple            # the parameters as the updated arm states them
     values: list
-    ci: list
+    ci: list                # half-widths of the 95 % intervals
+    x: list                 # the fitted (scaled) parameters of the hypothesis
     screen: float
     J_fit: float
     J_holdout: float
@@ -74,41 +76,49 @@ class Diagnosis:
     baseline_scales: np.ndarray = None
 
 
-def _progress(msg, on):
+def _progress(msg, on, t_start):
     if on:
         import sys
-        print(f"[diagnose] {msg}", file=sys.stderr, flush=True)
+        print(f"[diagnose {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr,
+              flush=True)
 
 
 def _screen(executor, ctx, hyps, base, Jb):
-    """Linearized cost reduction per hypothesis (one probe replay per parameter)."""
+    """Cost reduction per hypothesis from its probe replays: the linearized joint fit with
+    the baseline (columns J_b and the probes' differences), or for strongly nonlinear
+    effects (``linear=False``) the best probe's own cost. Returns (scores, start points)."""
     specs, owners = [], []
     for h in hyps:
-        off = h.off()
-        for k in range(len(h.names)):
-            x = off.copy()
-            x[k] = h.probe[k]
-            specs.append((ctx, base.scales, base.effects + [(h, x)]))
-            owners.append((h, k, x[k] - off[k]))
+        for p in h.probes:
+            specs.append((ctx, base.scales, base.effects + [(h, np.array(p, float))]))
+            owners.append((h, np.array(p, float)))
     outs = list(executor.map(evaluate, specs))
-    cols = {}
-    direct = {}
-    for (h, k, dx), r in zip(owners, outs):
+    cols, direct = {}, {}
+    for (h, x), r in zip(owners, outs):
         if r is None:
             continue
-        cols.setdefault(h.label, []).append((r - base.r) / dx)
-        direct[h.label] = min(direct.get(h.label, np.inf), cost(r))
+        cols.setdefault(h.label, []).append((x, r - base.r))
+        if cost(r) < direct.get(h.label, (np.inf, None))[0]:
+            direct[h.label] = (cost(r), x)
     scores, starts = {}, {}
     for h in hyps:
-        if h.label not in cols or len(cols[h.label]) < len(h.names):
+        if h.label not in direct:
             scores[h.label] = 0.0
             continue
-        A = np.column_stack([Jb] + cols[h.label])
+        best, x_best = direct[h.label]
+        scores[h.label] = base.J - best
+        starts[h.label] = x_best
+        if not h.linear or len(cols[h.label]) < len(h.probes):
+            continue
+        A = np.column_stack([Jb] + [d for _, d in cols[h.label]])
         sol, *_ = np.linalg.lstsq(A, -base.r, rcond=None)
         lin = cost(base.r + A @ sol)
-        scores[h.label] = base.J - min(lin, direct[h.label])
-        x = h.off() + sol[Jb.shape[1]:]
-        starts[h.label] = np.clip(x, h.lower, h.upper)
+        if base.J - lin > scores[h.label]:
+            scores[h.label] = base.J - lin
+            off = h.off()
+            x = off + sum(c * (xp - off) for c, (xp, _) in
+                          zip(sol[Jb.shape[1]:], cols[h.label]))
+            starts[h.label] = np.clip(x, h.lower, h.upper)
     return scores, starts
 
 
@@ -120,18 +130,21 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
              gate: float = DEFAULT_GATE, top: int = 4, max_effects: int = 3,
              min_share: float = MIN_SHARE, dt: float = 2e-3, progress=False) -> Diagnosis:
     """Diagnose ``fit_rec`` (and ``holdout_rec``; default: the last 40 % of fit_rec as a
-    held-out segment) against the nominal arm under the controller."""
+    held-out segment, replayed from the start of the run and scored on that segment only)
+    against the nominal arm under the controller."""
     t_start = time.perf_counter()
-    if holdout_rec is None:
-        t_cut = fit_rec.t[0] + 0.6 * (fit_rec.t[-1] - fit_rec.t[0])
-        holdout_rec = fit_rec.window(t_cut, fit_rec.t[-1])
-        fit_rec = fit_rec.window(fit_rec.t[0], t_cut)
+    score_from = -np.inf
+    if holdout_rec is None:  # the held-out segment is replayed from the start, scored after
+        score_from = fit_rec.t[0] + 0.6 * (fit_rec.t[-1] - fit_rec.t[0])
+        holdout_rec = fit_rec
+        fit_rec = fit_rec.window(fit_rec.t[0], score_from)
     own = executor is None
     executor = executor or default_executor()
     try:
         params = baseline_parameters(nominal)
         ctx = Context.build(nominal, controller, fit_rec, params, dt=dt)
-        ctx_ho = Context.build(nominal, controller, holdout_rec, params, sigma=ctx.sigma, dt=dt)
+        ctx_ho = Context.build(nominal, controller, holdout_rec, params, sigma=ctx.sigma, dt=dt,
+                               score_from=score_from)
         ones = np.ones(len(params))
         r_nom = evaluate((ctx, ones, []))
         r_nom_ho = evaluate((ctx_ho, ones, []))
@@ -139,14 +152,15 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             raise ValueError("the nominal twin diverges in closed loop on this recording "
                              "(check the controller description)")
         J = {"nominal_fit": cost(r_nom), "nominal_holdout": cost(r_nom_ho)}
-        _progress(f"[{time.perf_counter() - t_start:.1f} s] nominal twin: J = {J['nominal_fit']:.4g} (fit), "
-                  f"{J['nominal_holdout']:.4g} (held out)", progress)
+        _progress(f"nominal twin: J = {J['nominal_fit']:.4g} (fit), "
+                  f"{J['nominal_holdout']:.4g} (held out)", progress, t_start)
         base, Jb = fit_baseline(executor, ctx)
         r_b_ho = evaluate((ctx_ho, base.scales, []))
         J["baseline_fit"], J["baseline_holdout"] = base.J, cost(r_b_ho)
         baseline_scales = base.scales.copy()
-        _progress(f"[{time.perf_counter() - t_start:.1f} s] baseline within tolerance: J = {base.J:.4g} (fit), "
-                  f"{J['baseline_holdout']:.4g} (held out); gate: excess > {gate}", progress)
+        _progress(f"baseline within tolerance: J = {base.J:.4g} (fit), "
+                  f"{J['baseline_holdout']:.4g} (held out); gate: excess > {gate}",
+                  progress, t_start)
         accepted, rounds = [], []
         current, cur_ho = base, J["baseline_holdout"]
         n = len(base.r)
@@ -156,8 +170,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             scores, starts = _screen(executor, ctx, hyps, current, Jb)
             ranked = sorted(hyps, key=lambda h: -scores[h.label])[:top]
             ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
-            _progress(f"[{time.perf_counter() - t_start:.1f} s] screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
-                                                for h in ranked), progress)
+            _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
+                                                for h in ranked), progress, t_start)
             n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
             cands = []
             fits = {}
@@ -170,9 +184,12 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 off = h.off()
                 excl = bool(np.any(np.abs(x - off) > half)) if half is not None else False
                 share = (cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)
-                c = Candidate(label=h.label, kind=h.kind, target=h.target, names=h.names,
-                              values=list(h.values(x)), ci=list(h.values(half)) if
-                              half is not None else [np.inf] * len(x),
+                names, values, ci = h.physical(
+                    h.values(x), h.value_halfwidths(x, half) if half is not None
+                    else [np.inf] * len(x), twin_arm(ctx, fit.scales, fit.effects))
+                c = Candidate(label=h.label, kind=h.kind, target=h.target, names=names,
+                              values=[float(v) for v in values],
+                              ci=[float(e) for e in ci], x=list(map(float, x)),
                               screen=scores[h.label], J_fit=fit.J, J_holdout=J_ho,
                               share=float(share),
                               delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))),
@@ -180,8 +197,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                               n_params=len(x))
                 cands.append(c)
                 fits[h.label] = (fit, J_ho)
-                _progress(f"  [{time.perf_counter() - t_start:.1f} s] {h.label}: share {share:.3f}, J_ho {J_ho:.4g}, values "
-                          f"{np.round(c.values, 6).tolist()}", progress)
+                _progress(f"  {h.label}: share {share:.3f}, J_ho {J_ho:.4g}, values "
+                          f"{np.round(c.values, 6).tolist()}", progress, t_start)
             ok = [c for c in cands if c.delta_bic < 0 and c.identifiable
                   and c.share >= min_share]
             ok.sort(key=lambda c: -c.share)
@@ -212,8 +229,6 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
         else:
             verdict = "named"
         loc = localise(ctx_ho, current.scales, current.effects) if remaining else {}
-        final_arm = None
-        from .evaluation import twin_arm
         final_arm = twin_arm(ctx, current.scales, current.effects)
     finally:
         if own and hasattr(executor, "shutdown"):

@@ -85,9 +85,11 @@ class Context:
     ff: np.ndarray          # feed-forward at the control instants (the nominal model's)
     baseline_params: list
     dt: float = 2e-3
+    score_from: float = -np.inf   # residuals count from this time on (a held-out segment)
 
     @classmethod
-    def build(cls, nominal, controller, rec, baseline_params, sigma=None, dt=2e-3):
+    def build(cls, nominal, controller, rec, baseline_params, sigma=None, dt=2e-3,
+              score_from=-np.inf):
         model = FlexArmModel(nominal)
         period = controller.period
         t_rel = rec.t - rec.t[0]
@@ -97,7 +99,7 @@ class Context:
             if controller.feedforward_mode == "recorded" else None
         ff = controller.feedforward(model, qset, recorded)
         return cls(nominal, controller, rec, sigma or noise_levels(rec), ff,
-                   list(baseline_params), dt)
+                   list(baseline_params), dt, score_from)
 
 
 def twin_arm(ctx: Context, scales, effects=()) -> ArmDescription:
@@ -151,7 +153,8 @@ def residual_vector(ctx: Context, arm: ArmDescription) -> np.ndarray:
     pred = predict_channels(ctx, arm)
     rec = ctx.rec
     n = len(pred.t)
-    return np.concatenate([(rec.channels[c][:n] - pred.channels[c]) / ctx.sigma[c]
+    k0 = int(np.searchsorted(pred.t, ctx.score_from - 1e-9))
+    return np.concatenate([(rec.channels[c][k0:n] - pred.channels[c][k0:]) / ctx.sigma[c]
                            for c in rec.residual_channels])
 
 

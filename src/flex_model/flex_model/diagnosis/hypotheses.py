@@ -10,16 +10,18 @@ or a stated fixed value:
 ==================== ========================================= ===========================
 hypothesis           free parameters                           fixed
 ==================== ========================================= ===========================
-joint_friction       viscous, coulomb                          static = coulomb,
+joint_friction       viscous, coulomb, static - coulomb        Stribeck velocity 0.05 rad/s,
                                                                regularization 1e-3 rad/s
 gear                 rotor_inertia (ratio of the nominal, or 1)
-joint_elasticity     stiffness, damping                        motor_inertia 1e-3 kg m^2
+joint_elasticity     stiffness (fitted as a compliance),       motor_inertia 1e-3 kg m^2
+                     damping                                   (+ the gear's rotor)
 backlash             half_width, stiffness (of its spring)     damping 0, smoothing 1e-4
 torque_saturation    limit
 actuator_delay       delay (quantized to the control period)
-structural_damping   rayleigh_mass, rayleigh_stiffness
+structural_damping   rayleigh_stiffness                        (internal friction: same
+                                                               class)
 base_tilt            angle
-contact_surface      y (floor height), stiffness               x 0, normal up, damping 0
+contact_surface      y (floor height), stiffness, damping      x 0, normal up
 payload              mass (arm field, not an effect)
 sensor_bias          bias of the joint encoder (seen by the controller too)
 sensor_delay         delay of the joint encoder and rate (whole control periods)
@@ -41,6 +43,7 @@ from ..effects import EFFECT_TYPES
 from ..sensors import Sensor
 
 FRICTION_EPS = 1e-3
+STRIBECK_VELOCITY = 0.05
 MOTOR_INERTIA = 1e-3
 BACKLASH_SMOOTHING = 1e-4
 
@@ -56,8 +59,10 @@ class Hypothesis:
     lower: tuple          # bounds of x (scaled)
     upper: tuple
     starts: tuple         # start points of x (multi-start where non-convex)
-    probe: tuple          # x of the screening probe
-    discrete: bool = False  # actuator delay: x in whole control periods
+    probes: tuple         # x of the screening probes
+    discrete: bool = False  # delays: x in whole control periods
+    linear: bool = True   # screening by the linearized fit (else: the best probe's cost)
+    inverse: tuple = ()   # per parameter: value = scale / x (a compliance; x = 0: rigid)
 
     @property
     def label(self) -> str:
@@ -75,17 +80,38 @@ class Hypothesis:
         return list(cls.EQUIVALENT) if cls else []
 
     def values(self, x) -> np.ndarray:
-        return np.asarray(x, float) * np.asarray(self.scale)
+        v = np.asarray(x, float) * np.asarray(self.scale)
+        for k, inv in enumerate(self.inverse):
+            if inv:
+                v[k] = self.scale[k] / x[k] if x[k] > 0 else np.inf
+        return v
+
+    def value_halfwidths(self, x, half) -> np.ndarray:
+        """Half-widths of the parameter intervals for half-widths ``half`` of x."""
+        w = np.abs(np.asarray(half, float) * np.asarray(self.scale))
+        for k, inv in enumerate(self.inverse):
+            if inv:
+                w[k] = self.scale[k] * half[k] / max(x[k], 1e-300) ** 2
+        return w
 
     def off(self) -> np.ndarray:
         """x of the "off" value (no effect)."""
         if self.kind == "torque_saturation":
             return np.array(self.upper, float)
-        if self.kind == "joint_elasticity":
-            return np.array([self.upper[0], 0.0])
-        if self.kind == "backlash":
-            return np.array([0.0, self.upper[1]])
         return np.zeros(len(self.names))
+
+    def physical(self, values, halfwidths, twin) -> tuple[tuple, list, list]:
+        """(names, values, half-widths) as the updated arm states them: friction's
+        break-away torque ``static`` (coulomb + excess), a link's Young's modulus ``E``."""
+        v, w = list(values), list(halfwidths)
+        if self.kind == "joint_friction":
+            return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
+                [w[0], w[1], float(np.hypot(w[1], w[2]))]
+        if self.kind == "stiffness":
+            lk = next(lk for lk in twin.links if lk.name == self.target)
+            E = lk.segments[0].E
+            return ("E",), [E], [E * w[0] / max(1.0 + v[0], 1e-9)]
+        return self.names, v, w
 
     def apply(self, arm, x):
         """(arm with the effect, sensors bias vector or None)."""
@@ -106,14 +132,19 @@ class Hypothesis:
                 dataclasses.replace(sg, E=sg.E * (1.0 + v[0])) for sg in links[i].segments))
             return dataclasses.replace(arm, links=tuple(links)), None
         if k == "joint_friction":
-            eff = (E[k](self.target, (v[0], v[1], v[1], 0.01, FRICTION_EPS)),)
+            eff = (E[k](self.target, (v[0], v[1], v[1] + v[2], STRIBECK_VELOCITY,
+                                      FRICTION_EPS)),)
         elif k == "gear":
             old = arm.effect("gear", self.target)
             ratio = old["ratio"] if old else 1.0
             eff = (E[k](self.target, (ratio, v[0])),)
         elif k == "joint_elasticity":
+            if not np.isfinite(v[0]):
+                return arm, None
             eff = (E[k](self.target, (v[0], v[1], MOTOR_INERTIA)),)
         elif k == "backlash":
+            if not np.isfinite(v[1]):
+                return arm, None
             eff = (E["joint_elasticity"](self.target, (v[1], 0.0, MOTOR_INERTIA)),
                    E[k](self.target, (v[0], BACKLASH_SMOOTHING)))
         elif k == "torque_saturation":
@@ -121,11 +152,11 @@ class Hypothesis:
         elif k == "actuator_delay":
             eff = (E[k](self.target, (v[0],)),)
         elif k == "structural_damping":
-            eff = (E[k](self.target, (0.0, v[0], v[1])),)
+            eff = (E[k](self.target, (0.0, 0.0, v[0])),)
         elif k == "base_tilt":
             eff = (E[k]("", (v[0],)),)
         elif k == "contact_surface":
-            eff = (E[k]("", (0.0, v[0], np.pi / 2, v[1], 0.0)),)
+            eff = (E[k]("", (0.0, v[0], np.pi / 2, v[1], v[2])),)
         else:
             raise ValueError(f"unknown hypothesis {k}")
         return arm.with_effects(*eff), None
@@ -154,10 +185,19 @@ class Hypothesis:
         return out
 
 
-def _h(kind, target, names, scale, lower, upper, starts, probe, discrete=False):
+def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None,
+       discrete=False, linear=True, inverse=()):
+    """A hypothesis; ``probe`` (one value per parameter) gives one probe per parameter
+    from the off value, ``probes`` lists whole probe points."""
+    if probes is None:
+        probes = []
+        for k, p in enumerate(probe):
+            x = [0.0] * len(names)
+            x[k] = p
+            probes.append(x)
     return Hypothesis(kind, target, tuple(names), tuple(float(s) for s in scale),
                       tuple(lower), tuple(upper), tuple(tuple(s) for s in starts),
-                      tuple(probe), discrete)
+                      tuple(tuple(p) for p in probes), discrete, linear, tuple(inverse))
 
 
 def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
@@ -171,35 +211,41 @@ def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
         trms = max(float(np.sqrt(np.mean(taus[:, j] ** 2))), 1e-3)
         wrms = max(float(np.sqrt(np.mean(rates[:, j] ** 2))), 1e-3)
         rotor = arm.effect("gear", name)
-        k_ref = max(trms, 1.0) / 1e-3          # 1 mrad of twist at the rms torque
+        k_ref = max(trms, 1.0) / 5e-3          # 5 mrad of twist at the rms torque
         out += [
-            _h("joint_friction", name, ("viscous", "coulomb"), (0.1 * trms / wrms,
-               0.1 * trms), (0, 0), (50, 20), [(1.0, 1.0)], (1.0, 1.0)),
+            _h("joint_friction", name, ("viscous", "coulomb", "static_excess"),
+               (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms), (0, 0, 0), (50, 20, 20),
+               [(1.0, 1.0, 0.3)], (1.0, 1.0, 1.0)),
             _h("gear", name, ("rotor_inertia",),
                ((rotor["rotor_inertia"] if rotor and rotor["rotor_inertia"] else 0.1),),
-               (0.2,), (20,), [(1.0,)], (1.5,)),
-            _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 1e-3),
-               (1e-3, 0), (1e3, 100), [(1.0, 1.0), (0.05, 1.0)], (1.0, 1.0)),
-            _h("backlash", name, ("half_width", "stiffness"), (1e-3, 10 * k_ref),
-               (0, 1e-3), (100, 100), [(1.0, 1.0), (5.0, 1.0)], (1.0, 1.0)),
+               (0.2,), (20,), [(1.0,)], probes=[(1.5,)], linear=False),
+            _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 5e-3),
+               (0, 0), (1e3, 100), [(1.0, 1.0), (5.0, 1.0)], probes=[(1.0, 0.0), (1.0, 1.0)],
+               inverse=(True, False)),
+            _h("backlash", name, ("half_width", "stiffness"), (1e-3, 5 * k_ref),
+               (0, 0), (100, 100), [(2.0, 1.0), (5.0, 1.0)],
+               probes=[(2.0, 1.0), (5.0, 1.0)], linear=False, inverse=(False, True)),
             _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
-               [(0.9,), (0.6,)], (0.8,)),
+               [(0.9,), (0.7,)], probes=[(0.9,), (0.7,)], linear=False),
             _h("actuator_delay", name, ("delay",), (controller.period,), (0,), (25,),
-               [(1.0,)], (1.0,), discrete=True),
+               [(1.0,)], (2.0,), discrete=True),
             _h("sensor_bias", name, ("bias",), (1e-3,), (-100,), (100,), [(0.0,)], (1.0,)),
             _h("sensor_delay", name, ("delay",), (controller.period,), (0,), (25,),
-               [(1.0,)], (1.0,), discrete=True),
+               [(1.0,)], (2.0,), discrete=True),
         ]
     for lk in arm.links:
         out.append(_h("stiffness", lk.name, ("relative_change",), (0.1,), (-7,), (20,),
                       [(0.0,)], (1.0,)))
-        out.append(_h("structural_damping", lk.name, ("rayleigh_mass", "rayleigh_stiffness"),
-                      (0.1, 1e-3), (0, 0), (100, 100), [(1.0, 1.0)], (1.0, 1.0)))
+        out.append(_h("structural_damping", lk.name, ("rayleigh_stiffness",), (1e-2,),
+                      (0,), (100,), [(1.0,)], (1.0,)))
     out.append(_h("base_tilt", "", ("angle",), (0.01,), (-20,), (20,), [(0.0,)], (1.0,)))
-    out.append(_h("payload", "", ("mass",), (0.1,), (0,), (100,), [(1.0,)], (1.0,)))
+    out.append(_h("payload", "", ("mass",), (0.1,), (-arm.payload_mass / 0.1,), (100,),
+                  [(0.0,)], (1.0,)))
     if rec.has("tip_y"):
         ymin = float(np.min(rec.channels["tip_y"]))
-        out.append(_h("contact_surface", "", ("y", "stiffness"), (1.0, 1e4),
-                      (ymin - 0.05, 1e-2), (ymin + 0.05, 1e3), [(ymin, 1.0), (ymin, 30.0)],
-                      (ymin + 0.002, 1.0)))
+        out.append(_h("contact_surface", "", ("y", "stiffness", "damping"), (1.0, 1e3, 10.0),
+                      (ymin - 0.02, 0.01, 0.0), (ymin + 0.06, 100, 10),
+                      [(ymin + 0.01, 1.0, 1.0), (ymin + 0.02, 0.3, 1.0)],
+                      probes=[(ymin + 0.01, 1.0, 1.0), (ymin + 0.02, 0.3, 1.0)],
+                      linear=False))
     return [h for h in out if h.label not in exclude]

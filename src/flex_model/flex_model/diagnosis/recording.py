@@ -105,7 +105,7 @@ def load_csv(path, n_joints: int) -> Recording:
     try:
         with open(path, newline="") as stream:
             rows = list(csv.reader(stream))
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise RecordingError(f"{path}: cannot read ({exc})") from None
     rows = [r for r in rows if r and not r[0].startswith("#")]
     if not rows:

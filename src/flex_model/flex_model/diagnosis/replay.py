@@ -19,7 +19,8 @@ import numpy as np
 from numba import njit
 
 from ..dynamics import FlexArmModel
-from ..integrators import consistent_acceleration, generalized_alpha, joint_torques
+from ..integrators import consistent_acceleration, generalized_alpha
+from ..kernels import link_origins
 from ..simulate import SimulationDivergedError, _input_data
 from ..statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
@@ -73,6 +74,15 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
                 X[g // out_stride] = Xs[s]
         x = x_stop
     return X, cmd, 0, n_steps * h
+
+
+@njit(cache=True)
+def _tips(Q, P):
+    """(n, 2): the arm's end for every row of Q (kernels.link_origins)."""
+    out = np.empty((Q.shape[0], 2))
+    for k in range(Q.shape[0]):
+        out[k] = link_origins(Q[k], P)[-1]
+    return out
 
 
 @dataclass
@@ -174,7 +184,7 @@ def predict(model: FlexArmModel, x: np.ndarray, tau: np.ndarray, t: np.ndarray,
         ch[f"tau{i + 1}"] = tau[:, i]
         ch[f"w{i + 1}"] = q[:, model.tip_deflection_index(i)]
     if "tip_x" in want or "tip_y" in want:
-        tips = np.array([model.link_origins(qk)[-1] for qk in q])
+        tips = _tips(np.ascontiguousarray(q), model.P)
         ch["tip_x"], ch["tip_y"] = tips[:, 0], tips[:, 1]
     return Prediction(t=t, channels={k: ch[k] for k in want}, q=q, v=v)
 

@@ -28,8 +28,8 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
     raw = scale_raw(raw, ctx.baseline_params, scales)
     raw["name"] = f"{raw.get('name', 'arm')}_diagnosed"
     for c in diagnosis.accepted:
-        hyp = next(h for h, _ in diagnosis.final_effects if h.label == c.label)
-        for entry in hyp.effect_dicts(ctx.nominal, c.values):
+        hyp, x = next((h, x) for h, x in diagnosis.final_effects if h.label == c.label)
+        for entry in hyp.effect_dicts(ctx.nominal, hyp.values(x)):
             if "sensor" in entry:
                 raw.setdefault("sensors", []).append(entry["sensor"])
             elif "stiffness" in entry:
@@ -158,8 +158,9 @@ def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:
           f"error reduced by {100 * s['holdout_error_reduction']:.1f} % against the nominal "
           "twin.", ""]
     for k, rd in enumerate(s["rounds"]):
+        margin = "-" if rd["margin"] is None else f"{rd['margin']:.3f}"
         md += [f"## Round {k + 1}: picked {rd['picked'] or 'nothing'} (runner-up "
-               f"{rd['runner_up']}, margin {rd['margin'] if rd['margin'] is None else round(rd['margin'], 3)})",
+               f"{rd['runner_up']}, margin in share {margin})",
                "", "| hypothesis | parameters (95 % interval) | screen | share held out | "
                "dBIC | cond | identifiable |", "|---|---|---|---|---|---|---|"]
         for c in rd["candidates"]:
