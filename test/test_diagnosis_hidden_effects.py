@@ -81,6 +81,32 @@ def test_nominal_closed_loop_tracks_and_settles(healthy_quiet):
         assert np.sqrt(np.mean((q - qset) ** 2)) < 0.08            # rad, over the whole run
 
 
+def test_nominal_closed_loop_is_damped_over_the_workspace():
+    """Linearized about the held poses (corners and centre of the workspace): the two
+    lowest closed-loop modes have damping ratios >= 0.15 and >= 0.05 (thesis V.2 figures;
+    the higher link modes keep only what the joints give them, as the links have no
+    structural damping in the nominal)."""
+    from flex_control.closed_loop import closed_loop_matrix, open_loop_jacobian
+    from flex_model.statics import static_equilibrium
+    from flex_model.diagnosis.synthetic_signals import WORKSPACE
+    arm = _model(nominal_arm_dict(), "nominal")
+    ctl = controller_from_dict(controller_description())
+    kp, kd = np.diag(ctl.gains), np.diag(ctl.rate_gains)
+    for a in (WORKSPACE[0][0], -np.pi / 2, WORKSPACE[0][1]):
+        for b in (WORKSPACE[1][0], 0.0, WORKSPACE[1][1]):
+            theta = np.array([a, b])
+            ff = ctl.feedforward(arm, theta)[0]
+            st = static_equilibrium(arm, theta, joints="pd", kp=kp, joint_torques=ff)
+            tau = ff + kp * (theta - arm.G @ st.q)
+            A = closed_loop_matrix(*open_loop_jacobian(arm, st.q, np.zeros(arm.nq), tau),
+                                   arm.G, kp, kd)
+            lam = np.linalg.eigvals(A)
+            assert np.max(lam.real) < 1e-6
+            osc = sorted((l for l in lam if l.imag > 1e-6), key=abs)[:2]
+            zeta = [-l.real / abs(l) for l in osc]
+            assert zeta[0] >= 0.15 and zeta[1] >= 0.05, (theta, zeta)
+
+
 # ------------------------------------------------------------------ noise statistics
 def test_ar1_noise_has_the_asked_std_and_coefficient():
     rng = np.random.default_rng(1)
