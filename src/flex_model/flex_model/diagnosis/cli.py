@@ -21,6 +21,9 @@ def add_diagnose_parser(sub) -> None:
     sp.add_argument("--out", default="runs/diagnosis", help="output directory")
     sp.add_argument("--gate", type=float, default=None,
                     help="materiality gate on the held-out excess cost J - 1")
+    sp.add_argument("--segment", type=float, default=None,
+                    help="multiple shooting for long logs: restart the replay every SEGMENT s "
+                    "from the measured joint state")
     sp.add_argument("--workers", type=int, default=None, help="parallel processes")
     sp.add_argument("--no-plots", action="store_true")
     sp.add_argument("--json", action="store_true", help="print the JSON summary")
@@ -43,13 +46,15 @@ def cmd_diagnose(args) -> int:
                          f"{arm.n_links} in the arm {arm_path}")
     fit = load_recording(args.data, arm.n_links)
     holdout = load_recording(args.holdout, arm.n_links) if args.holdout else None
+    if args.segment is not None and not args.segment > 0:
+        raise ValueError(f"--segment: got {args.segment}; expected a time > 0 s")
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers: got {args.workers}; expected >= 1")
     executor = default_executor(args.workers)
     try:
         d = diagnose(arm, controller, fit, holdout, executor=executor,
                      gate=DEFAULT_GATE if args.gate is None else args.gate,
-                     progress=not args.json)
+                     segment=args.segment, progress=not args.json)
     finally:
         if hasattr(executor, "shutdown"):
             executor.shutdown()

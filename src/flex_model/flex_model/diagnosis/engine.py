@@ -128,10 +128,12 @@ def _bic_delta(J_new, J_old, n, k):
 
 def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
              gate: float = DEFAULT_GATE, top: int = 4, max_effects: int = 3,
-             min_share: float = MIN_SHARE, dt: float = 2e-3, progress=False) -> Diagnosis:
+             min_share: float = MIN_SHARE, dt: float = 2e-3, segment: float | None = None,
+             progress=False) -> Diagnosis:
     """Diagnose ``fit_rec`` (and ``holdout_rec``; default: the last 40 % of fit_rec as a
     held-out segment, replayed from the start of the run and scored on that segment only)
-    against the nominal arm under the controller."""
+    against the nominal arm under the controller. ``segment`` (s): multiple shooting for
+    long logs (:mod:`.evaluation`)."""
     t_start = time.perf_counter()
     score_from = -np.inf
     if holdout_rec is None:  # the held-out segment is replayed from the start, scored after
@@ -142,9 +144,9 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
     executor = executor or default_executor()
     try:
         params = baseline_parameters(nominal)
-        ctx = Context.build(nominal, controller, fit_rec, params, dt=dt)
+        ctx = Context.build(nominal, controller, fit_rec, params, dt=dt, segment=segment)
         ctx_ho = Context.build(nominal, controller, holdout_rec, params, sigma=ctx.sigma, dt=dt,
-                               score_from=score_from)
+                               score_from=score_from, segment=segment)
         ones = np.ones(len(params))
         r_nom = evaluate((ctx, ones, []))
         r_nom_ho = evaluate((ctx_ho, ones, []))

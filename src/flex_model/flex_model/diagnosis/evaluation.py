@@ -14,6 +14,11 @@ J = mean_c mean_k (r_c,k / sigma_eff_c)^2 is about 1 for a healthy unit at the d
 level and the excess J - 1 is the model error in units of that noise power. Another arm or
 controller recalibrates with ``noise_ratios`` (a mapping channel -> kappa).
 
+Long logs: with ``segment`` the replay restarts every ``segment`` seconds from the measured
+joint angles and rates (links in static equilibrium): multiple shooting, the k-step
+prediction of each window, which bounds the drift of a long closed-loop replay and the
+cost of a divergent candidate.
+
 Executor: anything with ``map(fn, iterable)`` returning results in order
 (``concurrent.futures`` executors, ``dask.distributed.Client`` via its
 ``concurrent.futures``-compatible executor, Ray's ``ray.util.multiprocessing.Pool``).
@@ -86,10 +91,11 @@ class Context:
     baseline_params: list
     dt: float = 2e-3
     score_from: float = -np.inf   # residuals count from this time on (a held-out segment)
+    segment: float | None = None  # multiple shooting: restart every `segment` s (long logs)
 
     @classmethod
     def build(cls, nominal, controller, rec, baseline_params, sigma=None, dt=2e-3,
-              score_from=-np.inf):
+              score_from=-np.inf, segment=None):
         model = FlexArmModel(nominal)
         period = controller.period
         t_rel = rec.t - rec.t[0]
@@ -99,7 +105,7 @@ class Context:
             if controller.feedforward_mode == "recorded" else None
         ff = controller.feedforward(model, qset, recorded)
         return cls(nominal, controller, rec, sigma or noise_levels(rec), ff,
-                   list(baseline_params), dt, score_from)
+                   list(baseline_params), dt, score_from, segment)
 
 
 def twin_arm(ctx: Context, scales, effects=()) -> ArmDescription:
@@ -122,6 +128,17 @@ def encoder_faults(arm: ArmDescription) -> tuple[np.ndarray, np.ndarray]:
     return b, d
 
 
+def _segments(ctx: Context) -> list[tuple[int, int]]:
+    """Sample ranges [k0, k1) of the replay: the whole record, or windows of
+    ``ctx.segment`` seconds sharing their boundary sample (multiple shooting)."""
+    n = len(ctx.rec.t)
+    if not ctx.segment or ctx.segment >= ctx.rec.t[-1] - ctx.rec.t[0]:
+        return [(0, n)]
+    per = max(2, int(round(ctx.segment / ctx.rec.dt)))
+    per -= per % max(1, int(round(ctx.controller.period / ctx.rec.dt)))
+    return [(k, min(k + per + 1, n)) for k in range(0, n - 1, per)]
+
+
 def predict_channels(ctx: Context, arm: ArmDescription):
     """The twin's channels on the context's recording. Encoder bias and delay (sensors of
     the arm) act on what the controller reads and on the recorded q<i>, v<i>."""
@@ -132,10 +149,20 @@ def predict_channels(ctx: Context, arm: ArmDescription):
     cbias = np.array([bias[j] if j is not None else 0.0 for j in joint_of])
     periods = np.rint(delay / ctx.controller.period).astype(np.int64)
     cdelay = np.array([periods[j] if j is not None else 0 for j in joint_of], np.int64)
-    q0, v0 = measured_start(rec)
-    x0 = initial_state(model, q0 - bias, v0)
-    pred = replay(model, ctx.controller, rec, ff=ctx.ff, dt=ctx.dt, sensor_bias=cbias,
-                  sensor_delay=cdelay, x0=x0)
+    pred = None
+    for k0, k1 in _segments(ctx):
+        part = rec if (k0, k1) == (0, len(rec.t)) else rec.window(rec.t[k0], rec.t[k1 - 1])
+        q0, v0 = measured_start(part)
+        i0 = int(round((rec.t[k0] - rec.t[0]) / ctx.controller.period))
+        seg = replay(model, ctx.controller, part, ff=ctx.ff[i0:], dt=ctx.dt,
+                     sensor_bias=cbias, sensor_delay=cdelay,
+                     x0=initial_state(model, q0 - bias, v0))
+        if pred is None:
+            pred = seg
+        else:   # the segment's first sample is the previous one's last: keep the new one
+            pred.t = np.concatenate([pred.t[:-1], seg.t])
+            for c in pred.channels:
+                pred.channels[c] = np.concatenate([pred.channels[c][:-1], seg.channels[c]])
     samples = np.rint(delay / rec.dt).astype(int)
     for i in range(arm.n_links):
         for kind, add in (("q", bias[i]), ("v", 0.0)):

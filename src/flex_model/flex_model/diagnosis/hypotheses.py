@@ -13,8 +13,8 @@ hypothesis           free parameters                           fixed
 joint_friction       viscous, coulomb, static - coulomb        Stribeck velocity 0.05 rad/s,
                                                                regularization 1e-3 rad/s
 gear                 rotor_inertia (ratio of the nominal, or 1)
-joint_elasticity     stiffness (fitted as a compliance),       motor_inertia 1e-3 kg m^2
-                     damping                                   (+ the gear's rotor)
+joint_elasticity     stiffness (fitted as a compliance),       motor_inertia: the gear's
+                     damping                                   n^2 J_r (moved there)
 backlash             half_width, stiffness (of its spring)     damping 0, smoothing 1e-4
 torque_saturation    limit
 actuator_delay       delay (quantized to the control period)
@@ -138,15 +138,23 @@ class Hypothesis:
             old = arm.effect("gear", self.target)
             ratio = old["ratio"] if old else 1.0
             eff = (E[k](self.target, (ratio, v[0])),)
-        elif k == "joint_elasticity":
-            if not np.isfinite(v[0]):
+        elif k in ("joint_elasticity", "backlash"):
+            stiffness = v[0] if k == "joint_elasticity" else v[1]
+            if not np.isfinite(stiffness):
                 return arm, None
-            eff = (E[k](self.target, (v[0], v[1], MOTOR_INERTIA)),)
-        elif k == "backlash":
-            if not np.isfinite(v[1]):
-                return arm, None
-            eff = (E["joint_elasticity"](self.target, (v[1], 0.0, MOTOR_INERTIA)),
-                   E[k](self.target, (v[0], BACKLASH_SMOOTHING)))
+            # the rotor of the joint's gear moves to the motor side of the spring: the
+            # motor coordinate carries n^2 J_r (a bare motor coordinate under the sampled
+            # PD would need a far shorter period)
+            gear = arm.effect("gear", self.target)
+            jm = MOTOR_INERTIA
+            eff = ()
+            if gear is not None and gear["rotor_inertia"] > 0:
+                jm = gear["ratio"] ** 2 * gear["rotor_inertia"]
+                eff = (dataclasses.replace(gear, values=(gear["ratio"], 0.0)),)
+            eff += (E["joint_elasticity"](self.target, (stiffness, v[1] if k ==
+                                                        "joint_elasticity" else 0.0, jm)),)
+            if k == "backlash":
+                eff += (E[k](self.target, (v[0], BACKLASH_SMOOTHING)),)
         elif k == "torque_saturation":
             eff = (E[k](self.target, (v[0],)),)
         elif k == "actuator_delay":

@@ -108,11 +108,11 @@ def initial_state(model: FlexArmModel, theta0, rates0=None) -> np.ndarray:
 
 
 def measured_start(rec, window: float = 0.05):
-    """Joint angles and rates at the first sample, from a straight-line fit over the first
+    """Joint angles and rates at the first sample, from a quadratic fit over the first
     ``window`` seconds (averages the sensor noise out of the replay's initial state)."""
-    n = max(2, min(len(rec.t), int(round(window / rec.dt)) + 1))
+    n = max(3, min(len(rec.t), int(round(window / rec.dt)) + 1))
     t = rec.t[:n] - rec.t[0]
-    A = np.column_stack([np.ones(n), t])
+    A = np.column_stack([np.ones(n), t, t * t])
     out = []
     for kind in ("q", "v"):
         coef, *_ = np.linalg.lstsq(A, rec.stack(kind)[:n], rcond=None)

@@ -37,8 +37,11 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
                      for k, lk in enumerate(raw["links"])].index(entry["stiffness"]["link"])
                 mat = raw["links"][i]["material"]
                 mat["E"] = float(mat["E"]) * (1.0 + entry["stiffness"]["relative_change"])
-            else:
-                raw.setdefault("effects", []).append(entry)
+            else:  # replaces an effect of the same type and target (a gear's rotor moved)
+                tgt = entry.get("joint", entry.get("link"))
+                raw["effects"] = [e for e in raw.get("effects", []) if not (
+                    e.get("type") == entry["type"] and e.get("joint", e.get("link")) == tgt)]
+                raw["effects"].append(entry)
         if c.kind == "payload":
             raw.setdefault("payload", {})
             raw["payload"]["mass"] = float(raw["payload"].get("mass", 0.0)) + c.values[0]
