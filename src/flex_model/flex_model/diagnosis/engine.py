@@ -31,8 +31,8 @@ from .fitting import confidence_intervals, fit_baseline, fit_task
 from .hypotheses import library_hypotheses
 from .localise import effective_samples, localise
 
-DEFAULT_GATE = 0.5
-MIN_SHARE = 0.3
+DEFAULT_GATE = 0.75
+MIN_SHARE = 0.5
 MAX_COND = 1e8
 TIE = 0.05
 

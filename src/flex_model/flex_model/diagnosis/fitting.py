@@ -137,7 +137,9 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
 
     def jac(x):
         f0 = fun(x)
-        h = 1e-3 * np.maximum(np.abs(x), 1.0) * np.where(x + 1e-3 > xu, -1.0, 1.0)
+        # steps wide enough to see through regularized corners (tanh friction, dead zones)
+        h = 2e-2 * np.maximum(np.abs(x), 0.5)
+        h = np.where(x + h > xu, -h, h)
         pts = [x + h[k] * np.eye(len(x))[k] for k in range(len(x))]
         outs = _map(executor, ctx, [(s0, base.effects + [(hyp, p)]) for p in pts])
         nonlocal n_eval
