@@ -32,7 +32,7 @@ from .hypotheses import library_hypotheses
 from .localise import effective_samples, localise
 
 DEFAULT_GATE = 0.75
-MIN_SHARE = 0.5
+MIN_SHARE = 0.35
 MAX_COND = 1e8
 TIE = 0.05
 
