@@ -179,7 +179,8 @@ class Hypothesis:
             return [{"sensor": {"kind": "joint_encoder", "joint": self.target,
                                 field: float(values[0])}}]
         if self.kind == "stiffness":
-            return [{"stiffness": {"link": self.target, "relative_change": float(values[0])}}]
+            return [{"link_stiffness": {"link": self.target,
+                                        "relative_change": float(values[0])}}]
         out = []
         new = [e for e in probe.effects if e not in arm.effects]
         for e in new:

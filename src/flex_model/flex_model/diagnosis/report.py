@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 
 from ..config import read_yaml
-from .baseline import scale_raw
+from .baseline import apply_scales, scale_raw
 from .evaluation import predict_channels, twin_arm
 
 
@@ -26,17 +26,19 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
     raw = read_yaml(nominal_path)
     scales = np.array(list(diagnosis.scales.values()))
     raw = scale_raw(raw, ctx.baseline_params, scales)
+    scaled = apply_scales(ctx.nominal, ctx.baseline_params, scales)
     raw["name"] = f"{raw.get('name', 'arm')}_diagnosed"
     for c in diagnosis.accepted:
         hyp, x = next((h, x) for h, x in diagnosis.final_effects if h.label == c.label)
-        for entry in hyp.effect_dicts(ctx.nominal, hyp.values(x)):
+        for entry in hyp.effect_dicts(scaled, hyp.values(x)):
             if "sensor" in entry:
                 raw.setdefault("sensors", []).append(entry["sensor"])
-            elif "stiffness" in entry:
-                i = [lk["name"] if "name" in lk else f"link{k + 1}"
-                     for k, lk in enumerate(raw["links"])].index(entry["stiffness"]["link"])
+            elif "link_stiffness" in entry:
+                change = entry["link_stiffness"]
+                i = [lk.get("name", f"link{k + 1}")
+                     for k, lk in enumerate(raw["links"])].index(change["link"])
                 mat = raw["links"][i]["material"]
-                mat["E"] = float(mat["E"]) * (1.0 + entry["stiffness"]["relative_change"])
+                mat["E"] = float(mat["E"]) * (1.0 + change["relative_change"])
             else:  # replaces an effect of the same type and target (a gear's rotor moved)
                 tgt = entry.get("joint", entry.get("link"))
                 raw["effects"] = [e for e in raw.get("effects", []) if not (
@@ -44,7 +46,7 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
                 raw["effects"].append(entry)
         if c.kind == "payload":
             raw.setdefault("payload", {})
-            raw["payload"]["mass"] = float(raw["payload"].get("mass", 0.0)) + c.values[0]
+            raw["payload"]["mass"] = float(raw["payload"].get("mass", 0.0)) + float(c.values[0])
     return raw
 
 
