@@ -101,3 +101,46 @@ def test_bag_without_the_reference_topic_is_refused_by_name():
     from flex_model.diagnosis.recording import load_recording
     with pytest.raises(RecordingError, match="missing topic\\(s\\) /flex_planner/trajectory"):
         load_recording(bag, 2)
+
+
+def test_updated_arm_yaml_loads_with_the_named_effects(tmp_path):
+    import types
+
+    import yaml
+
+    from flex_model.arm import PRESET_DIR
+    from flex_model.diagnosis.baseline import baseline_parameters
+    from flex_model.diagnosis.hypotheses import library_hypotheses
+    from flex_model.diagnosis.recording import validate
+    from flex_model.diagnosis.report import write_arm_yaml
+    nominal = load_arm("thesis_example1_motors")
+    t = np.arange(100) * 0.002
+    ch = {f"{k}{i}": np.sin(t + i) for k in ("q", "v", "tau", "qset") for i in (1, 2)}
+    rec = validate(t, ch, 2, "mem")
+    hyps = {h.label: h for h in library_hypotheses(nominal, rec, controller_from_dict(PD))}
+    picks = [("joint_elasticity@joint2", [0.5, 2.0]), ("sensor_bias@joint1", [5.0]),
+             ("stiffness@link1", [1.5]), ("joint_friction@joint1", [1.0, 1.0, 0.3])]
+    effects = [(hyps[lab], np.array(x)) for lab, x in picks]
+    accepted = [types.SimpleNamespace(label=h.label, kind=h.kind, names=h.names,
+                                      values=list(h.values(x)), ci=[0.0] * len(x), share=1.0)
+                for h, x in effects]
+    params = baseline_parameters(nominal)
+    ctx = types.SimpleNamespace(baseline_params=params, nominal=nominal)
+    diag = types.SimpleNamespace(contexts=(ctx,), verdict="named", accepted=accepted,
+                                 final_effects=effects,
+                                 scales={p.name: 1.02 for p in params})
+    out = tmp_path / "arm.yaml"
+    write_arm_yaml(out, PRESET_DIR / "thesis_example1_motors.yaml", diag)
+    arm = load_arm(out)
+    spring = arm.effect("joint_elasticity", "joint2")
+    k_ref = hyps["joint_elasticity@joint2"].scale[0]
+    assert spring["stiffness"] == pytest.approx(k_ref / 0.5)
+    # the gear's rotor moved to the motor side: n^2 J_r of the recalibrated arm
+    assert spring["motor_inertia"] == pytest.approx(100 ** 2 * 5e-5 * 1.02)
+    assert arm.effect("gear", "joint2")["rotor_inertia"] == 0.0
+    fr = arm.effect("joint_friction", "joint1")
+    assert fr["static"] == pytest.approx(fr["coulomb"] * 1.3)
+    assert arm.links[0].segments[0].E == pytest.approx(6.4e10 * 1.02 * 1.15)
+    assert [(s.kind, s.bias) for s in arm.sensors] == [("joint_encoder", 5e-3)]
+    assert yaml.safe_load(out.read_text())["name"] == "thesis_example1_motors_diagnosed"
+    FlexArmModel(arm)

@@ -169,9 +169,10 @@ class Hypothesis:
             raise ValueError(f"unknown hypothesis {k}")
         return arm.with_effects(*eff), None
 
-    def effect_dicts(self, arm, values) -> list:
-        """The ``effects:``/``sensors:`` entries of the updated arm YAML."""
-        probe, _ = self.apply(arm, np.asarray(values) / np.asarray(self.scale))
+    def effect_dicts(self, arm, x) -> list:
+        """The ``effects:``/``sensors:`` entries of the updated arm YAML for the fitted x."""
+        values = self.values(x)
+        probe, _ = self.apply(arm, x)
         if self.kind == "payload":
             return []
         if self.kind in ("sensor_bias", "sensor_delay"):

@@ -30,7 +30,7 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
     raw["name"] = f"{raw.get('name', 'arm')}_diagnosed"
     for c in diagnosis.accepted:
         hyp, x = next((h, x) for h, x in diagnosis.final_effects if h.label == c.label)
-        for entry in hyp.effect_dicts(scaled, hyp.values(x)):
+        for entry in hyp.effect_dicts(scaled, x):
             if "sensor" in entry:
                 raw.setdefault("sensors", []).append(entry["sensor"])
             elif "link_stiffness" in entry:
