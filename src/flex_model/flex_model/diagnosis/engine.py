@@ -24,8 +24,10 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
 from .baseline import baseline_parameters
+from .baseline import bounds as scale_bounds
 from .evaluation import Context, cost, default_executor, evaluate, twin_arm
 from .fitting import confidence_intervals, fit_baseline, fit_task
 from .hypotheses import library_hypotheses
@@ -100,21 +102,28 @@ def _screen(executor, ctx, hyps, base, Jb):
         cols.setdefault(h.label, []).append((x, r - base.r))
         if cost(r) < direct.get(h.label, (np.inf, None))[0]:
             direct[h.label] = (cost(r), x)
+    # the linearized baseline alone (bounded to its tolerance box) is the reference, so a
+    # score is what the hypothesis adds to a re-linearized recalibration
+    lo, hi = scale_bounds(ctx.baseline_params)
+    blo, bhi = lo - base.scales - 1e-12, hi - base.scales + 1e-12
+    lin0 = cost(base.r + Jb @ lsq_linear(Jb, -base.r, bounds=(blo, bhi)).x)
     scores, starts = {}, {}
     for h in hyps:
         if h.label not in direct:
             scores[h.label] = 0.0
             continue
         best, x_best = direct[h.label]
-        scores[h.label] = base.J - best
+        scores[h.label] = lin0 - best
         starts[h.label] = x_best
         if not h.linear or len(cols[h.label]) < len(h.probes):
             continue
         A = np.column_stack([Jb] + [d for _, d in cols[h.label]])
-        sol, *_ = np.linalg.lstsq(A, -base.r, rcond=None)
+        m = len(cols[h.label])
+        sol = lsq_linear(A, -base.r, bounds=(np.concatenate([blo, np.full(m, -np.inf)]),
+                                              np.concatenate([bhi, np.full(m, np.inf)]))).x
         lin = cost(base.r + A @ sol)
-        if base.J - lin > scores[h.label]:
-            scores[h.label] = base.J - lin
+        if lin0 - lin > scores[h.label]:
+            scores[h.label] = lin0 - lin
             off = h.off()
             x = off + sum(c * (xp - off) for c, (xp, _) in
                           zip(sol[Jb.shape[1]:], cols[h.label]))

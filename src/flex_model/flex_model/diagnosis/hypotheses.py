@@ -236,7 +236,7 @@ def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
                (0, 0), (100, 100), [(2.0, 1.0), (5.0, 1.0)],
                probes=[(2.0, 1.0), (5.0, 1.0)], linear=False, inverse=(False, True)),
             _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
-               [(0.9,), (0.7,)], probes=[(0.9,), (0.7,)], linear=False),
+               [(0.8,), (0.5,)], probes=[(0.8,), (0.6,), (0.45,), (0.3,)], linear=False),
             _h("actuator_delay", name, ("delay",), (controller.period,), (0,), (25,),
                [(1.0,)], (2.0,), discrete=True),
             _h("sensor_bias", name, ("bias",), (1e-3,), (-100,), (100,), [(0.0,)], (1.0,)),
