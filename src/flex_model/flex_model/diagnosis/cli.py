@@ -54,7 +54,7 @@ def cmd_diagnose(args) -> int:
     try:
         d = diagnose(arm, controller, fit, holdout, executor=executor,
                      gate=DEFAULT_GATE if args.gate is None else args.gate,
-                     segment=args.segment, progress=not args.json)
+                     segment=args.segment, progress=True)
     finally:
         if hasattr(executor, "shutdown"):
             executor.shutdown()
