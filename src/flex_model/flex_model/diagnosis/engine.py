@@ -131,6 +131,19 @@ def _screen(executor, ctx, hyps, base, Jb):
     return scores, starts
 
 
+def _twin_peaks(ctx, r) -> list:
+    """Largest |command| of the twin per joint, from its weighted residuals."""
+    names = ctx.rec.residual_channels
+    n = len(r) // len(names)
+    out = []
+    for i in range(ctx.rec.n_joints):
+        c = f"tau{i + 1}"
+        k = names.index(c)
+        pred = ctx.rec.channels[c][:n] - r[k * n:(k + 1) * n] * ctx.sigma[c]
+        out.append(float(np.max(np.abs(pred))))
+    return out
+
+
 def _bic_delta(J_new, J_old, n, k):
     return n * np.log(max(J_new, 1e-300) / max(J_old, 1e-300)) + k * np.log(n)
 
@@ -177,7 +190,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
         n = len(base.r)
         while cur_ho - 1.0 > gate and len(accepted) < max_effects:
             hyps = library_hypotheses(nominal, fit_rec, controller,
-                                      exclude=[c.label for c in accepted])
+                                      exclude=[c.label for c in accepted],
+                                      twin_peaks=_twin_peaks(ctx, current.r))
             scores, starts = _screen(executor, ctx, hyps, current, Jb)
             ranked = sorted(hyps, key=lambda h: -scores[h.label])[:top]
             ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]

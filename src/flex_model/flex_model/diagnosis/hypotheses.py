@@ -210,14 +210,17 @@ def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None
                       tuple(tuple(p) for p in probes), discrete, linear, tuple(inverse))
 
 
-def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
+def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> list[Hypothesis]:
     """Every hypothesis for this arm and recording (scales from the measured torque and
-    speed levels); ``exclude``: labels already accepted."""
+    speed levels); ``exclude``: labels already accepted; ``twin_peaks``: the largest
+    command of the current twin per joint (the torque a saturation would clip; default:
+    the measured command's)."""
     taus = rec.stack("tau")
     rates = rec.stack("v")
     out = []
     for j, name in enumerate(arm.joint_names):
-        tmax = max(float(np.max(np.abs(taus[:, j]))), 1e-3)
+        tmax = max(float(np.max(np.abs(taus[:, j])) if twin_peaks is None
+                         else twin_peaks[j]), 1e-3)
         trms = max(float(np.sqrt(np.mean(taus[:, j] ** 2))), 1e-3)
         wrms = max(float(np.sqrt(np.mean(rates[:, j] ** 2))), 1e-3)
         rotor = arm.effect("gear", name)
@@ -236,7 +239,8 @@ def library_hypotheses(arm, rec, controller, exclude=()) -> list[Hypothesis]:
                (0, 0), (100, 100), [(2.0, 1.0), (5.0, 1.0)],
                probes=[(2.0, 1.0), (5.0, 1.0)], linear=False, inverse=(False, True)),
             _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
-               [(0.8,), (0.5,)], probes=[(0.8,), (0.6,), (0.45,), (0.3,)], linear=False),
+               [(0.8,), (0.6,)], probes=[(0.95,), (0.85,), (0.75,), (0.6,), (0.45,)],
+               linear=False),
             _h("actuator_delay", name, ("delay",), (controller.period,), (0,), (25,),
                [(1.0,)], (2.0,), discrete=True),
             _h("sensor_bias", name, ("bias",), (1e-3,), (-100,), (100,), [(0.0,)], (1.0,)),
