@@ -29,7 +29,7 @@ from scipy.optimize import lsq_linear
 from .baseline import baseline_parameters
 from .baseline import bounds as scale_bounds
 from .evaluation import Context, cost, default_executor, evaluate, twin_arm
-from .fitting import confidence_intervals, fit_baseline, fit_task
+from .fitting import FitResult, confidence_intervals, fit_baseline, fit_candidate, fit_task
 from .hypotheses import library_hypotheses
 from .localise import effective_samples, localise
 
@@ -236,12 +236,27 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 break
             accepted.append(pick)
             current, cur_ho = fits[pick.label][0], fits[pick.label][1]
-            if len(accepted) < max_effects:
-                current_b, Jb = fit_baseline(executor, ctx, current.effects, iterations=1)
-                if current_b.J < current.J:
-                    current = current_b
-                    r_ho = evaluate((ctx_ho, current.scales, current.effects))
-                    cur_ho = cost(r_ho) if r_ho is not None else cur_ho
+            # fine fit of the accepted effect: re-linearized baseline, then the effect's
+            # parameters again to a tight tolerance (alternating)
+            current_b, Jb = fit_baseline(executor, ctx, current.effects, iterations=1)
+            hyp, x = current.effects[-1]
+            if current_b.J < current.J:
+                current = current_b
+            if not hyp.discrete:
+                rest = FitResult(current.scales, current.effects[:-1], current.r, current.J)
+                fine = fit_candidate(executor, ctx, hyp, rest, Jb, start=x, max_nfev=15,
+                                     ftol=1e-6)
+                if fine.J < current.J:
+                    current = fine
+                    x = fine.x
+                    # the intervals stay those of the screening fit (same curvature)
+                    _, values, _ = hyp.physical(hyp.values(x), [0.0] * len(x),
+                                                twin_arm(ctx, current.scales, current.effects))
+                    pick.values = [float(v) for v in values]
+                    pick.x = list(map(float, x))
+            r_ho = evaluate((ctx_ho, current.scales, current.effects))
+            cur_ho = cost(r_ho) if r_ho is not None else cur_ho
+            pick.J_fit, pick.J_holdout = current.J, cur_ho
         J["final_fit"], J["final_holdout"] = current.J, cur_ho
         material = J["baseline_holdout"] - 1.0 > gate
         remaining = cur_ho - 1.0 > gate

@@ -86,7 +86,7 @@ def _projected(r, Jb, s, lo, hi):
 
 
 def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
-                  max_nfev: int = 8) -> FitResult:
+                  max_nfev: int = 8, ftol: float = 1e-3) -> FitResult:
     """Fit ``hyp`` jointly with the baseline (variable projection), multi-start (the
     screening's linearized solution ``start`` first)."""
     lo, hi = scale_bounds(ctx.baseline_params)
@@ -161,7 +161,7 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
         x0 = np.clip(np.array(x_start, float), xl + 1e-9, xu - 1e-9)
         try:
             sol = least_squares(fun, x0, jac=jac, bounds=(xl, xu), method="trf",
-                                max_nfev=max_nfev, x_scale=1.0, ftol=1e-3, xtol=1e-4)
+                                max_nfev=max_nfev, x_scale=1.0, ftol=ftol, xtol=1e-4)
         except (ValueError, np.linalg.LinAlgError):
             continue
         r = fun(sol.x)

@@ -152,7 +152,11 @@ def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:
     J = diagnosis.J
     md = [f"# Diagnosis: {diagnosis.verdict}", "",
           f"Nominal arm `{nominal_path}`; updated arm `diagnosed_arm.yaml`.", "",
-          "## Gate (cost J in units of the white-noise power; excess = J - 1)", "",
+          ] + [f"- named **{c.label}**: " + ", ".join(
+              f"{n} = {v:.5g} +- {e:.2g}" for n, v, e in zip(c.names, c.values, c.ci))
+              + f" (held-out share {c.share:.3f})" for c in diagnosis.accepted] + [
+          "", "## Gate (cost J in units of a healthy twin's noise power: white-noise estimate "
+          "x healthy ratio; excess = J - 1)", "",
           "| twin | J fit | J held out |", "|---|---|---|",
           f"| nominal | {J['nominal_fit']:.4g} | {J['nominal_holdout']:.4g} |",
           f"| baseline (within tolerance) | {J['baseline_fit']:.4g} | "
