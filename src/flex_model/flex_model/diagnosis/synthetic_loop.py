@@ -22,7 +22,7 @@ import numpy as np
 
 from ..dynamics import FlexArmModel
 from ..simulate import simulate
-from ..statics import static_equilibrium
+from ..statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
 from .synthetic_signals import channel_noise, quantise
 
@@ -106,16 +106,22 @@ def _initial_state(model: FlexArmModel, law: ControllerDescription, ff0, theta_s
                    settle: float = 3.0):
     """(q0, v0): at rest under the controller holding theta_set: the static equilibrium of
     the true arm under a PD on the actuator coordinates, then ``settle`` s of noiseless
-    closed loop (elastic joints, friction and backlash settle where the law puts them)."""
+    closed loop (elastic joints, friction and backlash settle where the law puts them;
+    twice as long from the undeformed pose where Newton's method finds no equilibrium, as
+    on a contact surface)."""
     kp = np.diag(law.gains)
-    st = static_equilibrium(model, np.asarray(theta_set) - bias, joints="pd", kp=kp,
-                            joint_torques=ff0)
+    try:
+        q0 = static_equilibrium(model, np.asarray(theta_set) - bias, joints="pd", kp=kp,
+                                joint_torques=ff0).q
+    except StaticConvergenceError:  # e.g. resting on a contact surface: let it settle
+        q0 = model.q_from_joint_angles(np.asarray(theta_set) - bias)
+        settle *= 2
     nq = model.nq
     G = model.Ga
 
     def hold(time, x):
         return ff0 + law.gains @ (theta_set - G @ x[:nq] - bias) - law.rate_gains @ (G @ x[nq:])
 
-    pre = simulate(model, st.q, t_final=settle, sample_period=law.period, policy=hold,
+    pre = simulate(model, q0, t_final=settle, sample_period=law.period, policy=hold,
                    control_period=law.period, method="fixed")
     return pre.q[-1], pre.v[-1]

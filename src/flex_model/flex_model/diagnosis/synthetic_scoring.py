@@ -127,13 +127,16 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool) -> dict
     from .recording import load_recording
     d = Path(out) / f"{kind.replace(':', '_').replace('+', '_')}-{seed}"
     t0 = time.perf_counter()
-    case = generate_case(kind, seed, d, noise=noise)
-    t_gen = time.perf_counter() - t0
-    mat = None
-    if materiality_on and parse_kind(kind):
-        mat = materiality(case, generate_case("healthy", seed, d / "healthy", noise=noise))
-    res = {"kind": kind, "seed": seed, "dir": str(d), "generate_s": t_gen,
-           "materiality": mat}
+    res = {"kind": kind, "seed": seed, "dir": str(d), "materiality": None}
+    try:
+        case = generate_case(kind, seed, d, noise=noise)
+        res["generate_s"] = time.perf_counter() - t0
+        if materiality_on and parse_kind(kind):
+            healthy = generate_case("healthy", seed, d / "healthy", noise=noise)
+            res["materiality"] = materiality(case, healthy)
+    except Exception as exc:  # a generator failure is reported, not fatal to the bench
+        res["error"] = f"generate_case: {type(exc).__name__}: {exc}"
+        return res
     diagnose = _engine()
     if diagnose is None:
         res["error"] = "no diagnosis engine (flex_model.diagnosis.engine.diagnose)"
