@@ -60,7 +60,12 @@ def main(argv=None) -> int:
                 (k, s) for k, s in jobs}
         # submitted seed by seed: every kind gets its first runs before any its later ones
         for i, fut in enumerate(as_completed(futs), start=1):
-            r = fut.result()
+            try:
+                r = fut.result()
+            except Exception as exc:  # a crashed run is reported with the others
+                k, s = futs[fut]
+                r = {"kind": k, "seed": s, "materiality": None,
+                     "error": f"{type(exc).__name__}: {exc}"}
             results.append(r)
             named = ",".join(f"{n['kind']}@{n['target']}" for n in r.get("named", []))
             print(f"[{i}/{len(jobs)} {time.perf_counter() - t0:.0f} s] {r['kind']} seed "
