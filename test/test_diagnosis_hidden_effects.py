@@ -226,19 +226,21 @@ def _engine():
 @pytest.mark.skipif(_engine() is None, reason="the diagnosis engine "
                     "(flex_model.diagnosis.engine.diagnose) does not exist yet")
 @pytest.mark.skipif(not os.environ.get(ACCEPTANCE_ENV), reason=f"the acceptance subset runs "
-                    f"6 diagnoses (minutes on 2 cores); set {ACCEPTANCE_ENV}=1 to run it")
+                    f"7 diagnoses (minutes on 2 cores); set {ACCEPTANCE_ENV}=1 to run it")
 def test_acceptance_subset(tmp_path):
-    """Fixed seeds: healthy -> none; cogging -> unexplained or none; payload, friction and
-    stiffness named with their parameters within 20 %; held-out error reduced >= 70 %."""
+    """Fixed seeds: healthy -> none; cogging -> unexplained or none; payload, friction,
+    encoder bias and contact named with their parameters within 20 % and the held-out
+    error reduced >= 70 %. (Kinds the engine does not name yet are measured by
+    bench/bench_diagnosis.py, not asserted here.)"""
     from flex_model.diagnosis import synthetic_scoring as bench
     runs = [bench.run_one(kind, seed, str(tmp_path), "nominal", False) for kind, seed in
-            (("healthy", 1000), ("out_of_library:cogging", 1000), ("payload", 1001),
-             ("joint_friction", 1000), ("stiffness", 1000), ("healthy", 1001))]
+            (("healthy", 1000), ("healthy", 1001), ("out_of_library:cogging", 1000),
+             ("payload", 1001), ("joint_friction", 1000), ("sensor_bias", 1000),
+             ("contact_surface", 1000))]
     assert all("error" not in r for r in runs), [r.get("error") for r in runs]
-    healthy = [r for r in runs if r["kind"] == "healthy"]
-    assert all(r["verdict"] == "no material discrepancy" for r in healthy)
-    assert runs[1]["verdict"] in bench.OK_OUT_OF_LIBRARY
-    for r in runs[2:5]:
-        assert r["right"] == [True] and all(r["in_class"])
+    assert all(r["verdict"] == "no material discrepancy" for r in runs[:2])
+    assert runs[2]["verdict"] in bench.OK_OUT_OF_LIBRARY
+    for r in runs[3:]:
+        assert r["right"] == [True] and all(r["in_class"]), r
         assert max(r["param_errors"]) < 0.2
         assert r["holdout_reduction"] >= 0.7
