@@ -157,11 +157,12 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
     starts = list(hyp.starts)
     if start is not None:
         starts = [start] + (starts if len(starts) > 1 else [])
-    for x_start in starts:
+    for k, x_start in enumerate(starts):
         x0 = np.clip(np.array(x_start, float), xl + 1e-9, xu - 1e-9)
-        try:
+        try:  # the further starts are a check for another basin: half the budget
             sol = least_squares(fun, x0, jac=jac, bounds=(xl, xu), method="trf",
-                                max_nfev=max_nfev, x_scale=1.0, ftol=ftol, xtol=1e-4)
+                                max_nfev=max_nfev if k == 0 else max(3, max_nfev // 2),
+                                x_scale=1.0, ftol=ftol, xtol=1e-4)
         except (ValueError, np.linalg.LinAlgError):
             continue
         r = fun(sol.x)
