@@ -244,7 +244,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 current = current_b
             if not hyp.discrete:
                 rest = FitResult(current.scales, current.effects[:-1], current.r, current.J)
-                fine = fit_candidate(executor, ctx, hyp, rest, Jb, start=x, max_nfev=15,
+                fine = fit_candidate(executor, ctx, hyp, rest, Jb, start=x, max_nfev=8,
                                      ftol=1e-6)
                 if fine.J < current.J:
                     current = fine
