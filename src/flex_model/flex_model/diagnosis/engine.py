@@ -1,0 +1,265 @@
+"""The diagnosis loop (issue 8): replay, baseline, gate, screen, fit, rank, name, repeat.
+
+1. Replay the fit recording through the nominal twin in closed loop (:mod:`.replay`).
+2. Recalibrate the baseline within tolerance (:func:`.fitting.fit_baseline`) and gate:
+   the discrepancy is material when the excess cost J - 1 of the baseline twin on the
+   held-out data (J in units of the noise power, :mod:`.evaluation`) exceeds ``gate``
+   (practical significance: the model error power as a fraction of the noise power,
+   calibrated on healthy runs; :data:`DEFAULT_GATE`).
+3. Screen every hypothesis with one probe replay per parameter (or per declared probe
+   point): the cost reduction of the linearized joint fit with the baseline (columns J_b
+   and the probes' differences), or the best probe's cost for on/off effects.
+4. Fit the ``top`` screened candidates jointly with the baseline, evaluate each on the
+   held-out recording; rank by the share of the held-out excess error explained; an
+   information criterion (BIC on the fit data) is necessary, parsimony decides near-ties
+   (within ``tie`` of share); accept when identifiable (the 95 % interval of a parameter
+   excludes its off value, condition number below ``MAX_COND``) and the share is at least
+   ``min_share``; add to the twin and repeat until the gate passes.
+5. Verdicts: "no material discrepancy", "named" (with the effects), "unexplained
+   discrepancy" (material, nothing named explains it) or "named + unexplained".
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from .baseline import baseline_parameters
+from .baseline import bounds as scale_bounds
+from .evaluation import Context, cost, default_executor, evaluate, twin_arm
+from .fitting import confidence_intervals, fit_baseline, fit_task
+from .hypotheses import library_hypotheses
+from .localise import effective_samples, localise
+
+DEFAULT_GATE = 0.75
+MIN_SHARE = 0.35
+MAX_COND = 1e8
+TIE = 0.05
+
+
+@dataclass
+class Candidate:
+    """A fitted hypothesis and its evidence."""
+
+    label: str
+    kind: str
+    target: str
+    names: tuple            # the parameters as the updated arm states them
+    values: list
+    ci: list                # half-widths of the 95 % intervals
+    x: list                 # the fitted (scaled) parameters of the hypothesis
+    screen: float
+    J_fit: float
+    J_holdout: float
+    share: float
+    delta_bic: float
+    cond: float
+    identifiable: bool
+    n_params: int
+
+
+@dataclass
+class Diagnosis:
+    """The outcome of :func:`diagnose` (see the module docstring for the verdicts)."""
+
+    verdict: str
+    accepted: list
+    rounds: list
+    gate: float
+    J: dict                 # nominal / baseline / final on fit and held-out data
+    scales: dict
+    localisation: dict
+    timing: dict
+    final_effects: list = field(default_factory=list)
+    twin: object = None
+    contexts: tuple = ()
+    baseline_scales: np.ndarray = None
+
+
+def _progress(msg, on, t_start):
+    if on:
+        import sys
+        print(f"[diagnose {time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr,
+              flush=True)
+
+
+def _screen(executor, ctx, hyps, base, Jb):
+    """Cost reduction per hypothesis from its probe replays: the linearized joint fit with
+    the baseline (columns J_b and the probes' differences), or for strongly nonlinear
+    effects (``linear=False``) the best probe's own cost. Returns (scores, start points)."""
+    specs, owners = [], []
+    for h in hyps:
+        for p in h.probes:
+            specs.append((ctx, base.scales, base.effects + [(h, np.array(p, float))]))
+            owners.append((h, np.array(p, float)))
+    outs = list(executor.map(evaluate, specs))
+    cols, direct = {}, {}
+    for (h, x), r in zip(owners, outs):
+        if r is None:
+            continue
+        cols.setdefault(h.label, []).append((x, r - base.r))
+        if cost(r) < direct.get(h.label, (np.inf, None))[0]:
+            direct[h.label] = (cost(r), x)
+    # the linearized baseline alone (bounded to its tolerance box) is the reference, so a
+    # score is what the hypothesis adds to a re-linearized recalibration
+    lo, hi = scale_bounds(ctx.baseline_params)
+    blo, bhi = lo - base.scales - 1e-12, hi - base.scales + 1e-12
+    lin0 = cost(base.r + Jb @ lsq_linear(Jb, -base.r, bounds=(blo, bhi)).x)
+    scores, starts = {}, {}
+    for h in hyps:
+        if h.label not in direct:
+            scores[h.label] = 0.0
+            continue
+        best, x_best = direct[h.label]
+        scores[h.label] = lin0 - best
+        starts[h.label] = x_best
+        if not h.linear or len(cols[h.label]) < len(h.probes):
+            continue
+        A = np.column_stack([Jb] + [d for _, d in cols[h.label]])
+        m = len(cols[h.label])
+        sol = lsq_linear(A, -base.r, bounds=(np.concatenate([blo, np.full(m, -np.inf)]),
+                                              np.concatenate([bhi, np.full(m, np.inf)]))).x
+        lin = cost(base.r + A @ sol)
+        if lin0 - lin > scores[h.label]:
+            scores[h.label] = lin0 - lin
+            off = h.off()
+            x = off + sum(c * (xp - off) for c, (xp, _) in
+                          zip(sol[Jb.shape[1]:], cols[h.label]))
+            starts[h.label] = np.clip(x, h.lower, h.upper)
+    return scores, starts
+
+
+def _twin_peaks(ctx, r) -> list:
+    """Largest |command| of the twin per joint, from its weighted residuals."""
+    names = ctx.rec.residual_channels
+    n = len(r) // len(names)
+    out = []
+    for i in range(ctx.rec.n_joints):
+        c = f"tau{i + 1}"
+        k = names.index(c)
+        pred = ctx.rec.channels[c][:n] - r[k * n:(k + 1) * n] * ctx.sigma[c]
+        out.append(float(np.max(np.abs(pred))))
+    return out
+
+
+def _bic_delta(J_new, J_old, n, k):
+    return n * np.log(max(J_new, 1e-300) / max(J_old, 1e-300)) + k * np.log(n)
+
+
+def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
+             gate: float = DEFAULT_GATE, top: int = 4, max_effects: int = 3,
+             min_share: float = MIN_SHARE, dt: float = 2e-3, segment: float | None = None,
+             progress=False) -> Diagnosis:
+    """Diagnose ``fit_rec`` (and ``holdout_rec``; default: the last 40 % of fit_rec as a
+    held-out segment, replayed from the start of the run and scored on that segment only)
+    against the nominal arm under the controller. ``segment`` (s): multiple shooting for
+    long logs (:mod:`.evaluation`)."""
+    t_start = time.perf_counter()
+    score_from = -np.inf
+    if holdout_rec is None:  # the held-out segment is replayed from the start, scored after
+        score_from = fit_rec.t[0] + 0.6 * (fit_rec.t[-1] - fit_rec.t[0])
+        holdout_rec = fit_rec
+        fit_rec = fit_rec.window(fit_rec.t[0], score_from)
+    own = executor is None
+    executor = executor or default_executor()
+    try:
+        params = baseline_parameters(nominal)
+        ctx = Context.build(nominal, controller, fit_rec, params, dt=dt, segment=segment)
+        ctx_ho = Context.build(nominal, controller, holdout_rec, params, sigma=ctx.sigma, dt=dt,
+                               score_from=score_from, segment=segment)
+        ones = np.ones(len(params))
+        r_nom = evaluate((ctx, ones, []))
+        r_nom_ho = evaluate((ctx_ho, ones, []))
+        if r_nom is None or r_nom_ho is None:
+            raise ValueError("the nominal twin diverges in closed loop on this recording "
+                             "(check the controller description)")
+        J = {"nominal_fit": cost(r_nom), "nominal_holdout": cost(r_nom_ho)}
+        _progress(f"nominal twin: J = {J['nominal_fit']:.4g} (fit), "
+                  f"{J['nominal_holdout']:.4g} (held out)", progress, t_start)
+        base, Jb = fit_baseline(executor, ctx)
+        r_b_ho = evaluate((ctx_ho, base.scales, []))
+        J["baseline_fit"], J["baseline_holdout"] = base.J, cost(r_b_ho)
+        baseline_scales = base.scales.copy()
+        _progress(f"baseline within tolerance: J = {base.J:.4g} (fit), "
+                  f"{J['baseline_holdout']:.4g} (held out); gate: excess > {gate}",
+                  progress, t_start)
+        accepted, rounds = [], []
+        current, cur_ho = base, J["baseline_holdout"]
+        n = len(base.r)
+        while cur_ho - 1.0 > gate and len(accepted) < max_effects:
+            hyps = library_hypotheses(nominal, fit_rec, controller,
+                                      exclude=[c.label for c in accepted],
+                                      twin_peaks=_twin_peaks(ctx, current.r))
+            scores, starts = _screen(executor, ctx, hyps, current, Jb)
+            ranked = sorted(hyps, key=lambda h: -scores[h.label])[:top]
+            ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
+            _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
+                                                for h in ranked), progress, t_start)
+            n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
+            cands = []
+            fits = {}
+            tasks = [(ctx, ctx_ho, h, current, Jb, starts.get(h.label)) for h in ranked]
+            for h, (fit, J_ho) in zip(ranked, executor.map(fit_task, tasks)):
+                half, cond = confidence_intervals(fit, n_eff)
+                x = fit.x if fit.x is not None else np.zeros(len(h.names))
+                if h.discrete:
+                    half = np.array([0.5 - 1e-9])   # whole periods: d T exactly
+                off = h.off()
+                excl = bool(np.any(np.abs(x - off) > half)) if half is not None else False
+                share = (cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)
+                names, values, ci = h.physical(
+                    h.values(x), h.value_halfwidths(x, half) if half is not None
+                    else [np.inf] * len(x), twin_arm(ctx, fit.scales, fit.effects))
+                c = Candidate(label=h.label, kind=h.kind, target=h.target, names=names,
+                              values=[float(v) for v in values],
+                              ci=[float(e) for e in ci], x=list(map(float, x)),
+                              screen=scores[h.label], J_fit=fit.J, J_holdout=J_ho,
+                              share=float(share),
+                              delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))),
+                              cond=cond, identifiable=excl and cond < MAX_COND,
+                              n_params=len(x))
+                cands.append(c)
+                fits[h.label] = (fit, J_ho)
+                _progress(f"  {h.label}: share {share:.3f}, J_ho {J_ho:.4g}, values "
+                          f"{np.round(c.values, 6).tolist()}", progress, t_start)
+            ok = [c for c in cands if c.delta_bic < 0 and c.identifiable
+                  and c.share >= min_share]
+            ok.sort(key=lambda c: -c.share)
+            pick = None
+            if ok:
+                near = [c for c in ok if c.share >= ok[0].share - TIE]
+                pick = min(near, key=lambda c: (c.n_params, -c.share))
+            rounds.append({"candidates": cands, "picked": pick.label if pick else None})
+            if pick is None:
+                break
+            accepted.append(pick)
+            current, cur_ho = fits[pick.label][0], fits[pick.label][1]
+            if len(accepted) < max_effects:
+                current_b, Jb = fit_baseline(executor, ctx, current.effects, iterations=1)
+                if current_b.J < current.J:
+                    current = current_b
+                    r_ho = evaluate((ctx_ho, current.scales, current.effects))
+                    cur_ho = cost(r_ho) if r_ho is not None else cur_ho
+        J["final_fit"], J["final_holdout"] = current.J, cur_ho
+        material = J["baseline_holdout"] - 1.0 > gate
+        remaining = cur_ho - 1.0 > gate
+        if not material:
+            verdict = "no material discrepancy"
+        elif not accepted:
+            verdict = "unexplained discrepancy"
+        elif remaining:
+            verdict = "named + unexplained discrepancy"
+        else:
+            verdict = "named"
+        loc = localise(ctx_ho, current.scales, current.effects) if remaining else {}
+        final_arm = twin_arm(ctx, current.scales, current.effects)
+    finally:
+        if own and hasattr(executor, "shutdown"):
+            executor.shutdown()
+    return Diagnosis(verdict=verdict, accepted=accepted, rounds=rounds, gate=gate, J=J,
+                     scales={p.name: float(s) for p, s in zip(params, current.scales)},
+                     localisation=loc, timing={"wall_s": time.perf_counter() - t_start},
+                     final_effects=current.effects, twin=final_arm,
+                     contexts=(ctx, ctx_ho), baseline_scales=baseline_scales)

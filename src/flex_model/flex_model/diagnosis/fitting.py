@@ -1,0 +1,202 @@
+"""Bounded least-squares fits of the diagnosis: the tolerance-bounded baseline, and a
+candidate effect jointly with the (linearized) baseline.
+
+All residual evaluations go through an executor's ``map`` (finite-difference Jacobian
+columns in parallel). The joint fit of a candidate uses variable projection: for each
+trial of the effect's parameters x the baseline correction db is the bounded linear
+least-squares solution of r(x) + J_b db (J_b the baseline Jacobian), so the nonlinear
+search runs over the 1-3 effect parameters only (scipy.optimize.least_squares, 'trf',
+one start per declared start point). Discrete parameters (actuator delay, whole control
+periods) are searched on integers.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares, lsq_linear
+
+from .baseline import bounds as scale_bounds
+from .evaluation import DIVERGED_COST, cost, evaluate
+
+FD_STEP = 1e-2   # relative finite-difference step of the baseline scales (tolerance units)
+
+
+@dataclass
+class FitResult:
+    """A fitted twin: scales, [(hyp, x)], weighted residuals, cost, Jacobian of the free
+    parameters (for confidence intervals), evaluations used."""
+
+    scales: np.ndarray
+    effects: list
+    r: np.ndarray
+    J: float
+    jac: np.ndarray | None = None
+    x: np.ndarray | None = None
+    evaluations: int = 0
+
+
+def _map(executor, ctx, specs):
+    return list(executor.map(evaluate, [(ctx, s, e) for s, e in specs]))
+
+
+def baseline_jacobian(executor, ctx, scales, effects, r0):
+    lo, hi = scale_bounds(ctx.baseline_params)
+    steps = FD_STEP * (hi - lo) / 2
+    specs = []
+    for k in range(len(scales)):
+        s = scales.copy()
+        s[k] += steps[k]
+        specs.append((s, effects))
+    cols = _map(executor, ctx, specs)
+    Jb = np.zeros((len(r0), len(scales)))
+    for k, rk in enumerate(cols):
+        if rk is not None:
+            Jb[:, k] = (rk - r0) / steps[k]
+    return Jb
+
+
+def fit_baseline(executor, ctx, effects=(), iterations: int = 3) -> tuple[FitResult, np.ndarray]:
+    """Gauss-Newton in the tolerance box (bounded linear step, re-linearized); returns the
+    fit and the baseline Jacobian at its solution."""
+    lo, hi = scale_bounds(ctx.baseline_params)
+    s = np.ones(len(lo))
+    r = evaluate((ctx, s, list(effects)))
+    if r is None:
+        raise ValueError("the nominal twin diverges on this recording")
+    n_eval = 1
+    Jb = None
+    for _ in range(iterations):
+        Jb = baseline_jacobian(executor, ctx, s, list(effects), r)
+        n_eval += len(s)
+        step = lsq_linear(Jb, -r, bounds=(lo - s, hi - s)).x
+        s_new = np.clip(s + step, lo, hi)
+        r_new = evaluate((ctx, s_new, list(effects)))
+        n_eval += 1
+        if r_new is None or cost(r_new) >= cost(r) * (1 - 1e-4):
+            break
+        s, r = s_new, r_new
+    return FitResult(s, list(effects), r, cost(r), evaluations=n_eval), Jb
+
+
+def _projected(r, Jb, s, lo, hi):
+    """r + Jb db with db the bounded linear least-squares baseline correction."""
+    db = lsq_linear(Jb, -r, bounds=(lo - s - 1e-12, hi - s + 1e-12)).x
+    return r + Jb @ db, db
+
+
+def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
+                  max_nfev: int = 8) -> FitResult:
+    """Fit ``hyp`` jointly with the baseline (variable projection), multi-start (the
+    screening's linearized solution ``start`` first)."""
+    lo, hi = scale_bounds(ctx.baseline_params)
+    s0 = base.scales
+    n_eval = 0
+    best = None
+
+    def residual_of(x):
+        nonlocal n_eval
+        n_eval += 1
+        r = evaluate((ctx, s0, base.effects + [(hyp, x)]))
+        if r is None:
+            return None
+        return _projected(r, Jb, s0, lo, hi)
+
+    if hyp.discrete:
+        tried = {}
+
+        def try_int(k):
+            if k not in tried and hyp.lower[0] <= k <= hyp.upper[0]:
+                res = residual_of(np.array([float(k)]))
+                tried[k] = (cost(res[0]) if res else DIVERGED_COST, res)
+            return tried.get(k, (np.inf, None))[0]
+        for k in (1, 2, 3, 5, 8, 12, 18, 25):
+            try_int(k)
+        k_best = min(tried, key=lambda k: tried[k][0])
+        for k in range(k_best - 3, k_best + 4):
+            try_int(k)
+        k_best = min(tried, key=lambda k: tried[k][0])
+        res = tried[k_best][1]
+        x = np.array([float(k_best)])
+        if res is None:
+            return FitResult(s0, base.effects + [(hyp, x)], base.r, DIVERGED_COST,
+                             evaluations=n_eval)
+        r, db = res
+        return FitResult(s0 + db, base.effects + [(hyp, x)], r, cost(r), None, x, n_eval)
+
+    xl, xu = np.array(hyp.lower, float), np.array(hyp.upper, float)
+    cache = {}
+
+    def fun(x):
+        key = tuple(np.round(x, 12))
+        if key not in cache:
+            res = residual_of(x)
+            cache[key] = (res[0], res[1]) if res else (None, None)
+        r = cache[key][0]
+        return np.full(len(base.r), 1e3) if r is None else r
+
+    def jac(x):
+        f0 = fun(x)
+        # steps wide enough to see through regularized corners (tanh friction, dead zones)
+        h = 2e-2 * np.maximum(np.abs(x), 0.5)
+        h = np.where(x + h > xu, -h, h)
+        pts = [x + h[k] * np.eye(len(x))[k] for k in range(len(x))]
+        outs = _map(executor, ctx, [(s0, base.effects + [(hyp, p)]) for p in pts])
+        nonlocal n_eval
+        n_eval += len(pts)
+        cols = []
+        for p, rk in zip(pts, outs):
+            if rk is None:
+                cols.append(np.zeros(len(f0)))
+                continue
+            cols.append((_projected(rk, Jb, s0, lo, hi)[0] - f0) / (p - x).sum())
+        return np.column_stack(cols)
+
+    # one start where the problem is convex enough (one declared start point), all of
+    # them after the linearized one where it is not
+    starts = list(hyp.starts)
+    if start is not None:
+        starts = [start] + (starts if len(starts) > 1 else [])
+    for x_start in starts:
+        x0 = np.clip(np.array(x_start, float), xl + 1e-9, xu - 1e-9)
+        try:
+            sol = least_squares(fun, x0, jac=jac, bounds=(xl, xu), method="trf",
+                                max_nfev=max_nfev, x_scale=1.0, ftol=1e-3, xtol=1e-4)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        r = fun(sol.x)
+        if best is None or cost(r) < best[1]:
+            best = (sol.x.copy(), cost(r), sol.jac.copy())
+    if best is None:
+        return FitResult(s0, base.effects, base.r, DIVERGED_COST, evaluations=n_eval)
+    x, J, jacobian = best
+    r, db = cache[tuple(np.round(x, 12))]
+    return FitResult(s0 + db, base.effects + [(hyp, x)], r, J, jacobian, x, n_eval)
+
+
+def confidence_intervals(fit: FitResult, n_eff: float, level_z: float = 1.96):
+    """Half-widths of the 95 % intervals of the effect's x (Gauss-Newton covariance,
+    residual variance J, sample count corrected to ``n_eff`` independent samples), and
+    the condition number of the normalized information matrix."""
+    if fit.jac is None:
+        return None, 1.0
+    A = fit.jac
+    n = A.shape[0]
+    info = A.T @ A
+    d = np.sqrt(np.maximum(np.diag(info), 1e-300))
+    cond = float(np.linalg.cond(info / np.outer(d, d)))
+    try:
+        cov = np.linalg.inv(info) * fit.J * (n / max(n_eff, 1.0))
+    except np.linalg.LinAlgError:
+        return np.full(len(fit.x), np.inf), np.inf
+    return level_z * np.sqrt(np.maximum(np.diag(cov), 0.0)), cond
+
+
+def fit_task(task):
+    """Worker function: fit one candidate (serially) and score it on the held-out data:
+    (ctx, ctx_holdout, hyp, base, Jb, start) -> (FitResult, J_holdout)."""
+    from .evaluation import SerialExecutor
+    ctx, ctx_ho, hyp, base, Jb, start = task
+    fit = fit_candidate(SerialExecutor(), ctx, hyp, base, Jb, start=start)
+    r_ho = evaluate((ctx_ho, fit.scales, fit.effects))
+    return fit, (cost(r_ho) if r_ho is not None else np.inf)
