@@ -61,7 +61,7 @@ def controller_dict(case: dict) -> dict:
     gains, rates = {"q1": k1}, {"q1": k3}
     if run.has_gauge:
         s = run.gauge_sign()
-        gains["w1"], rates["w1"] = s * k2, s * k4
+        gains["w1"], rates["w1"] = s * k2 + 0.0, s * k4 + 0.0  # no -0.0
     return {"controller": {"law": "state_feedback", "period": float(case["sample_period"]),
                            "output": "voltage", "feedforward": "recorded",
                            "gains": [gains], "rate_gains": [rates]}}
