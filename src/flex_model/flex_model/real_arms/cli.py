@@ -98,7 +98,8 @@ def cmd_report(args) -> int:
     from .quanser_twin import data_root
     from .report import build_report
     out = Path(args.out or "runs/real-arm-report")
-    report = build_report(data_root(args.data), _policy_factory(), out, _progress)
+    report = build_report(data_root(args.data), _policy_factory(), out, _progress,
+                          diagnoses=args.diagnosis or ())
     if args.json:
         print(json.dumps(report, indent=1, default=float))
     else:
@@ -131,6 +132,8 @@ def cmd_diagnose(args) -> int:
                              "diagnosis replays both runs with one controller)")
         holdout = str(ho["paths"]["data"])
     p = fit["paths"]
+    (Path(args.out) / "inputs" / "runs.json").write_text(json.dumps(
+        {"fit": fit["case"]["run"].name, "holdout": args.holdout and ho["case"]["run"].name}))
     _progress(f"inputs: {p['data']}, {p['controller']}, {p['arm']}")
     ns = argparse.Namespace(data=str(p["data"]), arm=str(p["arm"]),
                             controller=str(p["controller"]), holdout=holdout, out=args.out,
@@ -179,6 +182,8 @@ def add_real_arm_parsers(sub) -> None:
                     "../shared/data/real)")
     rp.add_argument("--out", default=None, help="output directory (default "
                     "runs/real-arm-report)")
+    rp.add_argument("--diagnosis", nargs="*", default=None, metavar="DIR", help="output "
+                    "directories of real-arm diagnose to add to the report")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_report)
     dp = rsub.add_parser("diagnose", help="flex-twin diagnose on a lab run against the "
