@@ -1,5 +1,5 @@
 """CLI of the real arms: ``flex-twin replay``, ``flex-twin import quanser`` and
-``flex-twin real-arm calibrate|report`` (hooked into flex_model.cli when present).
+``flex-twin real-arm calibrate|report|diagnose`` (hooked into flex_model.cli when present).
 
 The lab's control law comes from flex_control (imported here only, lazily): flex_model's
 core never depends on it.
@@ -98,12 +98,48 @@ def cmd_report(args) -> int:
     from .quanser_twin import data_root
     from .report import build_report
     out = Path(args.out or "runs/real-arm-report")
-    report = build_report(data_root(args.data), _policy_factory(), out, _progress)
+    report = build_report(data_root(args.data), _policy_factory(), out, _progress,
+                          diagnoses=args.diagnosis or ())
     if args.json:
         print(json.dumps(report, indent=1, default=float))
     else:
         print((out / "report.md").read_text())
     return 0
+
+
+def cmd_diagnose(args) -> int:
+    """Export a lab run (and a held-out run with the same law) as diagnosis inputs into
+    ``OUT/inputs`` and run ``flex-twin diagnose`` on them (report, diagnosed_arm.yaml)."""
+    import argparse
+
+    from ..diagnosis.cli import cmd_diagnose as engine_diagnose
+    from .quanser_diagnosis import DEFAULT_RUN, controller_dict, export_run, run_path, \
+        same_law
+    from .quanser_twin import data_root
+    given = [r for r in (args.run, args.holdout) if r]
+    root = None if given and all(Path(r).is_file() for r in given) and not args.data \
+        else data_root(args.data)
+    fit = export_run(run_path(args.run or DEFAULT_RUN, root), Path(args.out) / "inputs")
+    holdout = None
+    if args.holdout:
+        ho = export_run(run_path(args.holdout, root), Path(args.out) / "inputs")
+        a, b = fit["case"], ho["case"]
+        if (a["run"].lab, a["run"].kind) != (b["run"].lab, b["run"].kind) or \
+                not same_law(controller_dict(a), controller_dict(b)):
+            raise ValueError(f"--holdout {args.holdout}: gains {b['run'].gains.tolist()}, gauge "
+                             f"sign {b['run'].gauge_sign():+.0f} differ from the fit run's "
+                             f"{a['run'].gains.tolist()}, {a['run'].gauge_sign():+.0f} (the "
+                             "diagnosis replays both runs with one controller)")
+        holdout = str(ho["paths"]["data"])
+    p = fit["paths"]
+    (Path(args.out) / "inputs" / "runs.json").write_text(json.dumps(
+        {"fit": fit["case"]["run"].name, "holdout": args.holdout and ho["case"]["run"].name}))
+    _progress(f"inputs: {p['data']}, {p['controller']}, {p['arm']}")
+    ns = argparse.Namespace(data=str(p["data"]), arm=str(p["arm"]),
+                            controller=str(p["controller"]), holdout=holdout, out=args.out,
+                            gate=None, segment=None, workers=args.workers,
+                            no_plots=args.no_plots, json=args.json)
+    return engine_diagnose(ns)
 
 
 def add_real_arm_parsers(sub) -> None:
@@ -146,5 +182,21 @@ def add_real_arm_parsers(sub) -> None:
                     "../shared/data/real)")
     rp.add_argument("--out", default=None, help="output directory (default "
                     "runs/real-arm-report)")
+    rp.add_argument("--diagnosis", nargs="*", default=None, metavar="DIR", help="output "
+                    "directories of real-arm diagnose to add to the report")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_report)
+    dp = rsub.add_parser("diagnose", help="flex-twin diagnose on a lab run against the "
+                         "nominal (handout) twin: writes the inputs (CSV, controller and arm "
+                         "YAML) and the diagnosis report (minutes)")
+    dp.add_argument("run", nargs="?", default=None, help="a CU Boulder lab file or run name "
+                    "(default flexarm_K1_6, a link-fit run of CUBOULDER_SPLIT)")
+    dp.add_argument("--holdout", default=None, help="held-out run with the same law (default:"
+                    " the last 40 %% of RUN)")
+    dp.add_argument("--data", default=None, help="folder of the real data (default "
+                    "../shared/data/real)")
+    dp.add_argument("--out", default="runs/real-arm-diagnosis", help="output directory")
+    dp.add_argument("--workers", type=int, default=None, help="parallel processes")
+    dp.add_argument("--no-plots", action="store_true")
+    dp.add_argument("--json", action="store_true")
+    dp.set_defaults(func=cmd_diagnose)

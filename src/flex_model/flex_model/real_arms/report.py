@@ -209,6 +209,46 @@ def _findings(report: dict) -> list:
             "at rest (sign and bias are found from the data, see quanser_data.LabRun)."]
 
 
+def diagnosis_summaries(dirs) -> list:
+    """What ``flex-twin real-arm diagnose`` named, from the diagnosis.json of each output
+    directory (runs of minutes, so the report reads them instead of running them)."""
+    out = []
+    for d in dirs:
+        path = Path(d) / "diagnosis.json"
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no diagnosis (run flex-twin real-arm diagnose "
+                                    f"--out {d} first)")
+        s = json.loads(path.read_text())
+        runs = json.loads((Path(d) / "inputs" / "runs.json").read_text())
+        out.append({"dir": str(d), "runs": [runs["fit"], runs["holdout"] or "last 40 %"],
+                    "verdict": s["verdict"],
+                    "named": [{"label": c["label"], "parameters": c["parameters"],
+                               "ci95": c["ci95"], "share": c["share_explained"]}
+                              for c in s["named"]],
+                    "baseline_scales": s["baseline_scales"],
+                    "holdout_error_reduction": s["holdout_error_reduction"],
+                    "wall_s": s["timing"]["wall_s"]})
+    return out
+
+
+def _diagnosis_lines(diagnoses) -> list:
+    lines = ["", "## flex-twin diagnose on the nominal (handout) twin", "",
+             "| runs (fit, held out) | verdict | named (95 % interval) | held-out error "
+             "reduced | baseline EI, rotor inertia, K_t scales | wall time |",
+             "|---|---|---|---|---|---|"]
+    for d in diagnoses:
+        named = "; ".join(c["label"] + " " + ", ".join(
+            f"{k} {v:.3g} +- {c['ci95'][k]:.2g}" for k, v in c["parameters"].items())
+            + f" (share {c['share']:.2f})" for c in d["named"]) or "-"
+        b = d["baseline_scales"]
+        scales = ", ".join(f"{b.get(k, 1.0):.3f}" for k in (
+            "link1.EI", "gear.joint1.rotor_inertia", "dc_motor.joint1.torque_constant"))
+        lines.append(f"| {', '.join(d['runs'])} | {d['verdict']} | {named} | "
+                     f"{100 * d['holdout_error_reduction']:.0f} % | {scales} | "
+                     f"{d['wall_s']:.0f} s |")
+    return lines
+
+
 def write_markdown(report: dict, path: Path) -> None:
     """The report as markdown (tables of the numbers in ``report``)."""
     lines = ["# Quanser rotary flexible link: nominal vs calibrated twin (issue 9)", "",
@@ -254,19 +294,23 @@ def write_markdown(report: dict, path: Path) -> None:
                   f" Hz; with EI rescaled to the measured anti-resonance ({k['rescaled_EI']:.3f}"
                   f" N m^2) the twin predicts the resonance at "
                   f"{k['rescaled_twin_resonance_hz']:.2f} Hz."]
+    if report.get("diagnosis"):
+        lines += _diagnosis_lines(report["diagnosis"])
     lines += ["", "Plots: replay_<run>.png, replay_ucmerced.png, kyoto_frf.png."]
     path.write_text("\n".join(lines) + "\n")
 
 
-def build_report(data, make_policy: Callable, out, progress: Callable = print) -> dict:
-    """Write report.md, report.json and the PNGs to ``out``; returns the numbers."""
+def build_report(data, make_policy: Callable, out, progress: Callable = print,
+                 diagnoses=()) -> dict:
+    """Write report.md, report.json and the PNGs to ``out``; returns the numbers.
+    ``diagnoses``: output directories of ``flex-twin real-arm diagnose`` to summarize."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     report = {"split": {k: list(v) for k, v in CUBOULDER_SPLIT.items()},
               "cuboulder": held_out_comparison(data, make_policy, out, progress),
               "ucmerced": ucmerced_validation(data, make_policy, out),
               "kyoto": kyoto_comparison(data, out, progress),
-              "parameters": twin_parameters()}
+              "parameters": twin_parameters(), "diagnosis": diagnosis_summaries(diagnoses)}
     report["summary"] = summarize(report["cuboulder"])
     (out / "report.json").write_text(json.dumps(report, indent=1, default=float))
     write_markdown(report, out / "report.md")
