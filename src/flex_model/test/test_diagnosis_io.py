@@ -144,3 +144,26 @@ def test_updated_arm_yaml_loads_with_the_named_effects(tmp_path):
     assert [(s.kind, s.bias) for s in arm.sensors] == [("joint_encoder", 5e-3)]
     assert yaml.safe_load(out.read_text())["name"] == "thesis_example1_motors_diagnosed"
     FlexArmModel(arm)
+
+
+def test_stiffness_hypothesis_scales_EI_of_material_and_explicit_links(tmp_path):
+    """+10 % E I moves a clamped link's first frequency by sqrt(1.1), whether the section is
+    a material (E) or explicit (EI) one, and the updated raw YAML carries the same scale."""
+    from flex_model.arm import arm_from_dict
+    from flex_model.diagnosis.baseline import scale_raw_link
+    from flex_model.diagnosis.hypotheses import Hypothesis
+    from flex_model.modes import natural_modes
+    explicit = {"name": "x", "gravity": [0.0, 0.0], "links": [
+        {"length": 0.45, "section": {"shape": "explicit", "EI": 0.25, "m": 0.13}}]}
+    hyp = Hypothesis("stiffness", "link1", ("relative_change",), (0.1,), (-7,), (20,),
+                     (0.0,), ((1.0,),))
+    for arm in (arm_from_dict(explicit), load_arm("thesis_single_link")):
+        f0 = natural_modes(FlexArmModel(arm), joints="clamped").omega[0]
+        stiffer, _ = hyp.apply(arm, np.array([1.0]))
+        f1 = natural_modes(FlexArmModel(stiffer), joints="clamped").omega[0]
+        assert f1 / f0 == pytest.approx(np.sqrt(1.1), rel=1e-9)
+    raw = explicit["links"][0]
+    scale_raw_link(raw, "EI", 1.1)
+    assert raw["section"]["EI"] == pytest.approx(0.275)
+    assert hyp.physical([0.1], [0.01], arm_from_dict(explicit))[0] == ("EI",)
+

@@ -60,7 +60,9 @@ def bounds(params) -> tuple[np.ndarray, np.ndarray]:
     return 1.0 - tol, 1.0 + tol
 
 
-def _scaled_segment(seg, s_ei, s_m):
+def scaled_segment(seg, s_ei, s_m):
+    """A link segment with its bending stiffness E I times ``s_ei`` and its mass per length
+    times ``s_m`` (E and rho of a material section, EI and m of an explicit one)."""
     if seg.shape == "explicit":
         dims = dict(seg.dims)
         dims["EI"] = tuple(x * s_ei for x in dims["EI"])
@@ -90,7 +92,7 @@ def apply_scales(arm: ArmDescription, params, scales) -> ArmDescription:
                     vals = [v * s if q.name == name else v
                             for q, v in zip(e.PARAMETERS, e.values)]
                     effects[k] = dataclasses.replace(e, values=tuple(vals))
-    links = [dataclasses.replace(lk, segments=tuple(_scaled_segment(sg, ei[i], m[i])
+    links = [dataclasses.replace(lk, segments=tuple(scaled_segment(sg, ei[i], m[i])
                                                     for sg in lk.segments))
              for i, lk in enumerate(links)]
     return dataclasses.replace(arm, links=tuple(links), effects=tuple(effects),
@@ -102,18 +104,7 @@ def scale_raw(raw: dict, params, scales) -> dict:
     raw = copy.deepcopy(raw)
     for p, s in zip(params, scales):
         if p.kind in ("EI", "m"):
-            lk = raw["links"][p.index]
-            for holder in [lk] + list(lk.get("segments", [])):
-                mat = holder.get("material")
-                if mat is not None:
-                    key = "E" if p.kind == "EI" else "rho"
-                    mat[key] = float(mat[key]) * float(s)
-                sec = holder.get("section", {})
-                if sec.get("shape") == "explicit":
-                    key = "EI" if p.kind == "EI" else "m"
-                    val = sec[key]
-                    sec[key] = [float(x) * s for x in val] if isinstance(val, list) \
-                        else float(val) * s
+            scale_raw_link(raw["links"][p.index], p.kind, s)
         elif p.kind == "payload":
             raw["payload"]["mass"] = float(raw["payload"]["mass"]) * float(s)
         else:
@@ -122,3 +113,19 @@ def scale_raw(raw: dict, params, scales) -> dict:
                 if e.get("type") == kind and target in (e.get("joint"), e.get("link"), ""):
                     e[name] = float(e[name]) * float(s)
     return raw
+
+
+def scale_raw_link(lk: dict, kind: str, s: float) -> None:
+    """Scale a raw YAML link in place: ``kind`` "EI" (E of a material, EI of an explicit
+    section) or "m" (rho, or m), on the link and on each of its segments."""
+    for holder in [lk] + list(lk.get("segments", [])):
+        mat = holder.get("material")
+        if mat is not None:
+            key = "E" if kind == "EI" else "rho"
+            mat[key] = float(mat[key]) * float(s)
+        sec = holder.get("section", {})
+        if sec.get("shape") == "explicit":
+            key = "EI" if kind == "EI" else "m"
+            val = sec[key]
+            sec[key] = [float(x) * s for x in val] if isinstance(val, list) \
+                else float(val) * s

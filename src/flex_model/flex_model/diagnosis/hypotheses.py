@@ -41,6 +41,7 @@ import numpy as np
 
 from ..effects import EFFECT_TYPES
 from ..sensors import Sensor
+from .baseline import scaled_segment
 
 FRICTION_EPS = 1e-3
 STRIBECK_VELOCITY = 0.05
@@ -108,9 +109,12 @@ class Hypothesis:
             return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
                 [w[0], w[1], float(np.hypot(w[1], w[2]))]
         if self.kind == "stiffness":
-            lk = next(lk for lk in twin.links if lk.name == self.target)
-            E = lk.segments[0].E
-            return ("E",), [E], [E * w[0] / max(1.0 + v[0], 1e-9)]
+            seg = next(lk for lk in twin.links if lk.name == self.target).segments[0]
+            if seg.shape == "explicit":  # no Young's modulus: the link's E I at its root
+                name, value = "EI", seg.dims["EI"][0]
+            else:
+                name, value = "E", seg.E
+            return (name,), [value], [value * w[0] / max(1.0 + v[0], 1e-9)]
         return self.names, v, w
 
     def apply(self, arm, x):
@@ -129,7 +133,7 @@ class Hypothesis:
             i = [lk.name for lk in arm.links].index(self.target)
             links = list(arm.links)
             links[i] = dataclasses.replace(links[i], segments=tuple(
-                dataclasses.replace(sg, E=sg.E * (1.0 + v[0])) for sg in links[i].segments))
+                scaled_segment(sg, 1.0 + v[0], 1.0) for sg in links[i].segments))
             return dataclasses.replace(arm, links=tuple(links)), None
         if k == "joint_friction":
             eff = (E[k](self.target, (v[0], v[1], v[1] + v[2], STRIBECK_VELOCITY,

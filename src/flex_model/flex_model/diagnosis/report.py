@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 
 from ..config import read_yaml
-from .baseline import apply_scales, scale_raw
+from .baseline import apply_scales, scale_raw, scale_raw_link
 from .evaluation import predict_channels, twin_arm
 
 
@@ -37,8 +37,7 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
                 change = entry["link_stiffness"]
                 i = [lk.get("name", f"link{k + 1}")
                      for k, lk in enumerate(raw["links"])].index(change["link"])
-                mat = raw["links"][i]["material"]
-                mat["E"] = float(mat["E"]) * (1.0 + change["relative_change"])
+                scale_raw_link(raw["links"][i], "EI", 1.0 + change["relative_change"])
             else:  # replaces an effect of the same type and target (a gear's rotor moved)
                 tgt = entry.get("joint", entry.get("link"))
                 raw["effects"] = [e for e in raw.get("effects", []) if not (
