@@ -99,10 +99,9 @@ def summary(diagnosis) -> dict:
 
 
 def _plots(out: Path, diagnosis) -> list[str]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from scipy.signal import welch
+
+    from ..plots import finish_figure, plt
     ctx_ho = diagnosis.contexts[1]
     rec = ctx_ho.rec
     before = predict_channels(ctx_ho, twin_arm(ctx_ho, np.ones(len(ctx_ho.baseline_params))))
@@ -110,34 +109,25 @@ def _plots(out: Path, diagnosis) -> list[str]:
                                               diagnosis.final_effects))
     chans = rec.residual_channels
     n = len(before.t)
-    files = []
     fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.6 * len(chans)), sharex=True)
     for ax, c in zip(np.atleast_1d(axes), chans):
         ax.plot(rec.t[:n], rec.channels[c][:n], "k", lw=0.8, label="measured")
         ax.plot(before.t, before.channels[c], "r", lw=0.7, label="nominal twin")
         ax.plot(after.t, after.channels[c], "b--", lw=0.7, label="diagnosed twin")
         ax.set_ylabel(c)
-    np.atleast_1d(axes)[0].legend(loc="upper right", fontsize=7)
     np.atleast_1d(axes)[-1].set_xlabel("t (s) - held-out recording")
-    fig.tight_layout()
-    fig.savefig(out / "overlay.png", dpi=90)
-    plt.close(fig)
-    files.append("overlay.png")
+    finish_figure(fig, axes, out / "overlay.png")
     fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.6 * len(chans)), sharex=True)
     for ax, c in zip(np.atleast_1d(axes), chans):
         for pred, col, lab in ((before, "r", "nominal"), (after, "b", "diagnosed")):
-            r = rec.channels[c][:n] - pred.channels[c]
-            f, p = welch(r, fs=1.0 / rec.dt, nperseg=min(n, 2048))
+            f, p = welch(rec.channels[c][:n] - pred.channels[c], fs=1.0 / rec.dt,
+                         nperseg=min(n, 2048))
             ax.semilogy(f, p, col, lw=0.8, label=lab)
         ax.set_ylabel(c)
         ax.set_xlim(0, 30)
-    np.atleast_1d(axes)[0].legend(loc="upper right", fontsize=7)
     np.atleast_1d(axes)[-1].set_xlabel("frequency (Hz) - residual power spectra")
-    fig.tight_layout()
-    fig.savefig(out / "spectra.png", dpi=90)
-    plt.close(fig)
-    files.append("spectra.png")
-    return files
+    finish_figure(fig, axes, out / "spectra.png")
+    return ["overlay.png", "spectra.png"]
 
 
 def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:

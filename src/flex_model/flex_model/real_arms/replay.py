@@ -194,9 +194,7 @@ def plot_replay(results, path, title: str = "") -> None:
     """Overlay of lab and twin(s): hub angle, tip deflection, voltage (PNG).
 
     ``results``: ReplayResults of one run (e.g. nominal and calibrated twins)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plots import finish_figure, plt
     run = results[0].run
     n = len(results[0].t)
     rows = 3 if run.has_gauge else 2
@@ -207,7 +205,6 @@ def plot_replay(results, path, title: str = "") -> None:
     for r in results:
         ax[0].plot(t, r.twin_theta, lw=1.0, label=f"twin {r.arm_name}")
     ax[0].set_ylabel("hub angle (rad)")
-    ax[0].legend(fontsize=7, loc="upper right")
     k = 1
     if run.has_gauge:
         ax[1].plot(t, 1e3 * run.deflection[:n], "k", lw=1.2, label="lab")
@@ -220,7 +217,4 @@ def plot_replay(results, path, title: str = "") -> None:
         ax[k].plot(t, r.twin_voltage, lw=0.8, label=f"twin {r.arm_name}")
     ax[k].set_ylabel("voltage (V)")
     ax[k].set_xlabel("t (s)")
-    fig.suptitle(title or f"{run.lab} {run.name}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    finish_figure(fig, ax, path, title or f"{run.lab} {run.name}")

@@ -49,9 +49,7 @@ def kyoto_comparison(data, out: Path, progress: Callable = print) -> dict:
     arm2 = apply_parameters(arm, {"EI": ei})
     twin2 = closed_loop_frf(FlexArmModel(arm2), KYOTO_KP, f)["closed"]
     t2_res = _local_extremum(f, np.abs(twin2), m_anti, 9.0, "max")
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plots import finish_figure, plt
     fig, ax = plt.subplots(figsize=(8, 4))
     for r in frfs:
         ax.semilogx(r.f, 20 * np.log10(r.magnitude), color="0.6", lw=0.7)
@@ -62,10 +60,7 @@ def kyoto_comparison(data, out: Path, progress: Callable = print) -> dict:
     ax.set_ylabel("|G| (dB)")
     ax.set_title("Kyoto closed-loop FRFs (grey, 7 files) vs twin, P loop K_p = 1.65",
                  fontsize=9)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "kyoto_frf.png", dpi=110)
-    plt.close(fig)
+    finish_figure(fig, ax, out / "kyoto_frf.png")
     progress(f"kyoto: anti-resonance {m_anti:.2f} Hz, resonance {np.nanmedian(res):.2f} Hz")
     return {"files": [r.name for r in frfs], "measured_antiresonance_hz": anti,
             "measured_resonance_hz": res, "twin_antiresonance_hz": t_anti,
