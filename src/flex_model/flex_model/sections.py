@@ -8,7 +8,7 @@ All quantities in SI units: lengths in m, E and G in Pa, rho in kg/m^3.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -79,6 +79,15 @@ class Segment:
     rho: float = 0.0
     G: float = 0.0
     shear_factor: float = 0.0
+
+    def scaled(self, stiffness: float = 1.0, mass: float = 1.0) -> "Segment":
+        """This segment with E I times ``stiffness`` and the mass per length times ``mass``
+        (E and rho of a material section, EI and m of an ``explicit`` one)."""
+        if self.shape == "explicit":
+            return replace(self, dims=dict(self.dims,
+                                           EI=tuple(stiffness * v for v in self.dims["EI"]),
+                                           m=tuple(mass * v for v in self.dims["m"])))
+        return replace(self, E=stiffness * self.E, rho=mass * self.rho)
 
     @property
     def tapered(self) -> bool:

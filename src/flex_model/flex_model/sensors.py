@@ -121,6 +121,12 @@ def measure(sensor: Sensor, result, seed: int = 0):
     y = x + sensor.bias
     if sensor.noise > 0:
         y = y + np.random.default_rng(seed).normal(0.0, sensor.noise, size=y.shape)
-    if sensor.resolution > 0:
-        y = np.round(y / sensor.resolution) * sensor.resolution
+    y = quantise(y, sensor.resolution)
     return t, y
+
+
+def quantise(x, resolution: float):
+    """Round to the resolution (an encoder's or ADC's step); unchanged for resolution 0."""
+    if resolution <= 0:
+        return x
+    return np.round(np.asarray(x) / resolution) * resolution

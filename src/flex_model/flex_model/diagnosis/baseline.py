@@ -60,17 +60,6 @@ def bounds(params) -> tuple[np.ndarray, np.ndarray]:
     return 1.0 - tol, 1.0 + tol
 
 
-def scaled_segment(seg, s_ei, s_m):
-    """A link segment with its bending stiffness E I times ``s_ei`` and its mass per length
-    times ``s_m`` (E and rho of a material section, EI and m of an explicit one)."""
-    if seg.shape == "explicit":
-        dims = dict(seg.dims)
-        dims["EI"] = tuple(x * s_ei for x in dims["EI"])
-        dims["m"] = tuple(x * s_m for x in dims["m"])
-        return dataclasses.replace(seg, dims=dims)
-    return dataclasses.replace(seg, E=seg.E * s_ei, rho=seg.rho * s_m)
-
-
 def apply_scales(arm: ArmDescription, params, scales) -> ArmDescription:
     """The arm with the baseline scales applied."""
     links = list(arm.links)
@@ -92,7 +81,7 @@ def apply_scales(arm: ArmDescription, params, scales) -> ArmDescription:
                     vals = [v * s if q.name == name else v
                             for q, v in zip(e.PARAMETERS, e.values)]
                     effects[k] = dataclasses.replace(e, values=tuple(vals))
-    links = [dataclasses.replace(lk, segments=tuple(scaled_segment(sg, ei[i], m[i])
+    links = [dataclasses.replace(lk, segments=tuple(sg.scaled(ei[i], m[i])
                                                     for sg in lk.segments))
              for i, lk in enumerate(links)]
     return dataclasses.replace(arm, links=tuple(links), effects=tuple(effects),

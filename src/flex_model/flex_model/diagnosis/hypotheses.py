@@ -41,7 +41,6 @@ import numpy as np
 
 from ..effects import EFFECT_TYPES
 from ..sensors import Sensor
-from .baseline import scaled_segment
 
 FRICTION_EPS = 1e-3
 STRIBECK_VELOCITY = 0.05
@@ -133,7 +132,7 @@ class Hypothesis:
             i = [lk.name for lk in arm.links].index(self.target)
             links = list(arm.links)
             links[i] = dataclasses.replace(links[i], segments=tuple(
-                scaled_segment(sg, 1.0 + v[0], 1.0) for sg in links[i].segments))
+                sg.scaled(stiffness=1.0 + v[0]) for sg in links[i].segments))
             return dataclasses.replace(arm, links=tuple(links)), None
         if k == "joint_friction":
             eff = (E[k](self.target, (v[0], v[1], v[1] + v[2], STRIBECK_VELOCITY,

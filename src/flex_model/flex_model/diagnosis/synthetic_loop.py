@@ -24,7 +24,8 @@ from ..dynamics import FlexArmModel
 from ..simulate import simulate
 from ..statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
-from .synthetic_signals import channel_noise, quantise
+from ..sensors import quantise
+from .synthetic_signals import channel_noise
 
 
 @dataclass(frozen=True)

@@ -117,13 +117,6 @@ def channel_noise(rng: np.random.Generator, shape, spec: NoiseSpec, dt: float) -
     return white + ar1(rng, shape, spec.coloured, spec.phi(dt))
 
 
-def quantise(x, resolution: float):
-    """Round to the resolution (an encoder's or ADC's step); unchanged for resolution 0."""
-    if resolution <= 0:
-        return x
-    return np.round(np.asarray(x) / resolution) * resolution
-
-
 #: the nominal noise of the synthetic recordings: a 17-bit link-side encoder with a little
 #: electrical noise and a slowly drifting mount, a tachometer, strain-gauge tip deflection
 #: (thermal drift), a camera tip position, and torque ripple of the drives (process noise)

@@ -85,16 +85,9 @@ class Candidate:
 
 
 def _scaled_links(arm: ArmDescription, stiffness: float = 1.0, mass: float = 1.0):
-    """Every link's EI times ``stiffness`` and mass per length times ``mass`` (through E and
-    rho of geometric sections, EI and m of explicit ones)."""
-    def segment(s):
-        if s.shape == "explicit":
-            dims = dict(s.dims, EI=tuple(stiffness * v for v in s.dims["EI"]),
-                        m=tuple(mass * v for v in s.dims["m"]))
-            return dataclasses.replace(s, dims=dims)
-        return dataclasses.replace(s, E=stiffness * s.E, rho=mass * s.rho)
-
-    links = tuple(dataclasses.replace(lk, segments=tuple(segment(s) for s in lk.segments))
+    """Every link's EI times ``stiffness`` and mass per length times ``mass``."""
+    links = tuple(dataclasses.replace(lk, segments=tuple(s.scaled(stiffness, mass)
+                                                         for s in lk.segments))
                   for lk in arm.links)
     return dataclasses.replace(arm, links=links)
 
