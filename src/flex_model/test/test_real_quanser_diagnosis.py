@@ -79,7 +79,7 @@ def test_controller_is_the_lab_law(real, tmp_path):
 
 
 def test_nominal_arm_is_the_handout_twin(real, tmp_path):
-    """The strip section has the preset's EI and m (1e-12) and its 1.8 Hz clamped mode."""
+    """The exported arm has the preset's EI and m (1e-12) and its 1.8 Hz clamped mode."""
     e = export_run(run_path("flexarm_K1_6", real), tmp_path)
     arm, preset = load_arm(e["paths"]["arm"]), load_arm("quanser_cuboulder_flexible")
     z = np.linspace(0.0, 1.0, 5)

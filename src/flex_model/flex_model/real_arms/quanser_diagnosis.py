@@ -11,17 +11,13 @@
   K4 d_dot on the twin's channels. The lab's d is ``s w + b`` (gauge sign s, bias b), so
   ``gains: [{q1: K1, w1: s K2}]``, ``rate_gains: [{q1: K3, w1: s K4}]`` and the constant
   -K2 b enters as the recorded feed-forward; period = the log's sample period;
-- the nominal arm YAML: the handout preset, with its ``explicit`` section (EI, m) written as
-  the equivalent steel strip (``rectangular``, E 200 GPa, rho 7850 kg/m^3, same EI and m
-  to rounding): the diagnosis's ``stiffness`` hypothesis scales a segment's E, which an
-  ``explicit`` section does not use (there it would be a no-op).
+- the nominal arm YAML: the handout preset as it is.
 
 Runs without a gauge signal (rigid bar, ``flexibleArm_test_1``) have no ``w1`` and a
 q-only law (the lab's law saw d = 0).
 """
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +28,6 @@ from ..config import read_yaml
 from .quanser_data import CUBOULDER
 from .quanser_twin import NOMINAL_PRESETS, diagnosis_case
 
-#: the equivalent strip's material (steel; only E I and rho A matter)
-STRIP_E = 200e9
-STRIP_RHO = 7850.0
 #: fit run of the diagnosis and its default held-out run (CUBOULDER_SPLIT link_fit):
 #: no held-out run of the split has the fit runs' law, and the engine replays both
 #: recordings with one controller, so the default held-out data are the last 40 % of the
@@ -67,26 +60,10 @@ def controller_dict(case: dict) -> dict:
                            "gains": [gains], "rate_gains": [rates]}}
 
 
-def strip_section(section: dict) -> dict:
-    """An ``explicit`` {EI, m} section as the equivalent rectangular steel strip:
-    A = m / rho, I = EI / E, height h = sqrt(12 I / A) (in the plane), width A / h."""
-    area = float(section["m"]) / STRIP_RHO
-    inertia = float(section["EI"]) / STRIP_E
-    h = float(np.sqrt(12.0 * inertia / area))
-    return {"shape": "rectangular", "width": area / h, "height": h}
-
-
 def nominal_arm_dict(case: dict) -> dict:
-    """The nominal arm YAML mapping of the run (handout preset, strip section)."""
+    """The nominal arm YAML mapping of the run (the handout preset)."""
     run = case["run"]
-    raw = copy.deepcopy(read_yaml(resolve_preset(NOMINAL_PRESETS[(run.lab, run.kind)])))
-    for lk in raw["links"]:
-        if lk.get("section", {}).get("shape") == "explicit":
-            lk["section"] = strip_section(lk["section"])
-            lk["material"] = {"E": STRIP_E, "rho": STRIP_RHO}
-    raw["description"] = raw.get("description", raw["name"]) + \
-        "; section as the equivalent steel strip (diagnosis input)"
-    return raw
+    return read_yaml(resolve_preset(NOMINAL_PRESETS[(run.lab, run.kind)]))
 
 
 def write_csv(columns: dict, path) -> None:
