@@ -18,7 +18,7 @@ import warnings
 import numpy as np
 
 from . import kernels
-from .arm import ArmDescription
+from .arm import PAIRED, ArmDescription
 from .basis import link_basis
 
 
@@ -194,7 +194,7 @@ class FlexArmModel:
             if n == 1:
                 names.append(f"{lk.name}/delta")
                 continue
-            if n % 2 or lk.discretization not in ("wavelet", "fem"):
+            if n % 2 or lk.discretization not in PAIRED:
                 names += [f"{lk.name}/eta{k + 1}" for k in range(n - 2)]
                 names += [f"{lk.name}/delta", f"{lk.name}/gamma"]
                 continue
