@@ -25,6 +25,10 @@ from flex_model.diagnosis.synthetic import CASE_KINDS, parse_kind
 from flex_model.diagnosis.synthetic_scoring import DEFAULT_TWO, report, run_one, summarise
 
 
+def _g(x):
+    return "-" if x is None else f"{x:.3g}"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10, help="runs (seeds) per case kind")
@@ -70,7 +74,8 @@ def main(argv=None) -> int:
             named = ",".join(f"{n['kind']}@{n['target']}" for n in r.get("named", []))
             print(f"[{i}/{len(jobs)} {time.perf_counter() - t0:.0f} s] {r['kind']} seed "
                   f"{r['seed']}: {r.get('verdict', r.get('error'))} {named} "
-                  f"(materiality {r['materiality']}, {r.get('diagnose_s', 0):.1f} s)",
+                  f"(materiality {_g(r['materiality'])}, replay {_g(r.get('materiality_replay'))}"
+                  f", {r.get('diagnose_s', 0):.1f} s)",
                   file=sys.stderr, flush=True)
             (out / "results.json").write_text(json.dumps(results, indent=1, default=str))
     summary = summarise(results)

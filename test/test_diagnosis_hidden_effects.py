@@ -215,16 +215,6 @@ def test_every_kind_is_declared():
 
 
 # ------------------------------------------------------------------ acceptance subset
-def _engine():
-    try:
-        from flex_model.diagnosis.engine import diagnose
-    except ImportError:
-        return None
-    return diagnose
-
-
-@pytest.mark.skipif(_engine() is None, reason="the diagnosis engine "
-                    "(flex_model.diagnosis.engine.diagnose) does not exist yet")
 @pytest.mark.skipif(not os.environ.get(ACCEPTANCE_ENV), reason=f"the acceptance subset runs "
                     f"7 diagnoses (minutes on 2 cores); set {ACCEPTANCE_ENV}=1 to run it")
 def test_acceptance_subset(tmp_path):

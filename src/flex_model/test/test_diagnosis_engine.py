@@ -106,3 +106,40 @@ def test_multiple_shooting_restarts_each_window_from_the_measured_state():
         assert b.channels["q1"][k] == pytest.approx(rec.channels["q1"][k], abs=1e-4)
     # windows restart with undeformed velocities: close to, not equal to, one replay
     assert 0 < np.abs(a.channels["q2"] - b.channels["q2"]).max() < 1e-2
+
+
+def test_baseline_projection_by_qr_is_the_bounded_least_squares_correction():
+    """||r + J db|| over the box, solved on the thin QR factors, equals the direct solve."""
+    from scipy.optimize import lsq_linear
+
+    from flex_model.diagnosis.fitting import BaselineProjection
+    rng = np.random.default_rng(3)
+    Jb = rng.standard_normal((4000, 6))
+    r = Jb @ np.array([0.3, -0.2, 0.05, 0.4, -0.5, 0.1]) + rng.standard_normal(4000)
+    s = np.ones(6)
+    lo, hi = s - 0.1, s + 0.1       # all corrections but the third hit the box
+    proj, db = BaselineProjection(Jb, s, lo, hi)(r)
+    direct = lsq_linear(Jb, -r, bounds=(lo - s, hi - s)).x
+    np.testing.assert_allclose(db, direct, atol=1e-8)
+    np.testing.assert_allclose(proj, r + Jb @ direct, atol=1e-7)
+    assert np.sum(np.abs(np.abs(db) - 0.1) < 1e-9) == 5 and abs(db[2]) < 0.09
+
+
+def test_a_hypothesis_pair_applies_both_effects_with_its_split_parameters():
+    from flex_model.diagnosis.hypotheses import HypothesisPair, parts_of
+    rec = _run(NOMINAL, 1.0)
+    hyps = {h.label: h for h in library_hypotheses(NOMINAL, rec, CTL)}
+    bias, fric = hyps["sensor_bias@joint1"], hyps["joint_friction@joint2"]
+    pair = HypothesisPair(bias, fric)
+    x = np.array([4.0, 1.0, 2.0, 0.5])
+    assert pair.label == "sensor_bias@joint1+joint_friction@joint2"
+    assert pair.names == ("bias", "viscous", "coulomb", "static_excess")
+    (h1, x1), (h2, x2) = parts_of(pair, x)
+    assert (h1, h2) == (bias, fric) and list(x1) == [4.0] and list(x2) == [1.0, 2.0, 0.5]
+    both = pair.apply(NOMINAL, x)[0]
+    one_by_one = fric.apply(bias.apply(NOMINAL, x1)[0], x2)[0]
+    assert both == one_by_one
+    assert both.sensors[-1].bias == pytest.approx(4e-3)
+    f = both.effect("joint_friction", "joint2")
+    assert (f["viscous"], f["coulomb"]) == pytest.approx(tuple(fric.values(x2)[:2]))
+    np.testing.assert_array_equal(pair.off(), np.zeros(4))

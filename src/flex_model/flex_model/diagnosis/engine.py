@@ -20,8 +20,10 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
+from itertools import combinations
 
 import numpy as np
 from scipy.optimize import lsq_linear
@@ -29,11 +31,14 @@ from scipy.optimize import lsq_linear
 from .baseline import baseline_parameters
 from .baseline import bounds as scale_bounds
 from .evaluation import Context, cost, default_executor, evaluate, twin_arm
-from .fitting import FitResult, confidence_intervals, fit_baseline, fit_candidate, fit_task
-from .hypotheses import library_hypotheses
+from .fitting import (FitResult, baseline_jacobian, confidence_intervals, fit_baseline,
+                      fit_candidate, fit_task)
+from .hypotheses import HypothesisPair, library_hypotheses, parts_of
 from .localise import effective_samples, localise
 
-DEFAULT_GATE = 0.75
+#: calibrated on 31 healthy synthetic runs (seeds 1000-1030, nominal noise): their held-out
+#: excess of the recalibrated twin has median 0.06 and maximum 0.28
+DEFAULT_GATE = 0.45
 MIN_SHARE = 0.35
 MAX_COND = 1e8
 TIE = 0.05
@@ -148,6 +153,94 @@ def _bic_delta(J_new, J_old, n, k):
     return n * np.log(max(J_new, 1e-300) / max(J_old, 1e-300)) + k * np.log(n)
 
 
+def _candidate(h, fit, J_ho, state, score) -> Candidate:
+    """The evidence of a fitted hypothesis (or pair: parameters prefixed by the part)."""
+    ctx, _, current, _, cur_ho, n, n_eff, _, _ = state
+    half, cond = confidence_intervals(fit, n_eff)
+    x = fit.x if fit.x is not None else np.zeros(len(h.names))
+    if h.discrete:
+        half = np.array([0.5 - 1e-9])   # whole periods: d T exactly
+    if half is None:
+        half = np.full(len(x), np.inf)
+    twin = twin_arm(ctx, fit.scales, fit.effects)
+    names, values, ci, excl = [], [], [], True
+    pair = isinstance(h, HypothesisPair)
+    k = 0
+    for part, xp in parts_of(h, x):
+        hp = half[k:k + len(xp)]
+        k += len(xp)
+        excl &= bool(np.any(np.abs(xp - part.off()) > hp))
+        nm, v, e = part.physical(part.values(xp), part.value_halfwidths(xp, hp), twin)
+        names += [f"{part.label}.{a}" if pair else a for a in nm]
+        values += [float(a) for a in v]
+        ci += [float(a) for a in e]
+    return Candidate(label=h.label, kind="pair" if pair else h.kind,
+                     target="" if pair else h.target, names=tuple(names), values=values,
+                     ci=ci, x=list(map(float, x)), screen=score, J_fit=fit.J,
+                     J_holdout=J_ho, share=float((cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)),
+                     delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))), cond=cond,
+                     identifiable=excl and cond < MAX_COND, n_params=len(x))
+
+
+def _fit_round(executor, state, hyps, starts, scores):
+    """Fit the hypotheses jointly with the baseline (in parallel), score them held out."""
+    ctx, ctx_ho, current, Jb, _, _, _, progress, t_start = state
+    tasks = [(ctx, ctx_ho, h, current, Jb, starts.get(h.label)) for h in hyps]
+    cands, fits = [], {}
+    for h, (fit, J_ho) in zip(hyps, executor.map(fit_task, tasks)):
+        c = _candidate(h, fit, J_ho, state, scores[h.label])
+        cands.append(c)
+        fits[h.label] = (fit, J_ho)
+        _progress(f"  {h.label}: share {c.share:.3f}, J_ho {J_ho:.4g}, values "
+                  f"{np.round(c.values, 6).tolist()}", progress, t_start)
+    return cands, fits
+
+
+def _pick(cands, min_share):
+    """The best acceptable candidate: BIC improves, identifiable, share >= min_share;
+    among those within TIE of the best share, the fewest parameters."""
+    ok = sorted((c for c in cands if c.delta_bic < 0 and c.identifiable
+                 and c.share >= min_share), key=lambda c: -c.share)
+    if not ok:
+        return None
+    near = [c for c in ok if c.share >= ok[0].share - TIE]
+    return min(near, key=lambda c: (c.n_params, -c.share))
+
+
+def _fine_fit(executor, ctx, current):
+    """Fine fit of the accepted effect: re-linearized baseline, then the effect's
+    parameters again to a tight tolerance. Returns the fit and the baseline Jacobian."""
+    current_b, Jb = fit_baseline(executor, ctx, current.effects, iterations=2,
+                                 start=current.scales)
+    hyp, x = current.effects[-1]
+    if current_b.J < current.J:
+        current = current_b
+    if not hyp.discrete:
+        rest = FitResult(current.scales, current.effects[:-1], current.r, current.J)
+        fine = fit_candidate(executor, ctx, hyp, rest, Jb, start=x, max_nfev=8, ftol=1e-6)
+        if fine.J < current.J:
+            current = fine
+    current.effects = list(current.effects)
+    return current, Jb
+
+
+def _split(pick, hyp, x, twin) -> list:
+    """The accepted candidate per effect (a pair gives two), with the fine-fitted values;
+    the intervals stay those of the screening fit (same curvature)."""
+    out = []
+    k = 0
+    for part, xp in parts_of(hyp, x):
+        n_p = len(xp)
+        names, values, _ = part.physical(part.values(xp), [0.0] * n_p, twin)
+        c = dataclasses.replace(pick, label=part.label, kind=part.kind, target=part.target,
+                                names=tuple(names), values=[float(v) for v in values],
+                                ci=pick.ci[k:k + len(names)], x=list(map(float, xp)),
+                                n_params=n_p)
+        k += len(names)
+        out.append(c)
+    return out
+
+
 def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
              gate: float = DEFAULT_GATE, top: int = 4, max_effects: int = 3,
              min_share: float = MIN_SHARE, dt: float = 2e-3, segment: float | None = None,
@@ -181,6 +274,15 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
         base, Jb = fit_baseline(executor, ctx)
         r_b_ho = evaluate((ctx_ho, base.scales, []))
         J["baseline_fit"], J["baseline_holdout"] = base.J, cost(r_b_ho)
+        if J["baseline_holdout"] > J["nominal_holdout"]:
+            # the recalibration does not carry over to the held-out data: the scales
+            # compensate a missing effect on the fit data, so the search starts nominal
+            _progress(f"recalibration rejected (held out {J['baseline_holdout']:.4g} > "
+                      "nominal): the search starts from the nominal twin", progress, t_start)
+            J["recalibrated_holdout"] = J["baseline_holdout"]
+            base = FitResult(ones, [], r_nom, J["nominal_fit"])
+            Jb = baseline_jacobian(executor, ctx, ones, [], r_nom)
+            J["baseline_fit"], J["baseline_holdout"] = J["nominal_fit"], J["nominal_holdout"]
         baseline_scales = base.scales.copy()
         _progress(f"baseline within tolerance: J = {base.J:.4g} (fit), "
                   f"{J['baseline_holdout']:.4g} (held out); gate: excess > {gate}",
@@ -198,65 +300,36 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked), progress, t_start)
             n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
-            cands = []
-            fits = {}
-            tasks = [(ctx, ctx_ho, h, current, Jb, starts.get(h.label)) for h in ranked]
-            for h, (fit, J_ho) in zip(ranked, executor.map(fit_task, tasks)):
-                half, cond = confidence_intervals(fit, n_eff)
-                x = fit.x if fit.x is not None else np.zeros(len(h.names))
-                if h.discrete:
-                    half = np.array([0.5 - 1e-9])   # whole periods: d T exactly
-                off = h.off()
-                excl = bool(np.any(np.abs(x - off) > half)) if half is not None else False
-                share = (cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)
-                names, values, ci = h.physical(
-                    h.values(x), h.value_halfwidths(x, half) if half is not None
-                    else [np.inf] * len(x), twin_arm(ctx, fit.scales, fit.effects))
-                c = Candidate(label=h.label, kind=h.kind, target=h.target, names=names,
-                              values=[float(v) for v in values],
-                              ci=[float(e) for e in ci], x=list(map(float, x)),
-                              screen=scores[h.label], J_fit=fit.J, J_holdout=J_ho,
-                              share=float(share),
-                              delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))),
-                              cond=cond, identifiable=excl and cond < MAX_COND,
-                              n_params=len(x))
-                cands.append(c)
-                fits[h.label] = (fit, J_ho)
-                _progress(f"  {h.label}: share {share:.3f}, J_ho {J_ho:.4g}, values "
-                          f"{np.round(c.values, 6).tolist()}", progress, t_start)
-            ok = [c for c in cands if c.delta_bic < 0 and c.identifiable
-                  and c.share >= min_share]
-            ok.sort(key=lambda c: -c.share)
-            pick = None
-            if ok:
-                near = [c for c in ok if c.share >= ok[0].share - TIE]
-                pick = min(near, key=lambda c: (c.n_params, -c.share))
+            state = (ctx, ctx_ho, current, Jb, cur_ho, n, n_eff, progress, t_start)
+            cands, fits = _fit_round(executor, state, ranked, starts, scores)
+            pick = _pick(cands, min_share)
+            if pick is None and len(accepted) + 2 <= max_effects:
+                # effects that mask each other one at a time: the screened pairs jointly
+                pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
+                         if not (a.discrete or b.discrete)]
+                for pr in pairs:
+                    scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
+                    starts[pr.label] = np.concatenate([
+                        starts.get(h.label, h.starts[0]) for h in (pr.first, pr.second)])
+                _progress(f"no single effect explains it: {len(pairs)} pairs jointly",
+                          progress, t_start)
+                pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
+                cands += pair_cands
+                fits.update(pair_fits)
+                pick = _pick(pair_cands, min_share)
             rounds.append({"candidates": cands, "picked": pick.label if pick else None})
             if pick is None:
                 break
-            accepted.append(pick)
-            current, cur_ho = fits[pick.label][0], fits[pick.label][1]
-            # fine fit of the accepted effect: re-linearized baseline, then the effect's
-            # parameters again to a tight tolerance (alternating)
-            current_b, Jb = fit_baseline(executor, ctx, current.effects, iterations=1)
+            current = fits[pick.label][0]
+            current, Jb = _fine_fit(executor, ctx, current)
             hyp, x = current.effects[-1]
-            if current_b.J < current.J:
-                current = current_b
-            if not hyp.discrete:
-                rest = FitResult(current.scales, current.effects[:-1], current.r, current.J)
-                fine = fit_candidate(executor, ctx, hyp, rest, Jb, start=x, max_nfev=8,
-                                     ftol=1e-6)
-                if fine.J < current.J:
-                    current = fine
-                    x = fine.x
-                    # the intervals stay those of the screening fit (same curvature)
-                    _, values, _ = hyp.physical(hyp.values(x), [0.0] * len(x),
-                                                twin_arm(ctx, current.scales, current.effects))
-                    pick.values = [float(v) for v in values]
-                    pick.x = list(map(float, x))
+            current.effects[-1:] = parts_of(hyp, x)
             r_ho = evaluate((ctx_ho, current.scales, current.effects))
-            cur_ho = cost(r_ho) if r_ho is not None else cur_ho
-            pick.J_fit, pick.J_holdout = current.J, cur_ho
+            cur_ho = cost(r_ho) if r_ho is not None else fits[pick.label][1]
+            twin = twin_arm(ctx, current.scales, current.effects)
+            for part in _split(pick, hyp, x, twin):
+                part.J_fit, part.J_holdout = current.J, cur_ho
+                accepted.append(part)
         J["final_fit"], J["final_holdout"] = current.J, cur_ho
         material = J["baseline_holdout"] - 1.0 > gate
         remaining = cur_ho - 1.0 > gate

@@ -56,11 +56,13 @@ def baseline_jacobian(executor, ctx, scales, effects, r0):
     return Jb
 
 
-def fit_baseline(executor, ctx, effects=(), iterations: int = 3) -> tuple[FitResult, np.ndarray]:
-    """Gauss-Newton in the tolerance box (bounded linear step, re-linearized); returns the
-    fit and the baseline Jacobian at its solution."""
+def fit_baseline(executor, ctx, effects=(), iterations: int = 3,
+                 start=None) -> tuple[FitResult, np.ndarray]:
+    """Gauss-Newton in the tolerance box (bounded linear step, re-linearized) from the
+    nominal scales or ``start``; returns the fit and the baseline Jacobian at its
+    solution."""
     lo, hi = scale_bounds(ctx.baseline_params)
-    s = np.ones(len(lo))
+    s = np.ones(len(lo)) if start is None else np.clip(np.asarray(start, float), lo, hi)
     r = evaluate((ctx, s, list(effects)))
     if r is None:
         raise ValueError("the nominal twin diverges on this recording")
@@ -79,10 +81,19 @@ def fit_baseline(executor, ctx, effects=(), iterations: int = 3) -> tuple[FitRes
     return FitResult(s, list(effects), r, cost(r), evaluations=n_eval), Jb
 
 
-def _projected(r, Jb, s, lo, hi):
-    """r + Jb db with db the bounded linear least-squares baseline correction."""
-    db = lsq_linear(Jb, -r, bounds=(lo - s - 1e-12, hi - s + 1e-12)).x
-    return r + Jb @ db, db
+class BaselineProjection:
+    """r -> r + J_b db, db the bounded linear least-squares baseline correction. With the
+    thin QR factors of J_b, ||r + J_b db|| = ||Q^T r + R db|| + const: each projection is
+    a small bounded problem (n_baseline x n_baseline) instead of one on every sample."""
+
+    def __init__(self, Jb, s, lo, hi):
+        self.Jb = Jb
+        self.Q, self.R = np.linalg.qr(Jb)
+        self.bounds = (lo - s - 1e-12, hi - s + 1e-12)
+
+    def __call__(self, r):
+        db = lsq_linear(self.R, -(self.Q.T @ r), bounds=self.bounds).x
+        return r + self.Jb @ db, db
 
 
 def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
@@ -91,6 +102,7 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
     screening's linearized solution ``start`` first)."""
     lo, hi = scale_bounds(ctx.baseline_params)
     s0 = base.scales
+    project = BaselineProjection(Jb, s0, lo, hi)
     n_eval = 0
     best = None
 
@@ -100,7 +112,7 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
         r = evaluate((ctx, s0, base.effects + [(hyp, x)]))
         if r is None:
             return None
-        return _projected(r, Jb, s0, lo, hi)
+        return project(r)
 
     if hyp.discrete:
         tried = {}
@@ -149,7 +161,7 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
             if rk is None:
                 cols.append(np.zeros(len(f0)))
                 continue
-            cols.append((_projected(rk, Jb, s0, lo, hi)[0] - f0) / (p - x).sum())
+            cols.append((project(rk)[0] - f0) / (p - x).sum())
         return np.column_stack(cols)
 
     # one start where the problem is convex enough (one declared start point), all of

@@ -198,6 +198,55 @@ class Hypothesis:
         return out
 
 
+@dataclass(frozen=True)
+class HypothesisPair:
+    """Two hypotheses fitted jointly: effects that mask each other, so that neither alone
+    explains the held-out data (an encoder bias and a joint elasticity both move the tip
+    under gravity). x is the first's parameters followed by the second's."""
+
+    first: Hypothesis
+    second: Hypothesis
+    discrete = False
+
+    @property
+    def label(self) -> str:
+        return f"{self.first.label}+{self.second.label}"
+
+    @property
+    def names(self) -> tuple:
+        return self.first.names + self.second.names
+
+    @property
+    def lower(self) -> tuple:
+        return self.first.lower + self.second.lower
+
+    @property
+    def upper(self) -> tuple:
+        return self.first.upper + self.second.upper
+
+    @property
+    def starts(self) -> tuple:
+        return (self.first.starts[0] + self.second.starts[0],)
+
+    def off(self) -> np.ndarray:
+        return np.concatenate([self.first.off(), self.second.off()])
+
+    def parts(self, x) -> list:
+        """[(hypothesis, its x), ...]."""
+        n = len(self.first.names)
+        x = np.asarray(x, float)
+        return [(self.first, x[:n]), (self.second, x[n:])]
+
+    def apply(self, arm, x):
+        (a, xa), (b, xb) = self.parts(x)
+        return b.apply(a.apply(arm, xa)[0], xb)
+
+
+def parts_of(hyp, x) -> list:
+    """[(hypothesis, x), ...] of a hypothesis or a pair."""
+    return hyp.parts(x) if isinstance(hyp, HypothesisPair) else [(hyp, np.asarray(x, float))]
+
+
 def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None,
        discrete=False, linear=True, inverse=()):
     """A hypothesis; ``probe`` (one value per parameter) gives one probe per parameter
