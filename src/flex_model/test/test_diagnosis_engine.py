@@ -143,3 +143,21 @@ def test_a_hypothesis_pair_applies_both_effects_with_its_split_parameters():
     f = both.effect("joint_friction", "joint2")
     assert (f["viscous"], f["coulomb"]) == pytest.approx(tuple(fric.values(x2)[:2]))
     np.testing.assert_array_equal(pair.off(), np.zeros(4))
+
+
+def test_noise_level_of_a_quantised_channel_is_its_step_over_sqrt12():
+    """3-decimal logs: the second difference is 0 almost everywhere, the MAD estimate 0;
+    the quantisation error (uniform, step^2 / 12) is the white noise left."""
+    from flex_model.diagnosis.evaluation import healthy_ratio, noise_levels, quantisation_step
+    t = np.arange(0, 20, 0.002)
+    smooth = 0.3 * np.sin(0.5 * t)
+    rng = np.random.default_rng(1)
+    ch = {c: np.zeros_like(t) for c in ("q2", "v1", "v2", "tau1", "tau2", "qset1", "qset2")}
+    ch["q1"] = np.round(smooth, 3)
+    ch["v1"] = 0.15 * np.cos(0.5 * t) + 1e-3 * rng.standard_normal(len(t))
+    rec = validate(t, ch, 2, "test")
+    assert quantisation_step(ch["q1"]) == pytest.approx(1e-3, rel=1e-9)
+    assert quantisation_step(ch["v1"]) == 0.0
+    sig = noise_levels(rec)
+    assert sig["q1"] == pytest.approx(1e-3 / np.sqrt(12) * healthy_ratio("q1"), rel=1e-9)
+    assert sig["v1"] / healthy_ratio("v1") == pytest.approx(1e-3, rel=0.05)

@@ -39,6 +39,23 @@ def test_gear_reflects_rotor_inertia_with_ratio_squared():
     assert (g1.mass_matrix(q) - base.mass_matrix(q))[0, 0] == pytest.approx(5.0, rel=1e-12)
 
 
+def test_the_rotor_of_an_elastic_joint_turns_with_the_motor_coordinate():
+    """Gear + joint elasticity on joint 2: n^2 J_r adds to the motor coordinate's inertia
+    (next to motor_inertia), the stator's cross terms stay on link 1."""
+    arm = load_arm("thesis_example1", 4)
+    spring = effect(JointElasticity, "joint2", stiffness=500.0, motor_inertia=1e-3)
+    base = FlexArmModel(arm.with_effects(spring))
+    geared = FlexArmModel(arm.with_effects(spring, effect(Gear, "joint2", ratio=50.0,
+                                                          rotor_inertia=2e-4)))
+    q = np.zeros(base.nq)
+    dB = geared.mass_matrix(q) - base.mass_matrix(q)
+    m = base.nq_arm
+    assert base.mass_matrix(q)[m, m] == pytest.approx(1e-3, rel=1e-12)
+    assert dB[m, m] == pytest.approx(2e-4 * 50.0**2, rel=1e-12)
+    assert dB[base.off[1], base.off[1]] == pytest.approx(0.0, abs=1e-15)
+    assert dB[0, m] == pytest.approx(2e-4 * 50.0, rel=1e-12)
+
+
 def test_rayleigh_damping_gives_the_modal_damping_ratios():
     a, b = 0.03, 2e-3
     arm = load_arm("thesis_single_link", 10)

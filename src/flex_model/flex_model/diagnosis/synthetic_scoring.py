@@ -109,7 +109,7 @@ def score(truth: dict, verdict: str, named: list, J: dict) -> dict:
              for h in hidden]
     in_class_hidden = [any(n["kind"] in h["class"] and _same_target(n, h) for n in named)
                        for h in hidden]
-    errors = []
+    errors, covered = [], []
     for h in hidden:
         for n in named:
             if n["kind"] != h["kind"] or not _same_target(n, h):
@@ -118,17 +118,22 @@ def score(truth: dict, verdict: str, named: list, J: dict) -> dict:
                 fitted = _fitted_value(h["kind"], p, n["parameters"])
                 if p in h["key_parameters"] and fitted is not None and truth_value:
                     errors.append(abs(fitted - truth_value) / abs(truth_value))
+                    half = n.get("ci95", {}).get(p)
+                    if half is not None and p != "delay":  # delays: whole periods
+                        covered.append(bool(abs(fitted - truth_value) <= half))
     red = None
     if J and "nominal_holdout" in J and "final_holdout" in J:
         ex0 = J["nominal_holdout"] - 1.0
         red = 1.0 - max(J["final_holdout"] - 1.0, 0.0) / ex0 if ex0 > 0 else None
     return {"verdict": verdict, "named": named, "in_class": in_class, "right": right,
-            "class_hit": in_class_hidden, "param_errors": errors, "holdout_reduction": red}
+            "class_hit": in_class_hidden, "param_errors": errors, "ci_covered": covered,
+            "holdout_reduction": red}
 
 
 def _named_of(diag) -> list:
     return [{"kind": c.kind, "target": c.target,
-             "parameters": dict(zip(c.names, map(float, c.values)))} for c in diag.accepted]
+             "parameters": dict(zip(c.names, map(float, c.values))),
+             "ci95": dict(zip(c.names, map(float, c.ci)))} for c in diag.accepted]
 
 
 def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool) -> dict:
@@ -199,6 +204,7 @@ def summarise(results: list) -> dict:
         "two_both_in_class": _frac([all(r["class_hit"]) for r in two]),
         "holdout_reduction_median": (float(np.median(red)) if red else None, len(red)),
         "parameter_error_median": (float(np.median(perr)) if perr else None, len(perr)),
+        "ci95_coverage": _frac([c for r in single + two for c in r.get("ci_covered", [])]),
         "diagnosis_wall_s_max": (max(walls) if walls else None, len(walls)),
         "diagnosis_wall_s_median": (float(np.median(walls)) if walls else None, len(walls)),
     }

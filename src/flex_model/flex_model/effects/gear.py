@@ -27,8 +27,10 @@ class Gear(Effect):
     EQUIVALENT = ("hub inertia J_minus of the driven link",)
 
     def inertia_matrix(self, model, joint: int) -> np.ndarray:
-        """Constant addition to B(q) in the model's coordinates."""
-        c = self["ratio"] * model.G[joint].copy()
+        """Constant addition to B(q) in the model's coordinates. The rotor turns with the
+        actuator coordinate: the joint angle, or the motor coordinate of an elastic joint
+        (``joint_elasticity``: then n^2 J_r sits on the motor side of the spring)."""
+        c = self["ratio"] * model.Ga[joint].copy()
         if joint > 0:  # stator on the tip of link joint-1: Omega = alpha + gamma_n
             c[model.alpha_index(joint - 1)] += 1.0
             c += model.tip_rotation_matrix()[joint - 1]
