@@ -3,7 +3,8 @@
 Generator: the nominal closed loop tracks its reference; the noise has the statistics asked
 for; a hidden effect of known size changes the recording by the closed-form amount;
 the files the diagnosis reads hold no truth. Acceptance: the diagnosis on a fixed-seed
-subset meets the issue's targets (opt-in: it takes minutes, see ACCEPTANCE_ENV).
+subset meets the issue's targets (about 2 minutes on 2 cores; ACCEPTANCE_ENV=skip leaves
+it out of a quick local run).
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from flex_model.diagnosis.synthetic_signals import NoiseSpec, ar1, channel_noise
 G = 9.81
 RATE = 500.0
 SEED = 8            # its references hold still for 2.7 s (fit) and 4.3 s (held out)
-ACCEPTANCE_ENV = "FLEX_TWIN_DIAGNOSIS_ACCEPTANCE"
+ACCEPTANCE_ENV = "FLEX_TWIN_DIAGNOSIS_ACCEPTANCE"   # "skip": leave the subset out
 COLUMNS = ["t", "q1", "q2", "v1", "v2", "tau1", "tau2", "qset1", "qset2", "w1", "w2",
            "tip_x", "tip_y"]
 
@@ -215,8 +216,8 @@ def test_every_kind_is_declared():
 
 
 # ------------------------------------------------------------------ acceptance subset
-@pytest.mark.skipif(not os.environ.get(ACCEPTANCE_ENV), reason=f"the acceptance subset runs "
-                    f"7 diagnoses (minutes on 2 cores); set {ACCEPTANCE_ENV}=1 to run it")
+@pytest.mark.skipif(os.environ.get(ACCEPTANCE_ENV) == "skip", reason=f"{ACCEPTANCE_ENV}=skip "
+                    "(the acceptance subset runs 7 diagnoses, about 2 minutes on 2 cores)")
 def test_acceptance_subset(tmp_path):
     """Fixed seeds: healthy -> none; cogging -> unexplained or none; payload, friction,
     encoder bias and contact named with their parameters within 20 % and the held-out

@@ -167,3 +167,17 @@ def test_stiffness_hypothesis_scales_EI_of_material_and_explicit_links(tmp_path)
     assert raw["section"]["EI"] == pytest.approx(0.275)
     assert hyp.physical([0.1], [0.01], arm_from_dict(explicit))[0] == ("EI",)
 
+
+
+def test_scaled_explicit_section_dumps_as_plain_yaml():
+    """The updated arm of an explicit-section link (the Quanser handout preset) is written
+    with yaml.safe_dump: the scaled E I and m are plain floats, not numpy scalars."""
+    import yaml as _yaml
+
+    from flex_model.diagnosis.baseline import scale_raw_link
+    lk = {"section": {"shape": "explicit", "EI": [0.25, 0.2], "m": 0.13}}
+    scale_raw_link(lk, "EI", np.float64(1.1))
+    scale_raw_link(lk, "m", np.float64(0.9))
+    assert lk["section"]["EI"] == pytest.approx([0.275, 0.22])
+    assert lk["section"]["m"] == pytest.approx(0.117)
+    assert _yaml.safe_load(_yaml.safe_dump(lk)) == lk

@@ -107,11 +107,12 @@ def scale_raw(raw: dict, params, scales) -> dict:
 def scale_raw_link(lk: dict, kind: str, s: float) -> None:
     """Scale a raw YAML link in place: ``kind`` "EI" (E of a material, EI of an explicit
     section) or "m" (rho, or m), on the link and on each of its segments."""
+    s = float(s)
     for holder in [lk] + list(lk.get("segments", [])):
         mat = holder.get("material")
         if mat is not None:
             key = "E" if kind == "EI" else "rho"
-            mat[key] = float(mat[key]) * float(s)
+            mat[key] = float(mat[key]) * s
         sec = holder.get("section", {})
         if sec.get("shape") == "explicit":
             key = "EI" if kind == "EI" else "m"

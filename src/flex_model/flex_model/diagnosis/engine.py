@@ -5,7 +5,9 @@
    the discrepancy is material when the excess cost J - 1 of the baseline twin on the
    held-out data (J in units of the noise power, :mod:`.evaluation`) exceeds ``gate``
    (practical significance: the model error power as a fraction of the noise power,
-   calibrated on healthy runs; :data:`DEFAULT_GATE`).
+   calibrated on healthy runs; :data:`DEFAULT_GATE`). A recalibration that makes the
+   held-out error worse than the nominal twin's compensates a missing effect on the fit
+   data: it is rejected and the search starts from the nominal twin.
 3. Screen every hypothesis with one probe replay per parameter (or per declared probe
    point): the cost reduction of the linearized joint fit with the baseline (columns J_b
    and the probes' differences), or the best probe's cost for on/off effects.
@@ -14,7 +16,9 @@
    information criterion (BIC on the fit data) is necessary, parsimony decides near-ties
    (within ``tie`` of share); accept when identifiable (the 95 % interval of a parameter
    excludes its off value, condition number below ``MAX_COND``) and the share is at least
-   ``min_share``; add to the twin and repeat until the gate passes.
+   ``min_share``; add to the twin and repeat until the gate passes. When no single
+   candidate is acceptable, the pairs of screened candidates are fitted jointly (effects
+   that mask each other one at a time: alone, each makes the held-out error worse).
 5. Verdicts: "no material discrepancy", "named" (with the effects), "unexplained
    discrepancy" (material, nothing named explains it) or "named + unexplained".
 """
