@@ -74,8 +74,8 @@ def main(argv=None) -> int:
             named = ",".join(f"{n['kind']}@{n['target']}" for n in r.get("named", []))
             print(f"[{i}/{len(jobs)} {time.perf_counter() - t0:.0f} s] {r['kind']} seed "
                   f"{r['seed']}: {r.get('verdict', r.get('error'))} {named} "
-                  f"(materiality {_g(r['materiality'])}, replay {_g(r.get('materiality_replay'))}"
-                  f", {r.get('diagnose_s', 0):.1f} s)",
+                  f"(materiality {_g(r['materiality'])}, replay "
+                  f"{_g(r.get('materiality_replay'))}, {r.get('diagnose_s', 0):.1f} s)",
                   file=sys.stderr, flush=True)
             (out / "results.json").write_text(json.dumps(results, indent=1, default=str))
     summary = summarise(results)
