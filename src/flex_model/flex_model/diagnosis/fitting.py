@@ -178,6 +178,8 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
         except (ValueError, np.linalg.LinAlgError):
             continue
         r = fun(sol.x)
+        if cache[tuple(np.round(sol.x, 12))][0] is None:
+            continue   # the search ended where the twin diverges: no fit from this start
         if best is None or cost(r) < best[1]:
             best = (sol.x.copy(), cost(r), sol.jac.copy())
     if best is None:
