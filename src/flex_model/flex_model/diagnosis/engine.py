@@ -35,8 +35,8 @@ from scipy.optimize import lsq_linear
 from .baseline import baseline_parameters
 from .baseline import bounds as scale_bounds
 from .evaluation import Context, cost, default_executor, evaluate, twin_arm
-from .fitting import (FitResult, baseline_jacobian, confidence_intervals, fit_baseline,
-                      fit_candidate, fit_task)
+from .fitting import (BaselineProjection, FitResult, baseline_jacobian, confidence_intervals,
+                      fit_baseline, fit_candidate, fit_task)
 from .hypotheses import HypothesisPair, library_hypotheses, parts_of
 from .localise import effective_samples, localise
 
@@ -115,7 +115,7 @@ def _screen(executor, ctx, hyps, base, Jb):
     # score is what the hypothesis adds to a re-linearized recalibration
     lo, hi = scale_bounds(ctx.baseline_params)
     blo, bhi = lo - base.scales - 1e-12, hi - base.scales + 1e-12
-    lin0 = cost(base.r + Jb @ lsq_linear(Jb, -base.r, bounds=(blo, bhi)).x)
+    lin0 = cost(BaselineProjection(Jb, base.scales, lo, hi)(base.r)[0])
     scores, starts = {}, {}
     for h in hyps:
         if h.label not in direct:
