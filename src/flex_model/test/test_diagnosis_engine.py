@@ -7,7 +7,7 @@ from flex_model.diagnosis.baseline import apply_scales, baseline_parameters
 from flex_model.diagnosis.controller import controller_from_dict
 from flex_model.diagnosis.engine import diagnose
 from flex_model.diagnosis.evaluation import Context, SerialExecutor, cost
-from flex_model.diagnosis.fitting import fit_baseline, fit_candidate
+from flex_model.diagnosis.fitting import fit_baseline, fit_candidate, linearize
 from flex_model.diagnosis.hypotheses import library_hypotheses
 from flex_model.diagnosis.recording import validate
 from flex_model.diagnosis.replay import initial_state, replay, residuals
@@ -79,7 +79,7 @@ def test_hidden_friction_is_recovered_and_a_healthy_run_passes_the_gate():
     base, Jb = fit_baseline(ex, ctx)
     hyp = next(h for h in library_hypotheses(NOMINAL, rec, CTL)
                if h.label == "joint_friction@joint1")
-    fit = fit_candidate(ex, ctx, hyp, base, Jb)
+    fit = fit_candidate(ex, ctx, hyp, base, linearize(ex, ctx, base.scales, [], Jb))
     viscous, coulomb, excess = hyp.values(fit.x)
     assert viscous == pytest.approx(1.2, rel=0.05)
     assert coulomb == pytest.approx(0.8, rel=0.05)
@@ -112,13 +112,13 @@ def test_baseline_projection_by_qr_is_the_bounded_least_squares_correction():
     """||r + J db|| over the box, solved on the thin QR factors, equals the direct solve."""
     from scipy.optimize import lsq_linear
 
-    from flex_model.diagnosis.fitting import BaselineProjection
+    from flex_model.diagnosis.fitting import BaselineProjection, Linearization
     rng = np.random.default_rng(3)
     Jb = rng.standard_normal((4000, 6))
     r = Jb @ np.array([0.3, -0.2, 0.05, 0.4, -0.5, 0.1]) + rng.standard_normal(4000)
     s = np.ones(6)
     lo, hi = s - 0.1, s + 0.1       # all corrections but the third hit the box
-    proj, db = BaselineProjection(Jb, s, lo, hi)(r)
+    proj, db = BaselineProjection(Linearization(Jb, lo - s, hi - s, 6))(r)
     direct = lsq_linear(Jb, -r, bounds=(lo - s, hi - s)).x
     np.testing.assert_allclose(db, direct, atol=1e-8)
     np.testing.assert_allclose(proj, r + Jb @ direct, atol=1e-7)

@@ -33,10 +33,9 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from .baseline import baseline_parameters
-from .baseline import bounds as scale_bounds
 from .evaluation import Context, cost, default_executor, evaluate, twin_arm
 from .fitting import (BaselineProjection, FitResult, baseline_jacobian, confidence_intervals,
-                      fit_baseline, fit_candidate, fit_task)
+                      fit_baseline, fit_candidate, fit_task, linearize)
 from .hypotheses import HypothesisPair, library_hypotheses, parts_of
 from .localise import effective_samples, localise
 
@@ -46,6 +45,9 @@ DEFAULT_GATE = 0.45
 MIN_SHARE = 0.35
 MAX_COND = 1e8
 TIE = 0.05
+#: a pair replaces the best single in the first round when it leaves at most this share of
+#: the single's held-out excess (stricter than naming the second effect in a later round)
+PAIR_GAIN = 0.5
 
 
 @dataclass
@@ -94,9 +96,10 @@ def _progress(msg, on, t_start):
               flush=True)
 
 
-def _screen(executor, ctx, hyps, base, Jb):
+def _screen(executor, ctx, hyps, base, lin):
     """Cost reduction per hypothesis from its probe replays: the linearized joint fit with
-    the baseline (columns J_b and the probes' differences), or for strongly nonlinear
+    the baseline and the accepted effects (columns ``lin.J`` and the probes' differences),
+    or for strongly nonlinear
     effects (``linear=False``) the best probe's own cost. Returns (scores, start points)."""
     specs, owners = [], []
     for h in hyps:
@@ -111,11 +114,9 @@ def _screen(executor, ctx, hyps, base, Jb):
         cols.setdefault(h.label, []).append((x, r - base.r))
         if cost(r) < direct.get(h.label, (np.inf, None))[0]:
             direct[h.label] = (cost(r), x)
-    # the linearized baseline alone (bounded to its tolerance box) is the reference, so a
+    # the linearized baseline and accepted effects alone (bounded) are the reference, so a
     # score is what the hypothesis adds to a re-linearized recalibration
-    lo, hi = scale_bounds(ctx.baseline_params)
-    blo, bhi = lo - base.scales - 1e-12, hi - base.scales + 1e-12
-    lin0 = cost(BaselineProjection(Jb, base.scales, lo, hi)(base.r)[0])
+    lin0 = cost(BaselineProjection(lin)(base.r)[0])
     scores, starts = {}, {}
     for h in hyps:
         if h.label not in direct:
@@ -126,16 +127,16 @@ def _screen(executor, ctx, hyps, base, Jb):
         starts[h.label] = x_best
         if not h.linear or len(cols[h.label]) < len(h.probes):
             continue
-        A = np.column_stack([Jb] + [d for _, d in cols[h.label]])
+        A = np.column_stack([lin.J] + [d for _, d in cols[h.label]])
         m = len(cols[h.label])
-        sol = lsq_linear(A, -base.r, bounds=(np.concatenate([blo, np.full(m, -np.inf)]),
-                                              np.concatenate([bhi, np.full(m, np.inf)]))).x
-        lin = cost(base.r + A @ sol)
-        if lin0 - lin > scores[h.label]:
-            scores[h.label] = lin0 - lin
+        sol = lsq_linear(A, -base.r, bounds=(np.concatenate([lin.lo, np.full(m, -np.inf)]),
+                                              np.concatenate([lin.hi, np.full(m, np.inf)]))).x
+        J_lin = cost(base.r + A @ sol)
+        if lin0 - J_lin > scores[h.label]:
+            scores[h.label] = lin0 - J_lin
             off = h.off()
             x = off + sum(c * (xp - off) for c, (xp, _) in
-                          zip(sol[Jb.shape[1]:], cols[h.label]))
+                          zip(sol[lin.J.shape[1]:], cols[h.label]))
             starts[h.label] = np.clip(x, h.lower, h.upper)
     return scores, starts
 
@@ -188,8 +189,8 @@ def _candidate(h, fit, J_ho, state, score) -> Candidate:
 
 def _fit_round(executor, state, hyps, starts, scores):
     """Fit the hypotheses jointly with the baseline (in parallel), score them held out."""
-    ctx, ctx_ho, current, Jb, _, _, _, progress, t_start = state
-    tasks = [(ctx, ctx_ho, h, current, Jb, starts.get(h.label)) for h in hyps]
+    ctx, ctx_ho, current, lin, _, _, _, progress, t_start = state
+    tasks = [(ctx, ctx_ho, h, current, lin, starts.get(h.label)) for h in hyps]
     cands, fits = [], {}
     for h, (fit, J_ho) in zip(hyps, executor.map(fit_task, tasks)):
         c = _candidate(h, fit, J_ho, state, scores[h.label])
@@ -213,7 +214,8 @@ def _pick(cands, min_share):
 
 def _fine_fit(executor, ctx, current):
     """Fine fit of the accepted effect: re-linearized baseline, then the effect's
-    parameters again to a tight tolerance. Returns the fit and the baseline Jacobian."""
+    parameters again to a tight tolerance. Returns the fit and the linearization of the
+    baseline and all accepted effects at it (:func:`.fitting.linearize`)."""
     current_b, Jb = fit_baseline(executor, ctx, current.effects, iterations=2,
                                  start=current.scales)
     hyp, x = current.effects[-1]
@@ -221,7 +223,9 @@ def _fine_fit(executor, ctx, current):
         current = current_b
     if not hyp.discrete:
         rest = FitResult(current.scales, current.effects[:-1], current.r, current.J)
-        fine = fit_candidate(executor, ctx, hyp, rest, Jb, start=x, max_nfev=8, ftol=1e-6)
+        fine = fit_candidate(executor, ctx, hyp, rest, linearize(executor, ctx, rest.scales,
+                                                                 [], Jb),
+                             start=x, max_nfev=8, ftol=1e-6)
         if fine.J < current.J:
             current = fine
     current.effects = list(current.effects)
@@ -243,6 +247,14 @@ def _split(pick, hyp, x, twin) -> list:
         k += len(names)
         out.append(c)
     return out
+
+
+def _restate(accepted, effects, twin):
+    """The values of the effects accepted before, as refitted jointly with the last one
+    (the linearized columns of :class:`.fitting.Linearization`)."""
+    for c, (hyp, x) in zip(accepted, effects):
+        _, values, _ = hyp.physical(hyp.values(x), [0.0] * len(x), twin)
+        c.values, c.x = [float(v) for v in values], list(map(float, x))
 
 
 def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
@@ -276,6 +288,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
         _progress(f"nominal twin: J = {J['nominal_fit']:.4g} (fit), "
                   f"{J['nominal_holdout']:.4g} (held out)", progress, t_start)
         base, Jb = fit_baseline(executor, ctx)
+        lin = linearize(executor, ctx, base.scales, [], Jb)
         r_b_ho = evaluate((ctx_ho, base.scales, []))
         J["baseline_fit"], J["baseline_holdout"] = base.J, cost(r_b_ho)
         if J["baseline_holdout"] > J["nominal_holdout"]:
@@ -285,7 +298,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                       "nominal): the search starts from the nominal twin", progress, t_start)
             J["recalibrated_holdout"] = J["baseline_holdout"]
             base = FitResult(ones, [], r_nom, J["nominal_fit"])
-            Jb = baseline_jacobian(executor, ctx, ones, [], r_nom)
+            lin = linearize(executor, ctx, ones, [],
+                            baseline_jacobian(executor, ctx, ones, [], r_nom))
             J["baseline_fit"], J["baseline_holdout"] = J["nominal_fit"], J["nominal_holdout"]
         baseline_scales = base.scales.copy()
         _progress(f"baseline within tolerance: J = {base.J:.4g} (fit), "
@@ -298,29 +312,36 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             hyps = library_hypotheses(nominal, fit_rec, controller,
                                       exclude=[c.label for c in accepted],
                                       twin_peaks=_twin_peaks(ctx, current.r))
-            scores, starts = _screen(executor, ctx, hyps, current, Jb)
+            scores, starts = _screen(executor, ctx, hyps, current, lin)
             ranked = sorted(hyps, key=lambda h: -scores[h.label])[:top]
             ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked), progress, t_start)
             n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
-            state = (ctx, ctx_ho, current, Jb, cur_ho, n, n_eff, progress, t_start)
+            state = (ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start)
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
             pick = _pick(cands, min_share)
-            if pick is None and len(accepted) + 2 <= max_effects:
-                # effects that mask each other one at a time: the screened pairs jointly
+            left = fits[pick.label][1] - 1.0 if pick else np.inf
+            if len(accepted) + 2 <= max_effects and (pick is None or
+                                                    (not accepted and left > gate)):
+                # effects that mask each other one at a time (alone, each makes the held-out
+                # error worse), or a first pick that compensates two: the pairs jointly
                 pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
                          if not (a.discrete or b.discrete)]
                 for pr in pairs:
                     scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
                     starts[pr.label] = np.concatenate([
                         starts.get(h.label, h.starts[0]) for h in (pr.first, pr.second)])
-                _progress(f"no single effect explains it: {len(pairs)} pairs jointly",
-                          progress, t_start)
+                why = ("no single effect explains it" if pick is None
+                       else "the best single leaves a material excess")
+                _progress(f"{why}: {len(pairs)} pairs jointly", progress, t_start)
                 pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
                 cands += pair_cands
                 fits.update(pair_fits)
-                pick = _pick(pair_cands, min_share)
+                pair = _pick(pair_cands, min_share)
+                if pair is not None and (pick is None or
+                                         fits[pair.label][1] - 1.0 <= PAIR_GAIN * left):
+                    pick = pair
             rounds.append({"candidates": cands, "picked": pick.label if pick else None})
             if pick is None:
                 break
@@ -328,9 +349,11 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             current, Jb = _fine_fit(executor, ctx, current)
             hyp, x = current.effects[-1]
             current.effects[-1:] = parts_of(hyp, x)
+            lin = linearize(executor, ctx, current.scales, current.effects, Jb)
             r_ho = evaluate((ctx_ho, current.scales, current.effects))
             cur_ho = cost(r_ho) if r_ho is not None else fits[pick.label][1]
             twin = twin_arm(ctx, current.scales, current.effects)
+            _restate(accepted, current.effects, twin)
             for part in _split(pick, hyp, x, twin):
                 part.J_fit, part.J_holdout = current.J, cur_ho
                 accepted.append(part)

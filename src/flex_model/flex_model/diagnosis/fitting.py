@@ -3,9 +3,10 @@ candidate effect jointly with the (linearized) baseline.
 
 All residual evaluations go through an executor's ``map`` (finite-difference Jacobian
 columns in parallel). The joint fit of a candidate uses variable projection: for each
-trial of the effect's parameters x the baseline correction db is the bounded linear
-least-squares solution of r(x) + J_b db (J_b the baseline Jacobian), so the nonlinear
-search runs over the 1-3 effect parameters only (scipy.optimize.least_squares, 'trf',
+trial of the effect's parameters x the correction d of the baseline scales and of the
+effects accepted before is the bounded linear least-squares solution of r(x) + J d (J
+their Jacobian, :class:`Linearization`), so the nonlinear search runs over the 1-3
+effect parameters only (scipy.optimize.least_squares, 'trf',
 one start per declared start point). Discrete parameters (actuator delay, whole control
 periods) are searched on integers.
 """
@@ -81,28 +82,90 @@ def fit_baseline(executor, ctx, effects=(), iterations: int = 3,
     return FitResult(s, list(effects), r, cost(r), evaluations=n_eval), Jb
 
 
-class BaselineProjection:
-    """r -> r + J_b db, db the bounded linear least-squares baseline correction. With the
-    thin QR factors of J_b, ||r + J_b db|| = ||Q^T r + R db|| + const: each projection is
-    a small bounded problem (n_baseline x n_baseline) instead of one on every sample."""
+@dataclass
+class Linearization:
+    """The linearized free parameters of a fitted twin, the columns of the variable
+    projection: the baseline scales in their tolerance box, then the continuous parameters
+    of the effects accepted so far within their bounds. A new candidate is so fitted
+    jointly with the baseline and every effect before it (an effect fitted while a second
+    one was missing has absorbed part of it). ``lo``/``hi`` bound the step d."""
 
-    def __init__(self, Jb, s, lo, hi):
-        self.Jb = Jb
-        self.Q, self.R = np.linalg.qr(Jb)
-        self.bounds = (lo - s - 1e-12, hi - s + 1e-12)
+    J: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    n_scales: int
+    slots: tuple = ()        # (effect index, parameter index) of the columns after the scales
+
+    def apply(self, scales, effects, d):
+        """The scales and effects after the step d."""
+        effects = [(h, np.array(x, float)) for h, x in effects]
+        for (i, k), dk in zip(self.slots, d[self.n_scales:]):
+            effects[i][1][k] = float(np.clip(effects[i][1][k] + dk, effects[i][0].lower[k],
+                                             effects[i][0].upper[k]))
+        return scales + d[:self.n_scales], effects
+
+
+def linearize(executor, ctx, scales, effects, Jb) -> Linearization:
+    """:class:`Linearization` at (scales, effects): the baseline Jacobian ``Jb`` and one
+    finite-difference column per continuous parameter of the effects (from a fresh replay
+    at that point, the residual of a fit being a linearized one)."""
+    lo, hi = scale_bounds(ctx.baseline_params)
+    slots, pts, steps = [], [], []
+    for i, (h, x) in enumerate(effects):
+        if h.discrete:
+            continue
+        for k in range(len(x)):
+            step = 2e-2 * max(abs(x[k]), 0.5)
+            if x[k] + step > h.upper[k]:
+                step = -step
+            p = np.array(x, float)
+            p[k] += step
+            slots.append((i, k))
+            steps.append(step)
+            pts.append(list(effects[:i]) + [(h, p)] + list(effects[i + 1:]))
+    cols, elo, ehi = [], [], []
+    if slots:
+        outs = _map(executor, ctx, [(scales, e) for e in [list(effects)] + pts])
+        r0 = outs[0]
+        for (i, k), step, rk in zip(slots, steps, outs[1:]):
+            ok = r0 is not None and rk is not None
+            cols.append((rk - r0) / step if ok else np.zeros(Jb.shape[0]))
+            h, x = effects[i]
+            elo.append(h.lower[k] - x[k])
+            ehi.append(h.upper[k] - x[k])
+    J = np.column_stack([Jb] + cols) if cols else Jb
+    return Linearization(J, np.concatenate([lo - scales, elo]) - 1e-12,
+                         np.concatenate([hi - scales, ehi]) + 1e-12, len(scales),
+                         tuple(slots))
+
+
+class BaselineProjection:
+    """r -> r + J d, d the bounded linear least-squares correction of the linearized free
+    parameters (:class:`Linearization`). With the thin QR factors of J,
+    ||r + J d|| = ||Q^T r + R d|| + const: each projection is a small bounded problem
+    (n_free x n_free) instead of one on every sample."""
+
+    def __init__(self, lin: Linearization):
+        self.J = lin.J
+        self.Q, self.R = np.linalg.qr(lin.J)
+        self.bounds = (lin.lo, lin.hi)
 
     def __call__(self, r):
-        db = lsq_linear(self.R, -(self.Q.T @ r), bounds=self.bounds).x
-        return r + self.Jb @ db, db
+        d = lsq_linear(self.R, -(self.Q.T @ r), bounds=self.bounds).x
+        return r + self.J @ d, d
 
 
-def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
+def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
                   max_nfev: int = 8, ftol: float = 1e-3) -> FitResult:
-    """Fit ``hyp`` jointly with the baseline (variable projection), multi-start (the
+    """Fit ``hyp`` jointly with the linearized baseline and accepted effects ``lin`` (a
+    :class:`Linearization` at ``base``; variable projection), multi-start (the
     screening's linearized solution ``start`` first)."""
-    lo, hi = scale_bounds(ctx.baseline_params)
     s0 = base.scales
-    project = BaselineProjection(Jb, s0, lo, hi)
+    project = BaselineProjection(lin)
+
+    def fitted(d, x):
+        s, effects = lin.apply(s0, base.effects, d)
+        return s, effects + [(hyp, x)]
     n_eval = 0
     best = None
 
@@ -133,8 +196,8 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
         if res is None:
             return FitResult(s0, base.effects + [(hyp, x)], base.r, DIVERGED_COST,
                              evaluations=n_eval)
-        r, db = res
-        return FitResult(s0 + db, base.effects + [(hyp, x)], r, cost(r), None, x, n_eval)
+        r, d = res
+        return FitResult(*fitted(d, x), r, cost(r), None, x, n_eval)
 
     xl, xu = np.array(hyp.lower, float), np.array(hyp.upper, float)
     cache = {}
@@ -185,8 +248,8 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, Jb, start=None,
     if best is None:
         return FitResult(s0, base.effects, base.r, DIVERGED_COST, evaluations=n_eval)
     x, J, jacobian = best
-    r, db = cache[tuple(np.round(x, 12))]
-    return FitResult(s0 + db, base.effects + [(hyp, x)], r, J, jacobian, x, n_eval)
+    r, d = cache[tuple(np.round(x, 12))]
+    return FitResult(*fitted(d, x), r, J, jacobian, x, n_eval)
 
 
 def confidence_intervals(fit: FitResult, n_eff: float, level_z: float = 1.96):
@@ -209,9 +272,9 @@ def confidence_intervals(fit: FitResult, n_eff: float, level_z: float = 1.96):
 
 def fit_task(task):
     """Worker function: fit one candidate (serially) and score it on the held-out data:
-    (ctx, ctx_holdout, hyp, base, Jb, start) -> (FitResult, J_holdout)."""
+    (ctx, ctx_holdout, hyp, base, lin, start) -> (FitResult, J_holdout)."""
     from .evaluation import SerialExecutor
-    ctx, ctx_ho, hyp, base, Jb, start = task
-    fit = fit_candidate(SerialExecutor(), ctx, hyp, base, Jb, start=start)
+    ctx, ctx_ho, hyp, base, lin, start = task
+    fit = fit_candidate(SerialExecutor(), ctx, hyp, base, lin, start=start)
     r_ho = evaluate((ctx_ho, fit.scales, fit.effects))
     return fit, (cost(r_ho) if r_ho is not None else np.inf)
