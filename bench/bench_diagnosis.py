@@ -22,7 +22,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from flex_model.diagnosis.synthetic import CASE_KINDS, parse_kind
-from flex_model.diagnosis.synthetic_scoring import DEFAULT_TWO, report, run_one, summarise
+from flex_model.diagnosis.synthetic_scoring import (DEFAULT_TWO, add_part_visibility, report,
+                                                    run_one, summarise)
 
 
 def _g(x):
@@ -45,6 +46,9 @@ def main(argv=None) -> int:
                     help="keep the runs of DIR/results.json and run only the missing ones")
     ap.add_argument("--summary-only", action="store_true",
                     help="summarise DIR/results.json without running anything")
+    ap.add_argument("--add-visibility", action="store_true",
+                    help="add each effect's own replay materiality to the two-effect runs "
+                         "of DIR/results.json that lack it (no diagnosis is rerun)")
     args = ap.parse_args(argv)
     kinds = args.cases or list(CASE_KINDS) + list(DEFAULT_TWO)
     for k in kinds:
@@ -52,12 +56,16 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     results = []
-    if args.resume or args.summary_only:
+    if args.resume or args.summary_only or args.add_visibility:
         done = out / "results.json"
         results = json.loads(done.read_text()) if done.exists() else []
+    if args.add_visibility:
+        results = [add_part_visibility(r, args.noise) for r in results]
+        (out / "results.json").write_text(json.dumps(results, indent=1, default=str))
     have = {(r["kind"], r["seed"]) for r in results}
     jobs = [(k, args.seed0 + s) for s in range(args.runs) for k in kinds
-            if (k, args.seed0 + s) not in have and not args.summary_only]
+            if (k, args.seed0 + s) not in have
+            and not (args.summary_only or args.add_visibility)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
         futs = {pool.submit(run_one, k, s, str(out), args.noise, not args.no_materiality):

@@ -249,6 +249,34 @@ def _split(pick, hyp, x, twin) -> list:
     return out
 
 
+def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share, why):
+    """Fit the pairs of the screened candidates jointly (added to ``cands`` and ``fits``);
+    the best acceptable pair or None."""
+    pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
+             if not (a.discrete or b.discrete)]
+    for pr in pairs:
+        scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
+        starts[pr.label] = np.concatenate([starts.get(h.label, h.starts[0])
+                                           for h in (pr.first, pr.second)])
+    _progress(f"{why}: {len(pairs)} pairs jointly", state[7], state[8])
+    pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
+    cands += pair_cands
+    fits.update(pair_fits)
+    return _pick(pair_cands, min_share)
+
+
+def _accept(executor, ctx, ctx_ho, fitted):
+    """The twin with a picked candidate after its fine fit: (fit, held-out cost,
+    linearization at it, the picked (hyp, x))."""
+    current, Jb = _fine_fit(executor, ctx, fitted[0])
+    hyp, x = current.effects[-1]
+    current.effects[-1:] = parts_of(hyp, x)
+    r_ho = evaluate((ctx_ho, current.scales, current.effects))
+    cur_ho = cost(r_ho) if r_ho is not None else fitted[1]
+    return current, cur_ho, linearize(executor, ctx, current.scales, current.effects, Jb), \
+        (hyp, x)
+
+
 def _restate(accepted, effects, twin):
     """The values of the effects accepted before, as refitted jointly with the last one
     (the linearized columns of :class:`.fitting.Linearization`)."""
@@ -321,37 +349,26 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             state = (ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start)
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
             pick = _pick(cands, min_share)
-            left = fits[pick.label][1] - 1.0 if pick else np.inf
-            if len(accepted) + 2 <= max_effects and (pick is None or
-                                                    (not accepted and left > gate)):
-                # effects that mask each other one at a time (alone, each makes the held-out
-                # error worse), or a first pick that compensates two: the pairs jointly
-                pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
-                         if not (a.discrete or b.discrete)]
-                for pr in pairs:
-                    scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
-                    starts[pr.label] = np.concatenate([
-                        starts.get(h.label, h.starts[0]) for h in (pr.first, pr.second)])
-                why = ("no single effect explains it" if pick is None
-                       else "the best single leaves a material excess")
-                _progress(f"{why}: {len(pairs)} pairs jointly", progress, t_start)
-                pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
-                cands += pair_cands
-                fits.update(pair_fits)
-                pair = _pick(pair_cands, min_share)
-                if pair is not None and (pick is None or
-                                         fits[pair.label][1] - 1.0 <= PAIR_GAIN * left):
-                    pick = pair
+            pairs_fitted = pick is None and len(accepted) + 2 <= max_effects
+            if pairs_fitted:   # effects that mask each other one at a time
+                pick = _pair_round(executor, state, ranked, starts, scores, cands, fits,
+                                   min_share, "no single effect explains it")
             rounds.append({"candidates": cands, "picked": pick.label if pick else None})
             if pick is None:
                 break
-            current = fits[pick.label][0]
-            current, Jb = _fine_fit(executor, ctx, current)
-            hyp, x = current.effects[-1]
-            current.effects[-1:] = parts_of(hyp, x)
-            lin = linearize(executor, ctx, current.scales, current.effects, Jb)
-            r_ho = evaluate((ctx_ho, current.scales, current.effects))
-            cur_ho = cost(r_ho) if r_ho is not None else fits[pick.label][1]
+            new = _accept(executor, ctx, ctx_ho, fits[pick.label])
+            if (not pairs_fitted and not accepted and new[1] - 1.0 > gate
+                    and max_effects >= 2):
+                # a first pick that leaves a material excess after its fine fit may
+                # compensate two effects: the pairs jointly, kept when one leaves at most
+                # PAIR_GAIN of its held-out excess
+                pair = _pair_round(executor, state, ranked, starts, scores, cands, fits,
+                                   min_share, "the best single leaves a material excess")
+                if pair is not None and fits[pair.label][1] - 1.0 <= PAIR_GAIN * (new[1] - 1):
+                    pick = pair
+                    rounds[-1]["picked"] = pick.label
+                    new = _accept(executor, ctx, ctx_ho, fits[pick.label])
+            current, cur_ho, lin, (hyp, x) = new
             twin = twin_arm(ctx, current.scales, current.effects)
             _restate(accepted, current.effects, twin)
             for part in _split(pick, hyp, x, twin):

@@ -322,13 +322,14 @@ def _model(data: dict, source: str) -> FlexArmModel:
 
 
 def generate_case(kind: str, seed: int, out_dir, duration: float = 20.0, rate: float = 500.0,
-                  noise="nominal") -> Case:
+                  noise="nominal", only: int | None = None) -> Case:
     """Write a synthetic case (see the module docstring) to ``out_dir`` and return it.
 
     ``noise``: a level of :data:`.synthetic_signals.NOISE_LEVELS` ("none", "low",
     "nominal", "high") or a factor on the nominal noise. The same ``seed`` gives the same
     unit scatter, excitation and noise for every kind (a case differs from ``healthy`` of
-    the same seed by its hidden effects only).
+    the same seed by its hidden effects only). ``only``: keep the hidden effect of that
+    index alone (of a two-effect kind: with the magnitude it has in the pair).
     """
     hidden = parse_kind(kind)
     out = Path(out_dir)
@@ -341,7 +342,8 @@ def generate_case(kind: str, seed: int, out_dir, duration: float = 20.0, rate: f
     true["name"] = "true_unit"
     scatter = _scatter(true, _rng(seed, "scatter"))
     sensor = {"bias": np.zeros(2), "delay": np.zeros(2)}
-    entries = [_hide(k, true, _rng(seed, "hidden", k, j), sensor) for j, k in enumerate(hidden)]
+    entries = [_hide(k, true, _rng(seed, "hidden", k, j), sensor) for j, k in enumerate(hidden)
+               if only is None or j == only]
     refs = {name: reference(_rng(seed, "reference", name), duration, rate)
             for name in ("fit", "holdout")}
     levels = noise_model(noise)
