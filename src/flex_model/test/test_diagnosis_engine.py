@@ -161,3 +161,27 @@ def test_noise_level_of_a_quantised_channel_is_its_step_over_sqrt12():
     sig = noise_levels(rec)
     assert sig["q1"] == pytest.approx(1e-3 / np.sqrt(12) * healthy_ratio("q1"), rel=1e-9)
     assert sig["v1"] / healthy_ratio("v1") == pytest.approx(1e-3, rel=0.05)
+
+
+def test_a_candidate_is_fitted_jointly_with_the_effect_accepted_before():
+    """Friction at joint 1 accepted while joint 2's friction was missing (its viscous term
+    half the truth): fitting joint 2's friction with the accepted effect among the
+    linearized columns corrects joint 1's too; with the baseline columns alone it stays."""
+    truth = NOMINAL.with_effects(JointFriction("joint1", (1.2, 0.8, 1.0, 0.05, 1e-3)),
+                                 JointFriction("joint2", (0.6, 0.4, 0.5, 0.05, 1e-3)))
+    rec = _run(truth, 6.0, noise=1.0, seed=4)
+    ctx = Context.build(NOMINAL, CTL, rec, baseline_parameters(NOMINAL))
+    ex = SerialExecutor()
+    hyps = {h.label: h for h in library_hypotheses(NOMINAL, rec, CTL)}
+    h1, h2 = hyps["joint_friction@joint1"], hyps["joint_friction@joint2"]
+    x1 = np.array([0.6, 0.8, 0.2]) / np.asarray(h1.scale)
+    base, Jb = fit_baseline(ex, ctx, [(h1, x1)], iterations=1)
+    alone = fit_candidate(ex, ctx, h2, base, linearize(ex, ctx, base.scales, [], Jb))
+    joint = fit_candidate(ex, ctx, h2, base,
+                          linearize(ex, ctx, base.scales, base.effects, Jb))
+    assert h1.values(alone.effects[0][1])[0] == pytest.approx(0.6, rel=1e-9)
+    viscous1 = h1.values(joint.effects[0][1])[0]
+    viscous2, coulomb2, _ = h2.values(joint.x)
+    assert viscous1 == pytest.approx(1.2, rel=0.1)
+    assert viscous2 == pytest.approx(0.6, rel=0.15) and coulomb2 == pytest.approx(0.4, rel=0.1)
+    assert joint.J < 0.5 * alone.J
