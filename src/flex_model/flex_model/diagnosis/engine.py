@@ -11,14 +11,18 @@
 3. Screen every hypothesis with one probe replay per parameter (or per declared probe
    point): the cost reduction of the linearized joint fit with the baseline (columns J_b
    and the probes' differences), or the best probe's cost for on/off effects.
-4. Fit the ``top`` screened candidates jointly with the baseline, evaluate each on the
+4. Fit the ``top`` screened candidates jointly with the baseline and the effects accepted
+   before (linearized, :class:`.fitting.Linearization`), evaluate each on the
    held-out recording; rank by the share of the held-out excess error explained; an
    information criterion (BIC on the fit data) is necessary, parsimony decides near-ties
    (within ``tie`` of share); accept when identifiable (the 95 % interval of a parameter
    excludes its off value, condition number below ``MAX_COND``) and the share is at least
    ``min_share``; add to the twin and repeat until the gate passes. When no single
    candidate is acceptable, the pairs of screened candidates are fitted jointly (effects
-   that mask each other one at a time: alone, each makes the held-out error worse).
+   that mask each other one at a time: alone, each makes the held-out error worse); so
+   they are too when the first accepted effect still leaves a material excess after its
+   fine fit (a single that compensates two effects), and a pair that leaves at most
+   ``PAIR_GAIN`` of that excess replaces it.
 5. Verdicts: "no material discrepancy", "named" (with the effects), "unexplained
    discrepancy" (material, nothing named explains it) or "named + unexplained".
 """
@@ -99,8 +103,8 @@ def _progress(msg, on, t_start):
 def _screen(executor, ctx, hyps, base, lin):
     """Cost reduction per hypothesis from its probe replays: the linearized joint fit with
     the baseline and the accepted effects (columns ``lin.J`` and the probes' differences),
-    or for strongly nonlinear
-    effects (``linear=False``) the best probe's own cost. Returns (scores, start points)."""
+    or for strongly nonlinear effects (``linear=False``) the best probe's own cost.
+    Returns (scores, start points)."""
     specs, owners = [], []
     for h in hyps:
         for p in h.probes:
@@ -214,8 +218,7 @@ def _pick(cands, min_share):
 
 def _fine_fit(executor, ctx, current):
     """Fine fit of the accepted effect: re-linearized baseline, then the effect's
-    parameters again to a tight tolerance. Returns the fit and the linearization of the
-    baseline and all accepted effects at it (:func:`.fitting.linearize`)."""
+    parameters again to a tight tolerance. Returns the fit and the baseline Jacobian."""
     current_b, Jb = fit_baseline(executor, ctx, current.effects, iterations=2,
                                  start=current.scales)
     hyp, x = current.effects[-1]
