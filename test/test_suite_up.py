@@ -61,8 +61,9 @@ def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
         theta = np.degrees(states[-1].position)
         assert np.abs(commands[-1]).max() > 1.0   # N m: holding the arm against gravity
         proc.send_signal(signal.SIGINT)
+        stop_by = time.monotonic() + 30.0   # its nodes get 10 s each, then are killed
         while proc.poll() is None:
-            assert time.monotonic() < end + 30.0, "flex-twin up did not stop"
+            assert time.monotonic() < stop_by, "flex-twin up did not stop"
             ex.spin_once(timeout_sec=0.05)
         ex.spin_once(timeout_sec=0.1)
         ex.shutdown()
@@ -82,3 +83,33 @@ def test_parameter_file_errors_name_the_node(tmp_path):
     with pytest.raises(ConfigError, match=r"p.yaml: flex_modle: got 'flex_modle'; expected "
                                           r"one of flex_model, flex_controller, flex_planner"):
         node_parameters(bad)
+
+
+def _children(pid: int) -> set:
+    try:
+        return {int(c) for t in Path(f"/proc/{pid}/task").iterdir()
+                for c in (t / "children").read_text().split()}
+    except OSError:
+        return set()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux")
+def test_a_killed_up_leaves_no_node_running():
+    """SIGKILL of ``flex-twin up --processes`` (no chance to forward a signal) ends its node
+    processes too: none is left publishing on the domain."""
+    proc = subprocess.Popen([sys.executable, "-m", "flex_model.cli", "up", str(PARAMS),
+                             "--processes"])
+    try:
+        end = time.monotonic() + 60.0
+        while len(_children(proc.pid)) < 3:
+            assert time.monotonic() < end and proc.poll() is None, "no node processes"
+            time.sleep(0.1)
+        nodes = _children(proc.pid)
+    finally:
+        proc.kill()
+        proc.wait()
+    end = time.monotonic() + 20.0
+    while any(Path(f"/proc/{p}").exists() and
+              Path(f"/proc/{p}/stat").read_text().split()[2] != "Z" for p in nodes):
+        assert time.monotonic() < end, f"node processes {nodes} outlived flex-twin up"
+        time.sleep(0.1)

@@ -83,11 +83,23 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
     return nodes
 
 
+def _die_with_parent():
+    """In a node's process (Linux): SIGTERM when the launching process dies, so a killed
+    ``flex-twin up --processes`` leaves no node running on the domain."""
+    try:
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def run_in_processes(path, names) -> int:
     """One process per node (``python -m`` its module, which works in a pip and in a colcon
-    install alike) with the same parameter file."""
+    install alike) with the same parameter file; the nodes end with this process."""
     procs = [subprocess.Popen([sys.executable, "-m", NODES[n][0], "--ros-args",
-                               "--params-file", str(path)]) for n in names]
+                               "--params-file", str(path)],
+                              preexec_fn=_die_with_parent if sys.platform == "linux" else None)
+             for n in names]
     try:
         while all(p.poll() is None for p in procs):
             time.sleep(0.2)
