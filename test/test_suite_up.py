@@ -61,7 +61,7 @@ def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
         theta = np.degrees(states[-1].position)
         assert np.abs(commands[-1]).max() > 1.0   # N m: holding the arm against gravity
         proc.send_signal(signal.SIGINT)
-        stop_by = time.monotonic() + 30.0   # its nodes get 10 s each, then are killed
+        stop_by = time.monotonic() + 30.0   # its nodes get 10 s in all, then are killed
         while proc.poll() is None:
             assert time.monotonic() < stop_by, "flex-twin up did not stop"
             ex.spin_once(timeout_sec=0.05)

@@ -109,11 +109,13 @@ def run_in_processes(path, names) -> int:
         for p in procs:
             if p.poll() is None:
                 p.send_signal(signal.SIGINT)
+        stop_by = time.monotonic() + 10.0   # one grace period for all nodes, then kill
         for p in procs:
             try:
-                p.wait(timeout=10)
+                p.wait(timeout=max(0.1, stop_by - time.monotonic()))
             except subprocess.TimeoutExpired:
                 p.kill()
+                p.wait()
     return max((p.returncode or 0) for p in procs)
 
 

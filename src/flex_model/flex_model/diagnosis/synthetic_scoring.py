@@ -85,9 +85,15 @@ def materiality_twin(case, healthy, sigma: dict) -> float:
 def replay_materiality_parts(kind: str, seed: int, d: Path, quiet_healthy, sigma) -> list:
     """The replay materiality of each effect of a two-effect case alone (its magnitude of
     the pair): the noiseless change against the noiseless healthy unit, in twin units."""
-    return [materiality_twin(generate_case(kind, seed, d / f"noiseless-part{j}", noise="none",
-                                           only=j), quiet_healthy, sigma)
-            for j in range(len(parse_kind(kind)))]
+    out = []
+    for j in range(len(parse_kind(kind))):
+        try:
+            alone = generate_case(kind, seed, d / f"noiseless-part{j}", noise="none", only=j)
+        except Exception:   # e.g. a 6 ms delay alone diverges: its visibility is unknown
+            out.append(None)
+            continue
+        out.append(materiality_twin(alone, quiet_healthy, sigma))
+    return out
 
 
 def add_part_visibility(res: dict, noise="nominal") -> dict:
@@ -232,7 +238,8 @@ def summarise(results: list) -> dict:
         "two_both_named": _frac([all(r["right"]) for r in two]),
         "two_both_named_when_visible": _frac([
             all(r["right"]) for r in two
-            if min(r.get("materiality_replay_parts", [np.inf])) >= GATE]),
+            if all(m is not None and m >= GATE
+                   for m in r.get("materiality_replay_parts", [np.inf]))]),
         "two_both_in_class": _frac([all(r["class_hit"]) for r in two]),
         "holdout_reduction_median": (float(np.median(red)) if red else None, len(red)),
         "parameter_error_median": (float(np.median(perr)) if perr else None, len(perr)),
@@ -254,7 +261,8 @@ def summarise(results: list) -> dict:
                            if r["materiality"] is not None and r["materiality"] < MATERIAL],
             "invisible_parts": [(r["kind"], r["seed"], r["materiality_replay_parts"])
                                 for r in two if "materiality_replay_parts" in r
-                                and min(r["materiality_replay_parts"]) < GATE],
+                                and not all(m is not None and m >= GATE
+                                            for m in r["materiality_replay_parts"])],
             "invisible": [(r["kind"], r["seed"], r["materiality_replay"]) for r in single
                           if r.get("materiality_replay", np.inf) < GATE]}
 
@@ -286,7 +294,7 @@ def report(summary: dict) -> str:
     if summary.get("invisible_parts"):
         lines += ["", "Two-effect runs with an effect invisible alone (its noiseless change < "
                   "the gate, left out of 'two_both_named_when_visible'): " + ", ".join(
-                      f"{k} seed {s} ({' / '.join(f'{m:.2f}' for m in ms)})"
+                      f"{k} seed {s} ({' / '.join('-' if m is None else f'{m:.2f}' for m in ms)})"
                       for k, s, ms in summary["invisible_parts"])]
     return "\n".join(lines)
 
