@@ -84,8 +84,10 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
 
 
 def _die_with_parent():
-    """In a node's process (Linux): SIGTERM when the launching process dies, so a killed
-    ``flex-twin up --processes`` leaves no node running on the domain."""
+    """In a node's process (Linux): the default SIGINT disposition, and SIGTERM when the
+    launching process dies, so a killed ``flex-twin up --processes`` leaves no node
+    running on the domain."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)   # so the node's Python handles Ctrl-C
     try:
         import ctypes
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
@@ -95,7 +97,10 @@ def _die_with_parent():
 
 def run_in_processes(path, names) -> int:
     """One process per node (``python -m`` its module, which works in a pip and in a colcon
-    install alike) with the same parameter file; the nodes end with this process."""
+    install alike) with the same parameter file; the nodes end with this process. Ctrl-C
+    (SIGINT) stops them even where it was inherited ignored (a background job of a
+    non-interactive shell, as in CI)."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     procs = [subprocess.Popen([sys.executable, "-m", NODES[n][0], "--ros-args",
                                "--params-file", str(path)],
                               preexec_fn=_die_with_parent if sys.platform == "linux" else None)
