@@ -96,20 +96,32 @@ def replay_materiality_parts(kind: str, seed: int, d: Path, quiet_healthy, sigma
     return out
 
 
-def add_part_visibility(res: dict, noise="nominal") -> dict:
-    """``materiality_replay_parts`` of a scored two-effect run that lacks it (regenerates
-    the case's recordings in its directory; the diagnosis is not rerun)."""
+def _twin_sigma(case) -> dict:
+    """The diagnosis's noise levels of a case's fit recording
+    (:func:`.evaluation.noise_levels`)."""
     from ..arm import load_arm
     from .evaluation import noise_levels
     from .recording import load_recording
+    return noise_levels(load_recording(case.fit_csv, load_arm(case.nominal_arm).n_links))
+
+
+def add_part_visibility(res: dict, noise="nominal") -> dict:
+    """``materiality_replay_parts`` of a scored two-effect run that lacks it (regenerates
+    the case's recordings in its directory; the diagnosis is not rerun)."""
     kind, seed, d = res["kind"], res["seed"], Path(res["dir"])
     if not kind.startswith("two:") or "materiality_replay_parts" in res or "verdict" not in res:
         return res
-    case = generate_case(kind, seed, d, noise=noise)
-    sigma = noise_levels(load_recording(case.fit_csv, load_arm(case.nominal_arm).n_links))
+    sigma = _twin_sigma(generate_case(kind, seed, d, noise=noise))
     quiet = generate_case("healthy", seed, d / "noiseless-healthy", noise="none")
     res["materiality_replay_parts"] = replay_materiality_parts(kind, seed, d, quiet, sigma)
     return res
+
+
+def _parts_visible(r: dict) -> bool:
+    """Each effect of a two-effect run visible alone (unknown counts as not; runs scored
+    before the parts were measured count as visible)."""
+    return all(m is not None and m >= GATE
+               for m in r.get("materiality_replay_parts", [np.inf]))
 
 
 def _same_target(named: dict, hidden: dict) -> bool:
@@ -172,7 +184,6 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool) -> dict
     """Generate, diagnose and score one run (in a worker process)."""
     from ..arm import load_arm
     from .controller import load_controller
-    from .evaluation import noise_levels
     from .recording import load_recording
     d = Path(out) / f"{kind.replace(':', '_').replace('+', '_')}-{seed}"
     t0 = time.perf_counter()
@@ -183,8 +194,7 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool) -> dict
         if materiality_on and parse_kind(kind):
             healthy = generate_case("healthy", seed, d / "healthy", noise=noise)
             res["materiality"] = materiality(case, healthy)
-            sigma = noise_levels(load_recording(case.fit_csv,
-                                                load_arm(case.nominal_arm).n_links))
+            sigma = _twin_sigma(case)
             res["materiality_twin"] = materiality_twin(case, healthy, sigma)
             quiet = [generate_case(k, seed, d / f"noiseless-{k}", noise="none")
                      for k in (kind, "healthy")]
@@ -236,10 +246,8 @@ def summarise(results: list) -> dict:
         "out_of_library_ok": _frac([r["verdict"] in OK_OUT_OF_LIBRARY
                                     for r in ok if r["kind"].startswith("out_of_library")]),
         "two_both_named": _frac([all(r["right"]) for r in two]),
-        "two_both_named_when_visible": _frac([
-            all(r["right"]) for r in two
-            if all(m is not None and m >= GATE
-                   for m in r.get("materiality_replay_parts", [np.inf]))]),
+        "two_both_named_when_visible": _frac([all(r["right"]) for r in two
+                                              if _parts_visible(r)]),
         "two_both_in_class": _frac([all(r["class_hit"]) for r in two]),
         "holdout_reduction_median": (float(np.median(red)) if red else None, len(red)),
         "parameter_error_median": (float(np.median(perr)) if perr else None, len(perr)),
@@ -260,9 +268,7 @@ def summarise(results: list) -> dict:
             "immaterial": [(r["kind"], r["seed"], r["materiality"]) for r in single
                            if r["materiality"] is not None and r["materiality"] < MATERIAL],
             "invisible_parts": [(r["kind"], r["seed"], r["materiality_replay_parts"])
-                                for r in two if "materiality_replay_parts" in r
-                                and not all(m is not None and m >= GATE
-                                            for m in r["materiality_replay_parts"])],
+                                for r in two if not _parts_visible(r)],
             "invisible": [(r["kind"], r["seed"], r["materiality_replay"]) for r in single
                           if r.get("materiality_replay", np.inf) < GATE]}
 
