@@ -17,12 +17,14 @@
    information criterion (BIC on the fit data) is necessary, parsimony decides near-ties
    (within ``tie`` of share); accept when identifiable (the 95 % interval of a parameter
    excludes its off value, condition number below ``MAX_COND``) and the share is at least
-   ``min_share``; add to the twin and repeat until the gate passes. When no single
+   ``min_share``; add to the twin and repeat until the gate passes. A further effect needs
+   evidence on both recordings: the fit recording must still hold a material excess
+   (:func:`_stop_reason`) and the candidate must explain ``min_share`` of it too. When no single
    candidate is acceptable, the pairs of screened candidates are fitted jointly (effects
    that mask each other one at a time: alone, each makes the held-out error worse); so
    they are too when the first accepted effect still leaves a material excess after its
    fine fit (a single that compensates two effects), and a pair that leaves at most
-   ``PAIR_GAIN`` of that excess replaces it.
+   ``PAIR_GAIN`` of that excess on both recordings replaces it.
 5. Verdicts: "no material discrepancy", "named" (with the effects), "unexplained
    discrepancy" (material, nothing named explains it) or "named + unexplained".
 """
@@ -41,7 +43,7 @@ from .evaluation import Context, cost, default_executor, evaluate, twin_arm
 from .fitting import (BaselineProjection, FitResult, baseline_jacobian, confidence_intervals,
                       fit_baseline, fit_candidate, fit_task, linearize)
 from .hypotheses import HypothesisPair, library_hypotheses, parts_of
-from .localise import effective_samples, localise
+from .localise import localise
 
 #: calibrated on 31 healthy synthetic runs (seeds 1000-1030, nominal noise): their held-out
 #: excess of the recalibrated twin has median 0.06 and maximum 0.28
@@ -52,6 +54,9 @@ TIE = 0.05
 #: a pair replaces the best single in the first round when it leaves at most this share of
 #: the single's held-out excess (stricter than naming the second effect in a later round)
 PAIR_GAIN = 0.5
+#: time block (s) of the sandwich covariance of the intervals: longer than the correlation
+#: time of what a fit leaves (the closed-loop first mode is 0.8 Hz)
+CI_BLOCK = 1.0
 
 
 @dataclass
@@ -73,6 +78,7 @@ class Candidate:
     cond: float
     identifiable: bool
     n_params: int
+    share_fit: float = 1.0  # share of the fit recording's excess explained
 
 
 @dataclass
@@ -91,6 +97,7 @@ class Diagnosis:
     twin: object = None
     contexts: tuple = ()
     baseline_scales: np.ndarray = None
+    stop: str = ""          # why the search ended (see :func:`diagnose`)
 
 
 def _progress(msg, on, t_start):
@@ -164,8 +171,9 @@ def _bic_delta(J_new, J_old, n, k):
 
 def _candidate(h, fit, J_ho, state, score) -> Candidate:
     """The evidence of a fitted hypothesis (or pair: parameters prefixed by the part)."""
-    ctx, _, current, _, cur_ho, n, n_eff, _, _ = state
-    half, cond = confidence_intervals(fit, n_eff)
+    ctx, _, current, _, cur_ho, n, _, _ = state
+    half, cond = confidence_intervals(fit, len(ctx.rec.residual_channels),
+                                      int(round(CI_BLOCK / ctx.rec.dt)))
     x = fit.x if fit.x is not None else np.zeros(len(h.names))
     if h.discrete:
         half = np.array([0.5 - 1e-9])   # whole periods: d T exactly
@@ -188,12 +196,13 @@ def _candidate(h, fit, J_ho, state, score) -> Candidate:
                      ci=ci, x=list(map(float, x)), screen=score, J_fit=fit.J,
                      J_holdout=J_ho, share=float((cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)),
                      delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))), cond=cond,
-                     identifiable=excl and cond < MAX_COND, n_params=len(x))
+                     identifiable=excl and cond < MAX_COND, n_params=len(x),
+                     share_fit=float((current.J - fit.J) / max(current.J - 1.0, 1e-12)))
 
 
 def _fit_round(executor, state, hyps, starts, scores):
     """Fit the hypotheses jointly with the baseline (in parallel), score them held out."""
-    ctx, ctx_ho, current, lin, _, _, _, progress, t_start = state
+    ctx, ctx_ho, current, lin, _, _, progress, t_start = state
     tasks = [(ctx, ctx_ho, h, current, lin, starts.get(h.label)) for h in hyps]
     cands, fits = [], {}
     for h, (fit, J_ho) in zip(hyps, executor.map(fit_task, tasks)):
@@ -205,11 +214,13 @@ def _fit_round(executor, state, hyps, starts, scores):
     return cands, fits
 
 
-def _pick(cands, min_share):
-    """The best acceptable candidate: BIC improves, identifiable, share >= min_share;
-    among those within TIE of the best share, the fewest parameters."""
+def _pick(cands, min_share, on_fit=False):
+    """The best acceptable candidate: BIC improves, identifiable, share >= min_share
+    (and, with ``on_fit``, the same share of the fit recording's excess); among those
+    within TIE of the best share, the fewest parameters."""
     ok = sorted((c for c in cands if c.delta_bic < 0 and c.identifiable
-                 and c.share >= min_share), key=lambda c: -c.share)
+                 and c.share >= min_share and (not on_fit or c.share_fit >= min_share)),
+                key=lambda c: -c.share)
     if not ok:
         return None
     near = [c for c in ok if c.share >= ok[0].share - TIE]
@@ -252,7 +263,8 @@ def _split(pick, hyp, x, twin) -> list:
     return out
 
 
-def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share, why):
+def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share, why,
+                on_fit=False):
     """Fit the pairs of the screened candidates jointly (added to ``cands`` and ``fits``);
     the best acceptable pair or None."""
     pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
@@ -261,11 +273,11 @@ def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share,
         scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
         starts[pr.label] = np.concatenate([starts.get(h.label, h.starts[0])
                                            for h in (pr.first, pr.second)])
-    _progress(f"{why}: {len(pairs)} pairs jointly", state[7], state[8])
+    _progress(f"{why}: {len(pairs)} pairs jointly", state[6], state[7])
     pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
     cands += pair_cands
     fits.update(pair_fits)
-    return _pick(pair_cands, min_share)
+    return _pick(pair_cands, min_share, on_fit)
 
 
 def _accept(executor, ctx, ctx_ho, fitted):
@@ -278,6 +290,21 @@ def _accept(executor, ctx, ctx_ho, fitted):
     cur_ho = cost(r_ho) if r_ho is not None else fitted[1]
     return current, cur_ho, linearize(executor, ctx, current.scales, current.effects, Jb), \
         (hyp, x)
+
+
+def _stop_reason(cur_ho, J_fit, accepted, gate, max_effects) -> str:
+    """Why the search ends before a further round ("" if it goes on). After an effect is
+    named, the fit recording must still hold a material excess: what remains only on the
+    held-out recording (the error of the named effect's parameters where the held-out
+    run leans harder on it, process noise driven open loop while a joint saturates) has
+    nothing to fit a further effect on, and a candidate that "explains" it compensates."""
+    if cur_ho - 1.0 <= gate:
+        return "held-out excess within the gate"
+    if len(accepted) >= max_effects:
+        return f"max_effects ({max_effects}) named"
+    if accepted and J_fit - 1.0 <= gate:
+        return "fit recording explained to the gate, a held-out excess remains"
+    return ""
 
 
 def _restate(accepted, effects, twin):
@@ -339,7 +366,11 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
         accepted, rounds = [], []
         current, cur_ho = base, J["baseline_holdout"]
         n = len(base.r)
-        while cur_ho - 1.0 > gate and len(accepted) < max_effects:
+        stop = ""
+        while not stop:
+            stop = _stop_reason(cur_ho, current.J, accepted, gate, max_effects)
+            if stop:
+                break
             hyps = library_hypotheses(nominal, fit_rec, controller,
                                       exclude=[c.label for c in accepted],
                                       twin_peaks=_twin_peaks(ctx, current.r))
@@ -348,26 +379,29 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked), progress, t_start)
-            n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
-            state = (ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start)
+            state = (ctx, ctx_ho, current, lin, cur_ho, n, progress, t_start)
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
-            pick = _pick(cands, min_share)
+            later = bool(accepted)   # a further effect needs evidence on both recordings
+            pick = _pick(cands, min_share, on_fit=later)
             pairs_fitted = pick is None and len(accepted) + 2 <= max_effects
             if pairs_fitted:   # effects that mask each other one at a time
                 pick = _pair_round(executor, state, ranked, starts, scores, cands, fits,
-                                   min_share, "no single effect explains it")
+                                   min_share, "no single effect explains it", on_fit=later)
             rounds.append({"candidates": cands, "picked": pick.label if pick else None})
             if pick is None:
+                stop = "no acceptable candidate"
                 break
             new = _accept(executor, ctx, ctx_ho, fits[pick.label])
             if (not pairs_fitted and not accepted and new[1] - 1.0 > gate
-                    and max_effects >= 2):
-                # a first pick that leaves a material excess after its fine fit may
-                # compensate two effects: the pairs jointly, kept when one leaves at most
-                # PAIR_GAIN of its held-out excess
+                    and new[0].J - 1.0 > gate and max_effects >= 2):
+                # a first pick that leaves a material excess on both recordings after its
+                # fine fit may compensate two effects: the pairs jointly, kept when one
+                # leaves at most PAIR_GAIN of its excess on both
                 pair = _pair_round(executor, state, ranked, starts, scores, cands, fits,
                                    min_share, "the best single leaves a material excess")
-                if pair is not None and fits[pair.label][1] - 1.0 <= PAIR_GAIN * (new[1] - 1):
+                if pair is not None and all(
+                        pj - 1.0 <= PAIR_GAIN * (sj - 1.0) for pj, sj in
+                        ((fits[pair.label][1], new[1]), (pair.J_fit, new[0].J))):
                     pick = pair
                     rounds[-1]["picked"] = pick.label
                     new = _accept(executor, ctx, ctx_ho, fits[pick.label])
@@ -397,4 +431,4 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                      scales={p.name: float(s) for p, s in zip(params, current.scales)},
                      localisation=loc, timing={"wall_s": time.perf_counter() - t_start},
                      final_effects=current.effects, twin=final_arm,
-                     contexts=(ctx, ctx_ho), baseline_scales=baseline_scales)
+                     contexts=(ctx, ctx_ho), baseline_scales=baseline_scales, stop=stop)

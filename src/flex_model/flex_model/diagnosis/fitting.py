@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
+from scipy.stats import t as student_t
 
 from .baseline import bounds as scale_bounds
 from .evaluation import DIVERGED_COST, cost, evaluate
@@ -252,22 +253,34 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
     return FitResult(*fitted(d, x), r, J, jacobian, x, n_eval)
 
 
-def confidence_intervals(fit: FitResult, n_eff: float, level_z: float = 1.96):
-    """Half-widths of the 95 % intervals of the effect's x (Gauss-Newton covariance,
-    residual variance J, sample count corrected to ``n_eff`` independent samples), and
-    the condition number of the normalized information matrix."""
+def confidence_intervals(fit: FitResult, n_channels: int, block: int, level: float = 0.95):
+    """Half-widths of the ``level`` intervals of the effect's x and the condition number of
+    the normalized information matrix. Block sandwich covariance (cluster-robust in time):
+    the residuals after a fit are coloured by what the twin still misses, so the scores
+    A_k r_k are summed over blocks of ``block`` samples (all channels of the same
+    instants together), cov = (A^T A)^-1 (sum_b g_b g_b^T) (A^T A)^-1 G / (G - 1), and the
+    quantile is Student's t with G - 1 degrees of freedom (G blocks). With white residuals
+    of unit variance it is the Gauss-Newton covariance (A^T A)^-1."""
     if fit.jac is None:
         return None, 1.0
     A = fit.jac
-    n = A.shape[0]
     info = A.T @ A
     d = np.sqrt(np.maximum(np.diag(info), 1e-300))
     cond = float(np.linalg.cond(info / np.outer(d, d)))
+    n_t = len(fit.r) // max(n_channels, 1)
+    blocks = np.tile(np.arange(n_t) // max(block, 1), n_channels)[:len(fit.r)]
+    G = int(blocks.max()) + 1
+    g = np.zeros((G, A.shape[1]))
+    np.add.at(g, blocks, A * fit.r[:, None])
     try:
-        cov = np.linalg.inv(info) * fit.J * (n / max(n_eff, 1.0))
+        bread = np.linalg.inv(info)
     except np.linalg.LinAlgError:
         return np.full(len(fit.x), np.inf), np.inf
-    return level_z * np.sqrt(np.maximum(np.diag(cov), 0.0)), cond
+    if G < 3:
+        return np.full(len(fit.x), np.inf), cond
+    cov = bread @ (g.T @ g) @ bread * G / (G - 1)
+    q = student_t.ppf(0.5 + level / 2, G - 1)
+    return q * np.sqrt(np.maximum(np.diag(cov), 0.0)), cond
 
 
 def fit_task(task):

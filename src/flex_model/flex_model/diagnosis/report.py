@@ -69,6 +69,7 @@ def _candidate_json(c) -> dict:
             "ci95": {n: float(e) for n, e in zip(c.names, c.ci)},
             "screen_score": float(c.screen), "J_fit": float(c.J_fit),
             "J_holdout": float(c.J_holdout), "share_explained": float(c.share),
+            "share_explained_fit": float(c.share_fit),
             "delta_bic": float(c.delta_bic), "condition": float(c.cond),
             "identifiable": bool(c.identifiable)}
 
@@ -86,7 +87,7 @@ def summary(diagnosis) -> dict:
                        "candidates": [_candidate_json(c) for c in cands]})
     J = diagnosis.J
     base = J["baseline_holdout"] - 1.0
-    return {"verdict": diagnosis.verdict,
+    return {"verdict": diagnosis.verdict, "stop": diagnosis.stop,
             "named": [_candidate_json(c) for c in diagnosis.accepted],
             "gate": {"excess_threshold": diagnosis.gate, "baseline_excess_holdout": base,
                      "final_excess_holdout": J["final_holdout"] - 1.0,
@@ -154,18 +155,19 @@ def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:
           f"Gate: material when the held-out excess of the baseline exceeds "
           f"{diagnosis.gate:g} (here {J['baseline_holdout'] - 1:.3g}). Held-out excess "
           f"error reduced by {100 * s['holdout_error_reduction']:.1f} % against the nominal "
-          "twin.", ""]
+          f"twin. The search ended: {diagnosis.stop}.", ""]
     for k, rd in enumerate(s["rounds"]):
         margin = "-" if rd["margin"] is None else f"{rd['margin']:.3f}"
         md += [f"## Round {k + 1}: picked {rd['picked'] or 'nothing'} (runner-up "
                f"{rd['runner_up']}, margin in share {margin})",
                "", "| hypothesis | parameters (95 % interval) | screen | share held out | "
-               "dBIC | cond | identifiable |", "|---|---|---|---|---|---|---|"]
+               "share fit | dBIC | cond | identifiable |", "|---|---|---|---|---|---|---|---|"]
         for c in rd["candidates"]:
             par = ", ".join(f"{n} {v:.4g} +- {c['ci95'][n]:.2g}"
                             for n, v in c["parameters"].items())
             md.append(f"| {c['label']} | {par} | {c['screen_score']:.3g} | "
-                      f"{c['share_explained']:.3f} | {c['delta_bic']:.3g} | "
+                      f"{c['share_explained']:.3f} | {c['share_explained_fit']:.3f} | "
+                      f"{c['delta_bic']:.3g} | "
                       f"{c['condition']:.3g} | {c['identifiable']} |")
         md.append("")
     md += ["## Baseline scales", "", ", ".join(f"{k} {v:.4f}"

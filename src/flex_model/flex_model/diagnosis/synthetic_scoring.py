@@ -215,6 +215,7 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool) -> dict
         res["error"] = f"{type(exc).__name__}: {exc}"
         return res
     res["diagnose_s"] = time.perf_counter() - t1
+    res["stop"], res["rounds"] = diag.stop, len(diag.rounds)
     res.update(score(case.truth, diag.verdict, _named_of(diag), dict(diag.J)))
     return res
 
