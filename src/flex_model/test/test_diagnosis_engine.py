@@ -204,10 +204,10 @@ def _coverage(rho, trials=300, n=6000, block=500):
             e[k] = rho * e[k - 1] + w[k]
         a_hat = float(u @ e / (u @ u))           # truth a = 0
         r = e - a_hat * u
-        half, _ = confidence_intervals(FitResult(None, [], r, float(r @ r / n), A,
-                                                 np.array([a_hat])), 1, block)
+        half, plain, _ = confidence_intervals(
+            FitResult(None, [], r, float(r @ r / n), A, np.array([a_hat])), 1, block, n)
         hits_sandwich += abs(a_hat) <= half[0]
-        hits_plain += abs(a_hat) <= 1.96 * np.sqrt(np.mean(r * r) / (u @ u))
+        hits_plain += abs(a_hat) <= plain[0]
     return hits_sandwich / trials, hits_plain / trials
 
 

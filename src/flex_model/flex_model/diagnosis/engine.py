@@ -15,8 +15,10 @@
    before (linearized, :class:`.fitting.Linearization`), evaluate each on the
    held-out recording; rank by the share of the held-out excess error explained; an
    information criterion (BIC on the fit data) is necessary, parsimony decides near-ties
-   (within ``tie`` of share); accept when identifiable (the 95 % interval of a parameter
-   excludes its off value, condition number below ``MAX_COND``) and the share is at least
+   (within ``tie`` of share); accept when identifiable (the 95 % noise-only resolution
+   interval of a parameter excludes its off value, condition number below ``MAX_COND``;
+   the reported interval also counts the remaining model error,
+   :func:`.fitting.confidence_intervals`) and the share is at least
    ``min_share``; add to the twin and repeat until the gate passes. A further effect needs
    evidence on both recordings: the fit recording must still hold a material excess
    (:func:`_stop_reason`) and the candidate must explain ``min_share`` of it too. When no single
@@ -43,7 +45,7 @@ from .evaluation import Context, cost, default_executor, evaluate, twin_arm
 from .fitting import (BaselineProjection, FitResult, baseline_jacobian, confidence_intervals,
                       fit_baseline, fit_candidate, fit_task, linearize)
 from .hypotheses import HypothesisPair, library_hypotheses, parts_of
-from .localise import localise
+from .localise import effective_samples, localise
 
 #: calibrated on 31 healthy synthetic runs (seeds 1000-1030, nominal noise): their held-out
 #: excess of the recalibrated twin has median 0.06 and maximum 0.28
@@ -171,22 +173,22 @@ def _bic_delta(J_new, J_old, n, k):
 
 def _candidate(h, fit, J_ho, state, score) -> Candidate:
     """The evidence of a fitted hypothesis (or pair: parameters prefixed by the part)."""
-    ctx, _, current, _, cur_ho, n, _, _ = state
-    half, cond = confidence_intervals(fit, len(ctx.rec.residual_channels),
-                                      int(round(CI_BLOCK / ctx.rec.dt)))
+    ctx, _, current, _, cur_ho, n, n_eff, _, _ = state
+    half, resolution, cond = confidence_intervals(
+        fit, len(ctx.rec.residual_channels), int(round(CI_BLOCK / ctx.rec.dt)), n_eff)
     x = fit.x if fit.x is not None else np.zeros(len(h.names))
-    if h.discrete:
-        half = np.array([0.5 - 1e-9])   # whole periods: d T exactly
+    if h.discrete:   # whole periods: d T exactly
+        half = resolution = np.array([0.5 - 1e-9])
     if half is None:
-        half = np.full(len(x), np.inf)
+        half = resolution = np.full(len(x), np.inf)
     twin = twin_arm(ctx, fit.scales, fit.effects)
     names, values, ci, excl = [], [], [], True
     pair = isinstance(h, HypothesisPair)
     k = 0
     for part, xp in parts_of(h, x):
         hp = half[k:k + len(xp)]
+        excl &= bool(np.any(np.abs(xp - part.off()) > resolution[k:k + len(xp)]))
         k += len(xp)
-        excl &= bool(np.any(np.abs(xp - part.off()) > hp))
         nm, v, e = part.physical(part.values(xp), part.value_halfwidths(xp, hp), twin)
         names += [f"{part.label}.{a}" if pair else a for a in nm]
         values += [float(a) for a in v]
@@ -202,7 +204,7 @@ def _candidate(h, fit, J_ho, state, score) -> Candidate:
 
 def _fit_round(executor, state, hyps, starts, scores):
     """Fit the hypotheses jointly with the baseline (in parallel), score them held out."""
-    ctx, ctx_ho, current, lin, _, _, progress, t_start = state
+    ctx, ctx_ho, current, lin, _, _, _, progress, t_start = state
     tasks = [(ctx, ctx_ho, h, current, lin, starts.get(h.label)) for h in hyps]
     cands, fits = [], {}
     for h, (fit, J_ho) in zip(hyps, executor.map(fit_task, tasks)):
@@ -273,7 +275,7 @@ def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share,
         scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
         starts[pr.label] = np.concatenate([starts.get(h.label, h.starts[0])
                                            for h in (pr.first, pr.second)])
-    _progress(f"{why}: {len(pairs)} pairs jointly", state[6], state[7])
+    _progress(f"{why}: {len(pairs)} pairs jointly", state[7], state[8])
     pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
     cands += pair_cands
     fits.update(pair_fits)
@@ -379,7 +381,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked), progress, t_start)
-            state = (ctx, ctx_ho, current, lin, cur_ho, n, progress, t_start)
+            n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
+            state = (ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start)
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
             later = bool(accepted)   # a further effect needs evidence on both recordings
             pick = _pick(cands, min_share, on_fit=later)

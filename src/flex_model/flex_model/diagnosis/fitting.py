@@ -253,34 +253,46 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
     return FitResult(*fitted(d, x), r, J, jacobian, x, n_eval)
 
 
-def confidence_intervals(fit: FitResult, n_channels: int, block: int, level: float = 0.95):
-    """Half-widths of the ``level`` intervals of the effect's x and the condition number of
-    the normalized information matrix. Block sandwich covariance (cluster-robust in time):
-    the residuals after a fit are coloured by what the twin still misses, so the scores
-    A_k r_k are summed over blocks of ``block`` samples (all channels of the same
-    instants together), cov = (A^T A)^-1 (sum_b g_b g_b^T) (A^T A)^-1 G / (G - 1), and the
-    quantile is Student's t with G - 1 degrees of freedom (G blocks). With white residuals
-    of unit variance it is the Gauss-Newton covariance (A^T A)^-1."""
+def confidence_intervals(fit: FitResult, n_channels: int, block: int, n_eff: float,
+                         level: float = 0.95):
+    """Half-widths of two ``level`` intervals of the effect's x, and the condition number
+    of the normalized information matrix.
+
+    - resolution (noise only): Gauss-Newton covariance (A^T A)^-1 J n / n_eff, the sample
+      count corrected to ``n_eff`` independent samples: is the effect resolved by the data
+      at all (the identifiability check);
+    - reported (noise and what the twin still misses): block sandwich covariance,
+      cluster-robust in time. The residuals after a fit are coloured by the remaining model
+      error, so the scores A_k r_k are summed over blocks of ``block`` samples (all
+      channels of the same instants together), cov = (A^T A)^-1 (sum_b g_b g_b^T)
+      (A^T A)^-1 G / (G - 1) with Student's t of G - 1 degrees of freedom (G blocks). With
+      white residuals of unit variance it is (A^T A)^-1: wide where blocks of the run
+      disagree on the value.
+    Returns (reported, resolution, cond); (None, None, 1.0) without a Jacobian."""
     if fit.jac is None:
-        return None, 1.0
+        return None, None, 1.0
     A = fit.jac
     info = A.T @ A
     d = np.sqrt(np.maximum(np.diag(info), 1e-300))
     cond = float(np.linalg.cond(info / np.outer(d, d)))
-    n_t = len(fit.r) // max(n_channels, 1)
-    blocks = np.tile(np.arange(n_t) // max(block, 1), n_channels)[:len(fit.r)]
-    G = int(blocks.max()) + 1
-    g = np.zeros((G, A.shape[1]))
-    np.add.at(g, blocks, A * fit.r[:, None])
     try:
         bread = np.linalg.inv(info)
     except np.linalg.LinAlgError:
-        return np.full(len(fit.x), np.inf), np.inf
+        inf = np.full(len(fit.x), np.inf)
+        return inf, inf, np.inf
+    z = student_t.ppf(0.5 + level / 2, np.inf)
+    resolution = z * np.sqrt(np.maximum(np.diag(bread) * fit.J * len(fit.r)
+                                        / max(n_eff, 1.0), 0.0))
+    n_t = len(fit.r) // max(n_channels, 1)
+    blocks = np.tile(np.arange(n_t) // max(block, 1), n_channels)[:len(fit.r)]
+    G = int(blocks.max()) + 1
     if G < 3:
-        return np.full(len(fit.x), np.inf), cond
+        return np.full(len(fit.x), np.inf), resolution, cond
+    g = np.zeros((G, A.shape[1]))
+    np.add.at(g, blocks, A * fit.r[:, None])
     cov = bread @ (g.T @ g) @ bread * G / (G - 1)
-    q = student_t.ppf(0.5 + level / 2, G - 1)
-    return q * np.sqrt(np.maximum(np.diag(cov), 0.0)), cond
+    reported = student_t.ppf(0.5 + level / 2, G - 1) * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return reported, resolution, cond
 
 
 def fit_task(task):

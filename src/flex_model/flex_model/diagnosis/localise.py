@@ -8,9 +8,10 @@ correlation (issue 8, step 3).
   5 % of their peak, reversals the +-50 ms around a sign change of a joint speed, high
   torque the top 10 % of |tau|;
 - frequency: the peak of the residual power spectrum (Welch) per channel;
-- whiteness: lag-1 autocorrelation of the residuals (0 for white residuals);
-  residual-input correlation: the correlation of each joint's torque residual with its
-  measured command.
+- whiteness: lag-1 autocorrelation of the residuals (0 for white residuals), and the
+  effective number of independent samples n (1 - rho) / (1 + rho) used by the
+  identifiability check; residual-input correlation: the correlation of each joint's torque residual
+  with its measured command.
 """
 from __future__ import annotations
 
@@ -24,6 +25,15 @@ def lag1(r: np.ndarray) -> float:
     r = r - np.mean(r)
     d = float(np.dot(r, r))
     return float(np.dot(r[1:], r[:-1]) / d) if d > 0 else 0.0
+
+
+def effective_samples(r: np.ndarray, n_channels: int) -> float:
+    """n (1 - rho) / (1 + rho) summed over the concatenated channels."""
+    total = 0.0
+    for part in np.array_split(r, max(n_channels, 1)):
+        rho = min(max(lag1(part), 0.0), 0.999)
+        total += len(part) * (1 - rho) / (1 + rho)
+    return max(total, 1.0)
 
 
 def time_classes(rec) -> dict:
