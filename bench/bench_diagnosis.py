@@ -2,7 +2,6 @@
 
     python bench/bench_diagnosis.py [--runs N] [--cases KIND ...] [--jobs J] [--out DIR]
                                     [--noise LEVEL] [--seed0 S] [--resume]
-                                    [--rerun-later-rounds]
 
 For every case kind and run (seed) it generates the case (flex_model.diagnosis.synthetic),
 runs the diagnosis on fit.csv / holdout.csv with the nominal arm and controller (the
@@ -31,12 +30,6 @@ def _g(x):
     return "-" if x is None else f"{x:.3g}"
 
 
-def _went_on(r: dict) -> bool:
-    """The search went on after its first named effect (a second round or a pair)."""
-    return "verdict" in r and (len(r["named"]) >= 2
-                               or r["verdict"] == "named + unexplained discrepancy")
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10, help="runs (seeds) per case kind")
@@ -56,11 +49,6 @@ def main(argv=None) -> int:
     ap.add_argument("--add-visibility", action="store_true",
                     help="add each effect's own replay materiality to the two-effect runs "
                          "of DIR/results.json that lack it (no diagnosis is rerun)")
-    ap.add_argument("--rerun-later-rounds", action="store_true",
-                    help="with --resume: rerun the runs of DIR/results.json whose search "
-                         "went on after its first named effect (the engine is "
-                         "deterministic: a change of the later-round rules leaves the "
-                         "others as they are)")
     args = ap.parse_args(argv)
     kinds = args.cases or list(CASE_KINDS) + list(DEFAULT_TWO)
     for k in kinds:
@@ -74,8 +62,6 @@ def main(argv=None) -> int:
     if args.add_visibility:
         results = [add_part_visibility(r, args.noise) for r in results]
         (out / "results.json").write_text(json.dumps(results, indent=1, default=str))
-    if args.rerun_later_rounds:
-        results = [r for r in results if not _went_on(r)]
     have = {(r["kind"], r["seed"]) for r in results}
     jobs = [(k, args.seed0 + s) for s in range(args.runs) for k in kinds
             if (k, args.seed0 + s) not in have

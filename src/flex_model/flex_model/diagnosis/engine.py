@@ -21,9 +21,10 @@
    :func:`.fitting.confidence_intervals`) and the share is at least
    ``min_share``; add to the twin and repeat until the gate passes. A further effect needs
    evidence on both recordings: the fit recording must still hold a material excess
-   (:func:`_stop_reason`) and the candidate must explain ``min_share`` of it too. When no single
-   candidate is acceptable, the pairs of screened candidates are fitted jointly (effects
-   that mask each other one at a time: alone, each makes the held-out error worse); so
+   (:func:`_stop_reason`) and the candidate must explain ``min_share`` of it too. When no
+   single candidate is acceptable, the pairs of screened candidates are fitted jointly
+   (effects that mask each other one at a time: alone, each makes the held-out error
+   worse); so
    they are too when the first accepted effect still leaves a material excess after its
    fine fit (a single that compensates two effects), and a pair that leaves at most
    ``PAIR_GAIN`` of that excess on both recordings replaces it.

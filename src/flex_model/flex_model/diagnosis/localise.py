@@ -10,8 +10,8 @@ correlation (issue 8, step 3).
 - frequency: the peak of the residual power spectrum (Welch) per channel;
 - whiteness: lag-1 autocorrelation of the residuals (0 for white residuals), and the
   effective number of independent samples n (1 - rho) / (1 + rho) used by the
-  identifiability check; residual-input correlation: the correlation of each joint's torque residual
-  with its measured command.
+  identifiability check; residual-input correlation: the correlation of each joint's
+  torque residual with its measured command.
 """
 from __future__ import annotations
 
