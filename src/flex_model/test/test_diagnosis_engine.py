@@ -191,17 +191,14 @@ def _coverage(rho, trials=300, n=6000, block=500):
     """Coverage of the 95 % intervals of a in y = a u + e (u slow, e AR(1) of coefficient
     rho and unit variance): block sandwich and plain Gauss-Newton (white-noise) intervals."""
     from flex_model.diagnosis.fitting import FitResult, confidence_intervals
+    from flex_model.diagnosis.synthetic_signals import ar1
     rng = np.random.default_rng(7)
     t = np.arange(n) * 2e-3
     u = np.sin(2 * np.pi * 0.8 * t) + 0.5 * np.sin(2 * np.pi * 0.13 * t + 1.0)
     A = u[:, None]
     hits_sandwich = hits_plain = 0
     for _ in range(trials):
-        w = rng.standard_normal(n) * np.sqrt(1 - rho ** 2)
-        e = np.empty(n)
-        e[0] = rng.standard_normal()
-        for k in range(1, n):
-            e[k] = rho * e[k - 1] + w[k]
+        e = ar1(rng, n, 1.0, rho)
         a_hat = float(u @ e / (u @ u))           # truth a = 0
         r = e - a_hat * u
         half, plain, _ = confidence_intervals(

@@ -81,7 +81,7 @@ class Candidate:
     cond: float
     identifiable: bool
     n_params: int
-    share_fit: float = 1.0  # share of the fit recording's excess explained
+    share_fit: float        # share of the fit recording's excess explained
 
 
 @dataclass
