@@ -60,6 +60,16 @@ def test_recording_csv_is_the_lab_data(real, tmp_path):
     assert rec.channels["tau_ff1"] == pytest.approx(-run.gains[1] * run.gauge_bias(), abs=1e-12)
 
 
+def test_run_name_is_not_taken_for_a_same_named_directory(real, tmp_path, monkeypatch):
+    """A folder called like the run in the working directory (an earlier --out, say) does
+    not shadow the run name; a lab file given by path is taken as it is."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "flexarm_K1_6").mkdir()
+    hit = run_path("flexarm_K1_6", real)
+    assert hit.is_file() and hit.name == "flexarm_K1_6" and tmp_path not in hit.parents
+    assert run_path(str(hit), None) == hit
+
+
 def test_controller_is_the_lab_law(real, tmp_path):
     """Through the engine's policy the exported law equals flex_control's lab law to 1e-9 V
     (sign and bias of the gauge included), and reproduces the logged voltage to 0.056 V RMS

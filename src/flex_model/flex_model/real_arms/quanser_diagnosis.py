@@ -91,9 +91,11 @@ def export_run(path, out_dir, stem: str | None = None) -> dict:
 
 
 def run_path(name_or_path, root: Path) -> Path:
-    """A lab file: an existing path, or a CU Boulder run name under the data root."""
+    """A lab file: an existing lab file or UC Merced folder (with ``data_alpha.mat``), or a
+    CU Boulder run name under the data root (a directory of that name in the working
+    directory, say an earlier output folder, is not taken for the run)."""
     p = Path(name_or_path)
-    if p.exists():
+    if p.is_file() or (p / "data_alpha.mat").is_file():
         return p
     hits = sorted((Path(root) / CUBOULDER).glob(f"*/**/{name_or_path}"))
     if not hits:
