@@ -265,13 +265,29 @@ def test_acceptance_two_effects_that_a_single_compensates(tmp_path):
 @pytest.mark.skipif(os.environ.get(ACCEPTANCE_ENV) == "skip", reason=f"{ACCEPTANCE_ENV}=skip "
                     "(one contact diagnosis, about 40 s on 2 cores)")
 def test_acceptance_nothing_is_named_for_what_only_the_held_out_run_shows(tmp_path):
-    """Contact floor (seed 1005): the fitted contact explains the fit recording to the gate
-    (J - 1 = 0.06) and leaves a held-out excess (the held-out run presses harder). Before
-    the rule that a further effect needs a material excess on the fit recording, a 2 ms
-    sensor delay was named for it; now the contact alone, the rest unexplained."""
+    """Contact floor (seed 1005): the fitted contact explains the fit recording to its noise
+    level (J - 1 = 0.06) and leaves a held-out excess (the held-out run presses harder).
+    Before the rule that a further effect needs evidence on the fit recording too, a 2 ms
+    sensor delay was named for it (0.77 of the held-out excess, 0.2 of the fit one's); now
+    the contact alone, the rest unexplained."""
     from flex_model.diagnosis import synthetic_scoring as bench
     r = bench.run_one("contact_surface", 1005, str(tmp_path), "nominal", False)
     assert [n["kind"] for n in r["named"]] == ["contact_surface"], r
     assert r["verdict"] == "named + unexplained discrepancy", r
-    assert r["stop"].startswith("fit recording explained to the gate"), r
+    assert r["stop"].startswith("fit recording explained to its noise level"), r
     assert max(r["param_errors"]) < 0.1 and r["holdout_reduction"] >= 0.99
+
+
+@pytest.mark.skipif(os.environ.get(ACCEPTANCE_ENV) == "skip", reason=f"{ACCEPTANCE_ENV}=skip "
+                    "(one two-effect diagnosis, about 1.5 minutes on 2 cores)")
+def test_acceptance_a_second_effect_below_the_gate_on_the_fit_recording(tmp_path):
+    """Gear on joint 2 (rotor inertia x1.6) and drive saturation on joint 1 (seed 1002):
+    after the saturation the fit recording's excess is 0.25, under the gate, the held-out
+    one 2.4 (the held-out run saturates longer). The gear explains 0.78 of the held-out excess and
+    0.26 of the fit recording's J, more than min_share of the gate: both are named, each
+    within 5 %."""
+    from flex_model.diagnosis import synthetic_scoring as bench
+    r = bench.run_one("two:gear+torque_saturation", 1002, str(tmp_path), "nominal", False)
+    assert sorted(n["kind"] for n in r["named"]) == ["gear", "torque_saturation"], r
+    assert r["right"] == [True, True] and r["in_class"] == [True, True], r
+    assert max(r["param_errors"]) < 0.05 and r["holdout_reduction"] >= 0.99

@@ -20,8 +20,10 @@
    the reported interval also counts the remaining model error,
    :func:`.fitting.confidence_intervals`) and the share is at least
    ``min_share``; add to the twin and repeat until the gate passes. A further effect needs
-   evidence on both recordings: the fit recording must still hold a material excess
-   (:func:`_stop_reason`) and the candidate must explain ``min_share`` of it too. When no
+   evidence on both recordings: it must explain ``min_share`` of the fit recording's
+   excess too, that excess counted at least as the gate (practical significance on the fit
+   data; the search stops when the fit recording is explained closer than that,
+   :func:`_stop_reason`). When no
    single candidate is acceptable, the pairs of screened candidates are fitted jointly
    (effects that mask each other one at a time: alone, each makes the held-out error
    worse); so
@@ -81,7 +83,7 @@ class Candidate:
     cond: float
     identifiable: bool
     n_params: int
-    share_fit: float        # share of the fit recording's excess explained
+    share_fit: float        # share of the fit recording's excess (at least the gate) explained
 
 
 @dataclass
@@ -174,7 +176,7 @@ def _bic_delta(J_new, J_old, n, k):
 
 def _candidate(h, fit, J_ho, state, score) -> Candidate:
     """The evidence of a fitted hypothesis (or pair: parameters prefixed by the part)."""
-    ctx, _, current, _, cur_ho, n, n_eff, _, _ = state
+    ctx, _, current, _, cur_ho, n, n_eff, _, _, gate = state
     half, resolution, cond = confidence_intervals(
         fit, len(ctx.rec.residual_channels), int(round(CI_BLOCK / ctx.rec.dt)), n_eff)
     x = fit.x if fit.x is not None else np.zeros(len(h.names))
@@ -200,12 +202,12 @@ def _candidate(h, fit, J_ho, state, score) -> Candidate:
                      J_holdout=J_ho, share=float((cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)),
                      delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))), cond=cond,
                      identifiable=excl and cond < MAX_COND, n_params=len(x),
-                     share_fit=float((current.J - fit.J) / max(current.J - 1.0, 1e-12)))
+                     share_fit=float((current.J - fit.J) / max(current.J - 1.0, gate)))
 
 
 def _fit_round(executor, state, hyps, starts, scores):
     """Fit the hypotheses jointly with the baseline (in parallel), score them held out."""
-    ctx, ctx_ho, current, lin, _, _, _, progress, t_start = state
+    ctx, ctx_ho, current, lin, _, _, _, progress, t_start, _ = state
     tasks = [(ctx, ctx_ho, h, current, lin, starts.get(h.label)) for h in hyps]
     cands, fits = [], {}
     for h, (fit, J_ho) in zip(hyps, executor.map(fit_task, tasks)):
@@ -295,18 +297,20 @@ def _accept(executor, ctx, ctx_ho, fitted):
         (hyp, x)
 
 
-def _stop_reason(cur_ho, J_fit, accepted, gate, max_effects) -> str:
+def _stop_reason(cur_ho, J_fit, accepted, gate, max_effects, min_share) -> str:
     """Why the search ends before a further round ("" if it goes on). After an effect is
-    named, the fit recording must still hold a material excess: what remains only on the
-    held-out recording (the error of the named effect's parameters where the held-out
-    run leans harder on it, process noise driven open loop while a joint saturates) has
-    nothing to fit a further effect on, and a candidate that "explains" it compensates."""
+    named, a further one must explain ``min_share`` of the gate on the fit recording too
+    (``Candidate.share_fit``): what remains only on the held-out recording (the error of
+    the named effect's parameters where the held-out run leans harder on it, process noise
+    driven open loop while a joint saturates) has nothing to fit a further effect on, and a
+    candidate that "explains" it compensates. With less excess than that left on the fit
+    recording no candidate can pass without fitting its noise: the search ends there."""
     if cur_ho - 1.0 <= gate:
         return "held-out excess within the gate"
     if len(accepted) >= max_effects:
         return f"max_effects ({max_effects}) named"
-    if accepted and J_fit - 1.0 <= gate:
-        return "fit recording explained to the gate, a held-out excess remains"
+    if accepted and J_fit - 1.0 < min_share * gate:
+        return "fit recording explained to its noise level, a held-out excess remains"
     return ""
 
 
@@ -371,7 +375,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
         n = len(base.r)
         stop = ""
         while not stop:
-            stop = _stop_reason(cur_ho, current.J, accepted, gate, max_effects)
+            stop = _stop_reason(cur_ho, current.J, accepted, gate, max_effects, min_share)
             if stop:
                 break
             hyps = library_hypotheses(nominal, fit_rec, controller,
@@ -383,7 +387,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked), progress, t_start)
             n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
-            state = (ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start)
+            state = (ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start, gate)
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
             later = bool(accepted)   # a further effect needs evidence on both recordings
             pick = _pick(cands, min_share, on_fit=later)
