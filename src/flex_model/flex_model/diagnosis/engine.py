@@ -26,7 +26,7 @@
    :func:`_stop_reason`). When no
    single candidate is acceptable, the pairs of screened candidates are fitted jointly
    (effects that mask each other one at a time: alone, each makes the held-out error
-   worse); so
+   worse; after a named effect only while the fit recording's excess is material); so
    they are too when the first accepted effect still leaves a material excess after its
    fine fit (a single that compensates two effects), and a pair that leaves at most
    ``PAIR_GAIN`` of that excess on both recordings replaces it.
@@ -391,8 +391,12 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
             later = bool(accepted)   # a further effect needs evidence on both recordings
             pick = _pick(cands, min_share, on_fit=later)
-            pairs_fitted = pick is None and len(accepted) + 2 <= max_effects
-            if pairs_fitted:   # effects that mask each other one at a time
+            # effects that mask each other one at a time; after a named effect only while
+            # the fit recording holds a material excess (two further effects under the gate
+            # there are not resolved, and the pairs are the costliest fits)
+            pairs_fitted = pick is None and len(accepted) + 2 <= max_effects \
+                and (not later or current.J - 1.0 > gate)
+            if pairs_fitted:
                 pick = _pair_round(executor, state, ranked, starts, scores, cands, fits,
                                    min_share, "no single effect explains it", on_fit=later)
             rounds.append({"candidates": cands, "picked": pick.label if pick else None})
