@@ -39,14 +39,15 @@ import dataclasses
 import time
 from dataclasses import dataclass, field
 from itertools import combinations
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
 from .baseline import baseline_parameters
 from .evaluation import Context, cost, default_executor, evaluate, twin_arm
-from .fitting import (BaselineProjection, FitResult, baseline_jacobian, confidence_intervals,
-                      fit_baseline, fit_candidate, fit_task, linearize)
+from .fitting import (BaselineProjection, FitResult, Linearization, baseline_jacobian,
+                      confidence_intervals, fit_baseline, fit_candidate, fit_task, linearize)
 from .hypotheses import HypothesisPair, library_hypotheses, parts_of
 from .localise import effective_samples, localise
 
@@ -103,6 +104,22 @@ class Diagnosis:
     contexts: tuple = ()
     baseline_scales: np.ndarray = None
     stop: str = ""          # why the search ended (see :func:`diagnose`)
+
+
+class _Round(NamedTuple):
+    """What the fits of one search round share: the contexts, the current twin, its
+    linearization and held-out cost, the sample counts, the progress switch and the gate."""
+
+    ctx: Context
+    ctx_ho: Context
+    current: FitResult
+    lin: Linearization
+    cur_ho: float
+    n: int
+    n_eff: float
+    progress: bool
+    t_start: float
+    gate: float
 
 
 def _progress(msg, on, t_start):
@@ -176,9 +193,9 @@ def _bic_delta(J_new, J_old, n, k):
 
 def _candidate(h, fit, J_ho, state, score) -> Candidate:
     """The evidence of a fitted hypothesis (or pair: parameters prefixed by the part)."""
-    ctx, _, current, _, cur_ho, n, n_eff, _, _, gate = state
+    ctx, current, cur_ho, n = state.ctx, state.current, state.cur_ho, state.n
     half, resolution, cond = confidence_intervals(
-        fit, len(ctx.rec.residual_channels), int(round(CI_BLOCK / ctx.rec.dt)), n_eff)
+        fit, len(ctx.rec.residual_channels), int(round(CI_BLOCK / ctx.rec.dt)), state.n_eff)
     x = fit.x if fit.x is not None else np.zeros(len(h.names))
     if h.discrete:   # whole periods: d T exactly
         half = resolution = np.array([0.5 - 1e-9])
@@ -202,20 +219,20 @@ def _candidate(h, fit, J_ho, state, score) -> Candidate:
                      J_holdout=J_ho, share=float((cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)),
                      delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))), cond=cond,
                      identifiable=excl and cond < MAX_COND, n_params=len(x),
-                     share_fit=float((current.J - fit.J) / max(current.J - 1.0, gate)))
+                     share_fit=float((current.J - fit.J) / max(current.J - 1.0, state.gate)))
 
 
 def _fit_round(executor, state, hyps, starts, scores):
     """Fit the hypotheses jointly with the baseline (in parallel), score them held out."""
-    ctx, ctx_ho, current, lin, _, _, _, progress, t_start, _ = state
-    tasks = [(ctx, ctx_ho, h, current, lin, starts.get(h.label)) for h in hyps]
+    tasks = [(state.ctx, state.ctx_ho, h, state.current, state.lin, starts.get(h.label))
+             for h in hyps]
     cands, fits = [], {}
     for h, (fit, J_ho) in zip(hyps, executor.map(fit_task, tasks)):
         c = _candidate(h, fit, J_ho, state, scores[h.label])
         cands.append(c)
         fits[h.label] = (fit, J_ho)
         _progress(f"  {h.label}: share {c.share:.3f}, J_ho {J_ho:.4g}, values "
-                  f"{np.round(c.values, 6).tolist()}", progress, t_start)
+                  f"{np.round(c.values, 6).tolist()}", state.progress, state.t_start)
     return cands, fits
 
 
@@ -278,7 +295,7 @@ def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share,
         scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
         starts[pr.label] = np.concatenate([starts.get(h.label, h.starts[0])
                                            for h in (pr.first, pr.second)])
-    _progress(f"{why}: {len(pairs)} pairs jointly", state[7], state[8])
+    _progress(f"{why}: {len(pairs)} pairs jointly", state.progress, state.t_start)
     pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
     cands += pair_cands
     fits.update(pair_fits)
@@ -387,7 +404,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked), progress, t_start)
             n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
-            state = (ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start, gate)
+            state = _Round(ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start, gate)
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
             later = bool(accepted)   # a further effect needs evidence on both recordings
             pick = _pick(cands, min_share, on_fit=later)
