@@ -15,7 +15,8 @@ joint_friction       viscous, coulomb, static - coulomb        Stribeck velocity
 gear                 rotor_inertia (ratio of the nominal, or 1)
 joint_elasticity     stiffness (fitted as a compliance),       motor_inertia: the gear's
                      damping                                   n^2 J_r (moved there)
-backlash             half_width, stiffness (of its spring)     damping 0, smoothing 1e-4
+backlash             half_width, stiffness and damping of its  smoothing 1e-4
+                     spring (the gear's, as joint_elasticity)
 torque_saturation    limit
 actuator_delay       delay (quantized to the control period)
 structural_damping   rayleigh_stiffness                        (internal friction: same
@@ -155,7 +156,7 @@ class Hypothesis:
                 jm = gear["ratio"] ** 2 * gear["rotor_inertia"]
                 eff = (dataclasses.replace(gear, values=(gear["ratio"], 0.0)),)
             eff += (E["joint_elasticity"](self.target, (stiffness, v[1] if k ==
-                                                        "joint_elasticity" else 0.0, jm)),)
+                                                        "joint_elasticity" else v[2], jm)),)
             if k == "backlash":
                 eff += (E[k](self.target, (v[0], BACKLASH_SMOOTHING)),)
         elif k == "torque_saturation":
@@ -287,9 +288,11 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
             _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 5e-3),
                (0, 0), (1e3, 100), [(1.0, 1.0), (5.0, 1.0)], probes=[(1.0, 0.0), (1.0, 1.0)],
                inverse=(True, False)),
-            _h("backlash", name, ("half_width", "stiffness"), (1e-3, 5 * k_ref),
-               (0, 0), (100, 100), [(2.0, 1.0), (5.0, 1.0)],
-               probes=[(2.0, 1.0), (5.0, 1.0)], linear=False, inverse=(False, True)),
+            _h("backlash", name, ("half_width", "stiffness", "damping"),
+               (1e-3, 5 * k_ref, k_ref * 5e-3), (0, 0, 0), (100, 100, 100),
+               [(2.0, 1.0, 1.0), (5.0, 1.0, 1.0)],
+               probes=[(2.0, 1.0, 0.0), (5.0, 1.0, 0.0)], linear=False,
+               inverse=(False, True, False)),
             _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
                [(0.8,), (0.6,)], probes=[(0.95,), (0.85,), (0.75,), (0.6,), (0.45,)],
                linear=False),

@@ -8,7 +8,9 @@ twin's measured channels, its output (the recorded command ``tau<i>``) is held
 (0 before the first command is old enough), exactly as :func:`flex_model.simulate.simulate`
 with a ``policy`` and ``method='fixed'`` does. The whole loop is compiled (numba), calling
 the generalized-alpha integrator of :mod:`flex_model.integrators` between control
-instants, so a 20 s run costs a fraction of a second. Open-loop replay of measured torques
+instants, so a 20 s run costs a fraction of a second. A control period whose Newton
+iterations stall (the rounded corners of a backlash or of friction crossed within one
+step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of measured torques
 through the rigid-body modes drifts and is not offered.
 """
 from __future__ import annotations
@@ -26,6 +28,8 @@ from ..statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
 
 DEFAULT_STEP = 1e-3
+#: steps per step of a control period retried after a Newton failure
+SUBSTEPS = 4
 
 
 @njit(cache=True)
@@ -66,6 +70,11 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
         a = consistent_acceleration(t, x, P, E)
         Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
             t, x, a, a.copy(), h, per_period, 1, rho_inf, 1e-10, 1e6, P, E)
+        if status == 2:   # Newton stalled (a sharp corner: backlash, friction): the period
+            # again in SUBSTEPS steps per step (bit-identical runs where it converges)
+            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
+                t, x, a, a.copy(), h / SUBSTEPS, per_period * SUBSTEPS, SUBSTEPS, rho_inf,
+                1e-10, 1e6, P, E)
         if status != 0:
             return X, cmd, status, t_stop
         for s in range(1, per_period + 1):
