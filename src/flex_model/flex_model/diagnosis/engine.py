@@ -30,9 +30,9 @@
    single candidate is acceptable, the pairs of screened candidates are fitted jointly
    (effects that mask each other one at a time: alone, each makes the held-out error
    worse; after a named effect only while the fit recording's excess is material); so
-   are the pairs of the other candidates when the first accepted effect still leaves a
-   material excess after its fine fit (a single that compensates two effects), and a
-   pair that leaves at most ``PAIR_GAIN`` of that excess on both recordings replaces it.
+   they are too when the first accepted effect still leaves a material excess after its
+   fine fit (a single that compensates two effects), and a pair that leaves at most
+   ``PAIR_GAIN`` of that excess on both recordings replaces it.
 5. Verdicts: "no material discrepancy", "named" (with the effects), "unexplained
    discrepancy" (material, nothing named explains it) or "named + unexplained".
 """
@@ -296,14 +296,15 @@ def _split(pick, hyp, x, twin) -> list:
 
 
 def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share, why,
-                on_fit=False, without=()):
-    """Fit the pairs of the screened candidates jointly (added to ``cands`` and ``fits``),
-    but those with a member labelled in ``without``; the best acceptable pair or None."""
+                on_fit=False):
+    """Fit the pairs of the screened candidates jointly (added to ``cands`` and ``fits``);
+    the best acceptable pair or None."""
     pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
-             if not (a.discrete or b.discrete or a.label in without or b.label in without)]
+             if not (a.discrete or b.discrete)]
     for pr in pairs:
         scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
         starts[pr.label] = np.concatenate([starts.get(h.label, h.starts[0])
+                                           if h.fit_from_probe else h.starts[0]
                                            for h in (pr.first, pr.second)])
     _progress(f"{why}: {len(pairs)} pairs jointly", state.progress, state.t_start)
     pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
@@ -481,7 +482,6 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 stop = "no acceptable candidate"
                 break
             new = _accept(executor, ctx, ctx_ho, fits[pick.label])
-            single = pick.label
             if not isinstance(new[3][0], HypothesisPair):
                 new, pick, refined = _refine(executor, state, new, pick, hyps, min_share)
                 if refined is not None:
@@ -490,12 +490,10 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             if (not pairs_fitted and not accepted and new[1] - 1.0 > gate
                     and new[0].J - 1.0 > gate and max_effects >= 2):
                 # a first pick that leaves a material excess on both recordings after its
-                # fine fit may compensate two effects: the pairs of two other candidates
-                # jointly (the pick with a second effect is the next round's question),
-                # kept when one leaves at most PAIR_GAIN of its excess on both
+                # fine fit may compensate two effects: the pairs jointly, kept when one
+                # leaves at most PAIR_GAIN of its excess on both
                 pair = _pair_round(executor, state, ranked, starts, scores, cands, fits,
-                                   min_share, "the best single leaves a material excess",
-                                   without=(single, pick.label))
+                                   min_share, "the best single leaves a material excess")
                 if pair is not None and all(
                         pj - 1.0 <= PAIR_GAIN * (sj - 1.0) for pj, sj in
                         ((fits[pair.label][1], new[1]), (pair.J_fit, new[0].J))):

@@ -64,6 +64,7 @@ class Hypothesis:
     discrete: bool = False  # delays: x in whole control periods
     linear: bool = True   # screening by the linearized fit (else: the best probe's cost)
     inverse: tuple = ()   # per parameter: value = scale / x (a compliance; x = 0: rigid)
+    fit_from_probe: bool = True   # the fit starts at the best probe, then the starts
 
     @property
     def label(self) -> str:
@@ -249,7 +250,7 @@ def parts_of(hyp, x) -> list:
 
 
 def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None,
-       discrete=False, linear=True, inverse=()):
+       discrete=False, linear=True, inverse=(), fit_from_probe=True):
     """A hypothesis; ``probe`` (one value per parameter) gives one probe per parameter
     from the off value, ``probes`` lists whole probe points."""
     if probes is None:
@@ -260,7 +261,8 @@ def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None
             probes.append(x)
     return Hypothesis(kind, target, tuple(names), tuple(float(s) for s in scale),
                       tuple(lower), tuple(upper), tuple(tuple(s) for s in starts),
-                      tuple(tuple(p) for p in probes), discrete, linear, tuple(inverse))
+                      tuple(tuple(p) for p in probes), discrete, linear, tuple(inverse),
+                      fit_from_probe)
 
 
 def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> list[Hypothesis]:
@@ -288,11 +290,13 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
             _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 5e-3),
                (0, 0), (1e3, 100), [(1.0, 1.0), (5.0, 1.0)], probes=[(1.0, 0.0), (1.0, 1.0)],
                inverse=(True, False)),
+            # probes without damping (they screen the play better), fits from the
+            # damped starts (from the probes the search stays near the undamped corner)
             _h("backlash", name, ("half_width", "stiffness", "damping"),
                (1e-3, 5 * k_ref, k_ref * 5e-3), (0, 0, 0), (100, 100, 100),
-               [(2.0, 1.0, 1.0), (5.0, 1.0, 1.0)],
+               [(5.0, 1.0, 1.0), (2.0, 1.0, 1.0)],
                probes=[(2.0, 1.0, 0.0), (5.0, 1.0, 0.0)], linear=False,
-               inverse=(False, True, False)),
+               inverse=(False, True, False), fit_from_probe=False),
             _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
                [(0.8,), (0.6,)], probes=[(0.95,), (0.85,), (0.75,), (0.6,), (0.45,)],
                linear=False),
