@@ -294,16 +294,17 @@ def test_acceptance_a_second_effect_below_the_gate_on_the_fit_recording(tmp_path
 
 
 @pytest.mark.skipif(os.environ.get(ACCEPTANCE_ENV) == "skip", reason=f"{ACCEPTANCE_ENV}=skip "
-                    "(one backlash diagnosis, about 1.5 minutes on 2 cores)")
+                    "(one backlash diagnosis, about 1 minute on 2 cores)")
 def test_acceptance_backlash_is_named_not_its_spring(tmp_path):
     """Backlash of 6.85 mrad in joint 1's gear spring (3000 N m/rad, damping 6.9 N m s/rad;
     seed 1007). The backlash hypothesis frees the spring's damping as the joint elasticity
     does (without it the elasticity fitted better: J 5.7 against 7.2 on the fit recording,
     and the undamped backlash diverged on the held-out one), and a Newton step that stalls
-    on the dead zone's corner is retried in substeps: the backlash is named, not its
-    class-mate, its play within 25 % (5.6 mrad), the held-out error cut by >= 90 %."""
+    on the dead zone's corner is retried in substeps: the first round names the backlash,
+    not its class-mate, its play within 25 % (5.9 mrad), the held-out error cut by >= 90 %
+    (one effect: the later rounds of the benchmark run name nothing more)."""
     from flex_model.diagnosis import synthetic_scoring as bench
-    r = bench.run_one("backlash", 1007, str(tmp_path), "nominal", False)
+    r = bench.run_one("backlash", 1007, str(tmp_path), "nominal", False, max_effects=1)
     assert [n["kind"] for n in r["named"]] == ["backlash"], r
     assert r["right"] == [True] and r["in_class"] == [True], r
     assert max(r["param_errors"]) < 0.25 and r["holdout_reduction"] >= 0.9

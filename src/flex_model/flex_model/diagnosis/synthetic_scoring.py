@@ -180,8 +180,10 @@ def _named_of(diag) -> list:
              "ci95": dict(zip(c.names, map(float, c.ci)))} for c in diag.accepted]
 
 
-def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool) -> dict:
-    """Generate, diagnose and score one run (in a worker process)."""
+def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool,
+            **options) -> dict:
+    """Generate, diagnose and score one run (in a worker process); ``options`` go to
+    :func:`.engine.diagnose`."""
     from ..arm import load_arm
     from .controller import load_controller
     from .recording import load_recording
@@ -210,7 +212,7 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool) -> dict
         arm = load_arm(case.nominal_arm)
         diag = diagnose(arm, load_controller(case.controller),
                         load_recording(case.fit_csv, arm.n_links),
-                        load_recording(case.holdout_csv, arm.n_links))
+                        load_recording(case.holdout_csv, arm.n_links), **options)
     except Exception as exc:  # a failed diagnosis is a result of the benchmark
         res["error"] = f"{type(exc).__name__}: {exc}"
         return res
