@@ -328,8 +328,9 @@ def _accept(executor, ctx, ctx_ho, fitted):
 def _refine(executor, state, new, pick, hyps, min_share):
     """The accepted single effect refined within its class (:data:`REFINEMENTS`): a joint
     elasticity that leaves a material held-out excess is refitted as a backlash of the
-    same joint (a play of 2 or 5 mrad as the starts, in parallel), and replaced by it when the play is resolved (its noise-only interval
-    excludes 0) and the backlash passes the later-round test against the elasticity
+    same joint (a play of 2 or 5 mrad as the starts, in parallel), and replaced by it
+    when the play is resolved (its noise-only interval excludes 0) and the backlash
+    passes the later-round test against the elasticity
     (:func:`_pick` with the fit recording: BIC, ``min_share`` of both excesses). Returns
     (new, pick, the refined candidate or None): the backlash's after its fine fit, or the
     given ones."""

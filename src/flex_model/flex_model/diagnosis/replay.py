@@ -10,8 +10,8 @@ with a ``policy`` and ``method='fixed'`` does. The whole loop is compiled (numba
 the generalized-alpha integrator of :mod:`flex_model.integrators` between control
 instants, so a 20 s run costs a fraction of a second. A control period whose Newton
 iterations stall (the rounded corners of a backlash or of friction crossed within one
-step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of measured torques
-through the rigid-body modes drifts and is not offered.
+step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of
+measured torques through the rigid-body modes drifts and is not offered.
 """
 from __future__ import annotations
 
