@@ -95,6 +95,7 @@ class Candidate:
     identifiable: bool
     n_params: int
     share_fit: float        # share of the fit recording's excess (at least the gate) explained
+    resolved: tuple = ()    # per x: its 95 % noise-only interval excludes the off value
 
 
 @dataclass
@@ -214,10 +215,12 @@ def _candidate(h, fit, J_ho, state, score) -> Candidate:
     twin = twin_arm(ctx, fit.scales, fit.effects)
     names, values, ci, excl = [], [], [], True
     pair = isinstance(h, HypothesisPair)
+    off = np.concatenate([part.off() for part, _ in parts_of(h, x)])
+    resolved = tuple(bool(a) for a in np.abs(x - off) > resolution)
     k = 0
     for part, xp in parts_of(h, x):
         hp = half[k:k + len(xp)]
-        excl &= bool(np.any(np.abs(xp - part.off()) > resolution[k:k + len(xp)]))
+        excl &= any(resolved[k:k + len(xp)])
         k += len(xp)
         nm, v, e = part.physical(part.values(xp), part.value_halfwidths(xp, hp), twin)
         names += [f"{part.label}.{a}" if pair else a for a in nm]
@@ -229,7 +232,8 @@ def _candidate(h, fit, J_ho, state, score) -> Candidate:
                      J_holdout=J_ho, share=float((cur_ho - J_ho) / max(cur_ho - 1.0, 1e-12)),
                      delta_bic=float(_bic_delta(fit.J, current.J, n, len(x))), cond=cond,
                      identifiable=excl and cond < MAX_COND, n_params=len(x),
-                     share_fit=float((current.J - fit.J) / max(current.J - 1.0, state.gate)))
+                     share_fit=float((current.J - fit.J) / max(current.J - 1.0, state.gate)),
+                     resolved=resolved)
 
 
 def _fit_round(executor, state, hyps, starts, scores):
@@ -335,7 +339,7 @@ def _refine(executor, state, new, pick, hyps, min_share):
     (new, pick, the refined candidate or None): the backlash's after its fine fit, or the
     given ones."""
     current, cur_ho, lin, (hyp, x) = new
-    rich_kind = REFINEMENTS.get(getattr(hyp, "kind", ""))
+    rich_kind = REFINEMENTS.get(hyp.kind)
     rich = next((h for h in hyps if h.kind == rich_kind and h.target == hyp.target), None)
     k = float(hyp.values(x)[0]) if rich is not None else np.inf  # the elasticity's spring
     if rich is None or cur_ho - 1.0 <= state.gate or not np.isfinite(k):
@@ -356,10 +360,7 @@ def _refine(executor, state, new, pick, hyps, min_share):
                                  n_eff=effective_samples(current.r,
                                                          len(ctx.rec.residual_channels)))
     cand = _candidate(rich, fit, J_ho, round_state, 0.0)
-    _, resolution, _ = confidence_intervals(
-        fit, len(ctx.rec.residual_channels), int(round(CI_BLOCK / ctx.rec.dt)),
-        round_state.n_eff)
-    play = resolution is not None and fit.x is not None and fit.x[0] > resolution[0]
+    play = cand.resolved[0]
     _progress(f"refinement {hyp.label} -> {rich.label}: share {cand.share:.3f} (fit "
               f"{cand.share_fit:.3f}), J_ho {J_ho:.4g}, values "
               f"{np.round(cand.values, 6).tolist()}, play resolved {play}", state.progress,

@@ -231,7 +231,7 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
     # one start where the problem is convex enough (one declared start point), all of
     # them after the linearized one where it is not
     starts = list(hyp.starts)
-    if start is not None and getattr(hyp, "fit_from_probe", True):
+    if start is not None and hyp.fit_from_probe:
         starts = [start] + (starts if len(starts) > 1 else [])
     for k, x_start in enumerate(starts):
         x0 = np.clip(np.array(x_start, float), xl + 1e-9, xu - 1e-9)

@@ -209,6 +209,7 @@ class HypothesisPair:
     first: Hypothesis
     second: Hypothesis
     discrete = False
+    fit_from_probe = True
 
     @property
     def label(self) -> str:
