@@ -145,6 +145,19 @@ def test_a_hypothesis_pair_applies_both_effects_with_its_split_parameters():
     np.testing.assert_array_equal(pair.off(), np.zeros(4))
 
 
+def test_no_pair_of_an_effect_and_the_effect_that_nests_it():
+    """A backlash of zero play is the joint elasticity of its spring: the pair of the two
+    on one joint is one effect, not fitted (backlash seed 1004 fitted it to an infinite
+    spring), the same two on different joints are."""
+    from flex_model.diagnosis.engine import _nested
+    rec = _run(NOMINAL, 1.0)
+    hyps = {h.label: h for h in library_hypotheses(NOMINAL, rec, CTL)}
+    je1, bl1, bl2 = (hyps[k] for k in ("joint_elasticity@joint1", "backlash@joint1",
+                                       "backlash@joint2"))
+    assert _nested(je1, bl1) and _nested(bl1, je1)
+    assert not _nested(je1, bl2) and not _nested(je1, hyps["sensor_bias@joint1"])
+
+
 def test_noise_level_of_a_quantised_channel_is_its_step_over_sqrt12():
     """3-decimal logs: the second difference is 0 almost everywhere, the MAD estimate 0;
     the quantisation error (uniform, step^2 / 12) is the white noise left."""

@@ -299,12 +299,19 @@ def _split(pick, hyp, x, twin) -> list:
     return out
 
 
+def _nested(a, b) -> bool:
+    """One hypothesis nests the other on the same target (:data:`REFINEMENTS`: a backlash
+    with a zero play is the joint elasticity of its spring): not two effects."""
+    return a.target == b.target and {a.kind, b.kind} in [{k, v} for k, v in
+                                                          REFINEMENTS.items()]
+
+
 def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share, why,
                 on_fit=False):
-    """Fit the pairs of the screened candidates jointly (added to ``cands`` and ``fits``);
-    the best acceptable pair or None."""
+    """Fit the pairs of the screened candidates jointly (added to ``cands`` and ``fits``;
+    not the nested ones, :func:`_nested`); the best acceptable pair or None."""
     pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
-             if not (a.discrete or b.discrete)]
+             if not (a.discrete or b.discrete or _nested(a, b))]
     for pr in pairs:
         scores[pr.label] = scores[pr.first.label] + scores[pr.second.label]
         starts[pr.label] = np.concatenate([starts.get(h.label, h.starts[0])
