@@ -252,15 +252,18 @@ def _diagnose_serially(kind, seed, out, options):
 
 @pytest.fixture(scope="module")
 def acceptance(tmp_path_factory):
-    """Every acceptance diagnosis, {(kind, seed): scored run}: two at a time, each on one
-    core (alone, a diagnosis keeps the 2 cores busy about 80 % of its time; an executor
+    """Every acceptance diagnosis, {(kind, seed): scored run}: one per core at a time,
+    each on its core (alone, a diagnosis keeps the 2 cores busy about 80 % of its time; an executor
     maps in order, so the diagnosis computes the same with any)."""
-    from concurrent.futures import ProcessPoolExecutor
+    from flex_model.diagnosis.evaluation import default_executor
     out = str(tmp_path_factory.mktemp("acceptance"))
-    workers = min(2, len(os.sched_getaffinity(0)))
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    pool = default_executor()   # a process per core (serial on one core)
+    try:
         futs = {(k, s): pool.submit(_diagnose_serially, k, s, out, o) for k, s, o in ACCEPTANCE}
         runs = {key: f.result() for key, f in futs.items()}
+    finally:
+        if hasattr(pool, "shutdown"):
+            pool.shutdown()
     assert all("error" not in r for r in runs.values()), \
         {key: r["error"] for key, r in runs.items() if "error" in r}
     return runs
