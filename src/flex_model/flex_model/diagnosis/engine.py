@@ -143,24 +143,27 @@ def _progress(msg, on, t_start):
 def _screen(executor, ctx, hyps, base, lin):
     """Cost reduction per hypothesis from its probe replays: the linearized joint fit with
     the baseline and the accepted effects (columns ``lin.J`` and the probes' differences),
-    or for strongly nonlinear effects (``linear=False``) the best probe's own cost.
-    Returns (scores, start points)."""
+    or for strongly nonlinear effects (``linear=False``) the best probe's cost with that
+    linearization re-fitted. Returns (scores, start points, :func:`_screen_pairs`)."""
     specs, owners = [], []
     for h in hyps:
         for p in h.probes:
             specs.append((ctx, base.scales, base.effects + [(h, np.array(p, float))]))
             owners.append((h, np.array(p, float)))
     outs = list(executor.map(evaluate, specs))
+    # every cost with the linearized baseline and accepted effects re-fitted (bounded), as
+    # the candidate fits see it: a score is what the hypothesis adds to a re-linearized
+    # recalibration (a heavier rotor with the saturation limit next to it refitted)
+    project = BaselineProjection(lin)
     cols, direct = {}, {}
     for (h, x), r in zip(owners, outs):
         if r is None:
             continue
         cols.setdefault(h.label, []).append((x, r - base.r))
-        if cost(r) < direct.get(h.label, (np.inf, None))[0]:
-            direct[h.label] = (cost(r), x)
-    # the linearized baseline and accepted effects alone (bounded) are the reference, so a
-    # score is what the hypothesis adds to a re-linearized recalibration
-    lin0 = cost(BaselineProjection(lin)(base.r)[0])
+        c = cost(project(r)[0])
+        if c < direct.get(h.label, (np.inf, None))[0]:
+            direct[h.label] = (c, x)
+    lin0 = cost(project(base.r)[0])
     scores, starts = {}, {}
     for h in hyps:
         if h.label not in direct:
@@ -178,11 +181,50 @@ def _screen(executor, ctx, hyps, base, lin):
         J_lin = cost(base.r + A @ sol)
         if lin0 - J_lin > scores[h.label]:
             scores[h.label] = lin0 - J_lin
-            off = h.off()
-            x = off + sum(c * (xp - off) for c, (xp, _) in
-                          zip(sol[lin.J.shape[1]:], cols[h.label]))
-            starts[h.label] = np.clip(x, h.lower, h.upper)
-    return scores, starts
+            starts[h.label] = _linear_start(h, sol[lin.J.shape[1]:], cols[h.label])
+    pair_scores = _screen_pairs(hyps, cols, base.r, lin, lin0)
+    return scores, starts, pair_scores
+
+
+def _linear_start(h, coefficients, cols):
+    """x of a linearized solution: the off value plus the probes' steps times their
+    coefficients, within the bounds."""
+    off = h.off()
+    return np.clip(off + sum(c * (xp - off) for c, (xp, _) in zip(coefficients, cols)),
+                   h.lower, h.upper)
+
+
+def _screen_pairs(hyps, cols, r, lin, lin0) -> dict:
+    """The linearized joint fit of every pair of continuous linearly screened hypotheses
+    with the baseline (:func:`_screen`'s columns, both hypotheses' at once): pair label ->
+    (cost reduction, start x). Effects that mask each other score here, not alone (an
+    encoder bias and the elasticity of the same joint). One thin QR of all the columns
+    makes each pair a small bounded problem."""
+    lin_hyps = [h for h in hyps if h.linear and not h.discrete and h.label in cols
+                and len(cols[h.label]) == len(h.probes)]
+    if len(lin_hyps) < 2:
+        return {}
+    nb = lin.J.shape[1]
+    blocks = [lin.J] + [np.column_stack([d for _, d in cols[h.label]]) for h in lin_hyps]
+    first = np.cumsum([nb] + [b.shape[1] for b in blocks[1:]])
+    Q, R = np.linalg.qr(np.column_stack(blocks))
+    qr = Q.T @ r
+    outside = float(r @ r - qr @ qr)      # the part of r no column reaches
+    out = {}
+    for (ia, a), (ib, b) in combinations(enumerate(lin_hyps), 2):
+        if _nested(a, b):
+            continue
+        idx = np.r_[0:nb, first[ia]:first[ia + 1], first[ib]:first[ib + 1]]
+        m = len(idx) - nb
+        sol = lsq_linear(R[:, idx], -qr, bounds=(np.r_[lin.lo, np.full(m, -np.inf)],
+                                                 np.r_[lin.hi, np.full(m, np.inf)])).x
+        res = R[:, idx] @ sol + qr
+        J = (outside + float(res @ res)) / len(r)
+        ma = len(cols[a.label])
+        out[f"{a.label}+{b.label}"] = (lin0 - J, np.concatenate([
+            _linear_start(a, sol[nb:nb + ma], cols[a.label]),
+            _linear_start(b, sol[nb + ma:], cols[b.label])]))
+    return out
 
 
 def _twin_peaks(ctx, r) -> list:
@@ -306,10 +348,26 @@ def _nested(a, b) -> bool:
                                                           REFINEMENTS.items()]
 
 
+def _screened_pair(hyps, ranked, scores, pair_scores):
+    """The pair that the linearized pair screening (:func:`_screen_pairs`) puts first,
+    when it predicts more than every screened single and is not a pair of two of them
+    (effects that mask each other one at a time need not be screened alone): (pair, its
+    score, its linearized start) or None."""
+    if not pair_scores or not ranked:
+        return None
+    label, (score, x) = max(pair_scores.items(), key=lambda kv: kv[1][0])
+    by_label = {h.label: h for h in hyps}
+    a, b = (by_label[lb] for lb in label.split("+"))
+    if score <= scores[ranked[0].label] or (a in ranked and b in ranked):
+        return None
+    return HypothesisPair(a, b), score, x
+
+
 def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share, why,
-                on_fit=False):
+                on_fit=False, extra=None):
     """Fit the pairs of the screened candidates jointly (added to ``cands`` and ``fits``;
-    not the nested ones, :func:`_nested`); the best acceptable pair or None."""
+    not the nested ones, :func:`_nested`), and the ``extra`` pair of the pair screening
+    (:func:`_screened_pair`); the best acceptable pair or None."""
     pairs = [HypothesisPair(a, b) for a, b in combinations(ranked, 2)
              if not (a.discrete or b.discrete or _nested(a, b))]
     for pr in pairs:
@@ -317,6 +375,9 @@ def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share,
         starts[pr.label] = np.concatenate([starts.get(h.label, h.starts[0])
                                            if h.fit_from_probe else h.starts[0]
                                            for h in (pr.first, pr.second)])
+    if extra is not None:
+        pr, scores[extra[0].label], starts[extra[0].label] = extra
+        pairs.append(pr)
     _progress(f"{why}: {len(pairs)} pairs jointly", state.progress, state.t_start)
     pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
     cands += pair_cands
@@ -461,7 +522,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             hyps = library_hypotheses(nominal, fit_rec, controller,
                                       exclude=[c.label for c in accepted],
                                       twin_peaks=_twin_peaks(ctx, current.r))
-            scores, starts = _screen(executor, ctx, hyps, current, lin)
+            scores, starts, pair_scores = _screen(executor, ctx, hyps, current, lin)
             ranked = sorted(hyps, key=lambda h: -scores[h.label])[:top]
             ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
             if accepted:
@@ -471,8 +532,11 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 need = SCREEN_MARGIN * min_share * max(current.J - 1.0, gate)
                 ranked = [h for h in ranked if not h.linear or h.discrete
                           or scores[h.label] >= need]
+            extra = _screened_pair(hyps, ranked, scores, pair_scores)
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
-                                                for h in ranked), progress, t_start)
+                                                for h in ranked)
+                      + (f"; pair {extra[0].label} {extra[1]:.3g}" if extra else ""),
+                      progress, t_start)
             n_eff = effective_samples(current.r, len(fit_rec.residual_channels))
             state = _Round(ctx, ctx_ho, current, lin, cur_ho, n, n_eff, progress, t_start, gate)
             cands, fits = _fit_round(executor, state, ranked, starts, scores)
@@ -485,7 +549,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 and (not later or current.J - 1.0 > gate)
             if pairs_fitted:
                 pick = _pair_round(executor, state, ranked, starts, scores, cands, fits,
-                                   min_share, "no single effect explains it", on_fit=later)
+                                   min_share, "no single effect explains it", on_fit=later,
+                                   extra=extra)
             rounds.append({"candidates": cands, "picked": pick.label if pick else None})
             if pick is None:
                 stop = "no acceptable candidate"
@@ -502,7 +567,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 # fine fit may compensate two effects: the pairs jointly, kept when one
                 # leaves at most PAIR_GAIN of its excess on both
                 pair = _pair_round(executor, state, ranked, starts, scores, cands, fits,
-                                   min_share, "the best single leaves a material excess")
+                                   min_share, "the best single leaves a material excess",
+                                   extra=extra)
                 if pair is not None and all(
                         pj - 1.0 <= PAIR_GAIN * (sj - 1.0) for pj, sj in
                         ((fits[pair.label][1], new[1]), (pair.J_fit, new[0].J))):

@@ -65,6 +65,7 @@ class Hypothesis:
     linear: bool = True   # screening by the linearized fit (else: the best probe's cost)
     inverse: tuple = ()   # per parameter: value = scale / x (a compliance; x = 0: rigid)
     fit_from_probe: bool = True   # the fit starts at the best probe, then the starts
+    off_at: tuple = ()    # x of the "off" value when it is not 0 (see :meth:`off`)
 
     @property
     def label(self) -> str:
@@ -97,10 +98,9 @@ class Hypothesis:
         return w
 
     def off(self) -> np.ndarray:
-        """x of the "off" value (no effect)."""
-        if self.kind == "torque_saturation":
-            return np.array(self.upper, float)
-        return np.zeros(len(self.names))
+        """x of the "off" value (no effect): 0 unless declared (a saturation's upper bound,
+        a gear's nominal rotor inertia)."""
+        return np.array(self.off_at, float) if self.off_at else np.zeros(len(self.names))
 
     def physical(self, values, halfwidths, twin) -> tuple[tuple, list, list]:
         """(names, values, half-widths) as the updated arm states them: friction's
@@ -251,7 +251,7 @@ def parts_of(hyp, x) -> list:
 
 
 def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None,
-       discrete=False, linear=True, inverse=(), fit_from_probe=True):
+       discrete=False, linear=True, inverse=(), fit_from_probe=True, off_at=()):
     """A hypothesis; ``probe`` (one value per parameter) gives one probe per parameter
     from the off value, ``probes`` lists whole probe points."""
     if probes is None:
@@ -263,7 +263,7 @@ def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None
     return Hypothesis(kind, target, tuple(names), tuple(float(s) for s in scale),
                       tuple(lower), tuple(upper), tuple(tuple(s) for s in starts),
                       tuple(tuple(p) for p in probes), discrete, linear, tuple(inverse),
-                      fit_from_probe)
+                      fit_from_probe, tuple(off_at))
 
 
 def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> list[Hypothesis]:
@@ -280,14 +280,17 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
         trms = max(float(np.sqrt(np.mean(taus[:, j] ** 2))), 1e-3)
         wrms = max(float(np.sqrt(np.mean(rates[:, j] ** 2))), 1e-3)
         rotor = arm.effect("gear", name)
+        has_rotor = bool(rotor and rotor["rotor_inertia"])
         k_ref = max(trms, 1.0) / 5e-3          # 5 mrad of twist at the rms torque
         out += [
             _h("joint_friction", name, ("viscous", "coulomb", "static_excess"),
                (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms), (0, 0, 0), (50, 20, 20),
                [(1.0, 1.0, 0.3)], (1.0, 1.0, 1.0)),
+            # a rotor lighter or heavier than the nominal one: probes on both sides
             _h("gear", name, ("rotor_inertia",),
-               ((rotor["rotor_inertia"] if rotor and rotor["rotor_inertia"] else 0.1),),
-               (0.2,), (20,), [(1.0,)], probes=[(1.5,)], linear=False),
+               ((rotor["rotor_inertia"] if has_rotor else 0.1),),
+               (0.2,), (20,), [(1.0,)], probes=[(0.6,), (1.5,)], linear=False,
+               off_at=(1.0,) if has_rotor else ()),
             _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 5e-3),
                (0, 0), (1e3, 100), [(1.0, 1.0), (5.0, 1.0)], probes=[(1.0, 0.0), (1.0, 1.0)],
                inverse=(True, False)),
@@ -300,7 +303,7 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
                inverse=(False, True, False), fit_from_probe=False),
             _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
                [(0.8,), (0.6,)], probes=[(0.95,), (0.85,), (0.75,), (0.6,), (0.45,)],
-               linear=False),
+               linear=False, off_at=(1.5,)),
             _h("actuator_delay", name, ("delay",), (controller.period,), (0,), (25,),
                [(1.0,)], (2.0,), discrete=True),
             _h("sensor_bias", name, ("bias",), (1e-3,), (-100,), (100,), [(0.0,)], (1.0,)),
