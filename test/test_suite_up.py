@@ -54,7 +54,9 @@ def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         end = time.monotonic() + 60.0
-        while not (states and states[-1].header.stamp.sec >= 2):
+        # 2 s of twin time and a command seen by the probe (its subscription may match the
+        # controller's publisher after the model's, which steps with the held command)
+        while not (states and states[-1].header.stamp.sec >= 2 and commands):
             assert time.monotonic() < end and proc.poll() is None, "no lockstep progress"
             ex.spin_once(timeout_sec=0.05)
             del states[:-1], commands[:-1]

@@ -9,8 +9,11 @@
    held-out error worse than the nominal twin's compensates a missing effect on the fit
    data: it is rejected and the search starts from the nominal twin.
 3. Screen every hypothesis with one probe replay per parameter (or per declared probe
-   point): the cost reduction of the linearized joint fit with the baseline (columns J_b
-   and the probes' differences), or the best probe's cost for on/off effects.
+   point): the cost reduction of the linearized joint fit with the baseline and the
+   effects accepted before (their columns and the probes' differences), or for strongly
+   nonlinear effects the best probe's cost with those columns re-fitted; and every pair of
+   the linearly screened ones by the same fit with both hypotheses' columns
+   (:func:`_screen_pairs`).
 4. Fit the ``top`` screened candidates jointly with the baseline and the effects accepted
    before (linearized, :class:`.fitting.Linearization`), evaluate each on the
    held-out recording; rank by the share of the held-out excess error explained; an
@@ -29,7 +32,9 @@
    effect of its class (:func:`_refine`). When no
    single candidate is acceptable, the pairs of screened candidates are fitted jointly
    (effects that mask each other one at a time: alone, each makes the held-out error
-   worse; after a named effect only while the fit recording's excess is material); so
+   worse; after a named effect only while the fit recording's excess is material), with
+   the best screened pair when it predicts more than every single (:func:`_screened_pair`:
+   two effects that mask each other need not be screened alone); so
    they are too when the first accepted effect still leaves a material excess after its
    fine fit (a single that compensates two effects), and a pair that leaves at most
    ``PAIR_GAIN`` of that excess on both recordings replaces it.
