@@ -201,10 +201,10 @@ def _linear_start(h, coefficients, cols):
 
 def _screen_pairs(hyps, cols, r, lin, lin0) -> dict:
     """The linearized joint fit of every pair of continuous linearly screened hypotheses
-    with the baseline (:func:`_screen`'s columns, both hypotheses' at once): pair label ->
-    (cost reduction, start x). Effects that mask each other score here, not alone (an
-    encoder bias and the elasticity of the same joint). One thin QR of all the columns
-    makes each pair a small bounded problem."""
+    with the baseline (:func:`_screen`'s columns, both hypotheses' at once):
+    :class:`.hypotheses.HypothesisPair` -> (cost reduction, start x). Effects that mask
+    each other score here, not alone (an encoder bias and the elasticity of the same
+    joint). One thin QR of all the columns makes each pair a small bounded problem."""
     lin_hyps = [h for h in hyps if h.linear and not h.discrete and h.label in cols
                 and len(cols[h.label]) == len(h.probes)]
     if len(lin_hyps) < 2:
@@ -226,7 +226,7 @@ def _screen_pairs(hyps, cols, r, lin, lin0) -> dict:
         res = R[:, idx] @ sol + qr
         J = (outside + float(res @ res)) / len(r)
         ma = len(cols[a.label])
-        out[f"{a.label}+{b.label}"] = (lin0 - J, np.concatenate([
+        out[HypothesisPair(a, b)] = (lin0 - J, np.concatenate([
             _linear_start(a, sol[nb:nb + ma], cols[a.label]),
             _linear_start(b, sol[nb + ma:], cols[b.label])]))
     return out
@@ -353,19 +353,17 @@ def _nested(a, b) -> bool:
                                                           REFINEMENTS.items()]
 
 
-def _screened_pair(hyps, ranked, scores, pair_scores):
+def _screened_pair(ranked, scores, pair_scores):
     """The pair that the linearized pair screening (:func:`_screen_pairs`) puts first,
     when it predicts more than every screened single and is not a pair of two of them
     (effects that mask each other one at a time need not be screened alone): (pair, its
     score, its linearized start) or None."""
     if not pair_scores or not ranked:
         return None
-    label, (score, x) = max(pair_scores.items(), key=lambda kv: kv[1][0])
-    by_label = {h.label: h for h in hyps}
-    a, b = (by_label[lb] for lb in label.split("+"))
-    if score <= scores[ranked[0].label] or (a in ranked and b in ranked):
+    pair, (score, x) = max(pair_scores.items(), key=lambda kv: kv[1][0])
+    if score <= scores[ranked[0].label] or (pair.first in ranked and pair.second in ranked):
         return None
-    return HypothesisPair(a, b), score, x
+    return pair, score, x
 
 
 def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share, why,
@@ -381,7 +379,7 @@ def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share,
                                            if h.fit_from_probe else h.starts[0]
                                            for h in (pr.first, pr.second)])
     if extra is not None:
-        pr, scores[extra[0].label], starts[extra[0].label] = extra
+        pr, scores[pr.label], starts[pr.label] = extra
         pairs.append(pr)
     _progress(f"{why}: {len(pairs)} pairs jointly", state.progress, state.t_start)
     pair_cands, pair_fits = _fit_round(executor, state, pairs, starts, scores)
@@ -537,7 +535,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 need = SCREEN_MARGIN * min_share * max(current.J - 1.0, gate)
                 ranked = [h for h in ranked if not h.linear or h.discrete
                           or scores[h.label] >= need]
-            extra = _screened_pair(hyps, ranked, scores, pair_scores)
+            extra = _screened_pair(ranked, scores, pair_scores)
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked)
                       + (f"; pair {extra[0].label} {extra[1]:.3g}" if extra else ""),
