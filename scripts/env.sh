@@ -3,7 +3,8 @@
 # Activates .venv (create it first: scripts/bootstrap.sh or `make venv`) and sets the ROS 2
 # environment every flex-twin process needs BEFORE rclpy is imported:
 #   ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST  never discover/multicast beyond this host
-#   ROS_DOMAIN_ID                            random 1..100 per shell unless already set
+#   ROS_DOMAIN_ID is left as the user has it (unset: ROS's default 0), so nodes started in
+#   separate terminals and a system ros2 CLI see each other; tests and CI pick their own.
 #   RMW_IMPLEMENTATION=rmw_fastrtps_cpp      the only RMW the wheels ship
 #   AMENT_PREFIX_PATH=$VIRTUAL_ENV           rclpy pub/sub works without it, but ament_index
 #                                            (get_package_share_directory, ...) raises if unset
@@ -19,7 +20,6 @@ case "$-" in *i*) ;; *) VIRTUAL_ENV_DISABLE_PROMPT=1 ;; esac
 unset _flex_twin_root
 
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
-export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 100) + 1 ))}"
 export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
 export AMENT_PREFIX_PATH="$VIRTUAL_ENV"
 # Deprecated in Jazzy in favour of ROS_AUTOMATIC_DISCOVERY_RANGE; drop it to avoid mixed signals.

@@ -143,9 +143,15 @@ class ModelNode(Node):
 
     # ------------------------------------------------------------- inputs
     def _warn_once(self, key, text, level="warning"):
-        if key not in self.warned:
-            self.warned.add(key)
-            getattr(self.get_logger(), level)(text)
+        """Log ``text`` once per ``key``. rclpy binds one severity to each call site (a
+        second severity from the same line raises ValueError), so each level has its own."""
+        if key in self.warned:
+            return
+        self.warned.add(key)
+        if level == "info":
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
 
     def on_command(self, msg: Float64MultiArray) -> None:
         try:

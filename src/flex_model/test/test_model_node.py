@@ -181,3 +181,29 @@ def test_lean_node_leaves_only_its_own_entities():
         assert h.node.stepper.t == pytest.approx(1e-3)
     finally:
         h.close()
+
+
+def test_lockstep_survives_commands_stopping_and_resuming():
+    """Issue 23 defect 1: the watchdog's first step logged at INFO and the stall at WARN from
+    one call site, which rclpy refuses (ValueError) about 1 s after commands stopped. Ten
+    stops and resumes: the node keeps stepping with the held command through each stall and
+    answers every command again afterwards."""
+    h = Harness(arm="thesis_example1", mode="lockstep", rate=1000.0, publish_rate=100.0,
+                lockstep_timeout=0.02)
+    try:
+        h.spin_until(lambda: h.states and stamp_s(h.states[-1]) > 0, "the start step")
+        for cycle in range(10):
+            for _ in range(5):  # commands flow: one step each
+                n = len(h.states)
+                h.cmd.publish(Float64MultiArray(data=[0.1, 0.0]))
+                h.spin_until(lambda: len(h.states) > n, f"a step of cycle {cycle}")
+            t_stop = stamp_s(h.states[-1])
+            # commands stop: the watchdog steps with the held command, twice at least
+            h.spin_until(lambda: stamp_s(h.states[-1]) >= t_stop + 2e-3 - 1e-9,
+                         f"watchdog steps after stop {cycle}")
+        assert "lockstep" in h.node.warned and "start" in h.node.warned
+        stamps = [stamp_s(m) for m in h.states]
+        assert np.all(np.diff(stamps) > 0)  # every state a new step, none lost or repeated
+        assert np.allclose(np.diff(stamps), 1e-3, atol=1e-9)
+    finally:
+        h.close()
