@@ -3,7 +3,7 @@
     python bench/bench_diagnosis.py [--runs N] [--cases KIND ...] [--jobs J] [--out DIR]
                                     [--noise LEVEL] [--seed0 S] [--resume]
 
-For every case kind and run (seed) it generates the case (flex_model.diagnosis.synthetic),
+For every case kind and run (seed) it generates the case (flex_twin.diagnosis.synthetic),
 runs the diagnosis on fit.csv / holdout.csv with the nominal arm and controller (the
 truth stays in truth.json), and scores the verdict against the truth. The healthy case
 of the same seed differs from every other case of that seed by its hidden effects only,
@@ -21,8 +21,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from flex_model.diagnosis.synthetic import CASE_KINDS, parse_kind
-from flex_model.diagnosis.synthetic_scoring import (DEFAULT_TWO, add_part_visibility, report,
+from flex_twin.diagnosis.synthetic import CASE_KINDS, parse_kind
+from flex_twin.diagnosis.synthetic_scoring import (DEFAULT_TWO, add_part_visibility, report,
                                                     run_one, summarise)
 
 

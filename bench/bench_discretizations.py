@@ -17,7 +17,7 @@ import argparse
 import json
 import sys
 
-from flex_model.comparison.cost import cost_table
+from flex_twin.comparison.cost import cost_table
 
 
 def main(argv=None):

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Create/refresh .venv (python3.11) with every dependency pinned by constraints.txt, then
-# install src/flex_model, src/flex_control and src/flex_planner as editable packages.
+# install src/flex_model, src/flex_control, src/flex_planner and src/flex_twin as editable
+# packages.
 #
 # Fast path: a stamp file (.venv/.bootstrap-stamp) holds a hash of constraints.txt, the three
 # setup.py files, this script and the interpreter version; if it matches, nothing is done.
@@ -13,7 +14,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="$ROOT/.venv"
 STAMP="$VENV/.bootstrap-stamp"
 CONSTRAINTS="$ROOT/constraints.txt"
-PACKAGES=(src/flex_model src/flex_control src/flex_planner)
+PACKAGES=(src/flex_model src/flex_control src/flex_planner src/flex_twin)
 # Top-level requirements; every version (and every transitive one) comes from constraints.txt.
 REQUIREMENTS=(
   "ros-jazzy-rclpy[fastrtps]"
@@ -40,6 +41,9 @@ find_python() {
 }
 
 PY="$(find_python)"
+# From inside an active .venv, python3.11 is the venv's own, which the rebuild deletes: use the
+# base interpreter it was made from.
+PY="$("$PY" -c 'import os, sys; b = os.path.join(sys.base_prefix, "bin", "python3"); print(b if os.path.exists(b) else sys.executable)')"
 PYVER="$("$PY" -c 'import sys; print(sys.version.split()[0])')"
 
 stamp_value() {
@@ -86,7 +90,8 @@ pip_install pip setuptools wheel
 #    setuptools above instead of whatever an isolated build env would download.
 pip_install --no-build-isolation "${REQUIREMENTS[@]}"
 # 3) the project's packages, editable (PEP 660 via setuptools; no deps to resolve beyond the
-#    pinned set above). flex_model first: the others import it.
+#    pinned set above). flex_model first: the others import it;
+#    flex_twin last: it imports all three.
 editable=()
 for p in "${PACKAGES[@]}"; do editable+=(-e "$p"); done
 pip_install --no-build-isolation --no-deps "${editable[@]}"

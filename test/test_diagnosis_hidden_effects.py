@@ -18,10 +18,10 @@ import pytest
 import yaml
 
 from flex_model.arm import load_arm
-from flex_model.diagnosis.controller import controller_from_dict, load_controller
-from flex_model.diagnosis.synthetic import (CASE_KINDS, HIDDEN_KINDS, controller_description,
+from flex_twin.diagnosis.controller import controller_from_dict, load_controller
+from flex_twin.diagnosis.synthetic import (CASE_KINDS, HIDDEN_KINDS, controller_description,
                                             generate_case, nominal_arm_dict, _model)
-from flex_model.diagnosis.synthetic_signals import NoiseSpec, ar1, channel_noise
+from flex_twin.diagnosis.synthetic_signals import NoiseSpec, ar1, channel_noise
 
 G = 9.81
 RATE = 500.0
@@ -90,7 +90,7 @@ def test_nominal_closed_loop_is_damped_over_the_workspace():
     structural damping in the nominal)."""
     from flex_control.closed_loop import closed_loop_matrix, open_loop_jacobian
     from flex_model.statics import static_equilibrium
-    from flex_model.diagnosis.synthetic_signals import WORKSPACE
+    from flex_twin.diagnosis.synthetic_signals import WORKSPACE
     arm = _model(nominal_arm_dict(), "nominal")
     ctl = controller_from_dict(controller_description())
     kp, kd = np.diag(ctl.gains), np.diag(ctl.rate_gains)
@@ -246,8 +246,8 @@ skip_acceptance = pytest.mark.skipif(
 
 
 def _diagnose_serially(kind, seed, out, options):
-    from flex_model.diagnosis import synthetic_scoring as bench
-    from flex_model.diagnosis.evaluation import SerialExecutor
+    from flex_twin.diagnosis import synthetic_scoring as bench
+    from flex_twin.diagnosis.evaluation import SerialExecutor
     return bench.run_one(kind, seed, out, "nominal", False, executor=SerialExecutor(),
                          **options)
 
@@ -257,7 +257,7 @@ def acceptance(tmp_path_factory):
     """Every acceptance diagnosis, {(kind, seed): scored run}: one per core at a time,
     each on its core (alone, a diagnosis keeps the 2 cores busy about 80 % of its time; an executor
     maps in order, so the diagnosis computes the same with any)."""
-    from flex_model.diagnosis.evaluation import default_executor
+    from flex_twin.diagnosis.evaluation import default_executor
     out = str(tmp_path_factory.mktemp("acceptance"))
     pool = default_executor()   # a process per core (serial on one core)
     try:
@@ -277,7 +277,7 @@ def test_acceptance_subset(acceptance):
     encoder bias and contact named with their parameters within 20 % and the held-out
     error reduced >= 70 %. (Kinds the engine does not name yet are measured by
     bench/bench_diagnosis.py, not asserted here.)"""
-    from flex_model.diagnosis import synthetic_scoring as bench
+    from flex_twin.diagnosis import synthetic_scoring as bench
     runs = [acceptance[key] for key in SUBSET]
     assert all(r["verdict"] == "no material discrepancy" for r in runs[:2])
     assert runs[2]["verdict"] in bench.OK_OUT_OF_LIBRARY

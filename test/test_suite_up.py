@@ -14,7 +14,7 @@ import pytest
 from flex_model.arm import load_arm
 from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_model.ros_suite import node_parameters
+from flex_twin.ros_suite import node_parameters
 from flex_model.statics import static_equilibrium
 
 PARAMS = Path(__file__).resolve().parents[1] / "ros2_ws" / "params" / "suite.yaml"
@@ -41,7 +41,7 @@ def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
     from std_msgs.msg import Float64MultiArray
 
     params = node_parameters(PARAMS)
-    proc = subprocess.Popen([sys.executable, "-m", "flex_model.cli", "up", str(PARAMS)]
+    proc = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "up", str(PARAMS)]
                             + ["--processes"] * processes)
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
@@ -99,7 +99,7 @@ def _children(pid: int) -> set:
 def test_a_killed_up_leaves_no_node_running():
     """SIGKILL of ``flex-twin up --processes`` (no chance to forward a signal) ends its node
     processes too: none is left publishing on the domain."""
-    proc = subprocess.Popen([sys.executable, "-m", "flex_model.cli", "up", str(PARAMS),
+    proc = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "up", str(PARAMS),
                              "--processes"])
     try:
         end = time.monotonic() + 60.0

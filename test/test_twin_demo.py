@@ -5,8 +5,8 @@ import json
 
 import pytest
 
-from flex_model.bags import bag_info
-from flex_model.ros_twin_demo import run
+from flex_twin.bags import bag_info
+from flex_twin.ros_twin_demo import run
 
 
 def test_twin_demo_passes_the_first_waypoints(tmp_path):

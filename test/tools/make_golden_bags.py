@@ -29,7 +29,7 @@ import yaml
 
 from flex_model import ros_conversions as conv
 from flex_model.arm import load_arm
-from flex_model.bags import BagWriter
+from flex_twin.bags import BagWriter
 from flex_model.dynamics import FlexArmModel
 from flex_model.stepper import Stepper
 from std_msgs.msg import Float64MultiArray
@@ -80,7 +80,7 @@ CONTROLLER_HOLD = {"h": [2.0, 3.0], "a": [4.0, 5.0], "hold": [0.5, 0.25],
 
 def make_controller_hold(path: Path, states_bag: Path) -> None:
     from flex_control.laws import DecentralizedPD, hold_reference
-    from flex_model.bags import read_bag
+    from flex_twin.bags import read_bag
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
     p = CONTROLLER_HOLD
     names = ["joint1", "joint2"]

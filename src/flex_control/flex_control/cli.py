@@ -299,7 +299,7 @@ def main(argv=None) -> int:
     """Standalone entry (same exit codes as flex-twin: 2 bad input, 1 failed)."""
     parser = argparse.ArgumentParser(prog="flex-control")
     add_control_parser(parser.add_subparsers(dest="command", required=True))
-    from flex_model.cli import run_command
+    from flex_model.command import run_command
     return run_command(parser.parse_args(argv))
 
 

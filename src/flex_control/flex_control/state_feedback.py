@@ -64,7 +64,7 @@ class TipStateFeedback:
 
 
 def lab_controller(run, voltage_limit: float = np.inf) -> TipStateFeedback:
-    """The lab's law of a recorded run (flex_model.real_arms.quanser_data.LabRun): its
+    """The lab's law of a recorded run (flex_twin.real_arms.quanser_data.LabRun): its
     gains, its reference, its gauge sign and bias."""
     return TipStateFeedback(run.gains, run.t, run.reference, run.gauge_sign(),
                             run.gauge_bias(), voltage_limit)

@@ -1,0 +1,391 @@
+"""``flex-twin``: the user's entry point (analyses, simulation, demo).
+
+Exit codes: 0 success, 2 bad input (one line on stderr), 1 a failed computation.
+Every analysis takes ``--json`` for machine-readable output; units are in the key names.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+from flex_model import ros_environment
+from flex_model.command import run_command  # noqa: F401  (the suite's exit codes)
+
+
+class Progress:
+    """Progress of a long run on stderr: a live line on a terminal, else every 10 %."""
+
+    def __init__(self, label: str, enabled: bool = True):
+        self.label, self.enabled = label, enabled
+        self.tty = sys.stderr.isatty()
+        self.start = time.perf_counter()
+        self.next_mark = 0.1
+
+    def __call__(self, t: float, total: float) -> None:
+        if not self.enabled:
+            return
+        frac = t / total
+        wall = time.perf_counter() - self.start
+        msg = f"{self.label}: t = {t:7.3f} / {total:g} s ({100 * frac:5.1f} %, {wall:6.2f} s wall)"
+        if self.tty:
+            print("\r" + msg, end="" if frac < 1 else "\n", file=sys.stderr, flush=True)
+        elif frac >= self.next_mark - 1e-9 or frac >= 1:
+            print(msg, file=sys.stderr, flush=True)
+            self.next_mark = np.floor(frac * 10 + 1e-9) / 10 + 0.1
+
+
+def _model(args):
+    from flex_model.arm import load_arm
+    from flex_model.dynamics import FlexArmModel
+
+    arm = load_arm(args.arm, args.vars_per_link)
+    if args.kinematics:
+        arm = arm.with_kinematics(args.kinematics)
+    if getattr(args, "no_gravity", False):
+        arm = arm.without_gravity()
+    return FlexArmModel(arm)
+
+
+def _angles(args, model):
+    if args.joint_angles_deg is None:
+        return np.zeros(model.n_links)
+    if len(args.joint_angles_deg) != model.n_links:
+        raise ValueError(f"--joint-angles-deg: got {len(args.joint_angles_deg)} values; "
+                         f"expected {model.n_links} (one per joint)")
+    return np.radians(args.joint_angles_deg)
+
+
+def _gains(values, name, model):
+    if values is None:
+        return None
+    if len(values) not in (1, model.n_links):
+        raise ValueError(f"--{name}: got {len(values)} values; expected 1 or {model.n_links}")
+    return np.broadcast_to(np.asarray(values, float), (model.n_links,))
+
+
+def cmd_modes(args) -> int:
+    from flex_model.modes import natural_modes
+
+    model = _model(args)
+    kp, kd = _gains(args.kp, "kp", model), _gains(args.kd, "kd", model)
+    if args.joints == "pd" and kp is None:
+        raise ValueError("--kp: required with --joints pd (N m/rad, per joint or one value)")
+    res = natural_modes(model, _angles(args, model), joints=args.joints, kp=kp, kd=kd,
+                        gravity_preload=args.gravity_preload)
+    out = res.as_dict(args.count)
+    if args.state_space:
+        from flex_model.modes import linearize
+        lin = linearize(model, _angles(args, model), joints=args.joints, kp=kp, kd=kd,
+                        gravity_preload=args.gravity_preload)
+        np.savez(args.state_space, A=lin.A, B=lin.B, C=lin.C, D=lin.D,
+                 inputs=np.array(lin.input_names), outputs=np.array(lin.output_names))
+        out["state_space"] = str(args.state_space)
+    if args.plot:
+        from flex_model.plots import plot_modes
+        plot_modes(model, res, args.plot, title=f"{model.arm.name}: joints {args.joints}")
+        out["plot"] = str(args.plot)
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"{model.arm.name}: {model.nq} coordinates, joints {args.joints}, "
+              f"cond(B) = {out['inertia_condition_number']:.3e}")
+        print(f"{'mode':>4} {'f [Hz]':>12} {'omega [rad/s]':>14} {'zeta':>8}")
+        for k, (f, w, z) in enumerate(zip(out["frequencies_hz"], out["omega_rad_s"],
+                                          out["damping_ratio"])):
+            print(f"{k + 1:>4} {f:12.6g} {w:14.6g} {z:8.4f}")
+    return 0
+
+
+def cmd_static(args) -> int:
+    from flex_model.statics import TipLoad, static_equilibrium
+
+    model = _model(args)
+    kp = _gains(args.kp, "kp", model)
+    if args.joints == "pd" and kp is None:
+        raise ValueError("--kp: required with --joints pd (N m/rad, per joint or one value)")
+    load = TipLoad.from_magnitude(args.tip_force, args.tip_force_angle_deg, args.tip_torque)
+    res = static_equilibrium(model, _angles(args, model), joints=args.joints, kp=kp,
+                             load=load, linear=not args.nonlinear)
+    out = res.as_dict()
+    out["analysis"] = "nonlinear" if args.nonlinear else "linear"
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"{model.arm.name} ({out['analysis']} static, joints {args.joints}):")
+        print(f"  tip rotation      {out['tip_rotation_deg']:10.4f} deg")
+        print(f"  tip displacement  {out['tip_displacement_mm']:10.3f} mm (vertical)")
+        for lk, d in zip(model.arm.links, out["links"]):
+            print(f"  {lk.name}: tip deflection {1e3 * d['tip_deflection_m']:9.3f} mm, "
+                  f"tip rotation {np.degrees(d['tip_rotation_rad']):8.4f} deg")
+    return 0
+
+
+def _run_dir(base: str | None, name: str) -> Path:
+    path = Path(base) if base else Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-{name}"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _simulate(scenario_ref, args, label: str):
+    from flex_model.plots import plot_simulation
+    from flex_model.scenario import load_scenario
+
+    sc = load_scenario(scenario_ref, args.vars_per_link)
+    if args.kinematics:
+        sc.arm = sc.arm.with_kinematics(args.kinematics)
+    if args.duration is not None:
+        if not args.duration > 0:
+            raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
+        sc.duration = args.duration
+    if args.method:
+        sc.method = args.method
+    model = sc.model()
+    t0, c0 = time.perf_counter(), time.process_time()
+    res = sc.run(progress=Progress(label, not args.json), model=model)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    out_dir = _run_dir(args.out, sc.name)
+    csv = out_dir / f"{sc.name}.csv"
+    res.to_csv(csv)
+    summary = {"scenario": sc.name, "arm": sc.arm.name, "kinematics": sc.arm.kinematics,
+               "vars_per_link":
+               [lk.n_vars for lk in sc.arm.links], "duration_s": sc.duration,
+               "method": sc.method, "wall_s": wall, "cpu_s": cpu,
+               "cpu_s_per_simulated_s": cpu / sc.duration, "steps": res.stats["steps"],
+               "csv": str(csv),
+               "final_joint_angles_deg": np.degrees(res.joint_angles[-1]).tolist(),
+               "final_tip_m": res.tip_xy[-1].tolist(),
+               "max_abs_tip_deflection_mm": (1e3 * np.max(np.abs(res.tip_deflections),
+                                                         axis=0)).tolist()}
+    if not args.no_plot:
+        png = out_dir / f"{sc.name}.png"
+        plot_simulation(res, png, title=f"{sc.name} ({sc.arm.name})")
+        summary["png"] = str(png)
+    return sc, res, summary
+
+
+def _print_summary(summary: dict) -> None:
+    print(f"scenario {summary['scenario']} on arm {summary['arm']} "
+          f"({summary['vars_per_link']} variables per link, {summary['kinematics']} "
+          f"kinematics, {summary['method']} step)")
+    print(f"  simulated {summary['duration_s']:g} s in {summary['wall_s']:.3f} s wall, "
+          f"{summary['cpu_s_per_simulated_s']:.4f} CPU-s per simulated s, "
+          f"{summary['steps']} steps")
+    print("  final joint angles [deg]: " + ", ".join(
+        f"{a:.4f}" for a in summary["final_joint_angles_deg"]))
+    print("  final tip [m]: ({:.5f}, {:.5f})".format(*summary["final_tip_m"]))
+    print("  max |tip deflection| [mm]: " + ", ".join(
+        f"{a:.2f}" for a in summary["max_abs_tip_deflection_mm"]))
+    print(f"  wrote {summary['csv']}" + (f" and {summary['png']}" if "png" in summary else ""))
+
+
+def cmd_simulate(args) -> int:
+    _, _, summary = _simulate(args.scenario, args, "simulate")
+    print(json.dumps(summary) if args.json else "", end="\n" if args.json else "")
+    if not args.json:
+        _print_summary(summary)
+    return 0
+
+
+#: Exudyn reference (VALIDATION.md section E): tip of link 3 (m) at 3.5, 5 and 10 s
+SECTION_E_REFERENCE_TIP = {3.5: (6.11544, -4.15557), 5.0: (6.29235, -3.91276),
+                           10.0: (6.09177, -4.21345)}
+
+
+def cmd_demo(args) -> int:
+    """The model demo: the thesis three-link arm under PD with a torque pulse (section E)."""
+    print("flex-twin demo: three flexible steel links (thesis efficiency example), PD joints,"
+          " 1 kN m pulse on joint 1 at 3-4 s", file=sys.stderr)
+    args.kinematics = args.kinematics or "second_order"
+    args.method = args.method or "fixed"
+    sc, res, summary = _simulate("thesis_three_link_pd", args, "demo")
+    tips = res.link_tips()[:, -1]
+    rows = []
+    for t, (x, y) in SECTION_E_REFERENCE_TIP.items():
+        k = int(np.argmin(np.abs(res.t - t)))
+        rows.append({"t_s": t, "tip_m": tips[k].tolist(), "reference_tip_m": [x, y],
+                     "difference_mm": float(1e3 * np.hypot(tips[k, 0] - x, tips[k, 1] - y))})
+    summary["reference_comparison"] = rows
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    _print_summary(summary)
+    print("  tip of link 3 vs the geometrically exact Exudyn reference (VALIDATION.md E):")
+    for r in rows:
+        print(f"    t = {r['t_s']:4.1f} s: ours ({r['tip_m'][0]:.5f}, {r['tip_m'][1]:.5f}) m, "
+              f"reference ({r['reference_tip_m'][0]:.5f}, {r['reference_tip_m'][1]:.5f}) m, "
+              f"{r['difference_mm']:.1f} mm apart")
+    return 0
+
+
+def cmd_twin_demo(args) -> int:
+    """The thesis Ch. V task over ROS: planner, controller and model nodes, recorded."""
+    from .ros_twin_demo import run
+    print("flex-twin twin demo: planner -> controller (Eq. 95) -> model over ROS topics, "
+          "thesis Ch. V task", file=sys.stderr)
+    s = run(args.out, duration=args.duration, progress=Progress("twin demo", not args.json))
+    if args.json:
+        print(json.dumps(s))
+        return 0
+    print(f"{'waypoint':>8} {'t [s]':>6} {'tip error [mm]':>15}")
+    for k, w in enumerate(s["waypoints"]):
+        print(f"{k + 1:>8} {w['t_s']:6.1f} {w['tip_error_mm']:15.2f}")
+    print("max |tip deflection| per link [mm]: " + ", ".join(
+        f"{v:.1f}" for v in s["max_abs_tip_deflection_mm"]))
+    print("peak torques [N m]: " + ", ".join(f"{v:.1f}" for v in s["peak_torque_nm"]))
+    print(f"simulated {s['simulated_s']:g} s in {s['wall_s']:.1f} s wall "
+          f"(real-time factor {s['real_time_factor']:.2f})")
+    print(f"bag: {s['bag']} (open it in Foxglove: File > Open local file, the .mcap inside; "
+          f"/flex/shape shows the deflected arm)")
+    print(f"plots: {s['png']}")
+    return 0
+
+
+def cmd_effects(args) -> int:
+    """The effect library: parameters with units, off values, bounds, tolerances."""
+    from flex_model.effects import EFFECT_TYPES, NOMINAL_TOLERANCES
+    lib = {"effects": [cls.describe() for cls in EFFECT_TYPES.values()],
+           "nominal_tolerances": NOMINAL_TOLERANCES}
+    if args.json:
+        print(json.dumps(lib))
+        return 0
+    for e in lib["effects"]:
+        print(f"{e['type']} ({e['target']}): {e['description']}")
+        for p in e["parameters"]:
+            print(f"    {p['name']:20s} [{p['unit']}] off {p['off']:g}, bounds "
+                  f"{p['bounds'][0]:g}..{p['bounds'][1]:g}, tolerance {100 * p['tolerance']:g} %")
+        print("    cannot be told apart from: " + "; ".join(e["equivalent"]))
+    print("nominal parameter tolerances: " + ", ".join(
+        f"{k} {100 * v:g} %" for k, v in NOMINAL_TOLERANCES.items()))
+    return 0
+
+
+def cmd_presets(args) -> int:
+    from flex_model.arm import load_arm, preset_names
+    from flex_model.scenario import scenario_names
+
+    arms = {n: load_arm(n).description for n in preset_names()}
+    if args.json:
+        print(json.dumps({"arms": arms, "scenarios": scenario_names()}))
+        return 0
+    print("arms:")
+    for n, d in arms.items():
+        print(f"  {n:22s} {d}")
+    print("scenarios:")
+    for n in scenario_names():
+        print(f"  {n}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="flex-twin", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def arm_args(sp):
+        sp.add_argument("arm", help="arm preset name or YAML path")
+        sp.add_argument("--vars-per-link", type=int, default=None, metavar="N",
+                        help="deformation variables of every link (even, >= 2)")
+        sp.add_argument("--joint-angles-deg", type=float, nargs="+", default=None,
+                        help="joint (relative) angles of the configuration, deg")
+        sp.add_argument("--json", action="store_true", help="machine-readable output")
+        kinematics_arg(sp)
+
+    def kinematics_arg(sp):
+        sp.add_argument("--kinematics", choices=["small_deflection", "second_order"],
+                        default=None, help="override the arm's kinematics (second_order: "
+                        "with the axial shortening of bent links, i.e. geometric stiffening)")
+
+    sp = sub.add_parser("modes", help="natural frequencies and mode shapes")
+    arm_args(sp)
+    sp.add_argument("--joints", choices=["clamped", "hinged", "pd"], default="clamped")
+    sp.add_argument("--kp", type=float, nargs="+", help="PD stiffness, N m/rad (--joints pd)")
+    sp.add_argument("--kd", type=float, nargs="+", help="PD damping, N m s/rad")
+    sp.add_argument("--count", type=int, default=None, help="number of modes to print")
+    sp.add_argument("--gravity-preload", action="store_true",
+                    help="linearize about the equilibrium under gravity (default: unloaded)")
+    sp.add_argument("--plot", default=None, help="write the mode shapes to this PNG")
+    sp.add_argument("--state-space", default=None, metavar="FILE.npz",
+                    help="write the linearization x' = A x + B u, y = C x + D u (with input "
+                    "and output names) to this file")
+    sp.set_defaults(func=cmd_modes)
+
+    sp = sub.add_parser("static", help="static equilibrium: tip rotation and displacement")
+    arm_args(sp)
+    sp.add_argument("--joints", choices=["clamped", "pd"], default="clamped")
+    sp.add_argument("--kp", type=float, nargs="+", help="PD stiffness, N m/rad (--joints pd)")
+    sp.add_argument("--tip-torque", type=float, default=0.0, help="tip torque C, N m (CCW +)")
+    sp.add_argument("--tip-force", type=float, default=0.0, help="tip force F, N")
+    sp.add_argument("--tip-force-angle-deg", type=float, default=90.0,
+                    help="direction of F from the x axis, deg (default 90: upwards)")
+    sp.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    sp.add_argument("--nonlinear", action="store_true",
+                    help="full equilibrium of the model (default: linear static response)")
+    sp.set_defaults(func=cmd_static)
+
+    def sim_args(sp):
+        sp.add_argument("--vars-per-link", type=int, default=None, metavar="N")
+        sp.add_argument("--duration", type=float, default=None, help="override, s")
+        sp.add_argument("--method", choices=["variable", "fixed"], default=None)
+        sp.add_argument("--out", default=None, help="output directory (default runs/...)")
+        sp.add_argument("--no-plot", action="store_true")
+        sp.add_argument("--json", action="store_true")
+        kinematics_arg(sp)
+
+    sp = sub.add_parser("simulate", help="simulate a scenario file; writes CSV and PNG")
+    sp.add_argument("scenario", help="scenario preset name or YAML path")
+    sim_args(sp)
+    sp.set_defaults(func=cmd_simulate)
+
+    sp = sub.add_parser("demo", help="the model demo (section E scenario)")
+    sim_args(sp)
+    sp.set_defaults(func=cmd_demo)
+
+    sp = sub.add_parser("twin-demo", help="the thesis Ch. V task over ROS (planner, "
+                        "controller, model), recorded to a bag")
+    sp.add_argument("--out", default=None, help="output directory (default runs/...)")
+    sp.add_argument("--duration", type=float, default=15.0, help="simulated time, s")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_twin_demo)
+
+    sp = sub.add_parser("effects", help="the library of model effects and their parameters")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_effects)
+
+    sp = sub.add_parser("presets", help="list arm and scenario presets")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_presets)
+    from .bag_cli import add_bag_parsers  # record, play, bag info (rclpy imported lazily)
+    add_bag_parsers(sub)
+    from .ros_suite import add_up_parser  # up: the nodes from a parameter file
+    add_up_parser(sub)
+    # subcommands of flex_model's workflows (compare, diagnose, replay/import) and of the
+    # other packages when installed (imported here only, so that the core of flex_model
+    # never depends on them)
+    for module, hook in (("flex_twin.comparison.cli", "add_compare_parser"),
+                         ("flex_twin.diagnosis.cli", "add_diagnose_parser"),
+                         ("flex_twin.real_arms.cli", "add_real_arm_parsers"),
+                         ("flex_twin.real_arms.modal_cli", "add_modal_parsers"),
+                         ("flex_planner.cli", "add_plan_parser"),
+                         ("flex_control.cli", "add_control_parser")):
+        try:
+            add = getattr(__import__(module, fromlist=[hook]), hook)
+        except ModuleNotFoundError as exc:
+            if not module.startswith(exc.name or "\0"):
+                raise
+            continue
+        add(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    ros_environment()  # also done on importing flex_model; repeated for embedding callers
+    return run_command(build_parser().parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

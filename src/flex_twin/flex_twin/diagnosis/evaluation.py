@@ -1,0 +1,233 @@
+"""Evaluating a twin on a recording: the weighted residual vector, noise levels, costs,
+and the executor interface for running many evaluations in parallel.
+
+A twin is the nominal arm with baseline scales (:mod:`.baseline`) and accepted or
+candidate effects (:mod:`.hypotheses`). Residuals are weighted per channel by the
+channel's white-noise level sigma_c, estimated from the data by the second difference
+(sigma^2 = var(y[k+1] - 2 y[k] + y[k-1]) / 6, exact for white noise on a smooth signal),
+times the ratio kappa_c of a healthy twin's residual to that white noise (coloured sensor
+noise, quantisation and the drives' torque ripple, which the closed loop turns into
+motion no replay can predict): sigma_eff = kappa_c sigma_c. kappa is calibrated on healthy
+runs (:data:`HEALTHY_RATIO`: the synthetic two-link cases of :mod:`.synthetic` at nominal
+noise, seeds 1-3, baseline twin, fit and held-out recordings), so the cost
+J = mean_c mean_k (r_c,k / sigma_eff_c)^2 is about 1 for a healthy unit at the data's noise
+level and the excess J - 1 is the model error in units of that noise power. Another arm or
+controller recalibrates with ``noise_ratios`` (a mapping channel -> kappa).
+
+Long logs: with ``segment`` the replay restarts every ``segment`` seconds from the measured
+joint angles and rates (links in static equilibrium): multiple shooting, the k-step
+prediction of each window, which bounds the drift of a long closed-loop replay and the
+cost of a divergent candidate.
+
+Executor: anything with ``map(fn, iterable)`` returning results in order
+(``concurrent.futures`` executors, ``dask.distributed.Client`` via its
+``concurrent.futures``-compatible executor, Ray's ``ray.util.multiprocessing.Pool``).
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from flex_model.arm import ArmDescription
+from flex_model.dynamics import FlexArmModel
+from flex_model.simulate import SimulationDivergedError
+from flex_model.statics import StaticConvergenceError
+from .baseline import apply_scales
+from .controller import ControllerDescription
+from .replay import _held, initial_state, measured_start, replay
+
+#: absolute noise floors per channel kind (rad, rad/s, N m, m)
+FLOORS = {"q": 1e-6, "v": 1e-5, "tau": 1e-4, "w": 1e-6, "tip": 1e-6}
+#: residual RMS of healthy baseline twins / white-noise estimate, per channel (see above)
+HEALTHY_RATIO = {"q1": 9.3, "q2": 22.1, "v1": 1.07, "v2": 1.47, "tau1": 1.28, "tau2": 1.88,
+                 "w1": 2.86, "w2": 2.14, "tip_x": 2.42, "tip_y": 1.75}
+#: the same by channel kind, for channels not in the table
+HEALTHY_RATIO_KIND = {"q": 15.0, "v": 1.3, "tau": 1.6, "w": 2.5, "tip": 2.1}
+#: a diverged candidate costs this much (it is not a plausible twin)
+DIVERGED_COST = 1e12
+
+
+def _floor(name: str) -> float:
+    for k in ("tau", "tip", "q", "v", "w"):
+        if name.startswith(k):
+            return FLOORS[k]
+    return 1e-6
+
+
+def healthy_ratio(name: str, table=None) -> float:
+    table = HEALTHY_RATIO if table is None else table
+    if name in table:
+        return float(table[name])
+    kind = "tip" if name.startswith("tip") else name.rstrip("0123456789")
+    return HEALTHY_RATIO_KIND.get(kind, 1.0)
+
+
+def quantisation_step(y: np.ndarray) -> float:
+    """The step of a quantised signal (every nonzero sample difference a multiple of the
+    smallest one, to 0.1 % of it, in 99 % of the samples), or 0."""
+    d = np.abs(np.diff(np.asarray(y, float)))
+    d = d[d > 0]
+    if len(d) < 10:
+        return 0.0
+    q = float(np.min(d))
+    on_grid = np.abs(d / q - np.round(d / q)) < 1e-3
+    return q if np.mean(on_grid) >= 0.99 else 0.0
+
+
+def noise_levels(rec, noise_ratios=None) -> dict:
+    """Effective noise level per residual channel: the white-noise standard deviation
+    (second-difference estimate, at least the step / sqrt(12) of a quantised channel,
+    whose second difference is mostly 0) times the healthy ratio kappa."""
+    out = {}
+    for name in rec.residual_channels:
+        y = rec.channels[name]
+        d2 = y[2:] - 2 * y[1:-1] + y[:-2]
+        # a robust scale (median absolute deviation) ignores the rare steps of a move
+        s = 1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)
+        s = max(s, quantisation_step(y) / np.sqrt(12.0))
+        out[name] = float(max(s, _floor(name), 1e-6 * np.std(y))
+                          * healthy_ratio(name, noise_ratios))
+    return out
+
+
+@dataclass
+class Context:
+    """Everything an evaluation needs (picklable, sent to the workers)."""
+
+    nominal: ArmDescription
+    controller: ControllerDescription
+    rec: object
+    sigma: dict
+    ff: np.ndarray          # feed-forward at the control instants (the nominal model's)
+    baseline_params: list
+    dt: float = 2e-3
+    score_from: float = -np.inf   # residuals count from this time on (a held-out segment)
+    segment: float | None = None  # multiple shooting: restart every `segment` s (long logs)
+
+    @classmethod
+    def build(cls, nominal, controller, rec, baseline_params, sigma=None, dt=2e-3,
+              score_from=-np.inf, segment=None):
+        model = FlexArmModel(nominal)
+        period = controller.period
+        t_rel = rec.t - rec.t[0]
+        instants = np.arange(int(round(t_rel[-1] / period)) + 1) * period
+        qset = _held(t_rel, rec.stack("qset"), instants)
+        recorded = _held(t_rel, rec.stack("tau_ff"), instants) \
+            if controller.feedforward_mode == "recorded" else None
+        ff = controller.feedforward(model, qset, recorded)
+        return cls(nominal, controller, rec, sigma or noise_levels(rec), ff,
+                   list(baseline_params), dt, score_from, segment)
+
+
+def twin_arm(ctx: Context, scales, effects=()) -> ArmDescription:
+    """Nominal + baseline scales + [(hypothesis, x), ...]."""
+    arm = apply_scales(ctx.nominal, ctx.baseline_params, scales)
+    for hyp, x in effects:
+        arm, _ = hyp.apply(arm, x)
+    return arm
+
+
+def encoder_faults(arm: ArmDescription) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint: bias (rad) and delay (s) of the arm's joint_encoder sensors."""
+    b = np.zeros(arm.n_links)
+    d = np.zeros(arm.n_links)
+    for s in arm.sensors:
+        if s.kind == "joint_encoder":
+            j = arm.joint_names.index(s.target)
+            b[j] += s.bias
+            d[j] = max(d[j], s.delay)
+    return b, d
+
+
+def _segments(ctx: Context) -> list[tuple[int, int]]:
+    """Sample ranges [k0, k1) of the replay: the whole record, or windows of
+    ``ctx.segment`` seconds sharing their boundary sample (multiple shooting)."""
+    n = len(ctx.rec.t)
+    if not ctx.segment or ctx.segment >= ctx.rec.t[-1] - ctx.rec.t[0]:
+        return [(0, n)]
+    per = max(2, int(round(ctx.segment / ctx.rec.dt)))
+    per -= per % max(1, int(round(ctx.controller.period / ctx.rec.dt)))
+    return [(k, min(k + per + 1, n)) for k in range(0, n - 1, per)]
+
+
+def predict_channels(ctx: Context, arm: ArmDescription):
+    """The twin's channels on the context's recording. Encoder bias and delay (sensors of
+    the arm) act on what the controller reads and on the recorded q<i>, v<i>."""
+    model = FlexArmModel(arm)
+    bias, delay = encoder_faults(arm)
+    rec = ctx.rec
+    joint_of = [int(c[1:]) - 1 if c[0] == "q" else None for c in ctx.controller.channels]
+    cbias = np.array([bias[j] if j is not None else 0.0 for j in joint_of])
+    periods = np.rint(delay / ctx.controller.period).astype(np.int64)
+    cdelay = np.array([periods[j] if j is not None else 0 for j in joint_of], np.int64)
+    pred = None
+    for k0, k1 in _segments(ctx):
+        part = rec if (k0, k1) == (0, len(rec.t)) else rec.window(rec.t[k0], rec.t[k1 - 1])
+        q0, v0 = measured_start(part)
+        i0 = int(round((rec.t[k0] - rec.t[0]) / ctx.controller.period))
+        seg = replay(model, ctx.controller, part, ff=ctx.ff[i0:], dt=ctx.dt,
+                     sensor_bias=cbias, sensor_delay=cdelay,
+                     x0=initial_state(model, q0 - bias, v0))
+        if pred is None:
+            pred = seg
+        else:   # the segment's first sample is the previous one's last: keep the new one
+            pred.t = np.concatenate([pred.t[:-1], seg.t])
+            for c in pred.channels:
+                pred.channels[c] = np.concatenate([pred.channels[c][:-1], seg.channels[c]])
+    samples = np.rint(delay / rec.dt).astype(int)
+    for i in range(arm.n_links):
+        for kind, add in (("q", bias[i]), ("v", 0.0)):
+            name = f"{kind}{i + 1}"
+            if name in pred.channels:
+                y = pred.channels[name]
+                if samples[i]:
+                    y = np.concatenate([np.full(samples[i], y[0]), y[:-samples[i]]])
+                pred.channels[name] = y + add
+    return pred
+
+
+def residual_vector(ctx: Context, arm: ArmDescription) -> np.ndarray:
+    """Weighted residuals, channels concatenated in rec.residual_channels order."""
+    pred = predict_channels(ctx, arm)
+    rec = ctx.rec
+    n = len(pred.t)
+    k0 = int(np.searchsorted(pred.t, ctx.score_from - 1e-9))
+    return np.concatenate([(rec.channels[c][k0:n] - pred.channels[c][k0:]) / ctx.sigma[c]
+                           for c in rec.residual_channels])
+
+
+def cost(r: np.ndarray) -> float:
+    """J = mean squared weighted residual."""
+    return float(np.mean(r * r))
+
+
+def evaluate(task) -> np.ndarray | None:
+    """Worker function: (ctx, scales, effects) -> weighted residuals (None if diverged)."""
+    ctx, scales, effects = task
+    try:
+        return residual_vector(ctx, twin_arm(ctx, scales, effects))
+    except (SimulationDivergedError, StaticConvergenceError, np.linalg.LinAlgError,
+            ValueError):
+        return None
+
+
+class SerialExecutor:
+    """The executor interface without parallelism (``map`` in order)."""
+
+    def map(self, fn, *iterables):
+        return map(fn, *iterables)
+
+    def submit(self, fn, *args):
+        from concurrent.futures import Future
+        f = Future()
+        f.set_result(fn(*args))
+        return f
+
+
+def default_executor(workers: int | None = None):
+    """A process pool on the available cores (serial with one core)."""
+    n = workers or len(os.sched_getaffinity(0))
+    return SerialExecutor() if n <= 1 else ProcessPoolExecutor(max_workers=n)

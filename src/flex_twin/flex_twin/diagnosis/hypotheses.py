@@ -1,0 +1,328 @@
+"""The hypotheses of the diagnosis: effects of flex_model.effects with 1-3 free parameters.
+
+Each effect type of the library (``Effect.LIBRARY``) that can act on a torque-controlled
+planar arm becomes one hypothesis per target (joint, link or arm), with the parameters the
+fit frees, their bounds and scales taken from the data (torque and speed levels), and the
+equivalence class the effect declares (``Effect.EQUIVALENT``; a named effect counts as
+right when it is the hidden one or in its class). Parameters not freed keep their "off"
+or a stated fixed value:
+
+==================== ========================================= ===========================
+hypothesis           free parameters                           fixed
+==================== ========================================= ===========================
+joint_friction       viscous, coulomb, static - coulomb        Stribeck velocity 0.05 rad/s,
+                                                               regularization 1e-3 rad/s
+gear                 rotor_inertia (ratio of the nominal, or 1)
+joint_elasticity     stiffness (fitted as a compliance),       motor_inertia: the gear's
+                     damping                                   n^2 J_r (moved there)
+backlash             half_width, stiffness and damping of its  smoothing 1e-4
+                     spring (the gear's, as joint_elasticity)
+torque_saturation    limit
+actuator_delay       delay (quantized to the control period)
+structural_damping   rayleigh_stiffness                        (internal friction: same
+                                                               class)
+base_tilt            angle
+contact_surface      y (floor height), stiffness, damping      x 0, normal up
+payload              mass (arm field, not an effect)
+sensor_bias          bias of the joint encoder (seen by the controller too)
+sensor_delay         delay of the joint encoder and rate (whole control periods)
+stiffness            relative change of a link's E beyond its tolerance
+==================== ========================================= ===========================
+
+Left out: ``dc_motor`` under a torque command (its parameters act only on a voltage
+command), ``timoshenko`` (slender links: beta >> 100, no measurable effect), ``cogging``
+(``LIBRARY = False``: the out-of-library case).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from flex_model.effects import EFFECT_TYPES
+from flex_model.sensors import Sensor
+
+FRICTION_EPS = 1e-3
+STRIBECK_VELOCITY = 0.05
+MOTOR_INERTIA = 1e-3
+BACKLASH_SMOOTHING = 1e-4
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """An effect on a target with free parameters (values = x * scale)."""
+
+    kind: str
+    target: str
+    names: tuple
+    scale: tuple
+    lower: tuple          # bounds of x (scaled)
+    upper: tuple
+    starts: tuple         # start points of x (multi-start where non-convex)
+    probes: tuple         # x of the screening probes
+    discrete: bool = False  # delays: x in whole control periods
+    linear: bool = True   # screening by the linearized fit (else: the best probe's cost)
+    inverse: tuple = ()   # per parameter: value = scale / x (a compliance; x = 0: rigid)
+    fit_from_probe: bool = True   # the fit starts at the best probe, then the starts
+    off_at: tuple = ()    # x of the "off" value when it is not 0 (see :meth:`off`)
+
+    @property
+    def label(self) -> str:
+        return f"{self.kind}@{self.target}" if self.target else self.kind
+
+    @property
+    def klass(self) -> str:
+        """Equivalence class: the effect type (the declared EQUIVALENT entries are shown
+        in the report)."""
+        return self.kind
+
+    @property
+    def equivalent(self) -> list:
+        cls = EFFECT_TYPES.get(self.kind)
+        return list(cls.EQUIVALENT) if cls else []
+
+    def values(self, x) -> np.ndarray:
+        v = np.asarray(x, float) * np.asarray(self.scale)
+        for k, inv in enumerate(self.inverse):
+            if inv:
+                v[k] = self.scale[k] / x[k] if x[k] > 0 else np.inf
+        return v
+
+    def value_halfwidths(self, x, half) -> np.ndarray:
+        """Half-widths of the parameter intervals for half-widths ``half`` of x."""
+        w = np.abs(np.asarray(half, float) * np.asarray(self.scale))
+        for k, inv in enumerate(self.inverse):
+            if inv:
+                w[k] = self.scale[k] * half[k] / max(x[k], 1e-300) ** 2
+        return w
+
+    def off(self) -> np.ndarray:
+        """x of the "off" value (no effect): 0 unless declared (a saturation's upper bound,
+        a gear's nominal rotor inertia)."""
+        return np.array(self.off_at, float) if self.off_at else np.zeros(len(self.names))
+
+    def physical(self, values, halfwidths, twin) -> tuple[tuple, list, list]:
+        """(names, values, half-widths) as the updated arm states them: friction's
+        break-away torque ``static`` (coulomb + excess), a link's Young's modulus ``E``."""
+        v, w = list(values), list(halfwidths)
+        if self.kind == "joint_friction":
+            return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
+                [w[0], w[1], float(np.hypot(w[1], w[2]))]
+        if self.kind == "stiffness":
+            seg = next(lk for lk in twin.links if lk.name == self.target).segments[0]
+            if seg.shape == "explicit":  # no Young's modulus: the link's E I at its root
+                name, value = "EI", seg.dims["EI"][0]
+            else:
+                name, value = "E", seg.E
+            return (name,), [value], [value * w[0] / max(1.0 + v[0], 1e-9)]
+        return self.names, v, w
+
+    def apply(self, arm, x):
+        """(arm with the effect, sensors bias vector or None)."""
+        v = self.values(x)
+        E = EFFECT_TYPES
+        k = self.kind
+        if k == "payload":
+            return dataclasses.replace(arm, payload_mass=arm.payload_mass + v[0]), None
+        if k in ("sensor_bias", "sensor_delay"):
+            field = "bias" if k == "sensor_bias" else "delay"
+            s = Sensor(name=f"{self.target}/joint_encoder", kind="joint_encoder",
+                       target=self.target, **{field: float(v[0])})
+            return dataclasses.replace(arm, sensors=arm.sensors + (s,)), None
+        if k == "stiffness":
+            i = [lk.name for lk in arm.links].index(self.target)
+            links = list(arm.links)
+            links[i] = dataclasses.replace(links[i], segments=tuple(
+                sg.scaled(stiffness=1.0 + v[0]) for sg in links[i].segments))
+            return dataclasses.replace(arm, links=tuple(links)), None
+        if k == "joint_friction":
+            eff = (E[k](self.target, (v[0], v[1], v[1] + v[2], STRIBECK_VELOCITY,
+                                      FRICTION_EPS)),)
+        elif k == "gear":
+            old = arm.effect("gear", self.target)
+            ratio = old["ratio"] if old else 1.0
+            eff = (E[k](self.target, (ratio, v[0])),)
+        elif k in ("joint_elasticity", "backlash"):
+            stiffness = v[0] if k == "joint_elasticity" else v[1]
+            if not np.isfinite(stiffness):
+                return arm, None
+            # the rotor of the joint's gear moves to the motor side of the spring: the
+            # motor coordinate carries n^2 J_r (a bare motor coordinate under the sampled
+            # PD would need a far shorter period)
+            gear = arm.effect("gear", self.target)
+            jm = MOTOR_INERTIA
+            eff = ()
+            if gear is not None and gear["rotor_inertia"] > 0:
+                jm = gear["ratio"] ** 2 * gear["rotor_inertia"]
+                eff = (dataclasses.replace(gear, values=(gear["ratio"], 0.0)),)
+            eff += (E["joint_elasticity"](self.target, (stiffness, v[1] if k ==
+                                                        "joint_elasticity" else v[2], jm)),)
+            if k == "backlash":
+                eff += (E[k](self.target, (v[0], BACKLASH_SMOOTHING)),)
+        elif k == "torque_saturation":
+            eff = (E[k](self.target, (v[0],)),)
+        elif k == "actuator_delay":
+            eff = (E[k](self.target, (v[0],)),)
+        elif k == "structural_damping":
+            eff = (E[k](self.target, (0.0, 0.0, v[0])),)
+        elif k == "base_tilt":
+            eff = (E[k]("", (v[0],)),)
+        elif k == "contact_surface":
+            eff = (E[k]("", (0.0, v[0], np.pi / 2, v[1], v[2])),)
+        else:
+            raise ValueError(f"unknown hypothesis {k}")
+        return arm.with_effects(*eff), None
+
+    def effect_dicts(self, arm, x) -> list:
+        """The ``effects:``/``sensors:`` entries of the updated arm YAML for the fitted x."""
+        values = self.values(x)
+        probe, _ = self.apply(arm, x)
+        if self.kind == "payload":
+            return []
+        if self.kind in ("sensor_bias", "sensor_delay"):
+            field = "bias" if self.kind == "sensor_bias" else "delay"
+            return [{"sensor": {"kind": "joint_encoder", "joint": self.target,
+                                field: float(values[0])}}]
+        if self.kind == "stiffness":
+            return [{"link_stiffness": {"link": self.target,
+                                        "relative_change": float(values[0])}}]
+        out = []
+        new = [e for e in probe.effects if e not in arm.effects]
+        for e in new:
+            d = {"type": e.TYPE}
+            if e.TARGET in ("joint", "link"):
+                d[e.TARGET] = e.target
+            for p, val in zip(e.PARAMETERS, e.values):
+                if val != p.off and np.isfinite(val):
+                    d[p.name] = float(val)
+            out.append(d)
+        return out
+
+
+@dataclass(frozen=True)
+class HypothesisPair:
+    """Two hypotheses fitted jointly: effects that mask each other, so that neither alone
+    explains the held-out data (an encoder bias and a joint elasticity both move the tip
+    under gravity). x is the first's parameters followed by the second's."""
+
+    first: Hypothesis
+    second: Hypothesis
+    discrete = False
+    fit_from_probe = True
+
+    @property
+    def label(self) -> str:
+        return f"{self.first.label}+{self.second.label}"
+
+    @property
+    def names(self) -> tuple:
+        return self.first.names + self.second.names
+
+    @property
+    def lower(self) -> tuple:
+        return self.first.lower + self.second.lower
+
+    @property
+    def upper(self) -> tuple:
+        return self.first.upper + self.second.upper
+
+    @property
+    def starts(self) -> tuple:
+        return (self.first.starts[0] + self.second.starts[0],)
+
+    def off(self) -> np.ndarray:
+        return np.concatenate([self.first.off(), self.second.off()])
+
+    def parts(self, x) -> list:
+        """[(hypothesis, its x), ...]."""
+        n = len(self.first.names)
+        x = np.asarray(x, float)
+        return [(self.first, x[:n]), (self.second, x[n:])]
+
+    def apply(self, arm, x):
+        (a, xa), (b, xb) = self.parts(x)
+        return b.apply(a.apply(arm, xa)[0], xb)
+
+
+def parts_of(hyp, x) -> list:
+    """[(hypothesis, x), ...] of a hypothesis or a pair."""
+    return hyp.parts(x) if isinstance(hyp, HypothesisPair) else [(hyp, np.asarray(x, float))]
+
+
+def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None,
+       discrete=False, linear=True, inverse=(), fit_from_probe=True, off_at=()):
+    """A hypothesis; ``probe`` (one value per parameter) gives one probe per parameter
+    from the off value, ``probes`` lists whole probe points."""
+    if probes is None:
+        probes = []
+        for k, p in enumerate(probe):
+            x = [0.0] * len(names)
+            x[k] = p
+            probes.append(x)
+    return Hypothesis(kind, target, tuple(names), tuple(float(s) for s in scale),
+                      tuple(lower), tuple(upper), tuple(tuple(s) for s in starts),
+                      tuple(tuple(p) for p in probes), discrete, linear, tuple(inverse),
+                      fit_from_probe, tuple(off_at))
+
+
+def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> list[Hypothesis]:
+    """Every hypothesis for this arm and recording (scales from the measured torque and
+    speed levels); ``exclude``: labels already accepted; ``twin_peaks``: the largest
+    command of the current twin per joint (the torque a saturation would clip; default:
+    the measured command's)."""
+    taus = rec.stack("tau")
+    rates = rec.stack("v")
+    out = []
+    for j, name in enumerate(arm.joint_names):
+        tmax = max(float(np.max(np.abs(taus[:, j])) if twin_peaks is None
+                         else twin_peaks[j]), 1e-3)
+        trms = max(float(np.sqrt(np.mean(taus[:, j] ** 2))), 1e-3)
+        wrms = max(float(np.sqrt(np.mean(rates[:, j] ** 2))), 1e-3)
+        rotor = arm.effect("gear", name)
+        has_rotor = bool(rotor and rotor["rotor_inertia"])
+        k_ref = max(trms, 1.0) / 5e-3          # 5 mrad of twist at the rms torque
+        out += [
+            _h("joint_friction", name, ("viscous", "coulomb", "static_excess"),
+               (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms), (0, 0, 0), (50, 20, 20),
+               [(1.0, 1.0, 0.3)], (1.0, 1.0, 1.0)),
+            # a rotor lighter or heavier than the nominal one: probes on both sides
+            _h("gear", name, ("rotor_inertia",),
+               ((rotor["rotor_inertia"] if has_rotor else 0.1),),
+               (0.2,), (20,), [(1.0,)], probes=[(0.6,), (1.5,)], linear=False,
+               off_at=(1.0,) if has_rotor else ()),
+            _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 5e-3),
+               (0, 0), (1e3, 100), [(1.0, 1.0), (5.0, 1.0)], probes=[(1.0, 0.0), (1.0, 1.0)],
+               inverse=(True, False)),
+            # probes without damping (they screen the play better), fits from the
+            # damped starts (from the probes the search stays near the undamped corner)
+            _h("backlash", name, ("half_width", "stiffness", "damping"),
+               (1e-3, 5 * k_ref, k_ref * 5e-3), (0, 0, 0), (100, 100, 100),
+               [(5.0, 1.0, 1.0), (2.0, 1.0, 1.0)],
+               probes=[(2.0, 1.0, 0.0), (5.0, 1.0, 0.0)], linear=False,
+               inverse=(False, True, False), fit_from_probe=False),
+            _h("torque_saturation", name, ("limit",), (tmax,), (0.05,), (1.5,),
+               [(0.8,), (0.6,)], probes=[(0.95,), (0.85,), (0.75,), (0.6,), (0.45,)],
+               linear=False, off_at=(1.5,)),
+            _h("actuator_delay", name, ("delay",), (controller.period,), (0,), (25,),
+               [(1.0,)], (2.0,), discrete=True),
+            _h("sensor_bias", name, ("bias",), (1e-3,), (-100,), (100,), [(0.0,)], (1.0,)),
+            _h("sensor_delay", name, ("delay",), (controller.period,), (0,), (25,),
+               [(1.0,)], (2.0,), discrete=True),
+        ]
+    for lk in arm.links:
+        out.append(_h("stiffness", lk.name, ("relative_change",), (0.1,), (-7,), (20,),
+                      [(0.0,)], (1.0,)))
+        out.append(_h("structural_damping", lk.name, ("rayleigh_stiffness",), (1e-2,),
+                      (0,), (100,), [(1.0,)], (1.0,)))
+    out.append(_h("base_tilt", "", ("angle",), (0.01,), (-20,), (20,), [(0.0,)], (1.0,)))
+    out.append(_h("payload", "", ("mass",), (0.1,), (-arm.payload_mass / 0.1,), (100,),
+                  [(0.0,)], (1.0,)))
+    if rec.has("tip_y"):
+        ymin = float(np.min(rec.channels["tip_y"]))
+        out.append(_h("contact_surface", "", ("y", "stiffness", "damping"), (1.0, 1e3, 10.0),
+                      (ymin - 0.02, 0.01, 0.0), (ymin + 0.06, 100, 10),
+                      [(ymin + 0.01, 1.0, 1.0), (ymin + 0.02, 0.3, 1.0)],
+                      probes=[(ymin + 0.01, 1.0, 1.0), (ymin + 0.02, 0.3, 1.0)],
+                      linear=False))
+    return [h for h in out if h.label not in exclude]

@@ -1,0 +1,146 @@
+"""A measured experiment: uniformly sampled channels read from a CSV file (or a bag, see
+:mod:`flex_twin.diagnosis.ros_recording`), validated before any computation.
+
+CSV columns (header row, SI units, radians, joints and links numbered from 1):
+
+=============  =====================================================  ==========
+``t``          time (s), increasing, uniform sampling                  required
+``q<i>``       joint angle measured by the encoder of joint i (rad)    required
+``v<i>``       its rate (rad/s)                                        required
+``tau<i>``     actuator command of joint i (N m, or V for dc_motor)    required
+``qset<i>``    reference (set-point) of joint i (rad)                  required
+``w<i>``       tip deflection of link i normal to its root tangent (m) optional
+``tip_x``,     position of the arm's end in the base frame (m)         optional
+``tip_y``
+``tau_ff<i>``  recorded feed-forward (``feedforward: recorded``)       optional
+=============  =====================================================  ==========
+
+Missing required channels are named in the refusal; a truncated or corrupt file raises
+:class:`RecordingError` (a ``ValueError``: the CLI exits 2 with one line).
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+#: the residual channels the replay predicts, in this order, per joint/link index
+MEASURED_KINDS = ("q", "v", "tau", "w")
+MIN_SAMPLES = 50
+
+
+class RecordingError(ValueError):
+    """The measured data cannot be used; the message says which file and why."""
+
+
+@dataclass
+class Recording:
+    """Uniformly sampled measurements: ``t`` (s) and named channels (SI)."""
+
+    t: np.ndarray
+    channels: dict
+    n_joints: int
+    source: str = "<memory>"
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+    def stack(self, kind: str) -> np.ndarray:
+        """(n_samples, n_joints) of ``q``, ``v``, ``tau``, ``qset``, ``w`` or ``tau_ff``."""
+        return np.column_stack([self.channels[f"{kind}{i + 1}"] for i in range(self.n_joints)])
+
+    def has(self, name: str) -> bool:
+        return name in self.channels
+
+    @property
+    def residual_channels(self) -> list[str]:
+        """Measured channels the diagnosis compares with the twin."""
+        names = [f"{k}{i + 1}" for k in MEASURED_KINDS for i in range(self.n_joints)]
+        names += ["tip_x", "tip_y"]
+        return [n for n in names if n in self.channels]
+
+    def window(self, t0: float, t1: float) -> "Recording":
+        """The samples with t0 <= t <= t1 (times kept)."""
+        sel = (self.t >= t0 - 1e-12) & (self.t <= t1 + 1e-12)
+        return Recording(self.t[sel], {k: v[sel] for k, v in self.channels.items()},
+                         self.n_joints, self.source, dict(self.meta))
+
+
+def validate(t, channels: dict, n_joints: int, source: str) -> Recording:
+    """Check channels, finiteness and uniform sampling; return the Recording."""
+    t = np.asarray(t, float)
+    required = [f"{k}{i + 1}" for k in ("q", "v", "tau", "qset") for i in range(n_joints)]
+    missing = [n for n in required if n not in channels]
+    if missing:
+        raise RecordingError(f"{source}: missing channel(s) {', '.join(missing)} "
+                             f"(the {n_joints}-joint arm needs q, v, tau, qset per joint)")
+    if len(t) < MIN_SAMPLES:
+        raise RecordingError(f"{source}: {len(t)} samples; need at least {MIN_SAMPLES}")
+    for name, values in channels.items():
+        bad = ~np.isfinite(values)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise RecordingError(f"{source}: channel {name}: non-finite value at sample {k} "
+                                 f"(t = {t[k]:.6g} s)")
+    steps = np.diff(t)
+    dt = float(np.median(steps))
+    if not dt > 0 or np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0]) if np.any(steps <= 0) else 0
+        raise RecordingError(f"{source}: t is not increasing (sample {k + 1})")
+    if np.max(np.abs(steps - dt)) > 1e-3 * dt:
+        k = int(np.argmax(np.abs(steps - dt)))
+        raise RecordingError(f"{source}: non-uniform sampling at sample {k + 1} (step "
+                             f"{steps[k]:.6g} s, median {dt:.6g} s); resample first")
+    return Recording(t, {k: np.asarray(v, float) for k, v in channels.items()}, n_joints,
+                     source)
+
+
+def load_csv(path, n_joints: int) -> Recording:
+    """Read a CSV with the documented columns (module docstring)."""
+    path = Path(path)
+    try:
+        with open(path, newline="") as stream:
+            rows = list(csv.reader(stream))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise RecordingError(f"{path}: cannot read ({exc})") from None
+    rows = [r for r in rows if r and not r[0].startswith("#")]
+    if not rows:
+        raise RecordingError(f"{path}: empty file")
+    header = [h.strip() for h in rows[0]]
+    if "t" not in header:
+        raise RecordingError(f"{path}: no 't' column in the header ({', '.join(header)})")
+    if len(set(header)) != len(header):
+        raise RecordingError(f"{path}: duplicate column names in the header")
+    data = np.empty((len(rows) - 1, len(header)))
+    for k, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise RecordingError(f"{path}: line {k + 2}: {len(row)} fields, header has "
+                                 f"{len(header)} (truncated or corrupt file)")
+        try:
+            data[k] = [float(x) for x in row]
+        except ValueError:
+            raise RecordingError(f"{path}: line {k + 2}: a field is not a number") from None
+    channels = {h: data[:, j] for j, h in enumerate(header) if h != "t"}
+    return validate(data[:, header.index("t")], channels, n_joints, str(path))
+
+
+def save_csv(rec: Recording, path) -> None:
+    """Write a Recording in the documented CSV layout."""
+    names = list(rec.channels)
+    np.savetxt(path, np.column_stack([rec.t] + [rec.channels[n] for n in names]),
+               delimiter=",", header=",".join(["t"] + names), comments="", fmt="%.12g")
+
+
+def load_recording(path, n_joints: int) -> Recording:
+    """A CSV file, or a rosbag2 directory / .mcap file (needs rclpy)."""
+    path = Path(path)
+    if not path.exists():
+        raise RecordingError(f"{path}: no such file or directory")
+    if path.is_dir() or path.suffix == ".mcap":
+        from .ros_recording import load_bag
+        return load_bag(path, n_joints)
+    return load_csv(path, n_joints)

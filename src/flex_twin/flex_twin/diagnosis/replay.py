@@ -1,0 +1,232 @@
+"""Closed-loop replay of a measured experiment through a twin (issue 8, step 1).
+
+The twin runs with the recorded reference and the same sampled controller as the arm
+(:mod:`flex_twin.diagnosis.controller`): at every control instant t_k the law reads the
+twin's measured channels, its output (the recorded command ``tau<i>``) is held
+(zero-order hold) and, with an
+``actuator_delay`` effect on joint j, applied d_j = ceil(delay_j / period) periods later
+(0 before the first command is old enough), exactly as :func:`flex_model.simulate.simulate`
+with a ``policy`` and ``method='fixed'`` does. The whole loop is compiled (numba), calling
+the generalized-alpha integrator of :mod:`flex_model.integrators` between control
+instants, so a 20 s run costs a fraction of a second. A control period whose Newton
+iterations stall (the rounded corners of a backlash or of friction crossed within one
+step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of
+measured torques through the rigid-body modes drifts and is not offered.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from flex_model.dynamics import FlexArmModel
+from flex_model.integrators import consistent_acceleration, generalized_alpha
+from flex_model.kernels import link_origins
+from flex_model.simulate import SimulationDivergedError, _input_data
+from flex_model.statics import StaticConvergenceError, static_equilibrium
+from .controller import ControllerDescription
+
+DEFAULT_STEP = 1e-3
+#: steps per step of a control period retried after a Newton failure
+SUBSTEPS = 4
+
+
+@njit(cache=True)
+def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff, bias,
+                 delay, sdelay, out_stride):
+    """Run n_periods control periods of per_period steps; return the states every
+    out_stride steps, the commands at the n_periods + 1 instants (the last one at the
+    final state) and a status (0 ok, 1 diverged, 2 Newton failed)."""
+    nx = x0.shape[0]
+    n = nx // 2
+    nj = Kp.shape[0]
+    nc = C.shape[0]
+    n_steps = n_periods * per_period
+    n_out = n_steps // out_stride + 1
+    X = np.full((n_out, nx), np.nan)
+    cmd = np.zeros((n_periods + 1, nj))
+    Y = np.zeros((n_periods + 1, nc))
+    YD = np.zeros((n_periods + 1, nc))
+    u = E[8]
+    x = x0.copy()
+    X[0] = x
+    for k in range(n_periods + 1):
+        Y[k] = C @ x[:n] + bias
+        YD[k] = C @ x[n:]
+        y = np.empty(nc)
+        yd = np.empty(nc)
+        for c in range(nc):
+            kk = max(k - sdelay[c], 0)
+            y[c] = Y[kk, c]
+            yd[c] = YD[kk, c]
+        cmd[k] = ff[min(k, ff.shape[0] - 1)] + Kp @ (ref[min(k, ref.shape[0] - 1)] - y) \
+            - Kd @ yd
+        if k == n_periods:
+            break
+        for j in range(nj):
+            u[j] = cmd[k - delay[j], j] if k >= delay[j] else 0.0
+        t = k * per_period * h
+        a = consistent_acceleration(t, x, P, E)
+        Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
+            t, x, a, a.copy(), h, per_period, 1, rho_inf, 1e-10, 1e6, P, E)
+        if status == 2:   # Newton stalled (a sharp corner: backlash, friction): the period
+            # again in SUBSTEPS steps per step (bit-identical runs where it converges)
+            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
+                t, x, a, a.copy(), h / SUBSTEPS, per_period * SUBSTEPS, SUBSTEPS, rho_inf,
+                1e-10, 1e6, P, E)
+        if status != 0:
+            return X, cmd, status, t_stop
+        for s in range(1, per_period + 1):
+            g = k * per_period + s
+            if g % out_stride == 0:
+                X[g // out_stride] = Xs[s]
+        x = x_stop
+    return X, cmd, 0, n_steps * h
+
+
+@njit(cache=True)
+def _tips(Q, P):
+    """(n, 2): the arm's end for every row of Q (kernels.link_origins)."""
+    out = np.empty((Q.shape[0], 2))
+    for k in range(Q.shape[0]):
+        out[k] = link_origins(Q[k], P)[-1]
+    return out
+
+
+@dataclass
+class Prediction:
+    """The twin's channels at the recording's samples (same names as the Recording)."""
+
+    t: np.ndarray
+    channels: dict
+    q: np.ndarray      # model coordinates at the samples
+    v: np.ndarray
+
+
+def initial_state(model: FlexArmModel, theta0, rates0=None) -> np.ndarray:
+    """[q; v]: joints at ``theta0`` with the links in static equilibrium under gravity
+    (joints clamped), moving with the joint rates ``rates0`` (undeformed velocity field)."""
+    theta0 = np.asarray(theta0, float)
+    try:
+        q = static_equilibrium(model, theta0, joints="clamped").q
+    except (StaticConvergenceError, np.linalg.LinAlgError):
+        q = static_equilibrium(model, theta0, joints="clamped", linear=True).q
+    v = model.v_from_joint_rates(np.zeros(model.n_links) if rates0 is None else rates0)
+    return np.concatenate([q, v])
+
+
+def measured_start(rec, window: float = 0.05):
+    """Joint angles and rates at the first sample, from a quadratic fit over the first
+    ``window`` seconds (averages the sensor noise out of the replay's initial state)."""
+    n = max(3, min(len(rec.t), int(round(window / rec.dt)) + 1))
+    t = rec.t[:n] - rec.t[0]
+    A = np.column_stack([np.ones(n), t, t * t])
+    out = []
+    for kind in ("q", "v"):
+        coef, *_ = np.linalg.lstsq(A, rec.stack(kind)[:n], rcond=None)
+        out.append(coef[0])
+    return out
+
+
+def _delay_periods(model: FlexArmModel, period: float) -> np.ndarray:
+    d = [getattr(model.arm.effect("actuator_delay", j), "values", (0.0,))[0]
+         for j in model.arm.joint_names]
+    return np.array([int(np.ceil(x / period - 1e-9)) if x > 0 else 0 for x in d], np.int64)
+
+
+def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription, x0,
+                         t_final: float, qset_at_instants, ff_at_instants, *,
+                         sample_period: float, dt: float = DEFAULT_STEP, rho_inf: float = 0.9,
+                         sensor_bias=None, sensor_delay=None):
+    """(X, CMD) every ``sample_period`` over [0, t_final]: the states of the arm under the
+    sampled law and the command issued at the latest control instant.
+
+    ``qset_at_instants``/``ff_at_instants``: (n_periods + 1, n_joints) reference and
+    feed-forward at the control instants k * period; ``sensor_bias`` (per controller
+    channel) is added to what the controller reads, ``sensor_delay`` (per channel, whole
+    control periods) delays it (the first reading before the record starts).
+    """
+    period = controller.period
+    per_period = max(1, int(np.ceil(period / dt - 1e-9)))
+    h = period / per_period
+    stride = int(round(sample_period / h))
+    if stride < 1 or abs(stride * h - sample_period) > 1e-9 * sample_period:
+        raise ValueError(f"sample period {sample_period:g} s is not a multiple of the "
+                         f"integration step {h:g} s (controller period {period:g} s)")
+    n_periods = int(round(t_final / period))
+    E = _input_data(model, None, (), np.zeros(model.n_links))
+    C = controller.channel_matrix(model)
+    nc = len(controller.channels)
+    ref = controller.reference(qset_at_instants[:n_periods + 1])
+    bias = np.zeros(nc) if sensor_bias is None else np.asarray(sensor_bias, float)
+    sdelay = np.zeros(nc, np.int64) if sensor_delay is None else \
+        np.asarray(sensor_delay, np.int64)
+    X, cmd, status, t_stop = _closed_loop(
+        np.asarray(x0, float), model.P, E, h, per_period, n_periods, rho_inf, C,
+        np.ascontiguousarray(controller.gains), np.ascontiguousarray(controller.rate_gains),
+        np.ascontiguousarray(ref), np.ascontiguousarray(ff_at_instants[:n_periods + 1]),
+        bias, _delay_periods(model, period), sdelay, stride)
+    if status != 0:
+        raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
+                                      f"(status {status}: diverged or Newton failed)")
+    k = np.floor(np.arange(len(X)) * sample_period / period + 1e-9).astype(int)
+    return X, cmd[np.minimum(k, n_periods)]
+
+
+def _held(t_rec, values, instants):
+    """Zero-order hold of sampled values at the given instants (latest sample <= t)."""
+    k = np.clip(np.searchsorted(t_rec, instants + 1e-9, side="right") - 1, 0, len(t_rec) - 1)
+    return values[k]
+
+
+def predict(model: FlexArmModel, x: np.ndarray, tau: np.ndarray, t: np.ndarray,
+            want) -> Prediction:
+    """The channels ``want`` of states x (n, 2 nq) and commands tau (n, n_joints)."""
+    nq = model.nq
+    q, v = x[:, :nq], x[:, nq:]
+    ch = {}
+    qa, va = q @ model.Ga.T, v @ model.Ga.T
+    for i in range(model.n_links):
+        ch[f"q{i + 1}"] = qa[:, i]
+        ch[f"v{i + 1}"] = va[:, i]
+        ch[f"tau{i + 1}"] = tau[:, i]
+        ch[f"w{i + 1}"] = q[:, model.tip_deflection_index(i)]
+    if "tip_x" in want or "tip_y" in want:
+        tips = _tips(np.ascontiguousarray(q), model.P)
+        ch["tip_x"], ch["tip_y"] = tips[:, 0], tips[:, 1]
+    return Prediction(t=t, channels={k: ch[k] for k in want}, q=q, v=v)
+
+
+def replay(model: FlexArmModel, controller: ControllerDescription, rec, *,
+           nominal_model: FlexArmModel | None = None, dt: float = DEFAULT_STEP,
+           sensor_bias=None, sensor_delay=None, ff=None, x0=None) -> Prediction:
+    """Replay the Recording ``rec`` in closed loop through ``model``.
+
+    The reference is the recorded ``qset`` (held at the control instants); the gravity
+    feed-forward uses ``nominal_model`` (the controller's model; default ``model``), or
+    pass ``ff`` (n_periods + 1, n_joints) precomputed. The twin starts at the measured joint
+    angles and rates of the first sample with its links in static equilibrium.
+    """
+    period = controller.period
+    t_rel = rec.t - rec.t[0]
+    t_final = t_rel[-1]
+    instants = np.arange(int(round(t_final / period)) + 1) * period
+    qset = _held(t_rel, rec.stack("qset"), instants)
+    if ff is None:
+        recorded = _held(t_rel, rec.stack("tau_ff"), instants) \
+            if controller.feedforward_mode == "recorded" else None
+        ff = controller.feedforward(nominal_model or model, qset, recorded)
+    if x0 is None:
+        x0 = initial_state(model, *measured_start(rec))
+    X, TAU = simulate_closed_loop(model, controller, x0, t_final, qset, ff,
+                                  sample_period=rec.dt, dt=dt, sensor_bias=sensor_bias,
+                                  sensor_delay=sensor_delay)
+    n = min(len(X), len(rec.t))
+    return predict(model, X[:n], TAU[:n], rec.t[:n], rec.residual_channels)
+
+
+def residuals(rec, pred: Prediction) -> dict:
+    """Measured minus predicted, per channel (samples the prediction covers)."""
+    n = len(pred.t)
+    return {k: rec.channels[k][:n] - pred.channels[k] for k in pred.channels}

@@ -1,0 +1,180 @@
+"""Outputs of a diagnosis (issue 8, step 5): the updated arm YAML, a markdown report with
+PNG plots (time overlays and residual spectra before/after), and the JSON summary.
+
+The updated arm is the nominal YAML mapping with the baseline scales applied to E and rho
+(:func:`.baseline.scale_raw`), the named effects appended to ``effects:`` (encoder faults
+to ``sensors:``, a payload change to ``payload:``, a stiffness change to the link's E),
+and the fitted values with their 95 % intervals as comments: it loads with
+:func:`flex_model.arm.load_arm` and the model node as it is.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from flex_model.config import read_yaml
+from .baseline import apply_scales, scale_raw, scale_raw_link
+from .evaluation import predict_channels, twin_arm
+
+
+def updated_arm_dict(nominal_path, diagnosis) -> dict:
+    """The raw mapping of the updated arm description."""
+    ctx = diagnosis.contexts[0]
+    raw = read_yaml(nominal_path)
+    scales = np.array(list(diagnosis.scales.values()))
+    raw = scale_raw(raw, ctx.baseline_params, scales)
+    scaled = apply_scales(ctx.nominal, ctx.baseline_params, scales)
+    raw["name"] = f"{raw.get('name', 'arm')}_diagnosed"
+    for c in diagnosis.accepted:
+        hyp, x = next((h, x) for h, x in diagnosis.final_effects if h.label == c.label)
+        for entry in hyp.effect_dicts(scaled, x):
+            if "sensor" in entry:
+                raw.setdefault("sensors", []).append(entry["sensor"])
+            elif "link_stiffness" in entry:
+                change = entry["link_stiffness"]
+                i = [lk.get("name", f"link{k + 1}")
+                     for k, lk in enumerate(raw["links"])].index(change["link"])
+                scale_raw_link(raw["links"][i], "EI", 1.0 + change["relative_change"])
+            else:  # replaces an effect of the same type and target (a gear's rotor moved)
+                tgt = entry.get("joint", entry.get("link"))
+                raw["effects"] = [e for e in raw.get("effects", []) if not (
+                    e.get("type") == entry["type"] and e.get("joint", e.get("link")) == tgt)]
+                raw["effects"].append(entry)
+        if c.kind == "payload":
+            raw.setdefault("payload", {})
+            raw["payload"]["mass"] = float(raw["payload"].get("mass", 0.0)) + float(c.values[0])
+    return raw
+
+
+def write_arm_yaml(path, nominal_path, diagnosis) -> None:
+    """Write the updated arm with a comment header (verdict, fitted values, intervals)."""
+    raw = updated_arm_dict(nominal_path, diagnosis)
+    lines = [f"# updated by flex-twin diagnose from {nominal_path}: {diagnosis.verdict}",
+             "# baseline scales (1 = nominal): " + ", ".join(
+                 f"{k} {v:.4f}" for k, v in diagnosis.scales.items())]
+    for c in diagnosis.accepted:
+        vals = ", ".join(f"{n} = {v:.6g} +- {e:.2g}" for n, v, e in zip(c.names, c.values, c.ci))
+        lines.append(f"# named: {c.label}: {vals} (95 % interval), held-out share "
+                     f"{c.share:.3f}")
+    text = "\n".join(lines) + "\n" + yaml.safe_dump(raw, sort_keys=False)
+    Path(path).write_text(text)
+
+
+def _candidate_json(c) -> dict:
+    return {"label": c.label, "kind": c.kind, "target": c.target,
+            "parameters": {n: float(v) for n, v in zip(c.names, c.values)},
+            "ci95": {n: float(e) for n, e in zip(c.names, c.ci)},
+            "screen_score": float(c.screen), "J_fit": float(c.J_fit),
+            "J_holdout": float(c.J_holdout), "share_explained": float(c.share),
+            "share_explained_fit": float(c.share_fit),
+            "delta_bic": float(c.delta_bic), "condition": float(c.cond),
+            "identifiable": bool(c.identifiable)}
+
+
+def summary(diagnosis) -> dict:
+    """The JSON summary (also what the benchmark reads)."""
+    rounds = []
+    for rd in diagnosis.rounds:
+        cands = sorted(rd["candidates"], key=lambda c: -c.share)
+        rounds.append({"picked": rd["picked"],
+                       "runner_up": next((c.label for c in cands if c.label != rd["picked"]),
+                                         None),
+                       "margin": (float(cands[0].share - cands[1].share)
+                                  if len(cands) > 1 else None),
+                       "candidates": [_candidate_json(c) for c in cands]})
+    J = diagnosis.J
+    base = J["baseline_holdout"] - 1.0
+    return {"verdict": diagnosis.verdict, "stop": diagnosis.stop,
+            "named": [_candidate_json(c) for c in diagnosis.accepted],
+            "gate": {"excess_threshold": diagnosis.gate, "baseline_excess_holdout": base,
+                     "final_excess_holdout": J["final_holdout"] - 1.0,
+                     "material": base > diagnosis.gate},
+            "cost": {k: float(v) for k, v in J.items()},
+            "holdout_error_reduction": float(1.0 - (J["final_holdout"] - 1.0)
+                                             / max(J["nominal_holdout"] - 1.0, 1e-12)),
+            "baseline_scales": diagnosis.scales, "rounds": rounds,
+            "localisation": diagnosis.localisation, "timing": diagnosis.timing}
+
+
+def _plots(out: Path, diagnosis) -> list[str]:
+    from scipy.signal import welch
+
+    from flex_model.plots import finish_figure, plt
+    ctx_ho = diagnosis.contexts[1]
+    rec = ctx_ho.rec
+    before = predict_channels(ctx_ho, twin_arm(ctx_ho, np.ones(len(ctx_ho.baseline_params))))
+    after = predict_channels(ctx_ho, twin_arm(ctx_ho, np.array(list(diagnosis.scales.values())),
+                                              diagnosis.final_effects))
+    chans = rec.residual_channels
+    n = len(before.t)
+    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.6 * len(chans)), sharex=True)
+    for ax, c in zip(np.atleast_1d(axes), chans):
+        ax.plot(rec.t[:n], rec.channels[c][:n], "k", lw=0.8, label="measured")
+        ax.plot(before.t, before.channels[c], "r", lw=0.7, label="nominal twin")
+        ax.plot(after.t, after.channels[c], "b--", lw=0.7, label="diagnosed twin")
+        ax.set_ylabel(c)
+    np.atleast_1d(axes)[-1].set_xlabel("t (s) - held-out recording")
+    finish_figure(fig, axes, out / "overlay.png")
+    fig, axes = plt.subplots(len(chans), 1, figsize=(9, 1.6 * len(chans)), sharex=True)
+    for ax, c in zip(np.atleast_1d(axes), chans):
+        for pred, col, lab in ((before, "r", "nominal"), (after, "b", "diagnosed")):
+            f, p = welch(rec.channels[c][:n] - pred.channels[c], fs=1.0 / rec.dt,
+                         nperseg=min(n, 2048))
+            ax.semilogy(f, p, col, lw=0.8, label=lab)
+        ax.set_ylabel(c)
+        ax.set_xlim(0, 30)
+    np.atleast_1d(axes)[-1].set_xlabel("frequency (Hz) - residual power spectra")
+    finish_figure(fig, axes, out / "spectra.png")
+    return ["overlay.png", "spectra.png"]
+
+
+def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:
+    """Write diagnosed_arm.yaml, diagnosis.json, report.md (+ PNGs) into out_dir."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_arm_yaml(out / "diagnosed_arm.yaml", nominal_path, diagnosis)
+    s = summary(diagnosis)
+    (out / "diagnosis.json").write_text(json.dumps(s, indent=1, default=float))
+    files = _plots(out, diagnosis) if plots else []
+    J = diagnosis.J
+    md = [f"# Diagnosis: {diagnosis.verdict}", "",
+          f"Nominal arm `{nominal_path}`; updated arm `diagnosed_arm.yaml`.", "",
+          ] + [f"- named **{c.label}**: " + ", ".join(
+              f"{n} = {v:.5g} +- {e:.2g}" for n, v, e in zip(c.names, c.values, c.ci))
+              + f" (held-out share {c.share:.3f})" for c in diagnosis.accepted] + [
+          "", "## Gate (cost J in units of a healthy twin's noise power: white-noise estimate "
+          "x healthy ratio; excess = J - 1)", "",
+          "| twin | J fit | J held out |", "|---|---|---|",
+          f"| nominal | {J['nominal_fit']:.4g} | {J['nominal_holdout']:.4g} |",
+          f"| baseline (within tolerance) | {J['baseline_fit']:.4g} | "
+          f"{J['baseline_holdout']:.4g} |",
+          f"| diagnosed | {J['final_fit']:.4g} | {J['final_holdout']:.4g} |", "",
+          f"Gate: material when the held-out excess of the baseline exceeds "
+          f"{diagnosis.gate:g} (here {J['baseline_holdout'] - 1:.3g}). Held-out excess "
+          f"error reduced by {100 * s['holdout_error_reduction']:.1f} % against the nominal "
+          f"twin. The search ended: {diagnosis.stop}.", ""]
+    for k, rd in enumerate(s["rounds"]):
+        margin = "-" if rd["margin"] is None else f"{rd['margin']:.3f}"
+        md += [f"## Round {k + 1}: picked {rd['picked'] or 'nothing'} (runner-up "
+               f"{rd['runner_up']}, margin in share {margin})",
+               "", "| hypothesis | parameters (95 % interval) | screen | share held out | "
+               "share fit | dBIC | cond | identifiable |", "|---|---|---|---|---|---|---|---|"]
+        for c in rd["candidates"]:
+            par = ", ".join(f"{n} {v:.4g} +- {c['ci95'][n]:.2g}"
+                            for n, v in c["parameters"].items())
+            md.append(f"| {c['label']} | {par} | {c['screen_score']:.3g} | "
+                      f"{c['share_explained']:.3f} | {c['share_explained_fit']:.3f} | "
+                      f"{c['delta_bic']:.3g} | "
+                      f"{c['condition']:.3g} | {c['identifiable']} |")
+        md.append("")
+    md += ["## Baseline scales", "", ", ".join(f"{k} {v:.4f}"
+                                               for k, v in diagnosis.scales.items()), ""]
+    if diagnosis.localisation:
+        md += ["## Localisation of what remains", "", "```",
+               json.dumps(diagnosis.localisation, indent=1, default=float), "```", ""]
+    md += [f"![{f}]({f})" for f in files]
+    (out / "report.md").write_text("\n".join(md) + "\n")
+    return s

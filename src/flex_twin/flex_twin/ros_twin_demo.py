@@ -1,0 +1,193 @@
+"""The twin demo over ROS: the thesis Ch. V task (VALIDATION.md section F).
+
+The planner node inverts the four tip waypoints and publishes the joint trajectory with the
+admissible nominal torque, the controller node applies Eq. (95) (h = 25, a = 5) with that
+feed-forward, the model node integrates the arm in lockstep; the three talk over ROS
+topics in one process (one SingleThreadedExecutor, see flex_model.ros_main). Everything is
+recorded into a rosbag2 (MCAP) bag under runs/<timestamp>/; then a summary table and PNG
+plots.
+
+The arm is ``thesis_example1_motors``: the section F arm with geared motors at the joints
+(a hub-less flexible arm makes the sampled Eq. 95 loop unstable, see the preset).
+"""
+from __future__ import annotations
+
+import time
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+WAYPOINTS = np.array([[-1.0, -1.0], [-2.0, -1.0], [-2.0, -2.0], [-1.0, -2.0]])
+TIMES = np.array([0.0, 5.0, 10.0, 15.0])
+RECORDED = {"/joint_states": "sensor_msgs/msg/JointState",
+            "/flex/deflections": "sensor_msgs/msg/JointState",
+            "/flex/tip_pose": "geometry_msgs/msg/PoseStamped",
+            "/flex/shape": "visualization_msgs/msg/MarkerArray",
+            "/effort_controller/commands": "std_msgs/msg/Float64MultiArray",
+            "/flex_planner/waypoints": "nav_msgs/msg/Path",
+            "/clock": "rosgraph_msgs/msg/Clock"}
+
+
+def _waypoints_msg(stamp):
+    from geometry_msgs.msg import PoseStamped
+    from nav_msgs.msg import Path as PathMsg
+    msg = PathMsg()
+    msg.header.frame_id = "base_link"
+    for (x, y), t in zip(WAYPOINTS, TIMES):
+        pose = PoseStamped()
+        pose.header.frame_id = "base_link"
+        pose.header.stamp = stamp(t)
+        pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+        pose.pose.orientation.w = 1.0
+        msg.poses.append(pose)
+    return msg
+
+
+def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0,
+        progress=None) -> dict:
+    """Run the demo; returns the summary (also written as summary.json)."""
+    import json
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
+    from geometry_msgs.msg import PoseStamped
+    from std_msgs.msg import Float64MultiArray
+    from trajectory_msgs.msg import JointTrajectory
+
+    from flex_control.controller_node import ControllerNode
+    from flex_planner.planner_node import PlannerNode
+
+    from flex_model import ros_conversions as conv
+    from .bags import BagWriter, Recorder
+    from flex_model.model_node import ModelNode
+
+    out_dir = Path(out_dir or Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-twin-demo")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    arm = "thesis_example1_motors"
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    P = Parameter
+    # lean nodes (flex_model.ros_main.lean_node, as ros2_ws/params/suite.yaml): a faster loop
+    lean = [P(name, value=False) for name in (
+        "parameter_services", "qos_event_warnings", "start_type_description_service")]
+    nodes, ex = [], None
+    wall0 = time.perf_counter()
+    try:
+        planner = PlannerNode(context=ctx, parameter_overrides=[
+            P("arm", value=arm), P("sample_period", value=1.0 / rate), *lean])
+        controller = ControllerNode(context=ctx, parameter_overrides=[
+            P("h", value=[25.0, 25.0]), P("a", value=[5.0, 5.0]), P("rate_hz", value=rate),
+            P("use_sim_time", value=True), P("state_timeout", value=0.5), *lean])
+        probe = rclpy.create_node("demo_probe", context=ctx)
+        nodes += [planner, controller, probe]
+        ex = SingleThreadedExecutor(context=ctx)
+        for n in nodes:
+            ex.add_node(n)
+        plans = []
+        probe.create_subscription(JointTrajectory, "flex_planner/trajectory", plans.append, 1)
+        tips, states = [], []
+        probe.create_subscription(PoseStamped, "/flex/tip_pose", tips.append, 100)
+        probe.create_subscription(JointState, "/joint_states", states.append, 1000)
+        commands = []
+        probe.create_subscription(Float64MultiArray, "/effort_controller/commands",
+                                  commands.append, 1000)
+        defl = []
+        probe.create_subscription(JointState, "/flex/deflections", defl.append, 1000)
+        pub = probe.create_publisher(type(_waypoints_msg(conv.stamp)), "flex_planner/waypoints",
+                                     1)
+
+        def spin_until(pred, what, timeout=120.0):
+            end = time.monotonic() + timeout
+            while not pred():
+                if time.monotonic() > end:
+                    raise RuntimeError(f"twin demo: timed out waiting for {what}")
+                ex.spin_once(timeout_sec=0.01)
+        spin_until(lambda: pub.get_subscription_count() > 0, "the planner")
+        pub.publish(_waypoints_msg(conv.stamp))
+        spin_until(lambda: plans, "the plan")
+        first = np.degrees(plans[-1].points[0].positions)
+        model = ModelNode(context=ctx, parameter_overrides=[
+            P("arm", value=arm), P("mode", value="lockstep"), P("rate", value=rate),
+            P("publish_rate", value=50.0), P("initial_joint_angles_deg", value=list(first)),
+            P("start_static", value=True), P("lockstep_timeout", value=0.5), *lean])
+        nodes.append(model)
+        ex.add_node(model)
+        with BagWriter(out_dir / "bag") as bag:
+            recorder = Recorder(probe, bag, RECORDED, use_header_stamp=(
+                "/joint_states", "/flex/deflections", "/flex/tip_pose"))
+            next_mark = 0.0
+            while model.stepper.t < duration - 1e-9:
+                ex.spin_once(timeout_sec=0.01)
+                if progress is not None and model.stepper.t >= next_mark:
+                    progress(model.stepper.t, duration)
+                    next_mark += duration / 20
+            recorder.stop()
+        wall = time.perf_counter() - wall0
+    finally:
+        if ex is not None:
+            ex.shutdown()
+        for n in nodes:
+            n.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    summary = _summarize(tips, states, defl, commands, plans[-1], wall, duration, out_dir)
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def _stamp_s(msg):
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def _by_time(msgs):
+    """Messages sorted by their header stamps, one per stamp."""
+    seen = {}
+    for m in msgs:
+        seen.setdefault(_stamp_s(m), m)
+    return [seen[t] for t in sorted(seen)]
+
+
+def _summarize(tips, states, defl, commands, plan, wall, duration, out_dir) -> dict:
+    from flex_model.plots import finish_figure, plt
+    tips, states, defl = _by_time(tips), _by_time(states), _by_time(defl)
+    t_tip = np.array([_stamp_s(m) for m in tips])
+    xy = np.array([[m.pose.position.x, m.pose.position.y] for m in tips])
+    errors = []
+    for (x, y), t in zip(WAYPOINTS, TIMES):
+        if t > duration + 1e-9:
+            continue
+        k = int(np.argmin(np.abs(t_tip - t)))
+        errors.append({"t_s": float(t), "tip_error_mm": float(1e3 * np.hypot(*(xy[k] - (x, y)))),
+                       "sampled_at_s": float(t_tip[k])})
+    t_js = np.array([_stamp_s(m) for m in states])
+    q = np.array([m.position for m in states])
+    tau = np.array([m.effort for m in states])
+    d = np.array([m.position for m in defl])
+    t_d = np.array([_stamp_s(m) for m in defl])
+    summary = {"waypoints": errors,
+               "max_abs_tip_deflection_mm": (1e3 * np.abs(d[:, 0::2]).max(axis=0)).tolist(),
+               "peak_torque_nm": np.abs(tau).max(axis=0).tolist(),
+               "simulated_s": duration, "wall_s": wall,
+               "real_time_factor": duration / wall, "bag": str(out_dir / "bag")}
+    fig, ax = plt.subplots(2, 2, figsize=(12, 8))
+    ax[0, 0].plot(xy[:, 0], xy[:, 1], label="tip (model)")
+    ax[0, 0].plot(WAYPOINTS[:, 0], WAYPOINTS[:, 1], "ro", label="waypoints")
+    ax[0, 0].set(xlabel="x [m]", ylabel="y [m]", title="tip path vs waypoints")
+    ax[0, 0].set_aspect("equal", adjustable="datalim")
+    t_ref = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
+                      for p in plan.points])
+    q_ref = np.array([p.positions for p in plan.points])
+    for j in range(q.shape[1]):
+        ax[0, 1].plot(t_js, np.degrees(q[:, j]), label=f"joint{j + 1}")
+        ax[0, 1].plot(t_ref, np.degrees(q_ref[:, j]), "k--", lw=0.7)
+        ax[1, 1].plot(t_js, tau[:, j], label=f"joint{j + 1}")
+    ax[0, 1].set(xlabel="t [s]", ylabel="joint angle [deg]", title="joints (dashed: plan)")
+    for i in range(d.shape[1] // 2):
+        ax[1, 0].plot(t_d, 1e3 * d[:, 2 * i], label=f"link{i + 1}")
+    ax[1, 0].set(xlabel="t [s]", ylabel="tip deflection [mm]", title="link deflections")
+    ax[1, 1].set(xlabel="t [s]", ylabel="torque [N m]", title="joint torques")
+    finish_figure(fig, ax, out_dir / "twin_demo.png", "flex-twin: thesis Ch. V task over ROS")
+    summary["png"] = str(out_dir / "twin_demo.png")
+    return summary
