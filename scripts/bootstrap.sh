@@ -21,6 +21,7 @@ REQUIREMENTS=(
   ros-jazzy-common-interfaces
   numpy scipy numba pyyaml matplotlib
   mcap mcap-ros2-support rosbags
+  distributed
   pytest
 )
 

@@ -30,5 +30,11 @@ setup(
             'flex-controller-node = flex_control.controller_node:main',
             'controller_node = flex_control.controller_node:main',
         ],
+        # in-loop controllers for the model node (flex_model.controller_interface)
+        'flex_twin.controllers': [
+            'eq95 = flex_control.in_loop:eq95',
+            'eq45 = flex_control.in_loop:eq45',
+            'state_feedback = flex_control.in_loop:state_feedback',
+        ],
     },
 )

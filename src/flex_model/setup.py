@@ -37,7 +37,6 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'flex-twin = flex_twin.cli:main',
             'flex-model-node = flex_model.model_node:main',
             'model_node = flex_model.model_node:main',
         ],

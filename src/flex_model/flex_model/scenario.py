@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .arm import PRESET_DIR, ArmDescription, load_arm, resolve_preset
+from .arm import PRESET_DIR, ArmDescription, arm_from_dict, load_arm, resolve_preset
 from .config import ConfigError, Fields, read_yaml
 from .dynamics import FlexArmModel
 from .simulate import JointPD, Pulse, SimulationResult, simulate
@@ -105,18 +105,31 @@ def _joint_index(f: Fields, key: str, arm: ArmDescription) -> int:
 def load_scenario(name_or_path, vars_per_link: int | None = None) -> Scenario:
     """Load and validate a scenario by preset name or path."""
     path = resolve_preset(name_or_path, SCENARIO_DIR)
-    src = str(path)
-    f = Fields(read_yaml(path), src, "")
-    name = f.string("name", Path(path).stem)
-    arm_ref = f.string("arm")
-    local = Path(path).parent / arm_ref
-    try:
-        arm = load_arm(local if local.suffix in (".yaml", ".yml") and local.exists()
-                       else arm_ref)
-    except ConfigError as exc:
-        if exc.path == "<preset>":
-            raise f.error("arm", arm_ref, exc.allowed) from None
-        raise
+    return scenario_from_dict(read_yaml(path), str(path), Path(path).parent, vars_per_link,
+                              default_name=Path(path).stem)
+
+
+def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None,
+                       vars_per_link: int | None = None,
+                       default_name: str = "scenario") -> Scenario:
+    """Validate a scenario mapping (the YAML's content). ``arm`` is a preset name, a path
+    (relative to ``base_dir``) or an inline arm mapping (:func:`flex_model.arm.arm_from_dict`);
+    errors name ``source`` and the field."""
+    src = source
+    f = Fields(data, src, "")
+    name = f.string("name", default_name)
+    if isinstance(f.raw("arm"), dict):
+        arm = arm_from_dict(f.raw("arm"), f"{src}: arm")
+    else:
+        arm_ref = f.string("arm")
+        local = Path(base_dir or Path.cwd()) / arm_ref
+        try:
+            arm = load_arm(local if local.suffix in (".yaml", ".yml") and local.exists()
+                           else arm_ref)
+        except ConfigError as exc:
+            if exc.path == "<preset>":
+                raise f.error("arm", arm_ref, exc.allowed) from None
+            raise
     nv = f.integer("vars_per_link", 0, min_value=0, max_value=200)
     nv = vars_per_link if vars_per_link is not None else nv
     if vars_per_link is not None or nv:

@@ -363,27 +363,30 @@ def build_parser() -> argparse.ArgumentParser:
     add_bag_parsers(sub)
     from .ros_suite import add_up_parser  # up: the nodes from a parameter file
     add_up_parser(sub)
-    # subcommands of flex_model's workflows (compare, diagnose, replay/import) and of the
-    # other packages when installed (imported here only, so that the core of flex_model
-    # never depends on them)
-    for module, hook in (("flex_twin.comparison.cli", "add_compare_parser"),
-                         ("flex_twin.diagnosis.cli", "add_diagnose_parser"),
-                         ("flex_twin.real_arms.cli", "add_real_arm_parsers"),
-                         ("flex_twin.real_arms.modal_cli", "add_modal_parsers"),
-                         ("flex_planner.cli", "add_plan_parser"),
-                         ("flex_control.cli", "add_control_parser")):
-        try:
-            add = getattr(__import__(module, fromlist=[hook]), hook)
-        except ModuleNotFoundError as exc:
-            if not module.startswith(exc.name or "\0"):
-                raise
-            continue
+    from flex_control.cli import add_control_parser
+    from flex_planner.cli import add_plan_parser
+
+    from .comparison.cli import add_compare_parser
+    from .diagnosis.cli import add_diagnose_parser
+    from .real_arms.cli import add_real_arm_parsers
+    from .real_arms.modal_cli import add_modal_parsers
+    from .sweep import add_sweep_parser
+    for add in (add_compare_parser, add_diagnose_parser, add_real_arm_parsers,
+                add_modal_parsers, add_sweep_parser, add_plan_parser, add_control_parser):
         add(sub)
     return p
 
 
+BAG_COMMANDS = ("record", "play", "bag")
+
+
 def main(argv=None) -> int:
     ros_environment()  # also done on importing flex_model; repeated for embedding callers
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in BAG_COMMANDS:
+        # the recorder starts in ~1 s: without the analyses' imports (scipy, numba: seconds)
+        from .bag_cli import main as bag_main
+        return bag_main(argv)
     return run_command(build_parser().parse_args(argv))
 
 

@@ -1,0 +1,70 @@
+"""Benchmark: controllers in the model's loop (issue 24). Prints figures; not a timed test.
+
+The twin demo's task (thesis Ch. V, VALIDATION.md F): the planner's trajectory for the four
+waypoints, Eq. (95) with h = 25, a = 5 and the nominal torque as feed-forward, on the arm
+``thesis_example1_motors`` at a 500 Hz control rate with 1 ms model steps, 15 s. The
+controller runs in the model's update loop (flex_model.control_loop.ControlLoop, what the
+model node does with ``controller:=eq95``): the real-time factor is simulated / wall time
+of the loop alone (no ROS), the tip error at the waypoints checks it is the demo's run.
+
+    python bench/bench_in_loop.py [--rate 500] [--repeat 3]
+
+Compare with the topic loop of ``python bench/bench_ros_suite.py`` (model and controller
+nodes over ROS topics in lockstep) and the twin demo's printed real-time factor.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from flex_model.arm import load_arm
+from flex_model.control_loop import ControlLoop
+from flex_model.controller_interface import load_controller
+from flex_model.dynamics import FlexArmModel
+from flex_model.statics import static_equilibrium
+from flex_model.stepper import Stepper
+from flex_planner.planning import plan
+
+WAYPOINTS = np.array([[-1.0, -1.0], [-2.0, -1.0], [-2.0, -2.0], [-1.0, -2.0]])
+TIMES = np.array([0.0, 5.0, 10.0, 15.0])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rate", type=float, default=500.0, help="control rate (Hz)")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    model = FlexArmModel(load_arm("thesis_example1_motors"))
+    period = 1.0 / args.rate
+    traj = plan(model, WAYPOINTS, TIMES, sample_period=period).trajectory
+    theta0 = traj.positions[0]
+    q0 = static_equilibrium(model, theta0, joints="clamped").q
+    n = int(round(TIMES[-1] / period))
+    marks = {int(round(t / period)): k for k, t in enumerate(TIMES)}
+    best = None
+    for _ in range(args.repeat):
+        ctl = load_controller("eq95", model.arm.joint_names, {"h": [25.0], "a": [5.0]})
+        ctl.set_trajectory(traj)
+        loop = ControlLoop(Stepper(model, q0), ctl, period)
+        errors = {}
+        t0 = time.perf_counter()
+        for k in range(n + 1):
+            if k in marks:
+                errors[marks[k]] = float(np.linalg.norm(
+                    model.link_origins(loop.stepper.q)[-1] - WAYPOINTS[marks[k]]))
+            if k < n:
+                loop.advance(1)
+        wall = time.perf_counter() - t0
+        best = wall if best is None else min(best, wall)
+    rtf = TIMES[-1] / best
+    print(f"in-loop Eq. (95) at {args.rate:g} Hz, 1 ms model steps, {TIMES[-1]:g} s task: "
+          f"wall {best:.3f} s (best of {args.repeat}), real-time factor {rtf:.1f}, "
+          f"{1e6 * best / n:.0f} us per control period")
+    print("tip error at the waypoints (mm): "
+          + ", ".join(f"{1e3 * errors[k]:.2f}" for k in sorted(errors)))
+
+
+if __name__ == "__main__":
+    main()
