@@ -3,7 +3,10 @@
 rclpy is imported inside the command functions only: the caller (flex-twin's main, or
 :func:`main` here) sets ``ROS_AUTOMATIC_DISCOVERY_RANGE`` and ``ROS_DOMAIN_ID`` first.
 Each command uses its own rclpy context (no rclpy signal handlers): SIGINT and SIGTERM set
-a stop flag, and the bag is closed in ``finally``, so Ctrl-C leaves a complete bag.
+a stop flag, and the bag is closed in ``finally``, so Ctrl-C leaves a complete bag; SIGKILL
+or a crash leaves every chunk closed so far (chunks are closed every 0.5 s), which
+``bag info``, ``play`` and ``read_bag`` reindex. Damage found in a bag is printed as one
+``flex-twin: warning:`` line; an unreadable bag is one ``flex-twin: error:`` line, rc 2.
 """
 from __future__ import annotations
 
@@ -85,24 +88,49 @@ def cmd_record(args) -> int:
         types.update(discover_types(node, names, args.discovery_timeout, stop))
         for type_str in types.values():
             get_message(type_str)  # refuse unknown types before creating the bag
+        sim_time = getattr(args, "use_sim_time", None)
+        sim_time = "/clock" in types if sim_time is None else sim_time
         writer = BagWriter(out)
+        recorder = None
         try:
-            recorder = Recorder(node, writer, types, use_header_stamp=args.use_header_stamp)
-            print(f"recording {len(types)} topic(s) to {out}: {', '.join(sorted(types))}",
-                  file=sys.stderr, flush=True)
+            recorder = Recorder(node, writer, types, use_header_stamp=args.use_header_stamp,
+                                use_sim_time=sim_time)
+            base = "sim time (/clock)" if sim_time else "receive time"
+            print(f"recording {len(types)} topic(s) to {out}: {', '.join(sorted(types))}; "
+                  f"log time = {base}", file=sys.stderr, flush=True)
             t_end = None if args.duration is None else time.monotonic() + args.duration
             next_scan = time.monotonic() + 0.5
             while not stop.is_set() and (t_end is None or time.monotonic() < t_end):
                 executor.spin_once(timeout_sec=0.05)
+                writer.flush_if_due()  # a killed recorder keeps all but the last ~0.5 s
                 if args.all and time.monotonic() > next_scan:
                     next_scan = time.monotonic() + 0.5
                     for name in recorder.add_topics(standard_topics(node)):
                         print(f"recording new topic {name}", file=sys.stderr, flush=True)
         finally:
-            writer.close()
+            try:
+                if recorder is not None:
+                    recorder.stop()  # also declares topics that never had a publisher
+            finally:
+                writer.close()
     counts = writer.counts
     print(f"recorded {sum(counts.values())} message(s) on {len(counts)} topic(s) to {out}")
     return 0
+
+
+@contextmanager
+def _bag_warnings():
+    """Print each BagDamageWarning as one line on stderr (``flex-twin: warning: ...``)."""
+    import warnings
+
+    from .bags import BagDamageWarning
+
+    def show(message, category, *_args, **_kwargs):
+        print(f"flex-twin: warning: {message}", file=sys.stderr, flush=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", BagDamageWarning)
+        warnings.showwarning = show
+        yield
 
 
 def cmd_play(args) -> int:
@@ -110,9 +138,13 @@ def cmd_play(args) -> int:
     from .bags import BagError, Player
     if not args.rate > 0:
         raise BagError(f"play: --rate must be > 0, got {args.rate}")
-    with _ros_node("flex_twin_player") as (node, executor, stop):
+    with _ros_node("flex_twin_player") as (node, executor, stop), _bag_warnings():
         player = Player(node, args.path, rate=args.rate, topics=args.topics or None,
                         loop=args.loop, clock=args.clock)
+        if player.skipped_clock:
+            print(f"flex-twin: note: /clock is the player's (bag log time); the "
+                  f"{player.skipped_clock} recorded /clock message(s) are not replayed",
+                  file=sys.stderr, flush=True)
         deadline = time.monotonic() + args.delay  # let subscribers discover the publishers
         while time.monotonic() < deadline and not stop.is_set():
             executor.spin_once(timeout_sec=0.02)
@@ -125,16 +157,22 @@ def cmd_play(args) -> int:
 
 def cmd_bag_info(args) -> int:
     """Print a bag's summary (``--json``: machine-readable, units in the key names)."""
-    from .bags import bag_info
-    info = bag_info(args.path)
+    import warnings
+
+    from .bags import BagDamageWarning, bag_info
+    with warnings.catch_warnings():  # bag_info lists them in info["warnings"]
+        warnings.simplefilter("ignore", BagDamageWarning)
+        info = bag_info(args.path)
+    for text in info["warnings"]:
+        print(f"flex-twin: warning: {text}", file=sys.stderr, flush=True)
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
 
     def stamp(t_s):
         return f"{datetime.fromtimestamp(t_s):%Y-%m-%d %H:%M:%S.%f} ({t_s:.9f} s)"
-    print(f"bag:       {info['path']} (rosbag2 v{info['version']}, "
-          f"{info['storage_identifier']})")
+    version = "no metadata.yaml" if info["version"] is None else f"v{info['version']}"
+    print(f"bag:       {info['path']} (rosbag2 {version}, {info['storage_identifier']})")
     print(f"duration:  {info['duration_s']:.6f} s")
     print(f"start:     {stamp(info['start_time_s'])}")
     print(f"end:       {stamp(info['end_time_s'])}")
@@ -158,8 +196,15 @@ def add_bag_parsers(subparsers) -> None:
     sp.add_argument("--duration", type=float, help="stop after S seconds")
     sp.add_argument("--use-header-stamp", nargs="+", default=(), metavar="TOPIC",
                     help="stamp these topics with header.stamp instead of receive time")
-    sp.add_argument("--discovery-time", type=float, default=1.0,
-                    help="--all: seconds to watch the graph before subscribing")
+    sim = sp.add_mutually_exclusive_group()
+    sim.add_argument("--use-sim-time", dest="use_sim_time", action="store_true",
+                     default=None, help="log time = the latest /clock (default when /clock "
+                     "is among the recorded topics)")
+    sim.add_argument("--no-sim-time", dest="use_sim_time", action="store_false",
+                     help="log time = wall-clock receive time even when /clock is recorded")
+    sp.add_argument("--discovery-time", type=float, default=0.5,
+                    help="--all: seconds to watch the graph before the first subscriptions "
+                    "(topics seen later are added every 0.5 s while recording)")
     sp.add_argument("--discovery-timeout", type=float, default=5.0,
                     help="seconds to wait for named topics to appear")
     sp.set_defaults(func=cmd_record)
@@ -169,7 +214,8 @@ def add_bag_parsers(subparsers) -> None:
     sp.add_argument("--rate", type=float, default=1.0, help="time scale factor (2 = 2x)")
     sp.add_argument("--topics", nargs="+", help="only these topics")
     sp.add_argument("--loop", action="store_true", help="restart at the end (until Ctrl-C)")
-    sp.add_argument("--clock", action="store_true", help="publish /clock with the bag time")
+    sp.add_argument("--clock", action="store_true", help="publish /clock with the bag "
+                    "time (a /clock recorded in the bag is then not replayed)")
     sp.add_argument("--delay", type=float, default=0.5,
                     help="seconds to wait for discovery before the first message")
     sp.set_defaults(func=cmd_play)
@@ -185,11 +231,17 @@ def add_bag_parsers(subparsers) -> None:
 def main(argv=None) -> int:
     """``python -m flex_twin.bag_cli record|play|bag info`` (same as in flex-twin)."""
     from flex_model import ros_environment
-    from flex_model.command import run_command
     ros_environment()
     parser = argparse.ArgumentParser(prog="flex-twin")
     add_bag_parsers(parser.add_subparsers(dest="command", required=True))
-    return run_command(parser.parse_args(argv))
+    args = parser.parse_args(argv)
+    # flex_model.command.run_command's exit codes (0, 2 + one line for bad input) without
+    # importing it: it loads flex_model.simulate (numba, ~1.2 s of the recorder's start)
+    try:
+        return args.func(args)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"flex-twin: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -4,8 +4,9 @@ The planner node inverts the four tip waypoints and publishes the joint trajecto
 admissible nominal torque, the controller node applies Eq. (95) (h = 25, a = 5) with that
 feed-forward, the model node integrates the arm in lockstep; the three talk over ROS
 topics in one process (one SingleThreadedExecutor, see flex_model.ros_main). Everything is
-recorded into a rosbag2 (MCAP) bag under runs/<timestamp>/; then a summary table and PNG
-plots.
+recorded into a rosbag2 (MCAP) bag under runs/<timestamp>/ with the simulation time as log
+time (bag duration = simulated duration; ``flex-twin play --clock`` replays it in sim time);
+then a summary table and PNG plots.
 
 The arm is ``thesis_example1_motors``: the section F arm with geared motors at the joints
 (a hub-less flexible arm makes the sampled Eq. 95 loop unstable, see the preset).
@@ -52,6 +53,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
+    from rclpy.qos import DurabilityPolicy, QoSProfile
     from sensor_msgs.msg import JointState
     from geometry_msgs.msg import PoseStamped
     from std_msgs.msg import Float64MultiArray
@@ -96,8 +98,10 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                                   commands.append, 1000)
         defl = []
         probe.create_subscription(JointState, "/flex/deflections", defl.append, 1000)
+        # latched (transient local): the recorder, started later, records the waypoints too
         pub = probe.create_publisher(type(_waypoints_msg(conv.stamp)), "flex_planner/waypoints",
-                                     1)
+                                     QoSProfile(depth=1,
+                                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
         def spin_until(pred, what, timeout=120.0):
             end = time.monotonic() + timeout
@@ -116,7 +120,10 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         nodes.append(model)
         ex.add_node(model)
         with BagWriter(out_dir / "bag") as bag:
-            recorder = Recorder(probe, bag, RECORDED, use_header_stamp=(
+            # one time base, the simulation's: log time = the latest /clock (sim time from
+            # 0, as ``ros2 bag record --use-sim-time``), header stamps (the same sim time)
+            # for the stamped topics; bag duration = simulated duration
+            recorder = Recorder(probe, bag, RECORDED, use_sim_time=True, use_header_stamp=(
                 "/joint_states", "/flex/deflections", "/flex/tip_pose"))
             next_mark = 0.0
             while model.stepper.t < duration - 1e-9:
@@ -124,6 +131,12 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                 if progress is not None and model.stepper.t >= next_mark:
                     progress(model.stepper.t, duration)
                     next_mark += duration / 20
+            # the messages of the last step are still queued: stop the model (no further
+            # step) and take them, so that the bag ends at the simulated duration
+            ex.remove_node(model)
+            drain_end = time.monotonic() + 0.3
+            while time.monotonic() < drain_end:
+                ex.spin_once(timeout_sec=0.01)
             recorder.stop()
         wall = time.perf_counter() - wall0
     finally:

@@ -19,14 +19,15 @@ import rclpy
 import yaml
 from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
 from flex_twin.bag_cli import add_bag_parsers, cmd_record
-from flex_twin.bags import BagError, BagWriter, Player, Recorder, bag_info, read_bag
+from flex_twin.bags import (BagDamageWarning, BagError, BagWriter, Player, Recorder, bag_info,
+                            read_bag)
 
 T0_NS = 1_700_000_000_123_456_789
 RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
@@ -297,6 +298,94 @@ def test_record_subprocess_stopped_by_signal_leaves_readable_bag(tmp_path, ros, 
     assert bag_info(bag)["topics"][0]["count"] == 50
 
 
+def _record_subprocess(repo_root, *args):
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(repo_root / "src" / "flex_model"), os.environ.get("PYTHONPATH", "")]))
+    return subprocess.Popen([sys.executable, "-m", "flex_twin.bag_cli", "record", *args],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_record_killed_keeps_all_but_the_last_second(tmp_path, ros, repo_root):
+    """SIGKILL of ``record`` after 5 s of a 100 Hz topic: every chunk closed (0.5 s) is on
+    disk; the bag (no metadata.yaml, no MCAP summary) is reindexed on reading."""
+    make_node, spin_until = ros
+    node = make_node("src")
+    topic = f"/t{uuid.uuid4().hex[:8]}/joint_states"
+    pub = node.create_publisher(JointState, topic, RELIABLE)
+    bag = tmp_path / "bag"
+    proc = _record_subprocess(repo_root, topic, "-o", str(bag))
+    try:
+        spin_until(lambda: pub.get_subscription_count() > 0 or proc.poll() is not None,
+                   "the recorder's subscription", timeout=20.0)
+        assert proc.poll() is None, proc.communicate()
+        t0, sent = time.monotonic(), 0
+        while time.monotonic() - t0 < 5.0:  # 100 Hz for 5 s
+            pub.publish(joint_state(sent))
+            sent += 1
+            time.sleep(max(0.0, t0 + 0.01 * sent - time.monotonic()))
+        proc.kill()
+        proc.communicate(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == -signal.SIGKILL
+    assert not (bag / "metadata.yaml").exists()  # killed: nothing written at exit
+    with pytest.warns(BagDamageWarning, match="no metadata.yaml.*no footer"):
+        got = [m for _, _, _, m in read_bag(bag)]
+    assert got == [joint_state(i) for i in range(len(got))]  # in order, none missing
+    print(f"SIGKILL after 5 s: kept {len(got)} of {sent} messages")
+    assert len(got) >= sent - 100, f"kept {len(got)} of {sent}"  # all but the last second
+    with pytest.warns(BagDamageWarning):
+        info = bag_info(bag)
+    assert info["message_count"] == len(got) and info["topics"][0]["name"] == topic
+    assert info["duration_s"] >= (len(got) - 1) * 0.01 * 0.9
+
+
+def test_record_keeps_latched_messages_published_before_and_after_its_start(
+        tmp_path, ros, repo_root):
+    """Transient-local topics are subscribed transient-local once their publisher is seen,
+    so a latched message published before the recorder started (or before it discovered the
+    publisher) is recorded; a volatile topic stays volatile."""
+    make_node, spin_until = ros
+    node = make_node("latch")
+    ns = f"/t{uuid.uuid4().hex[:8]}"
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    early = node.create_publisher(JointState, f"{ns}/early", latched)
+    early.publish(joint_state(1))
+    bag = tmp_path / "bag"
+    proc = _record_subprocess(repo_root, f"{ns}/early=sensor_msgs/msg/JointState",
+                              f"{ns}/late=sensor_msgs/msg/JointState",
+                              f"{ns}/plain=sensor_msgs/msg/JointState", "-o", str(bag))
+    try:
+        first = proc.stderr.readline()
+        assert first.startswith("recording 3 topic(s)"), first
+        late = node.create_publisher(JointState, f"{ns}/late", latched)
+        late.publish(joint_state(2))  # before the recorder has discovered this publisher
+        plain = node.create_publisher(JointState, f"{ns}/plain", RELIABLE)
+        spin_until(lambda: all(p.get_subscription_count() for p in (early, late, plain))
+                   or proc.poll() is not None, "the recorder's subscriptions", timeout=20.0)
+        plain.publish(joint_state(3))
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    got = {topic: m for topic, _, _, m in read_bag(bag)}
+    assert got == {f"{ns}/early": joint_state(1), f"{ns}/late": joint_state(2),
+                   f"{ns}/plain": joint_state(3)}
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    durability = {t["topic_metadata"]["name"]:
+                  t["topic_metadata"]["offered_qos_profiles"][0]["durability"]
+                  for t in meta["topics_with_message_count"]}
+    assert durability == {f"{ns}/early": "transient_local", f"{ns}/late": "transient_local",
+                          f"{ns}/plain": "volatile"}
+
+
 def test_record_all_picks_up_a_topic_published_after_the_start(tmp_path, ros, repo_root):
     make_node, spin_until = ros
     topic = f"/t{uuid.uuid4().hex[:8]}/late"
@@ -403,3 +492,86 @@ def test_play_command_with_rate_and_topic_selection(tmp_path, capsys):
     assert 0.04 <= float(out.split(" in ")[1].split()[0]) < 0.1  # 0.2 s / 4 = 0.05 s
     with pytest.raises(BagError, match="no topic"):
         args.func(parser.parse_args(["play", str(tmp_path / "bag"), "--topics", "/x"]))
+
+
+def test_recorder_use_sim_time_stamps_with_the_latest_clock(tmp_path, ros):
+    """Sim-time recording (``record --use-sim-time``, the twin demo): log time = the latest
+    /clock; /clock itself by its value; a message before the first /clock gets that first
+    value; so a lockstep bag spans the simulated time, not the wall clock."""
+    from rosgraph_msgs.msg import Clock
+    make_node, spin_until = ros
+    pub_node, rec_node = make_node("pub"), make_node("rec")
+    ns = f"/t{uuid.uuid4().hex[:8]}"
+    js_pub = pub_node.create_publisher(JointState, f"{ns}/js", RELIABLE)
+    clock_pub = pub_node.create_publisher(Clock, "/clock", RELIABLE)
+    writer = BagWriter(tmp_path / "bag")
+    recorder = Recorder(rec_node, writer, {f"{ns}/js": "sensor_msgs/msg/JointState",
+                                           "/clock": "rosgraph_msgs/msg/Clock"},
+                        use_sim_time=True)
+    spin_until(lambda: js_pub.get_subscription_count() and clock_pub.get_subscription_count()
+               >= 2, "discovery")
+
+    def clock(t_ns):
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(t_ns, 1_000_000_000)
+        clock_pub.publish(msg)
+        spin_until(lambda: recorder.sim_time_ns == t_ns, f"clock {t_ns}")
+    js_pub.publish(joint_state(0))  # before any /clock: held for the first one
+    spin_until(lambda: len(recorder._early) == 1, "the early message")
+    sim = [10_000_000_000 + 2_000_000 * k for k in range(5)]
+    for k, t_ns in enumerate(sim):
+        clock(t_ns)
+        js_pub.publish(joint_state(k + 1))
+        spin_until(lambda: writer.counts[f"{ns}/js"] == k + 2, f"message {k + 1}")
+    spin_until(lambda: writer.counts["/clock"] == 5, "the recorded /clock")
+    recorder.stop()
+    writer.close()
+    rows = [(topic, t) for topic, _, t, _ in read_bag(tmp_path / "bag")]
+    assert [t for topic, t in rows if topic == "/clock"] == sim
+    assert [t for topic, t in rows if topic.endswith("/js")] == [sim[0]] + sim
+    info = bag_info(tmp_path / "bag")
+    assert info["duration_s"] == pytest.approx(4 * 0.002) and info["warnings"] == []
+
+
+def test_player_clock_replaces_a_recorded_clock(tmp_path, ros):
+    """``play --clock``: one /clock, the player's (from the log times); the recorded /clock
+    is not republished beside it. Without ``--clock`` it is played as any topic."""
+    from rosgraph_msgs.msg import Clock
+    make_node, spin_until = ros
+    ns = f"/t{uuid.uuid4().hex[:8]}"
+    times = [2_000_000 * k for k in range(20)]  # sim time from 0
+    with BagWriter(tmp_path / "bag") as writer:
+        for k, t_ns in enumerate(times):
+            msg = Clock()
+            msg.clock.nanosec = t_ns
+            writer.write("/clock", msg, t_ns)
+            writer.write(f"{ns}/js", joint_state(k), t_ns)
+    sub_node = make_node("sub")
+    got, clocks = [], []
+    sub_node.create_subscription(JointState, f"{ns}/js", got.append, RELIABLE)
+    sub_node.create_subscription(Clock, "/clock", clocks.append, RELIABLE)
+    player = Player(make_node("play"), tmp_path / "bag", clock=True)
+    assert set(player.publishers) == {f"{ns}/js"}
+    spin_until(lambda: player.publishers[f"{ns}/js"].get_subscription_count()
+               and sub_node.count_publishers("/clock") == 1, "discovery")
+    while player.step() is not None:
+        pass
+    spin_until(lambda: len(got) == 20 and len(clocks) == 20, "20 messages and clocks")
+    stamps = [c.clock.sec * 10**9 + c.clock.nanosec for c in clocks]
+    assert stamps == times  # one clock, in order, no interleaved second clock
+    assert "/clock" in Player(make_node("plain"), tmp_path / "bag").publishers
+
+
+def test_mixed_time_bases_are_warned_and_refused_by_play(tmp_path, ros):
+    """A bag whose topics mix sim time (from 0) and wall-clock log times (the old twin-demo
+    bag: 1.8e9 s 'duration'): bag_info warns, play refuses unless one base is selected."""
+    make_node, _ = ros
+    with BagWriter(tmp_path / "bag") as writer:
+        for k in range(10):
+            writer.write("/sim", joint_state(k), 2_000_000 * k)
+            writer.write("/wall", Float64MultiArray(data=[1.0]), T0_NS + 2_000_000 * k)
+    info = bag_info(tmp_path / "bag")
+    assert [w for w in info["warnings"] if "mixed time bases" in w and "/sim" in w]
+    with pytest.raises(BagError, match="mixed time bases"):
+        Player(make_node("play"), tmp_path / "bag")
+    assert Player(make_node("one"), tmp_path / "bag", topics=["/sim"]).bag_span_ns == 18_000_000
