@@ -43,7 +43,8 @@ def test_model_node_replays_the_golden_bag():
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
-        node = ModelNode(context=ctx, namespace=f"/r{uuid.uuid4().hex[:8]}",
+        ns = f"/r{uuid.uuid4().hex[:8]}"  # relative topics: the probe shares the namespace
+        node = ModelNode(context=ctx, namespace=ns,
                          parameter_overrides=[
                              Parameter("arm", value=params["arm"]),
                              Parameter("mode", value="lockstep"),
@@ -52,15 +53,15 @@ def test_model_node_replays_the_golden_bag():
                              Parameter("lockstep_timeout", value=30.0),
                              Parameter("initial_joint_angles_deg",
                                        value=params["initial_joint_angles_deg"])])
-        probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=ctx)
+        probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=ctx, namespace=ns)
         states, defl = {}, {}
 
         def keep(store):
             return lambda m: store.setdefault(
                 m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m)
-        probe.create_subscription(JointState, "/joint_states", keep(states), 200)
-        probe.create_subscription(JointState, "/flex/deflections", keep(defl), 200)
-        cmd = probe.create_publisher(Float64MultiArray, "/effort_controller/commands", 200)
+        probe.create_subscription(JointState, "joint_states", keep(states), 200)
+        probe.create_subscription(JointState, "flex/deflections", keep(defl), 200)
+        cmd = probe.create_publisher(Float64MultiArray, "effort_controller/commands", 200)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         ex.add_node(probe)

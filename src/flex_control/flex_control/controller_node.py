@@ -5,8 +5,6 @@ import sys
 from dataclasses import fields, replace
 
 import numpy as np
-from rcl_interfaces.msg import (FloatingPointRange, ParameterDescriptor,
-                                SetParametersResult)
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
@@ -15,60 +13,109 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.ros_main import lean_node, run_node
+from flex_model.ros_main import (Param, ParameterError, ReasonLog, declare_parameters,
+                                 guard_parameters, lean_node, run_node)
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
 from .ros_conversions import (commands_msg, deflection_array, joint_state_arrays,
-                              trajectory_from_msg)
+                              stamp_seconds, trajectory_from_msg)
 
 THROTTLE_S = 1.0
 NODE_PARAMETERS = (("parameter_services", True), ("qos_event_warnings", True))
+#: fixed for the node's life (the controller's structure and timer are built from them)
+READ_ONLY = ("joint_names", "law", "rate_hz", "use_deflections")
+#: the node's defaults where they differ from ControllerParams' (the thesis's h = 25 is a
+#: continuous-time design: sampled, with the few ms of latency of a realtime loop, it
+#: drives the default model arm, joint inertias ~1-5 kg m^2, into a limit cycle at the
+#: torque limits; h = 5, a = 5 holds it with up to 15 ms of loop latency, sagging ~7 deg
+#: at joint 1 stretched out under gravity)
+NODE_DEFAULTS = {"h": [5.0], "a": [5.0]}
+
+
+def parameter_specs() -> tuple:
+    """The node's parameters: the fields of ControllerParams (``joint_names`` default
+    empty: the joints of the model's joint_states) and the node parameters."""
+    specs = []
+    for f in fields(ControllerParams):
+        rng = f.metadata.get("range")
+        doc = f.metadata["doc"] + (f" [{rng[0]:g}, {rng[1]:g}]" if rng else "")
+        if f.name == "joint_names":
+            specs.append(Param(f.name, [], doc + "; empty (default): the joints of the first "
+                               "joint_states message, in its order (the model's)", item=str))
+            continue
+        default = list(f.default) if isinstance(f.default, tuple) else f.default
+        default = NODE_DEFAULTS.get(f.name, default)
+        specs.append(Param(f.name, default, doc, runtime=f.name not in READ_ONLY,
+                           item=float if isinstance(default, list) else None))
+    specs += [Param(name, default, "false: see flex_model.ros_main.lean_node")
+              for name, default in NODE_PARAMETERS]
+    return tuple(specs)
 
 
 class ControllerNode(Node):
     """Joint torque controller.
 
-    Subscriptions: ``joint_states`` (sensor_msgs/JointState), ``flex_planner/trajectory``
-    (trajectory_msgs/JointTrajectory; its start is ``header.stamp``, or the arrival time if
-    zero), ``flex/deflections`` (sensor_msgs/JointState as the model node publishes it: the
+    Subscriptions: ``joint_states`` (sensor_msgs/JointState; without velocities the rates
+    are differentiated positions), ``flex_planner/trajectory`` (trajectory_msgs/
+    JointTrajectory; its start is ``header.stamp``, or the arrival time if zero),
+    ``flex/deflections`` (sensor_msgs/JointState as the model node publishes it: the
     positions named ``link<i>/tip_deflection``, m; only with ``use_deflections``).
     Publication: ``effort_controller/commands`` (std_msgs/Float64MultiArray, torques in
-    N m in ``joint_names`` order). Names are relative,
-    so a namespace moves them all. Parameters: the fields of
-    :class:`flex_control.params.ControllerParams` (law, gains or schedule file, torque
-    limits, rate, timeout, stale action); gains and limits may be set at run time and are
-    validated before they are swapped in (with the parameter services, default). Node
-    parameters ``parameter_services`` and ``qos_event_warnings`` (default true): false
-    leaves out rclpy's parameter services (no run-time changes then), resp. its QoS-event
-    handlers, for a faster lockstep loop (flex_model.ros_main).
+    N m in ``joint_names`` order). Names are relative, so a namespace moves them all.
+
+    Parameters: the fields of :class:`flex_control.params.ControllerParams` (law, gains or
+    schedule file, torque limits, rate, timeout, stale action); the node's default gains
+    are h = 5, a = 5 (:data:`NODE_DEFAULTS`: stable with the default model node in
+    realtime, up to 15 ms of loop latency; set h: [25.0] for the thesis's design, as
+    ros2_ws/params/suite.yaml does in lockstep). ``joint_names`` defaults to
+    empty: the controller then takes the joints, and their order (the model's command
+    order), from the first joint_states message, so one controller serves an arm of any
+    number of joints; until then it publishes nothing. Given explicitly, they are checked
+    against every new set of names in joint_states: a set missing some is one error line
+    (those messages are then dropped), extra joints one warning. Gains and limits may be
+    set at run time and are validated before they are swapped in; the structural ones
+    (joint_names, law, rate_hz, use_deflections) are refused with a reason. A float
+    parameter takes an integer (``rate_hz:=500``); a bad value at start is one line naming
+    the parameter, the value and what is allowed. Node parameters ``parameter_services``
+    and ``qos_event_warnings`` (default true): false leaves out rclpy's parameter services
+    (no run-time changes then), resp. its QoS-event handlers, for a faster lockstep loop
+    (flex_model.ros_main).
 
     Safety: until a trajectory arrives the controller holds the first measured pose; joint
     states older than ``state_timeout`` (by arrival time) give zero torques (or the last
     command, ``stale_action: hold``), logged once per episode; malformed or non-finite
-    inputs and trajectories with other joint names are logged and dropped; every command is
-    clamped to ``torque_limits``; :func:`main` publishes zeros on SIGINT/SIGTERM.
+    inputs and trajectories with other joint names are logged (at most once a second per
+    reason) and dropped; every command is clamped to ``torque_limits``; :func:`main`
+    publishes zeros on SIGINT/SIGTERM.
     """
 
     def __init__(self, **kwargs):
         super().__init__("flex_controller", **kwargs)
-        values = {}
-        for f in fields(ControllerParams):
-            rng = f.metadata.get("range")
-            desc = ParameterDescriptor(description=f.metadata["doc"])
-            if rng is not None:
-                desc.floating_point_range = [FloatingPointRange(from_value=float(rng[0]),
-                                                                to_value=float(rng[1]))]
-            default = list(f.default) if isinstance(f.default, tuple) else f.default
-            values[f.name] = self.declare_parameter(f.name, default, desc).value
-        self.params = ControllerParams.from_mapping(values)
-        self.controller = build_controller(self.params)
-        self.n = len(self.params.joint_names)
+        self.specs = parameter_specs()
+        values = declare_parameters(self, self.specs)
+        lean = [values.pop(name) for name, _ in NODE_PARAMETERS]
+        names = tuple(values["joint_names"])
+        if not names:  # checked with stand-in joints now, with the model's when they come
+            k = max(len(values[f]) for f in ("h", "a", "torque_limits"))
+            values["joint_names"] = tuple(f"joint{i + 1}" for i in range(k))
+        try:
+            self.params = ControllerParams.from_mapping(values)
+            self.controller = build_controller(self.params)
+        except (ValueError, OSError) as exc:
+            raise ParameterError(f"parameter {exc}") from None
+        self.names = names or None   # None: learn them from joint_states
+        self.n = len(names)
         self.t_start = None          # rclpy Time of the trajectory's start, None: holding
         self.state = None            # (positions, velocities, arrival Time)
         self.deflections = None      # (array, arrival Time)
+        self.pending = {}            # trajectory/deflections that came before the joints
         self.last_command = np.zeros(self.n)
         self.stale_logged = False
+        self.checked = {}            # joint_states name tuple -> usable (checked once)
+        self.previous = None         # (positions, stamp s): rates when joint_states has none
+        self.logged = set()
+        self.drops = ReasonLog(self, THROTTLE_S)
         self.pub = self.create_publisher(Float64MultiArray, "effort_controller/commands", 10)
         self.msg = Float64MultiArray()  # reused for every command
         self.create_subscription(JointState, "joint_states", self.on_joint_state,
@@ -79,32 +126,124 @@ class ControllerNode(Node):
         if self.params.use_deflections:
             self.create_subscription(JointState, "flex/deflections", self.on_deflections,
                                      qos_profile_sensor_data)
-        lean = [self.declare_parameter(name, default).value for name, default in NODE_PARAMETERS]
-        self.add_on_set_parameters_callback(self.on_set_parameters)
+        guard_parameters(self, self.specs, self.apply_parameters)
         self.timer = self.create_timer(1.0 / self.params.rate_hz, self.on_timer)
         lean_node(self, *lean)
-        self.get_logger().info(f"law {self.params.law} on {list(self.params.joint_names)} at "
+        joints = list(names) if names else "the joints of joint_states"
+        self.get_logger().info(f"law {self.params.law} on {joints} at "
                                f"{self.params.rate_hz:g} Hz")
 
-    def on_joint_state(self, msg: JointState) -> None:
-        try:
-            pos, vel = joint_state_arrays(msg, self.params.joint_names)
-        except ValueError as exc:
-            self.get_logger().warn(f"joint state rejected: {exc}",
-                                   throttle_duration_sec=THROTTLE_S)
+    def _once(self, key, text, level="warning") -> None:
+        """Log ``text`` once per ``key`` (each severity from its own call site)."""
+        if key in self.logged:
             return
+        self.logged.add(key)
+        if level == "error":
+            self.get_logger().error(text)
+        elif level == "info":
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
+
+    # ------------------------------------------------------------- joints
+    def learn_joints(self, names) -> bool:
+        """Take the controller's joints from the model's joint_states (joint_names empty)."""
+        try:
+            params = replace(self.params, joint_names=tuple(names))
+            controller = build_controller(params)
+        except (ValueError, OSError) as exc:
+            self._once(("learn", tuple(names)), f"joints {list(names)} from joint_states "
+                       f"do not fit the parameters: {exc}; no control", "error")
+            return False
+        self.params, self.controller = params, controller
+        self.names, self.n = tuple(names), len(names)
+        self.last_command = np.zeros(self.n)
+        self.get_logger().info(f"joints from joint_states: {list(names)} (the command order)")
+        pending = self.pending
+        self.pending = {}
+        if "trajectory" in pending:
+            self.on_trajectory(*pending["trajectory"])
+        if "deflections" in pending:
+            self.on_deflections(*pending["deflections"])
+        return True
+
+    def joints_usable(self, names: tuple) -> bool:
+        """Check a set of joint_states names against the controller's joints once; a
+        mismatch is one line, then its messages are dropped silently."""
+        ok = self.checked.get(names)
+        if ok is not None:
+            return ok
+        mine = list(self.names)
+        missing = [j for j in mine if j not in names]
+        extra = [j for j in names if j not in mine]
+        ok = not missing and len(set(names)) == len(names)
+        if not ok:
+            self.get_logger().error(
+                f"joint mismatch: joint_states names {list(names)} lack the controller's "
+                f"joints {missing} (joint_names {mine}); these messages are dropped, no "
+                "control from them (leave joint_names empty to take the model's joints)")
+        elif extra:
+            self.get_logger().warning(
+                f"joint mismatch: joint_states has joints {extra} that this controller "
+                f"does not command (joint_names {mine}); a model node with them drops "
+                f"commands of {len(mine)} values")
+        self.checked[names] = ok
+        return ok
+
+    # ------------------------------------------------------------- inputs
+    def on_joint_state(self, msg: JointState) -> None:
+        names = tuple(msg.name)
+        if self.names is None:
+            if not names or len(set(names)) != len(names) or not all(names):
+                self.drops.warning(f"joint state rejected: JointState.name: got "
+                                   f"{list(names)}; expected unique, non-empty joint names")
+                return
+            if not self.learn_joints(names):
+                return
+        if not self.joints_usable(names):
+            return
+        try:
+            pos, vel = joint_state_arrays(msg, self.names)
+        except ValueError as exc:
+            self.drops.warning(f"joint state rejected: {exc}")
+            return
+        now = self.get_clock().now()
+        if vel is None:
+            vel = self.differentiate(pos, msg, now)
         if self.state is None and self.t_start is None:
             self.controller.set_reference(hold_reference(self.params.joint_names, pos))
-        self.state = (pos, vel, self.get_clock().now())
+        self.state = (pos, vel, now)
 
-    def on_deflections(self, msg: JointState) -> None:
+    def differentiate(self, pos, msg, now) -> np.ndarray:
+        """Joint rates from the positions of successive messages (their header stamps, or
+        arrival times if unstamped): joint_states without velocities."""
+        self._once("no-velocity", "joint_states without velocities: the rates are the "
+                   "differentiated positions", "info")
+        t = stamp_seconds(msg.header.stamp) or now.nanoseconds * 1e-9
+        vel = np.zeros(self.n)
+        if self.previous is not None and t > self.previous[1]:
+            vel = (pos - self.previous[0]) / (t - self.previous[1])
+        elif self.previous is not None and self.state is not None:
+            vel = self.state[1]  # same stamp again: keep the last estimate
+        self.previous = (pos, t)
+        return vel
+
+    def on_deflections(self, msg: JointState, arrival=None) -> None:
+        arrival = self.get_clock().now() if arrival is None else arrival
+        if self.names is None:
+            self.pending["deflections"] = (msg, arrival)
+            return
         try:
-            self.deflections = (deflection_array(msg, self.n), self.get_clock().now())
+            self.deflections = (deflection_array(msg, self.n), arrival)
         except ValueError as exc:
-            self.get_logger().warn(f"deflections rejected: {exc}",
-                                   throttle_duration_sec=THROTTLE_S)
+            self.drops.warning(f"deflections rejected: {exc}")
 
-    def on_trajectory(self, msg: JointTrajectory) -> None:
+    def on_trajectory(self, msg: JointTrajectory, arrival=None) -> None:
+        arrival = self.get_clock().now() if arrival is None else arrival
+        if self.names is None:
+            self.pending["trajectory"] = (msg, arrival)
+            self.get_logger().info("trajectory kept until joint_states names the joints")
+            return
         try:
             data = trajectory_from_msg(msg, self.params.joint_names)
             self.controller.set_reference(data)
@@ -112,11 +251,15 @@ class ControllerNode(Node):
             self.get_logger().error(f"trajectory rejected: {exc}")
             return
         stamp = Time.from_msg(msg.header.stamp, clock_type=self.get_clock().clock_type)
-        self.t_start = stamp if stamp.nanoseconds > 0 else self.get_clock().now()
+        self.t_start = stamp if stamp.nanoseconds > 0 else arrival
         self.get_logger().info(f"trajectory accepted: {len(data.t)} points, "
                                f"{data.duration:.3f} s")
 
     def on_timer(self) -> None:
+        if self.names is None:
+            self._once("waiting", "waiting for joint_states to name the joints (joint_names "
+                       "empty): nothing commanded until then", "info")
+            return
         now = self.get_clock().now()
 
         def since(stamp) -> float:  # s from stamp to now
@@ -142,8 +285,7 @@ class ControllerNode(Node):
         try:
             tau = self.controller.torque(t, pos, vel, defl)
         except ValueError as exc:
-            self.get_logger().error(f"controller failed: {exc}; commanding zero",
-                                    throttle_duration_sec=THROTTLE_S)
+            self.drops.error(f"controller failed: {exc}; commanding zero")
             tau = np.zeros(self.n)
         self.publish(tau)
 
@@ -155,30 +297,31 @@ class ControllerNode(Node):
 
     def publish_zero(self, wait_s: float = 0.5) -> None:
         """Command zero torques and wait (bounded) until subscribers acknowledge them."""
+        if self.names is None:  # no joints known: nothing was ever commanded
+            return
         self.publish(np.zeros(self.n))
         self.pub.wait_for_all_acked(Duration(seconds=wait_s))
 
     def stop(self) -> None:
         """The last act of a stopping node (SIGINT/SIGTERM, ``flex-twin up``'s end):
         zero torques."""
+        if self.names is None:
+            self.get_logger().info("stopped: no joints known, nothing was commanded")
+            return
         self.publish_zero()
         self.get_logger().info("stopped: zero torques commanded")
 
-    def on_set_parameters(self, changes) -> SetParametersResult:
-        values = {p.name: (tuple(p.value) if isinstance(p.value, (list, tuple)) else p.value)
-                  for p in changes}
-        fixed = {"joint_names", "law", "rate_hz", "use_deflections",
-                 *dict(NODE_PARAMETERS)} & set(values)
-        if fixed:
-            return SetParametersResult(successful=False,
-                                       reason=f"{sorted(fixed)}: read-only at run time")
+    def apply_parameters(self, values: dict) -> None:
+        """Run-time gains, limits, timeouts (checked types): validated by building the
+        controller before it is swapped in (raises ValueError with the reason)."""
+        values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()
+                  if k not in dict(NODE_PARAMETERS)}
+        params = replace(self.params, **values)
         try:
-            params = replace(self.params, **values)
             controller = build_controller(params, reference=self.controller.reference)
-        except (ValueError, OSError) as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
+        except OSError as exc:
+            raise ValueError(f"schedule_file: {exc}") from None
         self.params, self.controller = params, controller
-        return SetParametersResult(successful=True)
 
 
 def main(args=None) -> int:

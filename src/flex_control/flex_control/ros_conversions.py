@@ -21,19 +21,20 @@ def _finite(field: str, values) -> np.ndarray:
     arr = np.asarray(values, dtype=float)
     if not np.all(np.isfinite(arr)):
         bad = int(np.flatnonzero(~np.isfinite(arr))[0])
-        raise ValueError(f"{field}[{bad}]: got {arr[bad]!r}; expected finite values")
+        raise ValueError(f"{field}[{bad}]: got {float(arr[bad]):.6g}; expected finite values")
     return arr
 
 
-def joint_state_arrays(msg: JointState, joint_names) -> tuple[np.ndarray, np.ndarray]:
-    """(positions, velocities) of ``joint_names`` (rad, rad/s) from a JointState."""
+def joint_state_arrays(msg: JointState, joint_names) -> tuple[np.ndarray, np.ndarray | None]:
+    """(positions, velocities) of ``joint_names`` (rad, rad/s) from a JointState; the
+    velocities are None if the message has none (an empty ``velocity``)."""
     names = list(msg.name)
     n = len(names)
     for field in ("position", "velocity"):
         got = len(getattr(msg, field))
-        if got != n:
+        if got != n and not (field == "velocity" and got == 0):
             raise ValueError(f"JointState.{field}: got {got} values for {n} names; expected "
-                             f"one per name")
+                             f"one per name" + (" (or none)" if field == "velocity" else ""))
     try:
         idx = [names.index(j) for j in joint_names]
     except ValueError:
@@ -41,8 +42,14 @@ def joint_state_arrays(msg: JointState, joint_names) -> tuple[np.ndarray, np.nda
         raise ValueError(f"JointState.name: got {names}; expected to contain "
                          f"{list(joint_names)} (missing {missing})") from None
     pos = _finite("JointState.position", np.asarray(msg.position, float)[idx])
+    if not len(msg.velocity):
+        return pos, None
     vel = _finite("JointState.velocity", np.asarray(msg.velocity, float)[idx])
     return pos, vel
+
+
+def stamp_seconds(stamp) -> float:
+    return stamp.sec + 1e-9 * stamp.nanosec
 
 
 def deflection_array(msg: JointState, n: int) -> np.ndarray:

@@ -1,34 +1,61 @@
 """ModelNode: the flexible arm as a ROS 2 node (a thin adapter around flex_model.stepper).
 
+Topic names are relative, so a namespace (``--ros-args -r __ns:=/robot1``) moves the whole
+model-controller loop; in the root namespace they are the absolute names below. /clock and
+/diagnostics stay global (ROS tools expect them there; remap /clock for two lockstep twins).
+
 Publications (simulation time in every header):
-    /joint_states        sensor_msgs/JointState   joint angles (encoder), rates, applied torques
-    /flex/deflections    sensor_msgs/JointState   link<i>/tip_deflection (m), tip_rotation (rad)
-    /flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``frame_id``
-    /flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords
-    /flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor
-    /clock               rosgraph_msgs/Clock      in lockstep mode (or publish_clock)
+    joint_states        sensor_msgs/JointState   joint angles (encoder), rates, applied torques
+    flex/deflections    sensor_msgs/JointState   link<i>/tip_deflection (m), tip_rotation (rad)
+    flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``frame_id``
+    flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords
+    flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor
+    /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock)
+    /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a divergence (every
+                        second until ~/reset), OK after the reset
 Subscriptions:
-    /effort_controller/commands  std_msgs/Float64MultiArray  joint torques, joint order
-    /flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
-Services: ~/reset (std_srvs/Trigger), ~/pause (std_srvs/SetBool).
-Parameters: arm, vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz, model
-loop), publish_rate (Hz), shape_rate (Hz, /flex/shape, at most publish_rate), max_step (s),
-initial_joint_angles_deg, start_static (start deflected at rest under gravity),
-start_paused (until ~/pause false), command_timeout (s, 0 = never), timeout_action (hold |
-zero), lockstep_timeout (s, wall), frame_id, shape_points, publish_clock,
-realtime_priority (0 = off; 1-99: SCHED_FIFO priority of the thread that creates and spins
-the node, realtime mode, as ros2_control's thread_priority; needs CAP_SYS_NICE),
-parameter_services and qos_event_warnings (default true; false: the node has no parameter
-services, resp. no QoS-event handlers, which only log incompatible QoS or types: fewer
-entities in every wait of the SingleThreadedExecutor, a faster lockstep loop, see
-flex_model.ros_main).
+    effort_controller/commands  std_msgs/Float64MultiArray  joint torques, joint order
+    flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
+Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; after a
+divergence it restarts the loop), ~/pause (std_srvs/SetBool).
+
+Parameters (:data:`PARAMETERS`: defaults, descriptions, checks): arm (default
+thesis_example1_motors: with its geared motors the default controller node, a sampled
+Eq. 95 PD with h = 25, a = 5 at 500 Hz, holds it; on the hub-less thesis_example1 any
+sampled rate feedback acts on the tiny root inertia of a flexible link and diverges within
+0.1 s), vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz, model loop),
+publish_rate (Hz), shape_rate (Hz, /flex/shape, at most publish_rate), max_step (s),
+initial_joint_angles_deg (one per joint, or one for all), start_static (start deflected at
+rest under gravity), start_paused (until ~/pause false), command_timeout (s, 0 = never),
+timeout_action (hold | zero), lockstep_timeout (s, wall), frame_id, shape_points,
+publish_clock, the plausibility limits max_torque (N m), max_payload_mass (kg) and
+max_payload_inertia (kg m^2) (a command or payload beyond them is dropped with a logged
+reason; 0, the default: automatic from the arm, :func:`plausibility_limits`, logged at
+start: 100 N m or 10 x the static gravity torque of the stretched arm or 100 s^-2 x its
+inertia about joint 1, whichever is largest, 10 x the arm's mass, 10 x that inertia;
+thesis_example1_motors: 490 N m, 8.2 kg, 49 kg m^2), realtime_priority (0 = off; 1-99:
+SCHED_FIFO priority of the thread that creates and spins the node, realtime mode, as
+ros2_control's thread_priority; needs CAP_SYS_NICE), parameter_services and
+qos_event_warnings (default true; false: the node has no parameter services, resp. no
+QoS-event handlers, which only log incompatible QoS or types: fewer entities in every wait
+of the SingleThreadedExecutor, a faster lockstep loop, see flex_model.ros_main). A float
+parameter takes an integer (``rate:=500``); a bad value at start is one line naming the
+parameter, the value and what is allowed (exit status 2). At run time publish_rate,
+shape_rate, command_timeout, timeout_action, lockstep_timeout and the plausibility limits
+may be set (checked); the others are refused with a reason.
+
+Bad inputs are dropped with a reason logged at most once a second per reason (not per
+call site: a wrong length does not hide a NaN). A divergence of the integration (Newton
+fails, the state runs away) logs one error naming the held command and payload, publishes
+the ERROR diagnostic, sets the command to zero and stops stepping; the node stays up
+(commands are answered with a reason) and ~/reset restarts it.
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several
 steps; simulation time stays on the step grid, within a step of the wall clock).
-/joint_states, /flex/deflections, /flex/tip_pose, /flex/tip_imu go out at publish_rate,
-/flex/shape at shape_rate. lockstep: deterministic; each command advances the model by
-1/rate and publishes the new /joint_states (and /clock) at once, the other topics at their
+joint_states, flex/deflections, flex/tip_pose, flex/tip_imu go out at publish_rate,
+flex/shape at shape_rate. lockstep: deterministic; each command advances the model by
+1/rate and publishes the new joint_states (and /clock) at once, the other topics at their
 rates, so simulation time moves only as the model-controller loop completes; without a
 command for ``lockstep_timeout`` (wall) the model steps with the held one (a warning once
 the loop ran; before the first command this is the start: a controller timed by /clock
@@ -41,6 +68,7 @@ import os
 import time
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, Header
@@ -52,8 +80,82 @@ from visualization_msgs.msg import MarkerArray
 from . import ros_conversions as conv
 from .arm import load_arm
 from .dynamics import FlexArmModel
-from .ros_main import lean_node, run_node
+from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
+                       guard_parameters, lean_node, run_node)
 from .stepper import Stepper
+
+
+def _positive(v):
+    return None if v > 0 else "a number > 0"
+
+
+def _non_negative(v):
+    return None if v >= 0 else "a number >= 0 (0: automatic)"
+
+
+def plausibility_limits(model: FlexArmModel) -> dict:
+    """Automatic plausibility limits of an arm (the ``0`` of max_torque, max_payload_mass,
+    max_payload_inertia): from its mass, its inertia about joint 1 and the joint torques
+    that hold it against gravity, stretched out along x (the largest)."""
+    q = model.q_from_joint_angles(np.zeros(model.n_links))
+    rates = np.eye(model.n_links)
+    dirs = [model.v_from_joint_rates(r) for r in rates]
+    inertia = float(dirs[0] @ model.mass_matrix(q) @ dirs[0])
+    gravity = max(abs(float(d @ model.gravity_force(q))) for d in dirs)
+    return {"max_torque": max(100.0, 10.0 * gravity, 100.0 * inertia),
+            "max_payload_mass": 10.0 * float(model.total_mass),
+            "max_payload_inertia": 10.0 * inertia}
+
+
+def _choice(*options):
+    return lambda v: None if v in options else "one of " + ", ".join(options)
+
+
+#: the node's parameters (name, default, description, changeable at run time, check)
+PARAMETERS = (
+    Param("arm", "thesis_example1_motors", "arm preset name or arm YAML path (the default "
+          "has geared motors: a sampled joint controller is stable on it; the hub-less "
+          "thesis_example1 needs its own control design)",
+          check=lambda v: None if v else "a preset name or a YAML path"),
+    Param("vars_per_link", 0, "deformation variables per link (0: as in the arm file)",
+          check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
+    Param("kinematics", "", "joint-to-link kinematics override (empty: the arm's)"),
+    Param("mode", "realtime", "realtime | lockstep", check=_choice("realtime", "lockstep")),
+    Param("rate", 1000.0, "model loop rate (Hz); lockstep: a command advances 1/rate",
+          check=_positive),
+    Param("publish_rate", 250.0, "rate of the state topics (Hz)", True, _positive),
+    Param("shape_rate", 50.0, "rate of flex/shape (Hz), at most publish_rate", True,
+          _positive),
+    Param("max_step", 1e-3, "integration step (s)",
+          check=lambda v: None if 0 < v <= 0.1 else "a step in (0, 0.1] s"),
+    Param("initial_joint_angles_deg", [0.0], "initial joint angles (deg): one per joint, "
+          "or one value for every joint"),
+    Param("command_timeout", 0.0, "s without a valid command before timeout_action "
+          "(0: never)", True, lambda v: None if v >= 0 else "a time >= 0 s (0: never)"),
+    Param("timeout_action", "hold", "hold | zero", True, _choice("hold", "zero")),
+    Param("lockstep_timeout", 1.0, "lockstep: wall s without a command before the model "
+          "steps with the held one", True, _positive),
+    Param("frame_id", "base_link", "frame of tip pose and shape",
+          check=lambda v: None if v else "a non-empty frame name"),
+    Param("shape_points", 15, "points per link of flex/shape",
+          check=lambda v: None if 2 <= v <= 10000 else "an integer in [2, 10000]"),
+    Param("publish_clock", False, "publish /clock in realtime mode too"),
+    Param("start_static", False, "start at rest, deflected under gravity"),
+    Param("start_paused", False, "start paused (until ~/pause false)"),
+    Param("realtime_priority", 0, "SCHED_FIFO priority of the node's thread (0: off)",
+          check=lambda v: None if 0 <= v <= 99 else "0 (off) or 1-99"),
+    Param("max_torque", 0.0, "plausibility limit of a joint command (N m, or V for "
+          "DC-motor joints): a command beyond it is dropped; 0: automatic, the largest of "
+          "100 N m, 10 x the static gravity torque of the stretched arm and 100 s^-2 x its "
+          "inertia about joint 1", True, _non_negative),
+    Param("max_payload_mass", 0.0, "plausibility limit of a payload mass (kg); 0: "
+          "automatic, 10 x the arm's mass", True, _non_negative),
+    Param("max_payload_inertia", 0.0, "plausibility limit of a payload inertia (kg m^2); "
+          "0: automatic, 10 x the stretched arm's inertia about joint 1", True,
+          _non_negative),
+    Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
+    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
+)
 
 
 class ModelNode(Node):
@@ -61,34 +163,28 @@ class ModelNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
-        p = {name: self.declare_parameter(name, default).value for name, default in (
-            ("arm", "thesis_example1"), ("vars_per_link", 0), ("kinematics", ""),
-            ("mode", "realtime"), ("rate", 1000.0), ("publish_rate", 250.0), ("shape_rate", 50.0),
-            ("max_step", 1e-3), ("initial_joint_angles_deg", [0.0]),
-            ("command_timeout", 0.0), ("timeout_action", "hold"),
-            ("lockstep_timeout", 1.0), ("frame_id", "base_link"), ("shape_points", 15),
-            ("publish_clock", False), ("start_static", False), ("start_paused", False),
-            ("realtime_priority", 0), ("parameter_services", True),
-            ("qos_event_warnings", True))}
-        if p["mode"] not in ("realtime", "lockstep"):
-            raise ValueError(f"parameter mode: got {p['mode']!r}; expected realtime or lockstep")
-        if p["timeout_action"] not in ("hold", "zero"):
-            raise ValueError(f"parameter timeout_action: got {p['timeout_action']!r}; "
-                             "expected hold or zero")
-        if not all(p[k] > 0 for k in ("rate", "publish_rate", "shape_rate", "max_step")):
-            raise ValueError("parameters rate, publish_rate, shape_rate and max_step must be "
-                             "> 0")
-        arm = load_arm(p["arm"], p["vars_per_link"] or None)
-        if p["kinematics"]:
-            arm = arm.with_kinematics(p["kinematics"])
+        p = declare_parameters(self, PARAMETERS)
+        try:
+            arm = load_arm(p["arm"], p["vars_per_link"] or None)
+            if p["kinematics"]:
+                arm = arm.with_kinematics(p["kinematics"])
+        except (ValueError, OSError) as exc:
+            raise ParameterError(f"parameter arm: {exc}") from None
         self.model = FlexArmModel(arm)
-        theta0 = np.radians(np.resize(np.asarray(p["initial_joint_angles_deg"], float),
-                                      self.model.n_links))
+        n = self.model.n_links
+        angles = p["initial_joint_angles_deg"]
+        if len(angles) not in (1, n):
+            raise ParameterError(f"parameter initial_joint_angles_deg: got {fmt(angles)}; "
+                                 f"expected {n} angles (deg, one per joint of {arm.name}) "
+                                 "or one for every joint")
+        theta0 = np.radians(np.broadcast_to(np.asarray(angles, float), (n,)))
         q0 = self.model.q_from_joint_angles(theta0)
         if p["start_static"]:  # at rest, deflected under gravity with the joints held
             from .statics import static_equilibrium
             q0 = static_equilibrium(self.model, theta0, joints="clamped").q
         self.stepper = Stepper(self.model, q0, max_step=p["max_step"])
+        self.auto_limits = plausibility_limits(self.model)
+        self.payload0 = tuple(self.stepper.model.payload)
         self.p = p
         self.names = arm.joint_names
         self.links = [lk.name for lk in arm.links]
@@ -98,27 +194,35 @@ class ModelNode(Node):
         self.commanded = False  # a valid command has arrived (lockstep: the loop runs)
         self.next_publish = self.next_shape = 0.0
         self.behind = 0.0  # realtime: wall time not yet integrated (s)
+        self.diverged = None  # after a divergence: its DiagnosticStatus (stepping stops)
+        self.diverged_at = 0.0  # simulation time of the divergence (s)
+        self.next_diagnostic = 0.0  # wall time of the next repeat of that status
         self.warned = set()
+        self.drops = ReasonLog(self)
         frame = p["frame_id"]
         self.msg_js = JointState(name=list(self.names))
         self.msg_defl = JointState(name=conv.deflection_names(self.links))
         self.msg_tip = PoseStamped(header=Header(frame_id=frame))
-        self.msg_shape = conv.ShapeMarkers(self.model.n_links, int(p["shape_points"]), frame)
+        self.msg_shape = conv.ShapeMarkers(n, int(p["shape_points"]), frame)
         self.msg_clock = Clock()
         qos = 10
-        self.pub_js = self.create_publisher(JointState, "/joint_states", qos)
-        self.pub_defl = self.create_publisher(JointState, "/flex/deflections", qos)
-        self.pub_tip = self.create_publisher(PoseStamped, "/flex/tip_pose", qos)
-        self.pub_shape = self.create_publisher(MarkerArray, "/flex/shape", qos)
-        self.pub_imu = self.create_publisher(Imu, "/flex/tip_imu", qos) if self.has_imu \
+        # relative names: a namespace (__ns:=/robot1) moves the whole loop; /clock and
+        # /diagnostics stay global, as ROS tools (TimeSource, the aggregator) expect
+        self.pub_js = self.create_publisher(JointState, "joint_states", qos)
+        self.pub_defl = self.create_publisher(JointState, "flex/deflections", qos)
+        self.pub_tip = self.create_publisher(PoseStamped, "flex/tip_pose", qos)
+        self.pub_shape = self.create_publisher(MarkerArray, "flex/shape", qos)
+        self.pub_imu = self.create_publisher(Imu, "flex/tip_imu", qos) if self.has_imu \
             else None
         self.pub_clock = self.create_publisher(Clock, "/clock", qos) \
             if p["mode"] == "lockstep" or p["publish_clock"] else None
-        self.create_subscription(Float64MultiArray, "/effort_controller/commands",
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
+        self.create_subscription(Float64MultiArray, "effort_controller/commands",
                                  self.on_command, qos)
-        self.create_subscription(Float64MultiArray, "/flex/payload", self.on_payload, qos)
+        self.create_subscription(Float64MultiArray, "flex/payload", self.on_payload, qos)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
+        guard_parameters(self, PARAMETERS, self.p.update)
         self.last_wall = time.monotonic()
         # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog
         period = 1.0 / p["rate"] if p["mode"] == "realtime" else 0.05
@@ -127,19 +231,24 @@ class ModelNode(Node):
             self._set_realtime_priority(int(p["realtime_priority"]))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.publish_state(full=True)
-        self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates), {p['mode']} "
-                               f"at {p['rate']:g} Hz, publishing at {p['publish_rate']:g} Hz")
+        self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates, joints "
+                               f"{', '.join(self.names)}), {p['mode']} at {p['rate']:g} Hz, "
+                               f"publishing at {p['publish_rate']:g} Hz; plausibility "
+                               f"limits {self.limit('max_torque'):.4g} N m, payload "
+                               f"{self.limit('max_payload_mass'):.4g} kg, "
+                               f"{self.limit('max_payload_inertia'):.4g} kg m^2")
 
     def _set_realtime_priority(self, priority: int) -> None:
         """SCHED_FIFO for this thread (Linux: the other threads, DDS's, keep theirs)."""
-        if not 1 <= priority <= 99:
-            raise ValueError(f"parameter realtime_priority: got {priority}; expected 0 (off) "
-                             "or 1-99")
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
         except (OSError, AttributeError) as exc:
             self.get_logger().warning(f"realtime_priority {priority}: {exc}; running with "
                                       "the normal scheduler")
+
+    def limit(self, name: str) -> float:
+        """A plausibility limit: the parameter, or the arm's automatic one if 0."""
+        return self.p[name] or self.auto_limits[name]
 
     # ------------------------------------------------------------- inputs
     def _warn_once(self, key, text, level="warning"):
@@ -155,11 +264,16 @@ class ModelNode(Node):
 
     def on_command(self, msg: Float64MultiArray) -> None:
         try:
-            u = conv.finite_array(msg.data, self.model.n_links, "command")
+            u = conv.finite_array(msg.data, self.model.n_links, "command",
+                                  f"one per joint: {', '.join(self.names)}")
+            conv.within_limit(u, self.limit("max_torque"), "command", self.names,
+                              "max_torque", "N m")
+            if self.diverged is not None:
+                raise ValueError(f"the model diverged at t = "
+                                 f"{fmt(self.diverged_at)} s and is stopped; call ~/reset")
         except ValueError as exc:
-            self.get_logger().warning(f"dropped /effort_controller/commands: {exc}; "
-                                      "holding the last valid command",
-                                      throttle_duration_sec=1.0)
+            self.drops.warning(f"dropped effort_controller/commands: {exc}; holding the last "
+                               "valid command")
             return
         self.stepper.set_command(u)
         self.command_time, self.commanded = self.stepper.t, True
@@ -169,16 +283,42 @@ class ModelNode(Node):
 
     def on_payload(self, msg: Float64MultiArray) -> None:
         try:
-            m, j = conv.finite_array(msg.data, 2, "payload [mass, inertia]")
+            m, j = (float(v) for v in conv.finite_array(msg.data, 2,
+                                                          "payload [mass, inertia]"))
+            for value, name, limit, unit in (
+                    (m, "mass", "max_payload_mass", "kg"),
+                    (j, "inertia", "max_payload_inertia", "kg m^2")):
+                if value < 0:
+                    raise ValueError(f"payload {name}: got {fmt(value)} {unit}; expected "
+                                     ">= 0")
+                if value > self.limit(limit):
+                    raise ValueError(f"payload {name}: got {fmt(value)} {unit}; expected at "
+                                     f"most {limit} = {fmt(self.limit(limit))} {unit} (a "
+                                     f"plausibility limit; raise {limit} if intended)")
+            if self.diverged is not None:
+                raise ValueError("the model diverged and is stopped; call ~/reset")
             self.stepper.set_payload(m, j)
         except ValueError as exc:
-            self.get_logger().warning(f"dropped /flex/payload: {exc}")
+            self.drops.warning(f"dropped flex/payload: {exc}")
             return
-        self.get_logger().info(f"payload now {m:g} kg, {j:g} kg m^2")
+        self.get_logger().info(f"payload now {fmt(m)} kg, {fmt(j)} kg m^2")
 
     def on_reset(self, request, response):
+        """Back to the initial state, payload and a zero command at t = 0; after a
+        divergence this restarts the loop (the diagnostic goes back to OK)."""
+        was_diverged = self.diverged is not None
+        self.stepper.model.set_payload(*self.payload0)
         self.stepper.reset()
         self.command_time = self.next_publish = self.next_shape = self.behind = 0.0
+        self.last_wall = time.monotonic()
+        self.diverged = None
+        if self.timer.is_canceled():
+            self.timer.reset()
+        if was_diverged:
+            self.publish_diagnostic(conv.diagnostic_status(
+                self.get_fully_qualified_name(), self.model.arm.name, "ok",
+                "reset after a divergence: running"))
+            self.get_logger().info("reset after the divergence: the model runs again")
         self.publish_state(full=True)
         response.success, response.message = True, "reset to the initial state at t = 0"
         return response
@@ -196,6 +336,11 @@ class ModelNode(Node):
     def on_tick(self) -> None:
         now = time.monotonic()
         elapsed, self.last_wall = now - self.last_wall, now
+        if self.diverged is not None:  # stopped until ~/reset: the diagnostic every second
+            if now >= self.next_diagnostic:
+                self.next_diagnostic = now + 1.0
+                self.publish_diagnostic(self.diverged)
+            return
         if self.paused:
             return
         if self.p["mode"] == "lockstep":  # watchdog: no command for lockstep_timeout
@@ -222,6 +367,8 @@ class ModelNode(Node):
 
     def step(self, dt: float) -> None:
         """Advance the model by dt (s), apply the command timeout, publish."""
+        if self.diverged is not None:
+            return
         timeout = self.p["command_timeout"]
         if timeout > 0 and self.stepper.t - self.command_time > timeout:
             if self.p["timeout_action"] == "zero" and np.any(self.stepper.u):
@@ -230,9 +377,8 @@ class ModelNode(Node):
                             f"{self.p['timeout_action']}")
         try:
             self.stepper.advance(dt)
-        except Exception as exc:  # a diverged model stops the loop, loudly
-            self.get_logger().error(f"model stopped: {exc}")
-            self.timer.cancel()
+        except Exception as exc:  # a diverged model stops stepping, loudly, and stays up
+            self.on_divergence(exc)
             return
         t = self.stepper.t
         full = t >= self.next_publish - 1e-12
@@ -243,6 +389,36 @@ class ModelNode(Node):
             self.next_shape = t + 1.0 / self.p["shape_rate"]
         if full or self.p["mode"] == "lockstep":
             self.publish_state(full=full, shape=shape)
+
+    def on_divergence(self, exc: Exception) -> None:
+        """The integration failed: name the likely cause (the inputs held), command zero
+        torque, stop stepping (the timer keeps running: commands are answered with a
+        reason, the diagnostic repeats every second) until ~/reset."""
+        st = self.stepper
+        u = st.u.copy()
+        k = int(np.argmax(np.abs(u))) if u.size else 0
+        mass, inertia = st.model.payload
+        cause = (f"the arm's state ran away under the held joint command {fmt(u)} "
+                 f"(largest {fmt(abs(u[k]))} at {self.names[k]}) with the payload "
+                 f"{fmt(mass)} kg, {fmt(inertia)} kg m^2: likely a command or payload beyond "
+                 "what this arm can follow, or an unstable control loop (a sampled joint "
+                 "controller too stiff for the arm)")
+        self.diverged_at = st.t
+        self.diverged = conv.diagnostic_status(
+            self.get_fully_qualified_name(), self.model.arm.name, "error",
+            f"model diverged at t = {fmt(st.t)} s: {cause}; zero torque commanded, stepping "
+            "stopped; call ~/reset to restart",
+            t=fmt(st.t), command=fmt(u), payload_mass_kg=fmt(mass),
+            payload_inertia_kg_m2=fmt(inertia), integrator=str(exc))
+        st.u[:] = 0.0  # zero torque (no restart of the method on a run-away state)
+        self.get_logger().error(self.diverged.message + f" ({exc})")
+        self.publish_diagnostic(self.diverged)
+        self.next_diagnostic = time.monotonic() + 1.0
+
+    def publish_diagnostic(self, status) -> None:
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.pub_diag.publish(msg)
 
     def publish_state(self, full: bool = True, shape: bool = True) -> None:
         """/joint_states, then /clock (a sim-time controller, woken by the clock, then has

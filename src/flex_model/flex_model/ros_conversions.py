@@ -6,6 +6,7 @@ from array import array
 
 import numpy as np
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import ColorRGBA, Header
@@ -106,11 +107,40 @@ def imu(t, specific_force, angular_rate, phi, frame="tip") -> Imu:
     return msg
 
 
-def finite_array(values, length: int, what: str) -> np.ndarray:
-    """Checked copy of a received array: raises ValueError naming the problem."""
+def finite_array(values, length: int, what: str, hint: str = "") -> np.ndarray:
+    """Checked copy of a received array: raises ValueError naming the problem (``hint``
+    says what the values are, e.g. the joint order)."""
     arr = np.asarray(values, dtype=float)
     if arr.shape != (length,):
-        raise ValueError(f"{what}: got {arr.size} values; expected {length}")
+        raise ValueError(f"{what}: got {arr.size} values; expected {length}"
+                         + (f" ({hint})" if hint else ""))
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what}: got non-finite values {arr.tolist()}")
+        raise ValueError(f"{what}: got non-finite values {_plain(arr)}; expected finite "
+                         "numbers")
     return arr
+
+
+def _plain(arr) -> str:
+    return "[" + ", ".join(f"{v:.6g}" for v in np.asarray(arr, float).tolist()) + "]"
+
+
+def within_limit(arr, limit: float, what: str, names, parameter: str, unit: str) -> None:
+    """Raise ValueError naming the first value beyond +-limit (a plausibility limit)."""
+    bad = np.flatnonzero(np.abs(arr) > limit)
+    if bad.size:
+        k = int(bad[0])
+        raise ValueError(f"{what}: {names[k]} = {arr[k]:.6g} {unit} is beyond {parameter} = "
+                         f"{limit:.6g} {unit} (a plausibility limit; raise {parameter} if "
+                         "intended)")
+
+
+_LEVELS = {"ok": DiagnosticStatus.OK, "warn": DiagnosticStatus.WARN,
+           "error": DiagnosticStatus.ERROR}
+
+
+def diagnostic_status(name: str, hardware_id: str, level: str, message: str,
+                      **values) -> DiagnosticStatus:
+    """A diagnostic_msgs/DiagnosticStatus (level ok | warn | error) with string values."""
+    return DiagnosticStatus(level=_LEVELS[level], name=name, message=message,
+                            hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])

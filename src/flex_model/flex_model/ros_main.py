@@ -7,10 +7,17 @@ so the nodes keep that number small (see :func:`lean_node` and bench/bench_ros_s
 """
 from __future__ import annotations
 
+import math
+import re
 import signal
+import sys
+import time
 from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Callable
 
 import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
@@ -40,6 +47,184 @@ def lean_node(node, parameter_services: bool, qos_event_warnings: bool) -> None:
             entity.event_handlers = []
 
 
+class ParameterError(ValueError):
+    """A node parameter out of its domain: one line naming the parameter, the value and
+    what is allowed (:func:`run_node` prints it and exits with status 2, no traceback)."""
+
+
+def fmt(value) -> str:
+    """A value as a user reads it: plain floats (``nan``, ``1e+04``, not
+    ``np.float64(nan)``), lists of them, strings quoted."""
+    if isinstance(value, str):
+        return repr(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)) or (hasattr(value, "tolist") and
+                                           getattr(value, "ndim", 0) > 0):
+        items = value.tolist() if hasattr(value, "tolist") else value
+        return "[" + ", ".join(fmt(v) for v in items) + "]"
+    if hasattr(value, "item") and not isinstance(value, (int, float)):
+        value = value.item()  # a numpy scalar
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return str(value)
+
+
+@dataclass(frozen=True)
+class Param:
+    """A node parameter: name, default (its type is the parameter's: a float parameter
+    takes integers too, ``rate:=500``; ``item`` is the item type of a list parameter,
+    default that of the default's items, else float), description, whether
+    ``set_parameters`` may change it while the node runs, and ``check(value) -> None |
+    str``: None if the value is allowed, else what is allowed (the error then names the
+    parameter and the value)."""
+
+    name: str
+    default: object
+    doc: str
+    runtime: bool = False
+    check: Callable | None = None
+    item: type | None = None
+
+    @property
+    def kind(self) -> str:
+        d = self.default
+        if isinstance(d, bool):
+            return "true or false"
+        if isinstance(d, int):
+            return "an integer"
+        if isinstance(d, float):
+            return "a finite number"
+        if isinstance(d, str):
+            return "a string"
+        return "a list of strings" if self.list_item is str else "a list of finite numbers"
+
+    @property
+    def list_item(self) -> type:
+        if self.item is not None:
+            return self.item
+        return str if self.default and isinstance(self.default[0], str) else float
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def coerce_parameter(spec: Param, value):
+    """``value`` as the type of ``spec.default`` (ints for floats, lists as lists), checked
+    with ``spec.check``; raises :class:`ParameterError` in one line."""
+    d = spec.default
+    if isinstance(d, bool):
+        ok = isinstance(value, bool)
+    elif isinstance(d, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif isinstance(d, float):
+        ok = _number(value) and math.isfinite(value)
+    elif isinstance(d, str):
+        ok = isinstance(value, str)
+    else:  # a list (an empty one may come typed as a byte array)
+        if value is None or isinstance(value, (bytes, bytearray)) and not value:
+            value = []  # an empty list reaches rclpy untyped (NOT_SET) or as bytes
+        strings = spec.list_item is str
+        ok = isinstance(value, (list, tuple)) and all(
+            isinstance(v, str) if strings else _number(v) and math.isfinite(v)
+            for v in value)
+    if not ok:
+        raise ParameterError(f"parameter {spec.name}: got {fmt(value)}; expected {spec.kind}")
+    if isinstance(d, float):
+        value = float(value)
+    elif isinstance(d, (list, tuple)):
+        value = [spec.list_item(v) for v in value]
+    if spec.check is not None:
+        allowed = spec.check(value)
+        if allowed:
+            raise ParameterError(f"parameter {spec.name}: got {fmt(value)}; expected "
+                                 f"{allowed}")
+    return value
+
+
+def declare_parameters(node, specs) -> dict:
+    """Declare ``specs`` (:class:`Param`) with dynamic typing (so ``rate:=500`` reaches
+    the check as an integer instead of being refused by rclpy) and return their checked
+    values; raises :class:`ParameterError` naming the first bad one."""
+    values = {}
+    for spec in specs:
+        desc = ParameterDescriptor(description=spec.doc, dynamic_typing=True)
+        default = list(spec.default) if isinstance(spec.default, tuple) else spec.default
+        value = node.declare_parameter(spec.name, default, desc).value
+        values[spec.name] = coerce_parameter(spec, value)
+    return values
+
+
+def guard_parameters(node, specs, apply: Callable | None = None) -> None:
+    """Refuse ``set_parameters`` with a reason for parameters that cannot change at run
+    time (``runtime`` false) and for bad values; hand the accepted values of runtime
+    parameters to ``apply(dict)``. Parameters not in ``specs`` (rclpy's ``use_sim_time``)
+    are left to rclpy. Call after declaring (rclpy runs the callback on declarations)."""
+    by_name = {s.name: s for s in specs}
+
+    def callback(changes) -> SetParametersResult:
+        accepted = {}
+        for p in changes:
+            spec = by_name.get(p.name)
+            if spec is None:
+                continue
+            if not spec.runtime:
+                return SetParametersResult(successful=False, reason=(
+                    f"parameter {p.name} is read-only at run time (the node is built from "
+                    f"it); restart the node with -p {p.name}:=..."))
+            try:
+                accepted[p.name] = coerce_parameter(spec, p.value)
+            except ParameterError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        if accepted and apply is not None:
+            try:
+                apply(accepted)
+            except ValueError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+    node.add_on_set_parameters_callback(callback)
+
+
+_NUMBER = re.compile(r"nan|inf|[-+]?\d[\d.]*(?:e[-+]?\d+)?", re.IGNORECASE)
+
+
+class ReasonLog:
+    """Log each distinct reason at most once per ``period`` (s), with the count of the
+    ones held back. rclpy's ``throttle_duration_sec`` throttles per call site, so one site
+    logging several reasons (a wrong length, then a NaN) would hide all but the first;
+    here the reason is the text with its numbers taken out. Each severity has its own
+    call site (rclpy binds one severity to each)."""
+
+    def __init__(self, node, period: float = 1.0):
+        self.node, self.period, self.last, self.held = node, float(period), {}, {}
+
+    def _due(self, text: str, key) -> str | None:
+        key = _NUMBER.sub("#", text) if key is None else key
+        now = time.monotonic()
+        if now - self.last.get(key, -math.inf) < self.period:
+            self.held[key] = self.held.get(key, 0) + 1
+            return None
+        self.last[key] = now
+        held = self.held.pop(key, 0)
+        return text + (f" ({held} more like this since the last report)" if held else "")
+
+    def warning(self, text: str, key=None) -> None:
+        text = self._due(text, key)
+        if text is not None:
+            self.node.get_logger().warning(text)
+
+    def error(self, text: str, key=None) -> None:
+        text = self._due(text, key)
+        if text is not None:
+            self.node.get_logger().error(text)
+
+    def info(self, text: str, key=None) -> None:
+        text = self._due(text, key)
+        if text is not None:
+            self.node.get_logger().info(text)
+
+
 @contextmanager
 def stop_on_signals():
     """A list that SIGINT and SIGTERM append to while inside (the previous handlers come
@@ -61,15 +246,20 @@ def run_node(factory, args=None, on_stop=None) -> None:
     commands zero torques there), destroy, shut down.
 
     rclpy's signal handlers are replaced by :func:`stop_on_signals`, so no callback runs
-    into a context that Ctrl-C has already shut down. The ROS environment
-    (LOCALHOST discovery, per-run domain) is set when flex_model is imported, before
-    rclpy."""
+    into a context that Ctrl-C has already shut down. A :class:`ParameterError` from the
+    factory (a bad parameter) is one line on stderr and exit status 2. The ROS environment
+    (LOCALHOST discovery; the user's ROS_DOMAIN_ID is kept) is set when flex_model is
+    imported, before rclpy."""
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = executor = None
     try:
         with stop_on_signals() as stop:
             executor = SingleThreadedExecutor()
-            node = factory()
+            try:
+                node = factory()
+            except ParameterError as exc:  # one line, no traceback
+                print(f"{getattr(factory, '__name__', 'node')}: {exc}", file=sys.stderr)
+                raise SystemExit(2) from None
             executor.add_node(node)
             while rclpy.ok() and not stop:
                 executor.spin_once(timeout_sec=0.05)

@@ -75,7 +75,8 @@ class Stepper:
         if status == 2:
             raise SimulationDivergedError(
                 f"Newton iterations did not converge at t = {t_end:.6g} s with step "
-                f"{h:.3g} s; reduce max_step")
+                f"{h:.3g} s: the state ran away, most often under an implausible joint "
+                "command or payload or an unstable control loop")
         self.t, self.x, self.a, self.abar = self.t + duration, x_end, a, abar
 
     # ------------------------------------------------------------------ outputs

@@ -5,6 +5,7 @@ import uuid
 import numpy as np
 import pytest
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -25,12 +26,17 @@ class Harness:
         ns = f"/m{uuid.uuid4().hex[:8]}"
         self.node = ModelNode(context=self.ctx, namespace=ns, parameter_overrides=[
             Parameter(k, value=v) for k, v in params.items()])
-        self.probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=self.ctx)
-        self.states, self.shapes = [], []
-        self.probe.create_subscription(JointState, "/joint_states", self.states.append, 100)
-        self.probe.create_subscription(MarkerArray, "/flex/shape", self.shapes.append, 10)
+        # the model's topics are relative: a probe in its namespace uses the same names
+        self.probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=self.ctx,
+                                       namespace=ns)
+        self.states, self.shapes, self.diagnostics = [], [], []
+        self.probe.create_subscription(JointState, "joint_states", self.states.append, 100)
+        self.probe.create_subscription(MarkerArray, "flex/shape", self.shapes.append, 10)
+        self.probe.create_subscription(DiagnosticArray, "/diagnostics",
+                                       self.diagnostics.append, 10)
         self.cmd = self.probe.create_publisher(Float64MultiArray,
-                                               "/effort_controller/commands", 100)
+                                               "effort_controller/commands", 100)
+        self.payload = self.probe.create_publisher(Float64MultiArray, "flex/payload", 10)
         self.reset = self.probe.create_client(Trigger, f"{ns}/flex_model/reset")
         self.pause = self.probe.create_client(SetBool, f"{ns}/flex_model/pause")
         self.ex = SingleThreadedExecutor(context=self.ctx)
@@ -207,3 +213,179 @@ def test_lockstep_survives_commands_stopping_and_resuming():
         assert np.allclose(np.diff(stamps), 1e-3, atol=1e-9)
     finally:
         h.close()
+
+
+class Logs:
+    """Stands in for a node's logger: records (level, message)."""
+
+    def __init__(self):
+        self.records = []
+
+    def __getattr__(self, level):
+        return lambda msg, **kwargs: self.records.append((level, str(msg)))
+
+    def count(self, text, level=None):
+        return sum(1 for lv, m in self.records if text in m and level in (None, lv))
+
+
+def spin_for(h, seconds):
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        h.ex.spin_once(timeout_sec=0.005)
+
+
+def test_divergence_reports_diagnostic_zero_torque_and_reset_restarts():
+    """Issue 23 defect 2: a 10 kN m command (the plausibility limit raised to let it
+    through) makes the hub-less arm's integration fail within 0.15 s. The node stays up:
+    one ERROR diagnostic on /diagnostics naming the command, zero torque, commands
+    answered with a reason; ~/reset restarts the realtime loop (states flow again, the
+    diagnostic goes back to OK). Before: the timer was cancelled for good, the message said
+    "reduce max_step"."""
+    h = Harness(arm="thesis_example1", mode="realtime", rate=1000.0, publish_rate=100.0,
+                max_torque=1e5)
+    try:
+        log = Logs()
+        h.node.get_logger = lambda: log
+        h.spin_until(lambda: h.node.pub_diag.get_subscription_count() > 0 and h.states,
+                     "the diagnostics probe and a state")
+        h.cmd.publish(Float64MultiArray(data=[1e4, 0.0]))
+        h.spin_until(lambda: h.node.diverged is not None, "the divergence", timeout=20.0)
+        h.spin_until(lambda: h.diagnostics, "the diagnostic")
+        status = h.diagnostics[-1].status[0]
+        assert status.level == DiagnosticStatus.ERROR
+        assert "diverged" in status.message and "10000" in status.message
+        assert "command" in status.message and "reduce max_step" not in status.message
+        assert log.count("model diverged at t =", "error") == 1
+        np.testing.assert_array_equal(h.node.stepper.u, [0.0, 0.0])     # zero torque
+        t_div, n_states = h.node.stepper.t, len(h.states)
+        h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
+        h.spin_until(lambda: log.count("call ~/reset", "warning") >= 1, "a drop reason")
+        spin_for(h, 1.2)                                  # stopped, yet alive: diagnostic again
+        assert h.node.stepper.t == t_div and len(h.states) == n_states
+        assert len(h.diagnostics) >= 2 and not h.node.timer.is_canceled()
+        fut = h.reset.call_async(Trigger.Request())
+        h.spin_until(fut.done, "reset")
+        assert fut.result().success
+        h.spin_until(lambda: len(h.states) > n_states + 20, "states after the reset")
+        assert 0.0 < stamp_s(h.states[-1]) < 5.0 and h.node.diverged is None
+        h.spin_until(lambda: h.diagnostics[-1].status[0].level == DiagnosticStatus.OK,
+                     "the OK diagnostic")
+        h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
+        h.spin_until(lambda: np.array_equal(h.node.stepper.u, [1.0, 0.0]), "a command")
+    finally:
+        h.close()
+
+
+def test_implausible_command_and_payload_are_dropped_with_a_reason(lockstep):
+    """Issue 23 defect 2: plausibility limits (automatic from the arm by default: 438 N m,
+    8.2 kg, 44 kg m^2 for thesis_example1): a 10 kN m command or a 1e6 kg payload is
+    dropped with a reason naming the limit; the model keeps stepping."""
+    h = lockstep
+    log = Logs()
+    h.node.get_logger = lambda: log
+    h.cmd.publish(Float64MultiArray(data=[1e4, 0.0]))
+    h.spin_until(lambda: log.count("beyond max_torque"), "the torque drop")
+    assert log.count("command: joint1 = 10000 N m is beyond max_torque = 437.76", "warning")
+    h.payload.publish(Float64MultiArray(data=[1e6, 0.0]))
+    h.spin_until(lambda: log.count("dropped flex/payload"), "the payload drop")
+    assert log.count("payload mass: got 1e+06 kg; expected at most max_payload_mass = 8.208")
+    h.payload.publish(Float64MultiArray(data=[-1.0, 0.0]))
+    h.spin_until(lambda: log.count("payload mass: got -1 kg; expected >= 0"), "negative")
+    assert h.node.stepper.model.payload == (0.0, 0.0)
+    n = len(h.states)
+    h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
+    h.spin_until(lambda: len(h.states) > n, "a step")
+    np.testing.assert_array_equal(h.node.stepper.u, [1.0, 0.0])
+    h.payload.publish(Float64MultiArray(data=[2.0, 0.1]))
+    h.spin_until(lambda: h.node.stepper.model.payload == (2.0, 0.1), "a plausible payload")
+
+
+def test_runtime_parameters_refused_with_a_reason_or_applied(lockstep):
+    """Issue 23 defect 10: set_parameters was accepted and ignored. Parameters the node is
+    built from are refused with a reason; the runtime ones are checked and applied; an
+    integer is taken for a float."""
+    node = lockstep.node
+    res = node.set_parameters([Parameter("rate", value=10.0)])[0]
+    assert not res.successful and "parameter rate is read-only at run time" in res.reason
+    res = node.set_parameters([Parameter("command_timeout", value=-1.0)])[0]
+    assert not res.successful and "command_timeout: got -1; expected a time >= 0" in res.reason
+    res = node.set_parameters([Parameter("timeout_action", value="brake")])[0]
+    assert not res.successful and "expected one of hold, zero" in res.reason
+    res = node.set_parameters([Parameter("max_torque", value=50)])[0]
+    assert res.successful and node.limit("max_torque") == 50.0
+    assert isinstance(node.p["max_torque"], float)
+    assert node.set_parameters([Parameter("use_sim_time", value=False)])[0].successful
+
+
+def test_startup_parameters_accept_ints_and_refuse_bad_values_in_one_line():
+    """Issue 23 defect 10: rate:=500 (an integer) was refused where a float is expected;
+    shape_points:=0 raised IndexError; a wrong-length initial_joint_angles_deg was
+    silently resized; a negative command_timeout was accepted."""
+    from flex_model.ros_main import ParameterError
+    h = Harness(arm="thesis_example1", mode="lockstep", rate=500, lockstep_timeout=30)
+    try:
+        assert h.node.p["rate"] == 500.0 and isinstance(h.node.p["rate"], float)
+        assert h.node.p["lockstep_timeout"] == 30.0
+    finally:
+        h.close()
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        for params, text in (
+                ({"shape_points": 0}, "parameter shape_points: got 0; expected an integer "
+                 "in [2, 10000]"),
+                ({"initial_joint_angles_deg": [1.0, 2.0, 3.0]},
+                 "parameter initial_joint_angles_deg: got [1, 2, 3]; expected 2 angles"),
+                ({"command_timeout": -1.0}, "parameter command_timeout: got -1; expected a "
+                 "time >= 0 s"),
+                ({"rate": "fast"}, "parameter rate: got 'fast'; expected a finite number"),
+                ({"max_step": 0.0}, "parameter max_step: got 0; expected a step in (0, 0.1]"),
+                ({"mode": "turbo"}, "parameter mode: got 'turbo'; expected one of realtime, "
+                 "lockstep")):
+            with pytest.raises(ParameterError) as err:
+                ModelNode(context=ctx, namespace=f"/b{uuid.uuid4().hex[:8]}",
+                          parameter_overrides=[Parameter(k, value=v)
+                                               for k, v in params.items()])
+            assert text in str(err.value) and "\n" not in str(err.value)
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_root_namespace_topics_are_the_bags_absolute_names():
+    """Issue 23 defect 8: relative names resolve in the root namespace to the absolute
+    topics of the golden bags (test/data/bags) and of every tool."""
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = ModelNode(context=ctx, parameter_overrides=[Parameter("mode", value="lockstep")])
+        topics = {p.topic_name for p in node.publishers} | {
+            s.topic_name for s in node.subscriptions}
+        assert {"/joint_states", "/flex/deflections", "/flex/tip_pose", "/flex/shape",
+                "/clock", "/diagnostics", "/effort_controller/commands",
+                "/flex/payload"} <= topics
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_drop_reasons_are_throttled_per_reason_not_per_call_site(lockstep):
+    """Issue 23 defect 10: one 1 s throttle per call site hid a NaN command behind a
+    wrong-length one. Each reason has its own once-a-second limit; repeats of one reason
+    are counted into its next line."""
+    h = lockstep
+    log = Logs()
+    h.node.get_logger = lambda: log
+    for bad in ([1.0], [1.0, 2.0, 3.0], [np.nan, 0.0], [0.0, np.inf], [5e3, 0.0]):
+        h.cmd.publish(Float64MultiArray(data=bad))
+    h.spin_until(lambda: len(log.records) >= 3, "three drop lines")
+    spin_for(h, 0.1)
+    lines = [m for _, m in log.records]
+    assert len(lines) == 3, lines                 # wrong length, non-finite, beyond limit
+    assert "got 1 values; expected 2" in lines[0]
+    assert "got non-finite values [nan, 0]" in lines[1]
+    assert "beyond max_torque" in lines[2]
+    time.sleep(1.05)
+    h.cmd.publish(Float64MultiArray(data=[1.0, 2.0, 3.0, 4.0]))
+    h.spin_until(lambda: len(log.records) == 4, "the next wrong-length line")
+    assert "got 4 values" in log.records[-1][1]
+    assert "(1 more like this since the last report)" in log.records[-1][1]

@@ -3,20 +3,45 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
-from flex_model.ros_main import lean_node, run_node
+from flex_model.ros_main import (Param, ParameterError, declare_parameters, guard_parameters,
+                                 lean_node, run_node)
 from nav_msgs.msg import Path
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                SetParametersResult)
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory
 
 from .config import DESCRIPTIONS, PlannerConfig
-from .planning import plan
+from .planning import INTEGRATION_STEP, plan
 from .ros_messages import deflections_msg, nominal_path_msg, path_request, trajectory_msg
 
 #: parameters fixed for the node's life (the model is built from them)
 READ_ONLY = ("arm", "vars_per_link")
+#: default bound on the samples of a plan (200 s at the default 1 ms)
+MAX_SAMPLES = 200_000
+
+
+def _max_samples(v):
+    return None if v >= 2 else "an integer >= 2"
+
+
+def parameter_specs() -> tuple:
+    """PlannerConfig's fields (checked by PlannerConfig), ``max_samples`` and the node
+    parameters."""
+    specs = [Param(f.name, f.default, DESCRIPTIONS[f.name], runtime=f.name not in READ_ONLY)
+             for f in fields(PlannerConfig)]
+    specs.append(Param("max_samples", MAX_SAMPLES, "largest number of samples of a plan "
+                       "(published, or computed at the nominal-input step if finer): a "
+                       "request needing more is refused", True, _max_samples))
+    specs += [Param(name, True, "false: see flex_model.ros_main.lean_node")
+              for name in ("parameter_services", "qos_event_warnings")]
+    return tuple(specs)
+
+
+def samples_needed(times, sample_period: float) -> int:
+    """Samples the plan of waypoint ``times`` computes: the published ones every
+    ``sample_period`` or, if finer, the nominal-input solver's every INTEGRATION_STEP."""
+    duration = float(times[-1] - times[0])
+    return int(duration / min(sample_period, INTEGRATION_STEP) + 1e-6) + 2
 
 
 class PlannerNode(Node):
@@ -29,28 +54,30 @@ class PlannerNode(Node):
     the admissible nominal torque every ``sample_period``), ``~/nominal_path`` (nav_msgs/Path,
     the nominal tip path) and ``~/nominal_deflections`` (trajectory_msgs/JointTrajectory
     whose "joints" are the model's deformation variables, m and rad). With the node name
-    ``flex_planner`` these are ``/flex_planner/...``. Parameters: the fields of
-    :class:`flex_planner.config.PlannerConfig` (``arm``, ``vars_per_link`` read-only;
-    ``sample_period``, ``elbow``, ``frame_id`` validated when set). A bad request
-    (unreachable point, times not increasing, empty path, wrong frame) is logged as an error
-    naming the point, nothing is published for it, and the node keeps serving. Node
-    parameters ``parameter_services`` and ``qos_event_warnings`` (default true):
-    flex_model.ros_main.lean_node.
+    ``flex_planner`` these are ``/flex_planner/...`` (``<ns>/flex_planner/...`` in a
+    namespace). Parameters: the fields of :class:`flex_planner.config.PlannerConfig`
+    (``arm``, ``vars_per_link`` read-only at run time; ``sample_period``, ``elbow``,
+    ``frame_id`` validated when set; a float takes an integer), ``max_samples`` (default
+    200000: a request whose plan needs more samples, e.g. a waypoint at t = 1e5 s, ~1e8
+    samples, is refused in one line before any work). A bad request (unreachable point,
+    times not increasing, empty path, wrong frame, too long) is logged as an error naming
+    the point, nothing is published for it, and the node keeps serving. A bad parameter at
+    start is one line naming it, its value and what is allowed. Node parameters
+    ``parameter_services`` and ``qos_event_warnings`` (default true, read-only at run
+    time): flex_model.ros_main.lean_node.
     """
 
     def __init__(self, **kwargs):
         super().__init__("flex_planner", **kwargs)
-        values = {}
-        for f in fields(PlannerConfig):
-            desc = ParameterDescriptor(description=DESCRIPTIONS[f.name],
-                                       read_only=f.name in READ_ONLY)
-            if f.name == "sample_period":
-                desc.floating_point_range = [FloatingPointRange(from_value=1e-5, to_value=1.0)]
-            if f.name == "vars_per_link":
-                desc.integer_range = [IntegerRange(from_value=0, to_value=200, step=2)]
-            values[f.name] = self.declare_parameter(f.name, f.default, desc).value
-        self.config = PlannerConfig(**values)
-        self.model = self.config.model()
+        self.specs = parameter_specs()
+        values = declare_parameters(self, self.specs)
+        self.max_samples = values.pop("max_samples")
+        lean = [values.pop(name) for name in ("parameter_services", "qos_event_warnings")]
+        try:
+            self.config = PlannerConfig(**values)
+            self.model = self.config.model()
+        except (ValueError, OSError) as exc:
+            raise ParameterError(f"parameter {exc}") from None
         self.flex_indices = [i for i in range(self.model.nq) if i not in set(self.model.off)]
         reliable = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -60,24 +87,30 @@ class PlannerNode(Node):
         self.pub_deflections = self.create_publisher(JointTrajectory, "~/nominal_deflections",
                                                      latched)
         self.create_subscription(Path, "~/waypoints", self.on_waypoints, reliable)
-        lean = [self.declare_parameter(name, True).value
-                for name in ("parameter_services", "qos_event_warnings")]
-        self.add_on_set_parameters_callback(self.on_set_parameters)
+        guard_parameters(self, self.specs, self.apply_parameters)
         lean_node(self, *lean)
         self.get_logger().info(f"planning for {self.model.arm.name} ({self.model.nq} "
                                f"coordinates) in frame {self.config.frame_id!r}")
 
-    def on_set_parameters(self, params) -> SetParametersResult:
-        try:
-            self.config = replace(self.config, **{p.name: p.value for p in params})
-        except (TypeError, ValueError) as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
+    def apply_parameters(self, values: dict) -> None:
+        """Run-time sample_period, elbow, frame_id, max_samples (types checked; raises
+        ValueError with the reason)."""
+        max_samples = values.pop("max_samples", self.max_samples)
+        self.config = replace(self.config, **values)
+        self.max_samples = max_samples
 
     def on_waypoints(self, msg: Path) -> None:
         cfg = self.config
         try:
             pts, times, phis = path_request(msg, cfg.frame_id, self.model.n_links >= 3)
+            n = samples_needed(times, cfg.sample_period)
+            if n > self.max_samples:
+                raise ValueError(
+                    f"Path.poses[{len(times) - 1}].header.stamp: got {times[-1]:.9g} s, a plan "
+                    f"of {times[-1] - times[0]:.9g} s needing {n} samples (every "
+                    f"{min(cfg.sample_period, INTEGRATION_STEP):g} s); expected at most "
+                    f"max_samples = {self.max_samples} (shorten the motion, or raise "
+                    "sample_period or max_samples)")
             result = plan(self.model, pts, times, sample_period=cfg.sample_period,
                           elbow=cfg.elbow, orientations=phis)
         except (ValueError, RuntimeError) as exc:

@@ -155,3 +155,41 @@ def test_parameters_are_validated(harness):
         .successful                                                  # read-only
     assert harness.node.set_parameters([Parameter("elbow", value="down")])[0].successful
     assert harness.node.config.elbow == "down"
+
+
+def test_a_far_waypoint_is_refused_before_any_work(harness):
+    """Issue 23 defect 9: a waypoint at t = 1e5 s asked for ~1e8 samples (minutes of
+    work and gigabytes, deaf to SIGINT). The plan's sample count is bounded by
+    max_samples: one error line naming the waypoint, the count and the bound, nothing
+    published, at once; the node keeps serving."""
+    start = time.monotonic()
+    harness.request(SECTION_F_WAYPOINTS[:2], [0.0, 1e5])
+    assert harness.spin_until(lambda: harness.logs)
+    assert time.monotonic() - start < 5.0
+    log = harness.logs[0]
+    assert "Path.poses[1].header.stamp: got 100000 s" in log
+    assert "100000002 samples" in log and "max_samples = 200000" in log
+    assert not any(harness.got.values())
+    assert harness.node.set_parameters([Parameter("max_samples", value=100)])[0].successful
+    harness.request(SECTION_F_WAYPOINTS[:2], SECTION_F_TIMES[:2])      # 5 s: 5002 > 100
+    assert harness.spin_until(lambda: len(harness.logs) == 2)
+    assert "expected at most max_samples = 100" in harness.logs[1]
+    assert harness.node.set_parameters([Parameter("max_samples", value=6000)])[0].successful
+    harness.request(SECTION_F_WAYPOINTS[:2], SECTION_F_TIMES[:2])
+    assert harness.spin_until(lambda: harness.got["trajectory"])
+
+
+def test_runtime_parameters_refused_with_a_reason_and_ints_taken_for_floats(harness):
+    """Issue 23 defect 10: node parameters are read-only at run time (refused with a
+    reason, not accepted and ignored); an integer is taken where a float is expected."""
+    res = harness.node.set_parameters([Parameter("parameter_services", value=False)])[0]
+    assert not res.successful and "read-only at run time" in res.reason
+    res = harness.node.set_parameters([Parameter("max_samples", value=1)])[0]
+    assert not res.successful and "parameter max_samples: got 1; expected an integer >= 2" \
+        in res.reason
+    res = harness.node.set_parameters([Parameter("sample_period", value=1)])[0]
+    assert res.successful and harness.node.config.sample_period == 1.0
+    assert isinstance(harness.node.config.sample_period, float)
+    res = harness.node.set_parameters([Parameter("sample_period", value="fast")])[0]
+    assert not res.successful and "parameter sample_period: got 'fast'; expected a finite " \
+        "number" in res.reason
