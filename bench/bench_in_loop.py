@@ -64,6 +64,39 @@ def main() -> None:
           f"{1e6 * best / n:.0f} us per control period")
     print("tip error at the waypoints (mm): "
           + ", ".join(f"{1e3 * errors[k]:.2f}" for k in sorted(errors)))
+    node_rtf = run_node(traj, theta0, args.rate)
+    print(f"model node, lockstep, controller:=eq95 (SingleThreadedExecutor, publishing at "
+          f"250 Hz): real-time factor {node_rtf:.1f}")
+
+
+def run_node(traj, theta0, rate: float) -> float:
+    """The same task in the model node (lockstep, in-loop eq95), spun by its executor."""
+    import os
+    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+
+    from flex_model.model_node import ModelNode
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = ModelNode(context=ctx, parameter_overrides=[Parameter(k, value=v) for k, v in {
+            "arm": "thesis_example1_motors", "mode": "lockstep", "controller": "eq95",
+            "controller_rate": rate, "start_static": True, "start_paused": True,
+            "initial_joint_angles_deg": list(np.degrees(theta0)),
+            "controller_params.h": [25.0], "controller_params.a": [5.0],
+            "parameter_services": False, "qos_event_warnings": False}.items()])
+        node.loop.set_trajectory(traj, 0.0)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        node.paused = False
+        t0 = time.perf_counter()
+        while node.stepper.t < TIMES[-1] - 1e-9:
+            ex.spin_once(timeout_sec=0.01)
+        return node.stepper.t / (time.perf_counter() - t0)
+    finally:
+        rclpy.try_shutdown(context=ctx)
 
 
 if __name__ == "__main__":

@@ -12,9 +12,8 @@ from array import array
 import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
-from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.trajectory import JointTrajectoryData
+from flex_model.ros_conversions import trajectory_from_msg  # noqa: F401 (the node's import)
 
 
 def _finite(field: str, values) -> np.ndarray:
@@ -67,45 +66,6 @@ def deflection_array(msg: JointState, n: int) -> np.ndarray:
                          f"(missing {missing})")
     return _finite("deflections.position",
                    np.asarray(msg.position, float)[[names.index(w) for w in want]])
-
-
-def trajectory_from_msg(msg: JointTrajectory, joint_names) -> JointTrajectoryData:
-    """A JointTrajectory as :class:`JointTrajectoryData` in the order of ``joint_names``.
-
-    The message's joint names must be the same set (any order); empty velocities,
-    accelerations or efforts of a point mean zeros; times must increase.
-    """
-    names = list(msg.joint_names)
-    want = list(joint_names)
-    if sorted(names) != sorted(want) or len(set(names)) != len(names):
-        raise ValueError(f"JointTrajectory.joint_names: got {names}; expected the joints "
-                         f"{want} (any order)")
-    if not msg.points:
-        raise ValueError("JointTrajectory.points: got 0 points; expected at least 1")
-    idx = [names.index(j) for j in want]
-    n = len(want)
-    t = np.empty(len(msg.points))
-    arrays = {k: np.zeros((len(msg.points), n))
-              for k in ("positions", "velocities", "accelerations", "effort")}
-    for k, p in enumerate(msg.points):
-        t[k] = p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
-        for field in arrays:
-            values = getattr(p, field)
-            if field == "positions" and len(values) != n:
-                raise ValueError(f"JointTrajectory.points[{k}].positions: got {len(values)} "
-                                 f"values; expected {n}")
-            if len(values) not in (0, n):
-                raise ValueError(f"JointTrajectory.points[{k}].{field}: got {len(values)} "
-                                 f"values; expected 0 or {n}")
-            if len(values):
-                arrays[field][k] = _finite(f"JointTrajectory.points[{k}].{field}",
-                                           np.asarray(values, float)[idx])
-    if np.any(np.diff(t) <= 0):
-        raise ValueError(f"JointTrajectory.points.time_from_start: got {t.tolist()} s; "
-                         "expected strictly increasing times")
-    return JointTrajectoryData(joint_names=want, t=t, positions=arrays["positions"],
-                               velocities=arrays["velocities"],
-                               accelerations=arrays["accelerations"], efforts=arrays["effort"])
 
 
 def commands_msg(tau, msg: Float64MultiArray | None = None) -> Float64MultiArray:

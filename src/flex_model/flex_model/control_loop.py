@@ -25,6 +25,13 @@ class ControlLoop:
         self._G = m.G
         self._defl = np.array([m.tip_deflection_index(i) for i in range(m.n_links)])
         self.n_updates = 0
+        self.t0 = 0.0  # the trajectory's start (simulation time, s)
+
+    def set_trajectory(self, trajectory, start: float = 0.0) -> None:
+        """Track ``trajectory`` (a JointTrajectoryData) from the simulation time ``start``:
+        the controller sees the time since then."""
+        self.controller.set_trajectory(trajectory)
+        self.t0 = float(start)
 
     def sense(self) -> SensedState:
         """Joint angles and rates, link tip deflections and their rates, now."""
@@ -34,7 +41,8 @@ class ControlLoop:
     def update(self) -> np.ndarray:
         """One controller update at the current time; the command is held from now on."""
         st = self.stepper
-        u = np.asarray(self.controller.update(st.t, self.period, self.sense()), float)
+        u = np.asarray(self.controller.update(st.t - self.t0, self.period, self.sense()),
+                       float)
         if u.shape != (st.model.n_links,) or not np.all(np.isfinite(u)):
             raise ValueError(f"in-loop controller: got the command {u.tolist()}; expected "
                              f"{st.model.n_links} finite values")

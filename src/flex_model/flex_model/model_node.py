@@ -75,14 +75,21 @@ from std_msgs.msg import Float64MultiArray, Header
 from std_srvs.srv import SetBool, Trigger
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import Imu, JointState
+from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from . import ros_conversions as conv
 from .arm import load_arm
+from .control_loop import ControlLoop
+from .controller_interface import load_controller
 from .dynamics import FlexArmModel
 from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
                        guard_parameters, lean_node, run_node)
 from .stepper import Stepper
+
+
+#: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
+LOCKSTEP_SLICE = 0.02
 
 
 def _positive(v):
@@ -153,6 +160,12 @@ PARAMETERS = (
     Param("max_payload_inertia", 0.0, "plausibility limit of a payload inertia (kg m^2); "
           "0: automatic, 10 x the stretched arm's inertia about joint 1", True,
           _non_negative),
+    Param("controller", "", "in-loop controller run every control period inside the model's "
+          "loop (flex_model.controller_interface: eq95, eq45, state_feedback or "
+          "module:factory); its parameters are controller_params.<name>; empty: commands "
+          "come over effort_controller/commands"),
+    Param("controller_rate", 500.0, "rate of the in-loop controller (Hz); its period is "
+          "split into steps of at most max_step", check=_positive),
     Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
     Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
 )
@@ -222,10 +235,14 @@ class ModelNode(Node):
         self.create_subscription(Float64MultiArray, "flex/payload", self.on_payload, qos)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
+        self.loop = self._in_loop_controller(p) if p["controller"] else None
         guard_parameters(self, PARAMETERS, self.p.update)
         self.last_wall = time.monotonic()
-        # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog
+        # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog;
+        # lockstep with an in-loop controller: each tick runs the loop for LOCKSTEP_SLICE s
         period = 1.0 / p["rate"] if p["mode"] == "realtime" else 0.05
+        if self.loop is not None and p["mode"] == "lockstep":
+            period = 1e-4
         self.timer = self.create_timer(period, self.on_tick)
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
@@ -237,6 +254,36 @@ class ModelNode(Node):
                                f"limits {self.limit('max_torque'):.4g} N m, payload "
                                f"{self.limit('max_payload_mass'):.4g} kg, "
                                f"{self.limit('max_payload_inertia'):.4g} kg m^2")
+
+    def _in_loop_controller(self, p) -> ControlLoop:
+        """The controller named by the parameter ``controller`` in the model's loop (the
+        ros2_control pattern: no DDS round trip per control period); it takes trajectories
+        on flex_planner/trajectory (times from the header stamp, in simulation time, or
+        from arrival)."""
+        prefix = "controller_params."
+        params = {}
+        for name, override in getattr(self, "_parameter_overrides", {}).items():
+            if name.startswith(prefix):
+                params[name[len(prefix):]] = self.declare_parameter(name, override.value).value
+        try:
+            ctl = load_controller(p["controller"], self.names, params)
+        except ValueError as exc:
+            raise ParameterError(f"parameter {exc}") from None
+        self.create_subscription(JointTrajectory, "flex_planner/trajectory",
+                                 self.on_trajectory, 1)
+        self.get_logger().info(f"in-loop controller {p['controller']} at "
+                               f"{p['controller_rate']:g} Hz, parameters {params or 'default'}")
+        return ControlLoop(self.stepper, ctl, 1.0 / p["controller_rate"])
+
+    def on_trajectory(self, msg: JointTrajectory) -> None:
+        try:
+            data = conv.trajectory_from_msg(msg, self.names)
+            start = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            self.loop.set_trajectory(data, start if start > 0 else self.stepper.t)
+        except ValueError as exc:
+            self.drops.warning(f"dropped flex_planner/trajectory: {exc}")
+            return
+        self.get_logger().info(f"trajectory: {len(data.t)} points, {data.duration:.3f} s")
 
     def _set_realtime_priority(self, priority: int) -> None:
         """SCHED_FIFO for this thread (Linux: the other threads, DDS's, keep theirs)."""
@@ -271,6 +318,9 @@ class ModelNode(Node):
             if self.diverged is not None:
                 raise ValueError(f"the model diverged at t = "
                                  f"{fmt(self.diverged_at)} s and is stopped; call ~/reset")
+            if self.loop is not None:
+                raise ValueError(f"the in-loop controller {self.p['controller']} drives "
+                                 "the arm (parameter controller)")
         except ValueError as exc:
             self.drops.warning(f"dropped effort_controller/commands: {exc}; holding the last "
                                "valid command")
@@ -343,6 +393,13 @@ class ModelNode(Node):
             return
         if self.paused:
             return
+        if self.loop is not None and self.p["mode"] == "lockstep":
+            # as fast as the arm computes: control periods for LOCKSTEP_SLICE s of wall time,
+            # then back to the executor (trajectories, payload, services)
+            end = now + LOCKSTEP_SLICE
+            while self.diverged is None and time.monotonic() < end:
+                self.step(self.loop.period)
+            return
         if self.p["mode"] == "lockstep":  # watchdog: no command for lockstep_timeout
             if elapsed < self.p["lockstep_timeout"]:
                 self.last_wall -= elapsed  # keep measuring from the last step
@@ -358,7 +415,7 @@ class ModelNode(Node):
         # the owed wall time in whole steps, with a quarter step of slack: timer jitter about
         # the step grid must not alternate ticks of 0 and 2 steps (the state may then run
         # up to h/4 ahead of the wall clock); a stalled process owes at most 0.1 s
-        h = self.p["max_step"]
+        h = self.p["max_step"] if self.loop is None else self.loop.period
         self.behind = min(self.behind + elapsed, 0.1)
         n = int(self.behind / h + 0.25)
         if n:
@@ -376,7 +433,10 @@ class ModelNode(Node):
             self._warn_once("timeout", f"no valid command for {timeout:g} s: "
                             f"{self.p['timeout_action']}")
         try:
-            self.stepper.advance(dt)
+            if self.loop is None:
+                self.stepper.advance(dt)
+            else:
+                self.loop.advance(max(1, int(round(dt / self.loop.period))))
         except Exception as exc:  # a diverged model stops stepping, loudly, and stays up
             self.on_divergence(exc)
             return
@@ -387,7 +447,7 @@ class ModelNode(Node):
         shape = full and t >= self.next_shape - 1e-12
         if shape:
             self.next_shape = t + 1.0 / self.p["shape_rate"]
-        if full or self.p["mode"] == "lockstep":
+        if full or (self.p["mode"] == "lockstep" and self.loop is None):
             self.publish_state(full=full, shape=shape)
 
     def on_divergence(self, exc: Exception) -> None:

@@ -10,7 +10,10 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import ColorRGBA, Header
+from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
+
+from .trajectory import JointTrajectoryData
 
 
 def stamp(t: float) -> Time:
@@ -144,3 +147,50 @@ def diagnostic_status(name: str, hardware_id: str, level: str, message: str,
     return DiagnosticStatus(level=_LEVELS[level], name=name, message=message,
                             hardware_id=hardware_id,
                             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
+
+
+def _finite_field(field: str, values) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise ValueError(f"{field}[{bad}]: got {float(arr[bad]):.6g}; expected finite values")
+    return arr
+
+
+def trajectory_from_msg(msg: JointTrajectory, joint_names) -> JointTrajectoryData:
+    """A JointTrajectory as :class:`JointTrajectoryData` in the order of ``joint_names``.
+
+    The message's joint names must be the same set (any order); empty velocities,
+    accelerations or efforts of a point mean zeros; times must increase.
+    """
+    names = list(msg.joint_names)
+    want = list(joint_names)
+    if sorted(names) != sorted(want) or len(set(names)) != len(names):
+        raise ValueError(f"JointTrajectory.joint_names: got {names}; expected the joints "
+                         f"{want} (any order)")
+    if not msg.points:
+        raise ValueError("JointTrajectory.points: got 0 points; expected at least 1")
+    idx = [names.index(j) for j in want]
+    n = len(want)
+    t = np.empty(len(msg.points))
+    arrays = {k: np.zeros((len(msg.points), n))
+              for k in ("positions", "velocities", "accelerations", "effort")}
+    for k, p in enumerate(msg.points):
+        t[k] = p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
+        for field in arrays:
+            values = getattr(p, field)
+            if field == "positions" and len(values) != n:
+                raise ValueError(f"JointTrajectory.points[{k}].positions: got {len(values)} "
+                                 f"values; expected {n}")
+            if len(values) not in (0, n):
+                raise ValueError(f"JointTrajectory.points[{k}].{field}: got {len(values)} "
+                                 f"values; expected 0 or {n}")
+            if len(values):
+                arrays[field][k] = _finite_field(f"JointTrajectory.points[{k}].{field}",
+                                           np.asarray(values, float)[idx])
+    if np.any(np.diff(t) <= 0):
+        raise ValueError(f"JointTrajectory.points.time_from_start: got {t.tolist()} s; "
+                         "expected strictly increasing times")
+    return JointTrajectoryData(joint_names=want, t=t, positions=arrays["positions"],
+                               velocities=arrays["velocities"],
+                               accelerations=arrays["accelerations"], efforts=arrays["effort"])
