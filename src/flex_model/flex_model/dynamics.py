@@ -104,9 +104,12 @@ class FlexArmModel:
                           rho_over_e=rho_over_e)
 
     #: columns of joint_data: spring (k, b, backlash, smoothing), friction (F_v, F_c, F_s,
-    #: w_s, eps), DC motor (on, R, K_t, K_e, i_max, V_max), gear ratio n, cogging (A, N, phase)
+    #: w_s, eps), DC motor (on, R, K_t, K_e, i_max, V_max), gear ratio n, cogging (A, N, phase),
+    #: stick-slip friction (on, sigma_2, F_c, F_s, w_s, sigma_0, sigma_1, elastic fraction;
+    #: flex_model.effects.stick_slip, from column integrators.SS on)
     JOINT_DATA = ("k", "b", "backlash", "smoothing", "fv", "fc", "fs", "ws", "eps", "motor",
-                  "R", "Kt", "Ke", "imax", "vmax", "ratio", "cog_A", "cog_N", "cog_phase")
+                  "R", "Kt", "Ke", "imax", "vmax", "ratio", "cog_A", "cog_N", "cog_phase",
+                  "ss_on", "ss_fv", "ss_fc", "ss_fs", "ss_ws", "ss_k", "ss_d", "ss_frac")
 
     def _apply_effects(self) -> None:
         """Fold the arm's effects (flex_model.effects) into the model's constant data."""
@@ -121,6 +124,7 @@ class FlexArmModel:
         jd[:, col["R"]] = 1.0
         jd[:, col["cog_N"]] = 1.0
         jd[:, col["imax"]] = jd[:, col["vmax"]] = np.inf
+        jd[:, col["ss_ws"]] = jd[:, col["ss_k"]] = 1.0
         for e in self.arm.effects:
             i = joints.index(e.target) if e.TARGET == "joint" else None
             if e.TYPE == "gear":
@@ -139,6 +143,8 @@ class FlexArmModel:
                 jd[i, col["R"]:col["vmax"] + 1] = e.values
             elif e.TYPE == "cogging":
                 jd[i, col["cog_A"]:col["cog_phase"] + 1] = e.values
+            elif e.TYPE == "stick_slip_friction" and not e.is_off:
+                jd[i, col["ss_on"]:col["ss_frac"] + 1] = e.kernel_data()
             elif e.TYPE == "structural_damping":
                 i = links.index(e.target)
                 s = self.flex_slice(i)
@@ -162,6 +168,8 @@ class FlexArmModel:
                                 [b.rot_coupling[:, None], b.rot_matrix]])
                 self.B_const[np.ix_(idx, idx)] += blk
         self.joint_data = jd
+        # one bristle state z per stick-slip joint, in joint order, after q and v
+        self.stick_slip_joints = [i for i in range(self.n_links) if jd[i, col["ss_on"]] > 0]
 
     # ----------------------------------------------------------------- indexing
     def alpha_index(self, i: int) -> int:
@@ -343,7 +351,8 @@ class FlexArmModel:
 
     def joint_forces(self, q, v=None) -> np.ndarray:
         """Generalized forces of the joint effects: springs (with backlash), friction and
-        cogging (flex_model.effects)."""
+        cogging (flex_model.effects); not stick-slip friction, whose torque depends on its
+        bristle state as well (:meth:`stick_slip_torques`)."""
         from .integrators import joint_passive_forces
         from .simulate import _input_data
         q = np.asarray(q, float)
@@ -351,6 +360,29 @@ class FlexArmModel:
         if not hasattr(self, "_E0"):
             self._E0 = _input_data(self, None, (), np.zeros(self.n_links))
         return joint_passive_forces(q, v, self._E0)
+
+    @property
+    def n_bristles(self) -> int:
+        """Number of bristle states z (one per stick_slip_friction joint): the integrated
+        state is x = [q; v; z]."""
+        return len(self.stick_slip_joints)
+
+    def stick_slip_torques(self, v, z) -> np.ndarray:
+        """Torques (N m, n_links) of the stick-slip friction on the actuator coordinates
+        at velocities v and bristle deflections z (zero at joints without the effect)."""
+        from .effects.stick_slip import friction_magnitude
+        from .integrators import SS
+        tau = np.zeros(self.n_links)
+        for k, i in enumerate(self.stick_slip_joints):
+            tau[i] = -friction_magnitude(float(z[k]), float(self.Ga[i] @ v),
+                                         self.joint_data[i, SS:])
+        return tau
+
+    def bristle_energy(self, z) -> float:
+        """Energy stored in the bristles of the stick-slip joints, sum sigma_0 z^2 / 2 (J)."""
+        from .integrators import SS
+        return float(sum(0.5 * self.joint_data[i, SS + 5] * float(z[k]) ** 2
+                         for k, i in enumerate(self.stick_slip_joints)))
 
     def contact_force(self, q, v=None) -> np.ndarray:
         """Force (N, base frame) of the contact surface on the tip (zero without one)."""

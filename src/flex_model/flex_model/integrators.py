@@ -31,9 +31,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .effects.stick_slip import bristle_rate, bristle_step
 from .kernels import inverse_dynamics, link_origins, mass_matrix, solve_spd, tip_jacobian
 
 _CACHE = True
+
+#: first column of the stick_slip_friction data in joint_data (FlexArmModel.JOINT_DATA)
+SS = 19
 
 
 @njit(cache=_CACHE)
@@ -120,12 +124,84 @@ def joint_passive_forces(q, v, E):
 
 
 @njit(cache=_CACHE)
-def applied_force(t, q, v, P, E):
+def bristle_count(E):
+    """Number of bristle states z: one per joint with a stick_slip_friction effect."""
+    jd = E[17]
+    n = 0
+    for i in range(jd.shape[0]):
+        if jd[i, SS] > 0.0:
+            n += 1
+    return n
+
+
+@njit(cache=_CACHE)
+def _check_state(x, E):
+    if x.shape[0] != 2 * E[0].shape[0] + bristle_count(E):
+        raise ValueError("state: expected [q, v, z], z one bristle deflection per joint "
+                         "with a stick_slip_friction effect (flex_model.effects.stick_slip)")
+
+
+@njit(cache=_CACHE)
+def stick_slip_forces(q, v, z, zd, E):
+    """Generalized forces of the stick_slip_friction joints at bristle deflections z and
+    rates zd: F = sigma_0 z + sigma_1 zd + sigma_2 w, the damping only while zd w > 0
+    (flex_model.effects.stick_slip.friction_magnitude for zd = z'(z, w))."""
+    Ga, jd = E[16], E[17]
+    Q = np.zeros(q.shape[0])
+    k = 0
+    for i in range(jd.shape[0]):
+        if jd[i, SS] > 0.0:
+            p = jd[i, SS:]
+            w = Ga[i] @ v
+            f = p[5] * z[k] + p[1] * w
+            if zd[k] * w > 0.0:
+                f += p[6] * zd[k]
+            for j in range(q.shape[0]):
+                Q[j] -= Ga[i, j] * f
+            k += 1
+    return Q
+
+
+@njit(cache=_CACHE)
+def bristle_rates(v, z, E):
+    """z' of the stick_slip_friction joints (Dupont et al. 2002)."""
+    Ga, jd = E[16], E[17]
+    out = np.zeros(z.shape[0])
+    k = 0
+    for i in range(jd.shape[0]):
+        if jd[i, SS] > 0.0:
+            out[k] = bristle_rate(z[k], Ga[i] @ v, jd[i, SS:])[0]
+            k += 1
+    return out
+
+
+@njit(cache=_CACHE)
+def bristle_update(h, v0, v1, z0, E):
+    """Bristle deflections after a fixed step h from speed v0 to v1, by backward Euler
+    (z1 = z0 + h z'(z1, w1)) with the Stribeck level z_m of the step's start speed (a
+    steep Stribeck drop, -dF_ss/dw > J / h, would make the step's equations
+    non-monotone), and their slopes dz1/d(h w1)."""
+    Ga, jd = E[16], E[17]
+    z1 = np.empty(z0.shape[0])
+    g = np.empty(z0.shape[0])
+    k = 0
+    for i in range(jd.shape[0]):
+        if jd[i, SS] > 0.0:
+            z1[k], g[k] = bristle_step(z0[k], h * (Ga[i] @ v1), Ga[i] @ v0, jd[i, SS:])
+            k += 1
+    return z1, g
+
+
+@njit(cache=_CACHE)
+def applied_force(t, q, v, z, zd, P, E):
     """Generalized applied force Q (joint torques, joint effects, tip loads, contact,
-    elastic and damping forces)."""
+    elastic and damping forces); z, zd: bristle deflections of stick-slip joints and their
+    rates."""
     K, D, pt0, pt1, pF, pC, ct, Ga = E[0], E[1], E[9], E[10], E[12], E[13], E[15], E[16]
     tau = joint_torques(t, q, v, E)
     Q = Ga.T @ tau - K @ q - D @ v + joint_passive_forces(q, v, E)
+    if z.shape[0] > 0:
+        Q += stick_slip_forces(q, v, z, zd, E)
     fx = 0.0
     fy = 0.0
     c = 0.0
@@ -190,22 +266,57 @@ def _joint_tangent(v, E):
 
 
 @njit(cache=_CACHE)
-def _balance(t, q, v, P, E):
+def _stick_slip_tangent(Kj, Cj, v1, z0, z1, g, h, E):
+    """Adds the bristle force's slope to the iteration matrix, on the velocity
+    (z1 = z0 + h z'(z1, w1)): sigma_0 dz1/dw1 = sigma_0 h g, sigma_1 g, sigma_2."""
+    Ga, jd = E[16], E[17]
+    n = Kj.shape[0]
+    k = 0
+    for i in range(jd.shape[0]):
+        if jd[i, SS] > 0.0:
+            p = jd[i, SS:]
+            kk = 0.0
+            cd = p[5] * h * g[k] + p[1]
+            if (z1[k] - z0[k]) * (Ga[i] @ v1) > 0.0:
+                cd += p[6] * g[k]
+            for a in range(n):
+                for b in range(n):
+                    Kj[a, b] += kk * Ga[i, a] * Ga[i, b]
+                    Cj[a, b] += cd * Ga[i, a] * Ga[i, b]
+            k += 1
+
+
+@njit(cache=_CACHE)
+def _balance(t, q, v, z, zd, P, E):
     """Mass matrix and right-hand side of B(q) a = Q - c(q, v)."""
     n = q.shape[0]
-    rhs = applied_force(t, q, v, P, E) - inverse_dynamics(q, v, np.zeros(n), E[3], E[4], P)
+    rhs = applied_force(t, q, v, z, zd, P, E) - inverse_dynamics(q, v, np.zeros(n), E[3],
+                                                                  E[4], P)
     return mass_matrix(q, P), rhs
 
 
 @njit(cache=_CACHE)
-def derivative(t, x, P, E):
-    """dx/dt = [v; B(q)^-1 (Q - c(q, v) - dU_g/dq)]."""
-    n = x.shape[0] // 2
-    B, rhs = _balance(t, x[:n], x[n:], P, E)
-    out = np.empty(2 * n)
-    out[:n] = x[n:]
-    out[n:] = solve_spd(B, rhs)
+def _derivative(t, x, P, E):
+    n = E[0].shape[0]
+    z = x[2 * n:]
+    zd = z
+    if z.shape[0] > 0:
+        zd = bristle_rates(x[n:2 * n], z, E)
+    B, rhs = _balance(t, x[:n], x[n:2 * n], z, zd, P, E)
+    out = np.empty(x.shape[0])
+    out[:n] = x[n:2 * n]
+    out[n:2 * n] = solve_spd(B, rhs)
+    if z.shape[0] > 0:
+        out[2 * n:] = zd
     return out
+
+
+@njit(cache=_CACHE)
+def derivative(t, x, P, E):
+    """dx/dt = [v; B(q)^-1 (Q - c(q, v) - dU_g/dq); z'] for x = [q; v; z] (z: the bristle
+    deflections of stick_slip_friction joints, none without them)."""
+    _check_state(x, E)
+    return _derivative(t, x, P, E)
 
 
 @njit(cache=_CACHE)
@@ -234,12 +345,13 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
     e1, e3, e4, e5, e6, e7 = (71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200,
                               22 / 525, -1 / 40)
     c2, c3, c4, c5 = 1 / 5, 3 / 10, 4 / 5, 8 / 9
+    _check_state(x0, E)
     nx = x0.shape[0]
     nout = t_out.shape[0]
     X = np.full((nout, nx), np.nan)
     t = t0
     x = x0.copy()
-    k1 = derivative(t, x, P, E)
+    k1 = _derivative(t, x, P, E)
     h = h0
     steps = 0
     rejected = 0
@@ -252,15 +364,15 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
             return X, 3, t, x, h, steps, rejected
         hh = min(h, hmax, t_out[j] - t)
         land = hh == t_out[j] - t
-        k2 = derivative(t + c2 * hh, x + hh * a21 * k1, P, E)
-        k3 = derivative(t + c3 * hh, x + hh * (a31 * k1 + a32 * k2), P, E)
-        k4 = derivative(t + c4 * hh, x + hh * (a41 * k1 + a42 * k2 + a43 * k3), P, E)
-        k5 = derivative(t + c5 * hh, x + hh * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4),
+        k2 = _derivative(t + c2 * hh, x + hh * a21 * k1, P, E)
+        k3 = _derivative(t + c3 * hh, x + hh * (a31 * k1 + a32 * k2), P, E)
+        k4 = _derivative(t + c4 * hh, x + hh * (a41 * k1 + a42 * k2 + a43 * k3), P, E)
+        k5 = _derivative(t + c5 * hh, x + hh * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4),
                         P, E)
-        k6 = derivative(t + hh, x + hh * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4
+        k6 = _derivative(t + hh, x + hh * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4
                                           + a65 * k5), P, E)
         xn = x + hh * (b1 * k1 + b3 * k3 + b4 * k4 + b5 * k5 + b6 * k6)
-        k7 = derivative(t + hh, xn, P, E)
+        k7 = _derivative(t + hh, xn, P, E)
         err = hh * (e1 * k1 + e3 * k3 + e4 * k4 + e5 * k5 + e6 * k6 + e7 * k7)
         s = 0.0
         for i in range(nx):
@@ -296,19 +408,31 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
 
 @njit(cache=_CACHE)
 def consistent_acceleration(t, x, P, E):
-    n = x.shape[0] // 2
-    B, rhs = _balance(t, x[:n], x[n:], P, E)
+    _check_state(x, E)
+    n = E[0].shape[0]
+    z = x[2 * n:]
+    zd = z
+    if z.shape[0] > 0:
+        zd = bristle_rates(x[n:2 * n], z, E)
+    B, rhs = _balance(t, x[:n], x[n:2 * n], z, zd, P, E)
     return solve_spd(B, rhs)
 
 
 @njit(cache=_CACHE)
-def _alpha_residual(a1, a, abar, q, v, t, h, af, am, gam, beta, P, E):
-    """Residual B(q1) a1 - (Q - c) of a generalized-alpha step for the guess a1."""
+def _alpha_residual(a1, a, abar, q, v, z, t, h, af, am, gam, beta, P, E):
+    """Residual B(q1) a1 - (Q - c) of a generalized-alpha step for the guess a1, with the
+    bristle deflections z1 at the step's end and their slopes (stick-slip joints)."""
     abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
     v1 = v + h * ((1.0 - gam) * abar + gam * abar1)
     q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
-    B, rhs = _balance(t, q1, v1, P, E)
-    return B @ a1 - rhs, B, q1, v1
+    z1 = z
+    g = z
+    zd = z
+    if z.shape[0] > 0:
+        z1, g = bristle_update(h, v, v1, z, E)
+        zd = (z1 - z) / h
+    B, rhs = _balance(t, q1, v1, z1, zd, P, E)
+    return B @ a1 - rhs, B, q1, v1, z1, g
 
 
 @njit(cache=_CACHE)
@@ -321,12 +445,16 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     the iteration matrix B + gamma' (D + C_joints) + beta' (K + K_joints) (PD gains, joint
     springs, friction slope and back-EMF at the current speed) until the position
     correction is below ``tol`` (m or rad). Pulses are evaluated at mid-step, so a
-    pulse edge on the step grid is resolved exactly.
+    pulse edge on the step grid is resolved exactly. The bristle deflections z of
+    stick-slip joints (x = [q; v; z]) are advanced by backward Euler inside every residual
+    (L-stable; flex_model.effects.stick_slip), their slope and damping enter the
+    iteration matrix.
 
     Returns ``(X, status, t_end, x_end, a_end, abar_end, iterations)``; X holds every
     ``every``-th state, X[0] = x0. Status 1 = non-finite or diverging state, 2 = Newton did
     not converge in 50 iterations (with backtracking line search).
     """
+    _check_state(x0, E)
     K, D = E[0], E[1]
     am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
     af = rho_inf / (rho_inf + 1.0)
@@ -336,12 +464,14 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     bp = h * h * beta * ratio
     gp = h * gam * ratio
     nx = x0.shape[0]
-    n = nx // 2
+    n = K.shape[0]
     nrec = n_steps // every + 1
     X = np.full((nrec, nx), np.nan)
     X[0] = x0
     q = x0[:n].copy()
-    v = x0[n:].copy()
+    v = x0[n:2 * n].copy()
+    z = x0[2 * n:].copy()
+    nz = z.shape[0]
     a = a0.copy()
     abar = abar0.copy()
     t = t0
@@ -351,24 +481,27 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
         t1 = t0 + s * h
         a1 = a.copy()
         ok = False
-        res, B, _, v1 = _alpha_residual(a1, a, abar, q, v, t1 - 0.5 * h, h, af, am, gam,
-                                         beta, P, E)
+        res, B, _, v1, z1, g = _alpha_residual(a1, a, abar, q, v, z, t1 - 0.5 * h, h, af,
+                                                am, gam, beta, P, E)
         norm = np.sqrt(np.sum(res * res))
         for it in range(50):
             Kj, Cj = _joint_tangent(v1, E)
+            if nz > 0:
+                _stick_slip_tangent(Kj, Cj, v1, z, z1, g, h, E)
             da = solve_spd(B + gp * (D + Cj) + bp * (K + Kj), -res)
             # backtracking on the residual: regularized friction is nearly flat outside
             # its narrow zone, where full Newton steps overshoot across it
             lam = 1.0
             for ls in range(30):
                 a_try = a1 + lam * da
-                r_try, B_try, _, v_try = _alpha_residual(
-                    a_try, a, abar, q, v, t1 - 0.5 * h, h, af, am, gam, beta, P, E)
+                r_try, B_try, _, v_try, z_try, g_try = _alpha_residual(
+                    a_try, a, abar, q, v, z, t1 - 0.5 * h, h, af, am, gam, beta, P, E)
                 n_try = np.sqrt(np.sum(r_try * r_try))
                 if n_try <= (1.0 - 1e-4 * lam) * norm or n_try < 1e-300 or ls == 29:
                     break
                 lam *= 0.5
             a1, res, B, v1, norm = a_try, r_try, B_try, v_try, n_try
+            z1, g = z_try, g_try
             iters += 1
             if np.max(np.abs(da)) * lam * bp <= tol:
                 ok = True
@@ -378,8 +511,9 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
         v = v + h * ((1.0 - gam) * abar + gam * abar1)
         a = a1
         abar = abar1
+        z = z1
         t = t1
-        x = np.concatenate((q, v))
+        x = np.concatenate((q, v, z))
         if not _finite(x, limit):
             return X, 1, t, x, a, abar, iters
         if not ok:
@@ -387,15 +521,18 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
         if s % every == 0:
             X[r] = x
             r += 1
-    return X, 0, t, np.concatenate((q, v)), a, abar, iters
+    return X, 0, t, np.concatenate((q, v, z)), a, abar, iters
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
-# function it calls from kernels.py does: flush these caches when kernels.py changes.
+# function it calls from kernels.py (or effects/stick_slip.py) does: flush these caches
+# when they change.
 def _guard_caches():
     from . import kernels
     from .numba_cache import guard
-    guard([obj for obj in globals().values() if hasattr(obj, "py_func")], [kernels.__file__])
+    from .effects import stick_slip
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")],
+          [kernels.__file__, stick_slip.__file__])
 
 
 _guard_caches()

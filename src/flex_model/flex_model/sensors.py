@@ -105,9 +105,12 @@ def tip_specific_force(result) -> np.ndarray:
     """a_tip - g of the arm's end in the tip frame along a result (N, 2)."""
     model, E = result.model, result.inputs
     out = np.empty((len(result.t), 2))
+    z = result.bristles
+    if z is None:
+        z = np.zeros((len(result.t), model.n_bristles))
     for k, (t, q, v) in enumerate(zip(result.t, result.q, result.v)):
         E[8][:] = result.u[k]
-        a = derivative(t, np.concatenate([q, v]), model.P, E)[model.nq:]
+        a = derivative(t, np.concatenate([q, v, z[k]]), model.P, E)[model.nq:2 * model.nq]
         out[k] = model.tip_specific_force(q, v, a)
     return out
 

@@ -16,6 +16,9 @@ Accuracy
   ``rho_inf`` (default 0.9): implicit, second order (global error O(dt^2)),
   unconditionally stable, so the stiff flexible modes do not limit the step. The method
   restarts at pulse edges and at policy instants (rounded to the step grid).
+
+Joints with ``stick_slip_friction`` add one bristle state each: the integrated state is
+``x = [q; v; z]`` (flex_model.effects.stick_slip); ``SimulationResult.bristles`` holds z.
 """
 from __future__ import annotations
 
@@ -69,6 +72,14 @@ class SimulationResult:
     stats: dict = field(default_factory=dict)
     u: np.ndarray = None        # held policy input at the samples
     inputs: tuple = None        # the compiled input data (integrators.py E)
+    bristles: np.ndarray = None  # bristle deflections z (rad) of stick-slip joints
+
+    @property
+    def stick_slip_torques(self) -> np.ndarray:
+        """(n_samples, n_links): torque of the stick-slip friction on every actuator
+        coordinate (N m; zero at joints without the effect)."""
+        z = self.bristles if self.bristles is not None else np.zeros((len(self.t), 0))
+        return np.array([self.model.stick_slip_torques(v, zk) for v, zk in zip(self.v, z)])
 
     @property
     def joint_angles(self) -> np.ndarray:
@@ -154,7 +165,8 @@ def _input_data(model: FlexArmModel, pd: JointPD | None, pulses, u):
 
 def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:
     names = model.coordinate_names()
-    names = names + [n + "_rate" for n in names]
+    names = names + [n + "_rate" for n in names] + [
+        f"{model.arm.joint_names[i]}/bristle" for i in model.stick_slip_joints]
     bad = ~np.isfinite(x) | (np.abs(x) > DIVERGENCE_LIMIT)
     i = int(np.flatnonzero(bad)[0]) if np.any(bad) else int(np.argmax(np.abs(x)))
     return SimulationDivergedError(
@@ -166,15 +178,18 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
              pd: JointPD | None = None, pulses=(), policy: Callable | None = None,
              control_period: float | None = None, method: str = "variable",
              rtol: float = 1e-8, atol=None, dt: float | None = None, rho_inf: float = 0.9,
-             payload_changes=(), progress: Callable | None = None) -> SimulationResult:
+             payload_changes=(), progress: Callable | None = None,
+             bristles0=None) -> SimulationResult:
     """Integrate the arm from (q0, v0) over [0, t_final], sampling every ``sample_period``.
 
     ``policy(t, x) -> tau`` (N m per joint) adds to the built-in PD and pulses, held for
     ``control_period`` (default: ``sample_period``), and delayed per joint by the arm's
     ``actuator_delay`` effects. ``payload_changes``: (time, mass, inertia) triples, a pick
     (the payload's momentum, zero, joins the arm's: B v is conserved) or a place (the arm
-    keeps its velocity). ``progress(t, t_final)`` is called as the run advances. Raises
-    :class:`SimulationDivergedError` naming the time and variable.
+    keeps its velocity). ``progress(t, t_final)`` is called as the run advances.
+    ``bristles0``: initial bristle deflections (rad) of the stick_slip_friction joints
+    (default 0: unloaded). Raises :class:`SimulationDivergedError` naming the time and
+    variable.
     """
     if method not in ("variable", "fixed"):
         raise ValueError(f"method: got {method!r}; expected 'variable' or 'fixed'")
@@ -190,7 +205,9 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
         policy = _delayed(policy, delays, nl)
     q0 = np.asarray(q0, float)
     v0 = np.zeros(nq) if v0 is None else np.asarray(v0, float)
-    x0 = np.concatenate([q0, v0])
+    nz = model.n_bristles
+    z0 = np.zeros(nz) if bristles0 is None else np.asarray(bristles0, float).reshape(nz)
+    x0 = np.concatenate([q0, v0, z0])
     u = np.zeros(nl)
     E = _input_data(model, pd, pulses, u)
     n_samples = int(round(t_final / sample_period)) + 1
@@ -202,14 +219,14 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
                       rtol=rtol, atol=atol, dt=dt, rho_inf=rho_inf, progress=progress,
                       changes=changes)
     q = X[:, :nq]
-    v = X[:, nq:]
+    v = X[:, nq:2 * nq]
     tau = np.empty((n_samples, nl))
     for j in range(n_samples):
         u[:] = U[j]
         tau[j] = joint_torques(t_samples[j], q[j], v[j], E)
     stats["method"] = method
     return SimulationResult(model=model, t=t_samples, q=q, v=v, tau=tau, stats=stats, u=U,
-                            inputs=E)
+                            inputs=E, bristles=X[:, 2 * nq:])
 
 
 def _delayed(policy, delays, nl):
@@ -231,13 +248,13 @@ def _delayed(policy, delays, nl):
 def _apply_payload_change(model, x, mass, inertia):
     """Change the payload at state x; a heavier payload is picked up at rest (B v kept)."""
     n = model.nq
-    q, v = x[:n], x[n:]
+    q, v = x[:n], x[n:2 * n]
     B_old = model.mass_matrix(q)
     old = model.payload
     model.set_payload(mass, inertia)
     if mass > old[0] or inertia > old[1]:
         v = np.linalg.solve(model.mass_matrix(q), B_old @ v)
-    return np.concatenate([q, v])
+    return np.concatenate([q, v, x[2 * n:]])
 
 
 def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, rtol, atol,
@@ -254,9 +271,15 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
         edges.update(t for t in (p.start, p.end) if 0.0 < t < t_final)
     edges.update(c[0] for c in changes if 0.0 <= c[0] < t_final)
     edges = np.array(sorted(edges | {float(t_final)}))
+    nz = len(x) - 2 * nq
     if atol is None:
         atol = np.concatenate([np.full(nq, 1e-3 * rtol), np.full(nq, 1e-2 * rtol)])
-    X = np.full((len(t_samples), 2 * nq), np.nan)
+    atol = np.asarray(atol, float)
+    if atol.ndim == 0:
+        atol = np.full(len(x), float(atol))
+    if len(atol) == 2 * nq and nz:  # bristle deflections: as the coordinates, in rad
+        atol = np.concatenate([atol, np.full(nz, 1e-3 * rtol)])
+    X = np.full((len(t_samples), len(x)), np.nan)
     U = np.zeros((len(t_samples), len(u)))
     X[0] = x
     h = min(t_samples[1] - t_samples[0], 1e-3)

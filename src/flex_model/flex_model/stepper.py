@@ -4,7 +4,8 @@ Holds the integration state (q, v, the generalized-alpha acceleration history) o
 arm and advances it by any duration with the fixed-step implicit scheme of
 :mod:`flex_model.integrators` (generalized-alpha, default step 1 ms), the held joint
 command acting as the policy input. A new command or payload restarts the method
-(consistent acceleration), as simulate() does at control instants.
+(consistent acceleration), as simulate() does at control instants. The state is
+``x = [q; v; z]``, z the bristle deflections of stick_slip_friction joints (none without).
 """
 from __future__ import annotations
 
@@ -33,13 +34,13 @@ class Stepper:
         self.reset()
 
     def reset(self, q0=None, v0=None) -> None:
-        """Back to the initial state (or a given one) at t = 0."""
+        """Back to the initial state (or a given one) at t = 0, bristles unloaded."""
         if q0 is not None:
             self.q0 = np.asarray(q0, float)
         if v0 is not None:
             self.v0 = np.asarray(v0, float)
         self.t = 0.0
-        self.x = np.concatenate([self.q0, self.v0])
+        self.x = np.concatenate([self.q0, self.v0, np.zeros(self.model.n_bristles)])
         self.u[:] = 0.0
         self._restart()
 
@@ -86,7 +87,12 @@ class Stepper:
 
     @property
     def v(self) -> np.ndarray:
-        return self.x[self.model.nq:]
+        return self.x[self.model.nq:2 * self.model.nq]
+
+    @property
+    def bristles(self) -> np.ndarray:
+        """Bristle deflections z (rad) of the stick_slip_friction joints."""
+        return self.x[2 * self.model.nq:]
 
     def joint_state(self):
         """(angles, rates, applied torques) of the joints (rad, rad/s, N m)."""
@@ -108,5 +114,6 @@ class Stepper:
         """Specific force a - g at the tip in the tip frame (m/s^2), what an accelerometer
         there measures (flex_model.sensors)."""
         from .integrators import derivative
-        a = derivative(self.t, self.x, self.model.P, self.E)[self.model.nq:]
+        nq = self.model.nq
+        a = derivative(self.t, self.x, self.model.P, self.E)[nq:2 * nq]
         return self.model.tip_specific_force(self.q, self.v, a)

@@ -11,18 +11,19 @@ from .gear import Gear
 from .joint_elasticity import Backlash, JointElasticity
 from .motor import Cogging, DCMotor
 from .saturation import TorqueSaturation
+from .stick_slip import StickSlipFriction
 from .structural_damping import StructuralDamping
 from .timoshenko import Timoshenko, slenderness
 
 EFFECT_TYPES = {cls.TYPE: cls for cls in (Gear, JointElasticity, Backlash, JointFriction,
                                           DCMotor, Cogging, StructuralDamping, BaseTilt,
                                           TorqueSaturation, ContactSurface, ActuatorDelay,
-                                          Timoshenko)}
+                                          Timoshenko, StickSlipFriction)}
 
 __all__ = ["EFFECT_TYPES", "NOMINAL_TOLERANCES", "Effect", "Parameter", "parse_effects",
            "ActuatorDelay", "Backlash", "BaseTilt", "Cogging", "ContactSurface", "DCMotor", "Gear",
-           "JointElasticity", "JointFriction", "StructuralDamping", "Timoshenko",
-           "TorqueSaturation", "slenderness"]
+           "JointElasticity", "JointFriction", "StickSlipFriction", "StructuralDamping",
+           "Timoshenko", "TorqueSaturation", "slenderness"]
 
 
 def parse_effects(items: list, source: str, joint_names, link_names) -> tuple:
@@ -44,4 +45,9 @@ def parse_effects(items: list, source: str, joint_names, link_names) -> tuple:
             raise Fields(items[k], source, f"effects[{k}]").error(
                 "type", "backlash", f"a joint_elasticity effect on {eff.target} as well "
                 "(backlash is a dead zone of the joint spring)")
+        if eff.TYPE == "stick_slip_friction" and ("joint_friction", eff.target) in seen:
+            raise Fields(items[k], source, f"effects[{k}]").error(
+                "type", "stick_slip_friction", f"no joint_friction effect on {eff.target} "
+                "as well (two friction models of one joint; stick_slip_friction has its "
+                "own viscous, Coulomb and Stribeck terms)")
     return tuple(effects)
