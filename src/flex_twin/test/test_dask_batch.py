@@ -148,5 +148,21 @@ def test_bad_inputs_get_one_line(tmp_path):
         expand_runs([str(tmp_path / "missing.csv")], "a", "c")
     with pytest.raises(ValueError, match="start:stop:step"):
         run_sweep("seed002_step", ["payload.mass=2:0:0.5"], tmp_path, SerialExecutor())
-    with pytest.raises(ValueError, match="control.nope.kp\[0\]: no field"):
+    with pytest.raises(ValueError, match=r"control.nope.kp\[0\]: no field"):
         run_sweep("seed002_step", ["control.nope.kp[0]=1"], tmp_path, SerialExecutor())
+
+
+def test_the_cli_takes_a_manifest_and_reports_every_run(tmp_path, capsys):
+    """flex-twin diagnose MANIFEST: a run that cannot be read is a row with its error (the
+    others go on); all failed: exit 1; --holdout with several runs: one line, exit 2."""
+    from flex_twin.cli import main
+    (tmp_path / "runs.yaml").write_text(
+        "runs:\n  - {name: gone, data: missing.csv, arm: thesis_example1_motors,\n"
+        "     controller: c.yaml}\n")
+    assert main(["diagnose", str(tmp_path / "runs.yaml"), "--out", str(tmp_path / "o"),
+                 "--workers", "1"]) == 1
+    summary = (tmp_path / "o" / "summary.csv").read_text()
+    assert "gone,error," in summary and "c.yaml'; expected a readable file" in summary
+    assert main(["diagnose", str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--holdout",
+                 "h.csv", "--arm", "x", "--controller", "y"]) == 2
+    assert "--holdout names the held-out recording of a single run" in capsys.readouterr().err

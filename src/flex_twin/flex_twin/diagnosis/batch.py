@@ -110,7 +110,9 @@ def _manifest_runs(path: Path, arm, controller) -> list:
                 return default
             value = rf.string(key)
             q = Path(value)
-            return str(q if q.is_absolute() else base / q)
+            if q.is_absolute() or (key == "arm" and not (base / q).exists()):
+                return value  # an absolute path, or the arm as a preset name
+            return str(base / q)
 
         data = rel("data")
         spec = RunSpec(rf.string("name", Path(data).stem), data,
@@ -127,12 +129,12 @@ def _manifest_runs(path: Path, arm, controller) -> list:
 
 def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
                  segment: float | None = None, plots: bool = True, executor=None,
-                 progress: bool = False) -> dict:
+                 progress: bool = False, floor: bool = True) -> dict:
     """Diagnose one run (the workflow of ``flex-twin diagnose``) into ``out_dir``; returns
     the report's summary (diagnosis.json) with the wall time."""
     from flex_model.arm import load_arm, resolve_preset
 
-    from .controller import load_controller
+    from .controller import check_integrable, load_controller
     from .engine import DEFAULT_GATE, diagnose
     from .recording import load_recording
     from .report import write_report
@@ -144,6 +146,7 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
     if controller.n_joints != arm.n_links:
         raise ValueError(f"{run.controller}: {controller.n_joints} joints in the controller, "
                          f"{arm.n_links} in the arm {arm_path}")
+    check_integrable(controller, arm)
     fit = load_recording(run.data, arm.n_links)
     holdout = load_recording(run.holdout, arm.n_links) if run.holdout else None
     if segment is not None and not segment > 0:
@@ -153,7 +156,7 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
         executor = SerialExecutor()
     d = diagnose(arm, controller, fit, holdout, executor=executor,
                  gate=DEFAULT_GATE if gate is None else gate, segment=segment,
-                 progress=progress)
+                 progress=progress, floor=floor)
     s = write_report(Path(out_dir), arm_path, d, plots=plots)
     s["wall_s"] = time.perf_counter() - t0
     return s
@@ -161,11 +164,11 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
 
 def _task(args) -> dict:
     """A batch task: one run, its row of the summary (errors become a row too)."""
-    run, out_dir, gate, segment, plots = args
+    run, out_dir, gate, segment, plots, floor = args
     t0 = time.perf_counter()
     row = {"run": run.name, "report": str(Path(out_dir) / "report.md")}
     try:
-        s = diagnose_run(run, out_dir, gate, segment, plots)
+        s = diagnose_run(run, out_dir, gate, segment, plots, floor=floor)
     except (ConfigError, ValueError, FileNotFoundError, ArithmeticError) as exc:
         row.update(verdict="error", error=f"{type(exc).__name__}: {exc}",
                    wall_s=time.perf_counter() - t0, report="")
@@ -186,12 +189,12 @@ def named_text(named: list) -> str:
 
 
 def diagnose_many(runs: list, out: Path, executor, gate=None, segment=None, plots=True,
-                  log=print) -> list:
+                  log=print, floor: bool = True) -> list:
     """Diagnose every run (one task each) and write the summary table; returns its rows in
     the order of ``runs``."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    futures = {executor.submit(_task, (r, str(out / r.name), gate, segment, plots)): i
+    futures = {executor.submit(_task, (r, str(out / r.name), gate, segment, plots, floor)): i
                for i, r in enumerate(runs)}
     rows = [None] * len(runs)
     for done, fut in enumerate(as_completed(futures), 1):

@@ -8,64 +8,82 @@ from pathlib import Path
 
 def add_diagnose_parser(sub) -> None:
     sp = sub.add_parser(
-        "diagnose", help="diagnose a measured run against the nominal twin (issue 8)",
+        "diagnose", help="diagnose measured runs against the nominal twin",
         description="Replay a measured run (CSV or rosbag2) through the nominal twin in "
         "closed loop, recalibrate within tolerance, gate, and name the missing effect(s); "
-        "writes diagnosed_arm.yaml, report.md, PNGs and diagnosis.json.")
-    sp.add_argument("data", help="CSV (t, q<i>, v<i>, tau<i>, qset<i>, [w<i>, tip_x, tip_y]) "
-                    "or rosbag2 directory / .mcap")
-    sp.add_argument("--arm", required=True, help="nominal arm YAML (or preset name)")
-    sp.add_argument("--controller", required=True, help="controller YAML "
-                    "(flex_twin.diagnosis.controller)")
-    sp.add_argument("--holdout", help="held-out recording (default: the last 40 %% of data)")
+        "writes diagnosed_arm.yaml, report.md, PNGs and diagnosis.json. Several runs (paths, "
+        "a folder, a glob or a manifest YAML) are diagnosed one task each into OUT/<run>/ "
+        "with a summary table (flex_twin.diagnosis.batch).")
+    sp.add_argument("data", nargs="+", help="CSV (t, q<i>, v<i>, tau<i>, qset<i>, [w<i>, "
+                    "tip_x, tip_y]) or rosbag2 directory / .mcap; or several, a folder, a "
+                    "glob, or a manifest YAML of runs")
+    sp.add_argument("--arm", help="nominal arm YAML (or preset name); required unless a "
+                    "manifest names each run's")
+    sp.add_argument("--controller", help="controller YAML (flex_twin.diagnosis.controller); "
+                    "required unless a manifest names each run's")
+    sp.add_argument("--holdout", help="held-out recording of a single run (default: the last "
+                    "40 %% of data)")
     sp.add_argument("--out", default="runs/diagnosis", help="output directory")
     sp.add_argument("--gate", type=float, default=None,
                     help="materiality gate on the held-out excess cost J - 1")
     sp.add_argument("--segment", type=float, default=None,
                     help="multiple shooting for long logs: restart the replay every SEGMENT s "
                     "from the measured joint state")
-    sp.add_argument("--workers", type=int, default=None, help="parallel processes")
+    sp.add_argument("--workers", type=int, default=None, help="local parallel processes")
+    sp.add_argument("--scheduler", default=None, help="Dask scheduler tcp://HOST:PORT or "
+                    "scheduler file: the runs (or one run's hypothesis fits) go to the cluster")
+    sp.add_argument("--no-floor", action="store_true",
+                    help="skip the twin's model-form floor (replay against a refined twin "
+                    "before any hypothesis; flex_twin.diagnosis.floor)")
     sp.add_argument("--no-plots", action="store_true")
     sp.add_argument("--json", action="store_true", help="print the JSON summary")
     sp.set_defaults(func=cmd_diagnose)
 
 
-def cmd_diagnose(args) -> int:
-    from flex_model.arm import load_arm, resolve_preset
-    from .controller import load_controller
-    from .engine import DEFAULT_GATE, diagnose
-    from .evaluation import default_executor
-    from .recording import load_recording
-    from .report import write_report
+def _single_run(data) -> bool:
+    """One recording (a CSV, .mcap or rosbag2 directory), not a list, folder, glob or
+    manifest of runs."""
+    if len(data) != 1:
+        return False
+    p = Path(data[0])
+    if p.suffix in (".yaml", ".yml"):
+        return False
+    if p.is_dir():
+        return (p / "metadata.yaml").is_file()
+    return not any(ch in data[0] for ch in "*?[")
 
-    arm_path = resolve_preset(args.arm)
-    arm = load_arm(arm_path)
-    controller = load_controller(args.controller)
-    if controller.n_joints != arm.n_links:
-        raise ValueError(f"{args.controller}: {controller.n_joints} joints in the controller, "
-                         f"{arm.n_links} in the arm {arm_path}")
-    fit = load_recording(args.data, arm.n_links)
-    holdout = load_recording(args.holdout, arm.n_links) if args.holdout else None
-    if args.segment is not None and not args.segment > 0:
-        raise ValueError(f"--segment: got {args.segment}; expected a time > 0 s")
-    if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers: got {args.workers}; expected >= 1")
-    executor = default_executor(args.workers)
-    try:
-        d = diagnose(arm, controller, fit, holdout, executor=executor,
-                     gate=DEFAULT_GATE if args.gate is None else args.gate,
-                     segment=args.segment, progress=True)
-    finally:
-        if hasattr(executor, "shutdown"):
-            executor.shutdown()
-    s = write_report(Path(args.out), arm_path, d, plots=not args.no_plots)
+
+def cmd_diagnose(args) -> int:
+    from ..cluster import batch_executor
+    from .batch import RunSpec, diagnose_many, diagnose_run, expand_runs, named_text
+
+    if _single_run(args.data):
+        if not args.arm or not args.controller:
+            raise ValueError("--arm and --controller are needed (or a manifest YAML of runs)")
+        run = RunSpec(Path(args.data[0]).stem, args.data[0], args.arm, args.controller,
+                      args.holdout)
+        with batch_executor(args.scheduler, args.workers) as ex:
+            s = diagnose_run(run, args.out, args.gate, args.segment, not args.no_plots, ex,
+                             progress=True, floor=not args.no_floor)
+        if args.json:
+            print(json.dumps(s, indent=1, default=float))
+        else:
+            print(f"verdict: {s['verdict']}; named: {named_text(s['named']) or '-'}; "
+                  f"held-out error reduced by {100 * s['holdout_error_reduction']:.1f} %; "
+                  f"model-form floor {s['gate']['model_form_holdout']:.3g}; report "
+                  f"{args.out}/report.md", file=sys.stdout)
+        return 0
+    if args.holdout:
+        raise ValueError("--holdout names the held-out recording of a single run; give "
+                         "several runs' held-out recordings in a manifest")
+    runs = expand_runs(args.data, args.arm, args.controller)
+    with batch_executor(args.scheduler, args.workers) as ex:
+        rows = diagnose_many(runs, Path(args.out), ex, args.gate, args.segment,
+                             not args.no_plots, floor=not args.no_floor,
+                             log=lambda line: print(line, file=sys.stderr, flush=True))
     if args.json:
-        print(json.dumps(s, indent=1, default=float))
+        print(json.dumps(rows, indent=1, default=float))
     else:
-        named = ", ".join(
-            c["label"] + " (" + ", ".join(f"{k} {v:.4g}" for k, v in c["parameters"].items())
-            + ")" for c in s["named"]) or "-"
-        print(f"verdict: {d.verdict}; named: {named}; held-out error reduced by "
-              f"{100 * s['holdout_error_reduction']:.1f} %; report {args.out}/report.md",
-              file=sys.stdout)
-    return 0
+        bad = sum(1 for r in rows if r.get("error"))
+        print(f"{len(rows)} runs diagnosed ({bad} failed): {args.out}/summary.md")
+    return 1 if rows and all(r.get("error") for r in rows) else 0

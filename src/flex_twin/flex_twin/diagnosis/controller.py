@@ -1,8 +1,9 @@
 """Controller description for the diagnosis replay: a declarative YAML, validated on load.
 
 The diagnosis replays a measured experiment in closed loop with the *same* controller as the
-real arm, so the controller is part of the input. Two laws (both digital: sampled every
-``period`` seconds, output held (zero-order hold) until the next sample)::
+real arm, so the controller is part of the input. Two laws, each either digital (``timing:
+sampled``, the default: sampled every ``period`` seconds, output held (zero-order hold)
+until the next sample) or continuous (``timing: continuous``, no ``period``)::
 
     controller:
       law: pd                 # tau = kp (qset - q) - kd v + tau_ff   (thesis Eq. 95 form)
@@ -10,6 +11,27 @@ real arm, so the controller is part of the input. Two laws (both digital: sample
       kd: [20.0, 8.0]         # N m s/rad per joint
       period: 0.002           # s, zero-order hold
       feedforward: gravity    # none | gravity | recorded
+
+A continuous law (an analog controller, or a simulator's PD acting at every instant)::
+
+    controller:
+      law: pd
+      timing: continuous      # sampled (default; needs period) | continuous (no period)
+      kp: [625.0, 625.0]
+      kd: [176.8, 176.8]
+      feedforward: none
+
+is evaluated inside the implicit integrator (the torque is a function of the state: its
+stiffness Kp C and damping Kd C are in the generalized-alpha Newton matrix, the compiled
+joint PD of :mod:`flex_model.integrators`), so a D term on an arm without hub inertia is
+stable at the replay's step, where a sampled one diverges at any affordable period. The
+reference ``qset`` and the feed-forward are held between the recording's samples. The
+replay integrates a continuous law implicitly as a PD of each joint on its own angle and
+rate: a continuous ``state_feedback`` may have gains only on q<i> of its own joint i (a
+gain on a tip deflection w<i> or on another joint is refused with one line: use ``timing:
+sampled``), and an arm with an ``actuator_delay`` effect or a delayed joint encoder is
+refused with a continuous law (a delay of a continuous law is not a state function;
+:func:`check_integrable`); the delay hypotheses are not screened then.
 
 ``feedforward``: ``none``; ``gravity``: the static gravity torque of the *nominal* arm,
 undeformed, at the set-point qset (:meth:`ControllerDescription.feedforward`; the
@@ -51,6 +73,7 @@ import numpy as np
 from flex_model.config import Fields, read_yaml
 
 LAWS = ("pd", "state_feedback")
+TIMINGS = ("sampled", "continuous")
 FEEDFORWARD = ("none", "gravity", "recorded")
 OUTPUTS = ("torque", "voltage")
 _CHANNEL = re.compile(r"^(q|w)([1-9][0-9]*)$")
@@ -58,7 +81,8 @@ _CHANNEL = re.compile(r"^(q|w)([1-9][0-9]*)$")
 
 @dataclass(frozen=True)
 class ControllerDescription:
-    """A sampled linear feedback law on measured channels (see the module docstring)."""
+    """A linear feedback law on measured channels, sampled or continuous (see the module
+    docstring); ``period`` is 0.0 for a continuous law."""
 
     law: str
     period: float
@@ -68,10 +92,30 @@ class ControllerDescription:
     feedforward_mode: str = "none"
     output: str = "torque"
     source: str = "<memory>"
+    timing: str = "sampled"
 
     @property
     def n_joints(self) -> int:
         return self.gains.shape[0]
+
+    @property
+    def continuous(self) -> bool:
+        return self.timing == "continuous"
+
+    def instant_period(self, sample_period: float) -> float:
+        """The period of the instants at which the reference and feed-forward are read:
+        the control period of a sampled law, the recording's sample period of a
+        continuous one."""
+        return float(sample_period) if self.continuous else self.period
+
+    def joint_pd(self) -> tuple[np.ndarray, np.ndarray]:
+        """(kp, kd) per joint of a continuous law (:func:`_continuous_refusal` checked that
+        the law is one PD per joint on its own q channel)."""
+        kp, kd = np.zeros(self.n_joints), np.zeros(self.n_joints)
+        for c, name in enumerate(self.channels):
+            j = int(name[1:]) - 1
+            kp[j], kd[j] = self.gains[j, c], self.rate_gains[j, c]
+        return kp, kd
 
     def channel_matrix(self, model) -> np.ndarray:
         """C (n_channels, nq): rows mapping the model's q to the measured channels."""
@@ -116,24 +160,66 @@ class ControllerDescription:
         for k in range(n):
             key = tuple(np.round(qset[k], 12))
             if key not in cache:
-                cache[key] = rows @ model.gravity_force(model.q_from_joint_angles(qset[k]))
+                # model.q_from_joint_angles(qset[k]) with T computed once (it rebuilt T,
+                # the links' section integrals, at every instant: 4 % of a diagnosis)
+                z = np.zeros(model.nq)
+                z[model.off] = qset[k]
+                for m, i in enumerate(model.elastic_joints):
+                    z[model.nq_arm + m] = qset[k][i]
+                cache[key] = rows @ model.gravity_force(T @ z)
             out[k] = cache[key]
         return out
 
     def policy(self, model, t_ref, qset, ff=None):
         """``policy(t, x)`` for :func:`flex_model.simulate.simulate` (with
         ``control_period=self.period``): the law with the reference and feed-forward held
-        from the latest sample of (t_ref, qset) at or before t."""
+        from the latest sample of (t_ref, qset) at or before t.
+
+        A continuous law: the policy is the part of the law that depends on time only,
+        ff + kp r (held between the samples of t_ref), and the state part is the compiled
+        joint PD ``policy.pd`` (:class:`flex_model.simulate.JointPD`, set-points 0),
+        evaluated implicitly inside the integrator; pass both, with
+        ``control_period=policy.control_period`` (the spacing of t_ref), or use
+        :meth:`simulate_inputs`."""
         t_ref = np.asarray(t_ref, float)
         r = self.reference(qset)
         ff = self.feedforward(model, qset) if ff is None else np.asarray(ff, float)
         C = self.channel_matrix(model)
         nq = model.nq
+        if self.continuous:
+            from flex_model.simulate import JointPD
+            kp, kd = self.joint_pd()
+            held = ff + r @ self.gains.T
+
+            def law(t, x):
+                k = max(0, int(np.searchsorted(t_ref, t + 1e-9, side="right")) - 1)
+                return held[k].copy()
+            law.pd = JointPD(kp, kd, np.zeros(self.n_joints))
+            law.control_period = float(t_ref[1] - t_ref[0]) if len(t_ref) > 1 else 1.0
+            return law
 
         def law(t, x):
             k = max(0, int(np.searchsorted(t_ref, t + 1e-9, side="right")) - 1)
             return (ff[k] + self.gains @ (r[k] - C @ x[:nq]) - self.rate_gains @ (C @ x[nq:]))
         return law
+
+    def simulate_inputs(self, model, t_ref, qset, ff=None) -> dict:
+        """The keyword arguments of :func:`flex_model.simulate.simulate` that run this law
+        with the reference (t_ref, qset) held: ``policy``, ``control_period`` and, for a
+        continuous law, ``pd``."""
+        law = self.policy(model, t_ref, qset, ff)
+        if self.continuous:
+            return {"policy": law, "pd": law.pd, "control_period": law.control_period}
+        return {"policy": law, "control_period": self.period}
+
+    def command(self, model, x, r, ff, bias=None) -> np.ndarray:
+        """(n, n_joints): the law's output at states x (n, 2 nq) with the reference r
+        (n, n_channels) and feed-forward ff (n, n_joints) (the recorded ``tau<i>`` of a
+        continuous law: its command at the sample, before any saturation)."""
+        C = self.channel_matrix(model)
+        nq = model.nq
+        y = x[:, :nq] @ C.T + (0.0 if bias is None else np.asarray(bias, float))
+        return ff + (r - y) @ self.gains.T - (x[:, nq:2 * nq] @ C.T) @ self.rate_gains.T
 
 
 def _gain_rows(f: Fields, key: str, n_joints: int | None) -> list[dict]:
@@ -157,7 +243,14 @@ def controller_from_dict(data: dict, source: str = "<memory>") -> ControllerDesc
     f = root.mapping("controller")
     root.done()
     law = f.string("law", choices=list(LAWS))
-    period = f.number("period", positive=True, max_value=1.0, unit="s")
+    timing = f.string("timing", "sampled", choices=list(TIMINGS))
+    if timing == "continuous":
+        if f.has("period"):
+            raise f.error("period", f.raw("period"), "no period with timing: continuous "
+                          "(a continuous law acts at every instant)")
+        period = 0.0
+    else:
+        period = f.number("period", positive=True, max_value=1.0, unit="s")
     ffm = f.string("feedforward", "none", choices=list(FEEDFORWARD))
     if law == "pd":
         kp = f.vector("kp", unit="N m/rad")
@@ -178,9 +271,47 @@ def controller_from_dict(data: dict, source: str = "<memory>") -> ControllerDesc
         gains = np.array([[r.get(c, 0.0) for c in channels] for r in rows])
         rate = np.array([[r.get(c, 0.0) for c in channels] for r in rrows])
     f.done()
-    return ControllerDescription(law=law, period=period, gains=gains, rate_gains=rate,
-                                 channels=channels, feedforward_mode=ffm, output=output,
-                                 source=source)
+    c = ControllerDescription(law=law, period=period, gains=gains, rate_gains=rate,
+                              channels=channels, feedforward_mode=ffm, output=output,
+                              source=source, timing=timing)
+    why = _continuous_refusal(c)
+    if why:
+        raise ValueError(f"{source}: {f.sub('timing')}: {why}")
+    return c
+
+
+def _continuous_refusal(c: ControllerDescription) -> str:
+    """Why the replay cannot integrate a continuous law ("" when it can): it integrates
+    one PD per joint on that joint's own angle and rate (the compiled joint PD)."""
+    if not c.continuous:
+        return ""
+    for G, what in ((c.gains, "gains"), (c.rate_gains, "rate_gains")):
+        for j in range(c.n_joints):
+            for k, name in enumerate(c.channels):
+                if G[j, k] != 0.0 and name != f"q{j + 1}":
+                    return (f"a continuous law with {what} on {name} for joint {j + 1}: the "
+                            "replay integrates a continuous law implicitly only as a PD of "
+                            "each joint on its own q<i> (use timing: sampled with a period)")
+    return ""
+
+
+def check_integrable(controller: ControllerDescription, arm) -> None:
+    """Refuse (ValueError, one line) an arm the replay cannot run under the law: a
+    continuous law with an actuator delay or a delayed joint encoder."""
+    if not controller.continuous:
+        return
+    for j in arm.joint_names:
+        d = arm.effect("actuator_delay", j)
+        if d is not None and d.values[0] > 0:
+            raise ValueError(f"{controller.source}: a continuous controller with the "
+                             f"actuator_delay of {j} in the arm: the replay integrates a "
+                             "continuous law implicitly and cannot delay it (describe the "
+                             "controller as sampled, with its period)")
+    for s in arm.sensors:
+        if s.kind == "joint_encoder" and s.delay > 0:
+            raise ValueError(f"{controller.source}: a continuous controller with a delayed "
+                             f"joint encoder ({s.name}): the replay cannot delay a "
+                             "continuous law (describe the controller as sampled)")
 
 
 def load_controller(path) -> ControllerDescription:
@@ -191,7 +322,11 @@ def load_controller(path) -> ControllerDescription:
 
 def controller_to_dict(c: ControllerDescription) -> dict:
     """The YAML mapping of a controller description (inverse of controller_from_dict)."""
-    body = {"law": c.law, "period": c.period, "feedforward": c.feedforward_mode}
+    body = {"law": c.law, "feedforward": c.feedforward_mode}
+    if c.continuous:
+        body["timing"] = "continuous"
+    else:
+        body["period"] = c.period
     if c.law == "pd":
         body["kp"] = [float(c.gains[i, i]) for i in range(c.n_joints)]
         body["kd"] = [float(c.rate_gains[i, i]) for i in range(c.n_joints)]

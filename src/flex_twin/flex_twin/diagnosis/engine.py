@@ -1,6 +1,10 @@
 """The diagnosis loop (issue 8): replay, baseline, gate, screen, fit, rank, name, repeat.
 
 1. Replay the fit recording through the nominal twin in closed loop (:mod:`.replay`).
+   Before any hypothesis, measure the twin's own numerical and model-form floor on the run
+   (:mod:`.floor`: the replay at its setting against a refined twin); on a run of a finer
+   model the replay takes a finer setting and the samples where the twins disagree weigh
+   less; what remains of the floor is added to the gate (model form is not an effect).
 2. Recalibrate the baseline within tolerance (:func:`.fitting.fit_baseline`) and gate:
    the discrepancy is material when the excess cost J - 1 of the baseline twin on the
    held-out data (J in units of the noise power, :mod:`.evaluation`) exceeds ``gate``
@@ -53,7 +57,9 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from .baseline import baseline_parameters
-from .evaluation import Context, cost, default_executor, evaluate, twin_arm
+from .controller import check_integrable
+from .evaluation import Context, channel_sigma, cost, default_executor, evaluate, twin_arm
+from .floor import measure_floor
 from .fitting import (BaselineProjection, FitResult, Linearization, baseline_jacobian,
                       confidence_intervals, fit_baseline, fit_candidate, fit_task, linearize)
 from .hypotheses import HypothesisPair, library_hypotheses, parts_of
@@ -120,6 +126,8 @@ class Diagnosis:
     contexts: tuple = ()
     baseline_scales: np.ndarray = None
     stop: str = ""          # why the search ended (see :func:`diagnose`)
+    floor: object = None    # the twin's own floor on the run (:class:`.floor.Floor`)
+    gate_effective: float = None   # gate + the model-form remainder of the floor
 
 
 class _Round(NamedTuple):
@@ -240,7 +248,7 @@ def _twin_peaks(ctx, r) -> list:
     for i in range(ctx.rec.n_joints):
         c = f"tau{i + 1}"
         k = names.index(c)
-        pred = ctx.rec.channels[c][:n] - r[k * n:(k + 1) * n] * ctx.sigma[c]
+        pred = ctx.rec.channels[c][:n] - r[k * n:(k + 1) * n] * channel_sigma(ctx, c, 0, n)
         out.append(float(np.max(np.abs(pred))))
     return out
 
@@ -469,12 +477,16 @@ def _restate(accepted, effects, twin):
 def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
              gate: float = DEFAULT_GATE, top: int = 4, max_effects: int = 3,
              min_share: float = MIN_SHARE, dt: float = 2e-3, segment: float | None = None,
-             progress=False) -> Diagnosis:
+             progress=False, floor: bool = True) -> Diagnosis:
     """Diagnose ``fit_rec`` (and ``holdout_rec``; default: the last 40 % of fit_rec as a
     held-out segment, replayed from the start of the run and scored on that segment only)
     against the nominal arm under the controller. ``segment`` (s): multiple shooting for
-    long logs (:mod:`.evaluation`)."""
+    long logs (:mod:`.evaluation`). ``floor``: first measure the twin's own numerical and
+    model-form floor on the run (:mod:`.floor`): the replay's setting is refined when the
+    data are those of a finer model, and the remaining model-form part of the held-out
+    residual is added to the gate (it is not a physical effect)."""
     t_start = time.perf_counter()
+    check_integrable(controller, nominal)
     score_from = -np.inf
     if holdout_rec is None:  # the held-out segment is replayed from the start, scored after
         score_from = fit_rec.t[0] + 0.6 * (fit_rec.t[-1] - fit_rec.t[0])
@@ -487,12 +499,33 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
         ctx = Context.build(nominal, controller, fit_rec, params, dt=dt, segment=segment)
         ctx_ho = Context.build(nominal, controller, holdout_rec, params, sigma=ctx.sigma, dt=dt,
                                score_from=score_from, segment=segment)
+        user_gate, fl = gate, None
+        if floor:
+            fl = measure_floor(executor, ctx, ctx_ho,
+                               progress=lambda msg: _progress(msg, progress, t_start))
+            if fl.changed:   # the replay at the chosen (finer) setting from here on
+                nominal, dt = fl.chosen.arm(nominal), fl.chosen.dt
+                params = baseline_parameters(nominal)
+                ctx = Context.build(nominal, controller, fit_rec, params, sigma=ctx.sigma,
+                                    dt=dt, segment=segment)
+                ctx_ho = Context.build(nominal, controller, holdout_rec, params,
+                                       sigma=ctx.sigma, dt=dt, score_from=score_from,
+                                       segment=segment)
+            if fl.sigma is not None:   # the transients of a finer model's run weigh less
+                ctx = dataclasses.replace(ctx, sigma=fl.sigma["fit"])
+                ctx_ho = dataclasses.replace(ctx_ho, sigma=fl.sigma["holdout"])
+            if np.isfinite(fl.model_form["holdout"]):
+                gate = gate + fl.model_form["holdout"]   # model form is not an effect
         ones = np.ones(len(params))
         r_nom = evaluate((ctx, ones, []))
         r_nom_ho = evaluate((ctx_ho, ones, []))
         if r_nom is None or r_nom_ho is None:
+            hint = "" if controller.continuous else (
+                f"; a sampled D term at {1e3 * controller.period:g} ms on a joint without "
+                "hub inertia diverges: if the arm's controller acts continuously, describe "
+                "it with timing: continuous")
             raise ValueError("the nominal twin diverges in closed loop on this recording "
-                             "(check the controller description)")
+                             f"(check the controller description{hint})")
         J = {"nominal_fit": cost(r_nom), "nominal_holdout": cost(r_nom_ho)}
         _progress(f"nominal twin: J = {J['nominal_fit']:.4g} (fit), "
                   f"{J['nominal_holdout']:.4g} (held out)", progress, t_start)
@@ -600,8 +633,9 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
     finally:
         if own and hasattr(executor, "shutdown"):
             executor.shutdown()
-    return Diagnosis(verdict=verdict, accepted=accepted, rounds=rounds, gate=gate, J=J,
+    return Diagnosis(verdict=verdict, accepted=accepted, rounds=rounds, gate=user_gate, J=J,
                      scales={p.name: float(s) for p, s in zip(params, current.scales)},
                      localisation=loc, timing={"wall_s": time.perf_counter() - t_start},
                      final_effects=current.effects, twin=final_arm,
-                     contexts=(ctx, ctx_ho), baseline_scales=baseline_scales, stop=stop)
+                     contexts=(ctx, ctx_ho), baseline_scales=baseline_scales, stop=stop,
+                     floor=fl, gate_effective=gate)

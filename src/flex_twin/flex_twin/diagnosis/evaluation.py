@@ -25,12 +25,12 @@ Executor: anything with ``map(fn, iterable)`` returning results in order
 """
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..cluster import SerialExecutor  # noqa: F401 (the executors: flex_twin.cluster)
+from ..cluster import local_executor as default_executor  # noqa: F401
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.simulate import SimulationDivergedError
@@ -111,7 +111,7 @@ class Context:
     def build(cls, nominal, controller, rec, baseline_params, sigma=None, dt=2e-3,
               score_from=-np.inf, segment=None):
         model = FlexArmModel(nominal)
-        period = controller.period
+        period = controller.instant_period(rec.dt)
         t_rel = rec.t - rec.t[0]
         instants = np.arange(int(round(t_rel[-1] / period)) + 1) * period
         qset = _held(t_rel, rec.stack("qset"), instants)
@@ -149,7 +149,7 @@ def _segments(ctx: Context) -> list[tuple[int, int]]:
     if not ctx.segment or ctx.segment >= ctx.rec.t[-1] - ctx.rec.t[0]:
         return [(0, n)]
     per = max(2, int(round(ctx.segment / ctx.rec.dt)))
-    per -= per % max(1, int(round(ctx.controller.period / ctx.rec.dt)))
+    per -= per % max(1, int(round(ctx.controller.instant_period(ctx.rec.dt) / ctx.rec.dt)))
     return [(k, min(k + per + 1, n)) for k in range(0, n - 1, per)]
 
 
@@ -161,13 +161,14 @@ def predict_channels(ctx: Context, arm: ArmDescription):
     rec = ctx.rec
     joint_of = [int(c[1:]) - 1 if c[0] == "q" else None for c in ctx.controller.channels]
     cbias = np.array([bias[j] if j is not None else 0.0 for j in joint_of])
-    periods = np.rint(delay / ctx.controller.period).astype(np.int64)
+    period = ctx.controller.instant_period(rec.dt)
+    periods = np.rint(delay / period).astype(np.int64)
     cdelay = np.array([periods[j] if j is not None else 0 for j in joint_of], np.int64)
     pred = None
     for k0, k1 in _segments(ctx):
         part = rec if (k0, k1) == (0, len(rec.t)) else rec.window(rec.t[k0], rec.t[k1 - 1])
         q0, v0 = measured_start(part)
-        i0 = int(round((rec.t[k0] - rec.t[0]) / ctx.controller.period))
+        i0 = int(round((rec.t[k0] - rec.t[0]) / period))
         seg = replay(model, ctx.controller, part, ff=ctx.ff[i0:], dt=ctx.dt,
                      sensor_bias=cbias, sensor_delay=cdelay,
                      x0=initial_state(model, q0 - bias, v0))
@@ -195,8 +196,15 @@ def residual_vector(ctx: Context, arm: ArmDescription) -> np.ndarray:
     rec = ctx.rec
     n = len(pred.t)
     k0 = int(np.searchsorted(pred.t, ctx.score_from - 1e-9))
-    return np.concatenate([(rec.channels[c][k0:n] - pred.channels[c][k0:]) / ctx.sigma[c]
-                           for c in rec.residual_channels])
+    return np.concatenate([(rec.channels[c][k0:n] - pred.channels[c][k0:])
+                           / channel_sigma(ctx, c, k0, n) for c in rec.residual_channels])
+
+
+def channel_sigma(ctx: Context, c: str, k0: int = 0, n: int | None = None):
+    """The noise level of channel c over samples [k0, n): a number, or the per-sample
+    levels of a run whose transients the model-form floor down-weights (:mod:`.floor`)."""
+    s = ctx.sigma[c]
+    return s[k0:n] if np.ndim(s) else s
 
 
 def cost(r: np.ndarray) -> float:
@@ -212,22 +220,3 @@ def evaluate(task) -> np.ndarray | None:
     except (SimulationDivergedError, StaticConvergenceError, np.linalg.LinAlgError,
             ValueError):
         return None
-
-
-class SerialExecutor:
-    """The executor interface without parallelism (``map`` in order)."""
-
-    def map(self, fn, *iterables):
-        return map(fn, *iterables)
-
-    def submit(self, fn, *args):
-        from concurrent.futures import Future
-        f = Future()
-        f.set_result(fn(*args))
-        return f
-
-
-def default_executor(workers: int | None = None):
-    """A process pool on the available cores (serial with one core)."""
-    n = workers or len(os.sched_getaffinity(0))
-    return SerialExecutor() if n <= 1 else ProcessPoolExecutor(max_workers=n)

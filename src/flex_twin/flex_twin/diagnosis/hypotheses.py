@@ -29,6 +29,7 @@ sensor_delay         delay of the joint encoder and rate (whole control periods)
 stiffness            relative change of a link's E beyond its tolerance
 ==================== ========================================= ===========================
 
+The two delays are not screened under a continuous law (the replay cannot delay it).
 Left out: ``dc_motor`` under a torque command (its parameters act only on a voltage
 command), ``timoshenko`` (slender links: beta >> 100, no measurable effect), ``cogging``
 (``LIBRARY = False``: the out-of-library case).
@@ -325,4 +326,6 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
                       [(ymin + 0.01, 1.0, 1.0), (ymin + 0.02, 0.3, 1.0)],
                       probes=[(ymin + 0.01, 1.0, 1.0), (ymin + 0.02, 0.3, 1.0)],
                       linear=False))
+    if controller.continuous:   # a continuous law is not delayed in the replay
+        out = [h for h in out if h.kind not in ("actuator_delay", "sensor_delay")]
     return [h for h in out if h.label not in exclude]

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import welch
 
-from .evaluation import predict_channels, twin_arm
+from .evaluation import channel_sigma, predict_channels, twin_arm
 
 
 def lag1(r: np.ndarray) -> float:
@@ -59,7 +59,7 @@ def localise(ctx, scales, effects) -> dict:
     pred = predict_channels(ctx, twin_arm(ctx, scales, effects))
     n = len(pred.t)
     res = {c: (rec.channels[c][:n] - pred.channels[c]) for c in rec.residual_channels}
-    w2 = {c: (res[c] / ctx.sigma[c]) ** 2 for c in res}
+    w2 = {c: (res[c] / channel_sigma(ctx, c, 0, n)) ** 2 for c in res}
     total = sum(float(np.sum(v)) for v in w2.values()) or 1.0
     shares = {c: float(np.sum(v)) / total for c, v in w2.items()}
     per_sample = np.mean(np.column_stack(list(w2.values())), axis=1)

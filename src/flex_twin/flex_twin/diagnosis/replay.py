@@ -12,6 +12,14 @@ instants, so a 20 s run costs a fraction of a second. A control period whose New
 iterations stall (the rounded corners of a backlash or of friction crossed within one
 step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of
 measured torques through the rigid-body modes drifts and is not offered.
+
+A continuous law (``timing: continuous``, :mod:`.controller`) is the compiled joint PD of
+:mod:`flex_model.integrators` (E[5], E[6]: its stiffness and damping are in the
+generalized-alpha Newton matrix, so a D term on an arm without hub inertia is implicit and
+stable at the replay's step); the part of the law that depends on time only,
+ff + kp (qset - encoder bias), is the held input E[8], updated at the recording's samples
+(:func:`_continuous_loop`; the integrator restarts with a consistent acceleration only
+where that input changes). Its recorded command is the law at the sampled state.
 """
 from __future__ import annotations
 
@@ -23,7 +31,7 @@ from numba import njit
 from flex_model.dynamics import FlexArmModel
 from flex_model.integrators import consistent_acceleration, generalized_alpha
 from flex_model.kernels import link_origins
-from flex_model.simulate import SimulationDivergedError, _input_data
+from flex_model.simulate import JointPD, SimulationDivergedError, _input_data
 from flex_model.statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
 
@@ -86,6 +94,51 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
 
 
 @njit(cache=True)
+def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride):
+    """Run n_periods sample periods of per_period steps under the compiled joint PD of E
+    with the held input E[8] = U[k] on period k; return the states every out_stride steps,
+    a status (0 ok, 1 diverged, 2 Newton failed) and the time reached. The method runs on
+    through the periods (bit-identical to one call) and restarts with a consistent
+    acceleration where the held input changes (a set-point step)."""
+    nx = x0.shape[0]
+    n_steps = n_periods * per_period
+    n_out = n_steps // out_stride + 1
+    X = np.full((n_out, nx), np.nan)
+    u = E[8]
+    x = x0.copy()
+    X[0] = x
+    a = np.zeros(E[0].shape[0])
+    abar = a.copy()
+    for k in range(n_periods):
+        t = k * per_period * h
+        restart = k == 0
+        for j in range(u.shape[0]):
+            if u[j] != U[k, j]:
+                restart = True
+            u[j] = U[k, j]
+        if restart:
+            a = consistent_acceleration(t, x, P, E)
+            abar = a.copy()
+        Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
+            t, x, a, abar, h, per_period, 1, rho_inf, 1e-10, 1e6, P, E)
+        if status == 2:   # Newton stalled on a sharp corner: the period in substeps
+            a0 = consistent_acceleration(t, x, P, E)
+            Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
+                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, SUBSTEPS, rho_inf,
+                1e-10, 1e6, P, E)
+        if status != 0:
+            return X, status, t_stop
+        a = a1
+        abar = abar1
+        for s in range(1, per_period + 1):
+            g = k * per_period + s
+            if g % out_stride == 0:
+                X[g // out_stride] = Xs[s]
+        x = x_stop
+    return X, 0, n_steps * h
+
+
+@njit(cache=True)
 def _tips(Q, P):
     """(n, 2): the arm's end for every row of Q (kernels.link_origins)."""
     out = np.empty((Q.shape[0], 2))
@@ -140,13 +193,20 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
                          sample_period: float, dt: float = DEFAULT_STEP, rho_inf: float = 0.9,
                          sensor_bias=None, sensor_delay=None):
     """(X, CMD) every ``sample_period`` over [0, t_final]: the states of the arm under the
-    sampled law and the command issued at the latest control instant.
+    sampled law and the command issued at the latest control instant (a continuous law:
+    its command at the sample).
 
     ``qset_at_instants``/``ff_at_instants``: (n_periods + 1, n_joints) reference and
-    feed-forward at the control instants k * period; ``sensor_bias`` (per controller
-    channel) is added to what the controller reads, ``sensor_delay`` (per channel, whole
-    control periods) delays it (the first reading before the record starts).
+    feed-forward at the control instants k * period (a continuous law: the samples k *
+    sample_period, held between them); ``sensor_bias`` (per controller channel) is added
+    to what the controller reads, ``sensor_delay`` (per channel, whole control periods)
+    delays it (the first reading before the record starts).
     """
+    if controller.continuous:
+        return _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
+                                       ff_at_instants, sample_period=sample_period, dt=dt,
+                                       rho_inf=rho_inf, sensor_bias=sensor_bias,
+                                       sensor_delay=sensor_delay)
     period = controller.period
     per_period = max(1, int(np.ceil(period / dt - 1e-9)))
     h = period / per_period
@@ -174,6 +234,35 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
     return X, cmd[np.minimum(k, n_periods)]
 
 
+def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
+                            ff_at_instants, *, sample_period, dt, rho_inf, sensor_bias,
+                            sensor_delay):
+    """:func:`simulate_closed_loop` of a continuous law (:func:`_continuous_loop`)."""
+    if sensor_delay is not None and np.any(np.asarray(sensor_delay) != 0):
+        raise ValueError("a continuous controller cannot read a delayed encoder in the "
+                         "replay (a delay of a continuous law is not a state function)")
+    if np.any(_delay_periods(model, sample_period) > 0):
+        raise ValueError("a continuous controller with an actuator_delay: the replay "
+                         "cannot delay a continuous law")
+    per_period = max(1, int(np.ceil(sample_period / dt - 1e-9)))
+    h = sample_period / per_period
+    n_periods = int(round(t_final / sample_period))
+    nc = len(controller.channels)
+    bias = np.zeros(nc) if sensor_bias is None else np.asarray(sensor_bias, float)
+    ref = controller.reference(qset_at_instants[:n_periods + 1])
+    ff = np.asarray(ff_at_instants[:n_periods + 1], float)
+    kp, kd = controller.joint_pd()
+    E = _input_data(model, JointPD(kp, kd, np.zeros(model.n_links)), (),
+                    np.zeros(model.n_links))
+    U = np.ascontiguousarray(ff + (ref - bias) @ controller.gains.T)
+    X, status, t_stop = _continuous_loop(np.asarray(x0, float), model.P, E, h, per_period,
+                                         n_periods, rho_inf, U, per_period)
+    if status != 0:
+        raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
+                                      f"(status {status}: diverged or Newton failed)")
+    return X, controller.command(model, X, ref, ff, bias)
+
+
 def _held(t_rec, values, instants):
     """Zero-order hold of sampled values at the given instants (latest sample <= t)."""
     k = np.clip(np.searchsorted(t_rec, instants + 1e-9, side="right") - 1, 0, len(t_rec) - 1)
@@ -184,7 +273,7 @@ def predict(model: FlexArmModel, x: np.ndarray, tau: np.ndarray, t: np.ndarray,
             want) -> Prediction:
     """The channels ``want`` of states x (n, 2 nq) and commands tau (n, n_joints)."""
     nq = model.nq
-    q, v = x[:, :nq], x[:, nq:]
+    q, v = x[:, :nq], x[:, nq:2 * nq]
     ch = {}
     qa, va = q @ model.Ga.T, v @ model.Ga.T
     for i in range(model.n_links):
@@ -208,7 +297,7 @@ def replay(model: FlexArmModel, controller: ControllerDescription, rec, *,
     pass ``ff`` (n_periods + 1, n_joints) precomputed. The twin starts at the measured joint
     angles and rates of the first sample with its links in static equilibrium.
     """
-    period = controller.period
+    period = controller.instant_period(rec.dt)
     t_rel = rec.t - rec.t[0]
     t_final = t_rel[-1]
     instants = np.arange(int(round(t_final / period)) + 1) * period

@@ -28,6 +28,11 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
     raw = scale_raw(raw, ctx.baseline_params, scales)
     scaled = apply_scales(ctx.nominal, ctx.baseline_params, scales)
     raw["name"] = f"{raw.get('name', 'arm')}_diagnosed"
+    fl = getattr(diagnosis, "floor", None)
+    if fl is not None and fl.changed:   # the discretization the diagnosis chose
+        raw["kinematics"] = fl.chosen.kinematics
+        for lk, n in zip(raw["links"], fl.chosen.variables):
+            lk["variables"] = int(n)
     for c in diagnosis.accepted:
         hyp, x = next((h, x) for h, x in diagnosis.final_effects if h.label == c.label)
         for entry in hyp.effect_dicts(scaled, x):
@@ -87,14 +92,28 @@ def summary(diagnosis) -> dict:
                        "candidates": [_candidate_json(c) for c in cands]})
     J = diagnosis.J
     base = J["baseline_holdout"] - 1.0
+    gate_eff = getattr(diagnosis, "gate_effective", None)
+    gate_eff = diagnosis.gate if gate_eff is None else gate_eff
+    fl = getattr(diagnosis, "floor", None)
+    floor = fl.summary() if fl is not None else None
+    if floor is not None:   # which part of the residual is model form (held out)
+        mf = fl.model_form["holdout"]
+        floor["model_form_share_of_baseline_excess"] = float(mf / base) if base > 0 else 0.0
+        floor["model_form_share_of_final_excess"] = \
+            float(mf / (J["final_holdout"] - 1.0)) if J["final_holdout"] > 1.0 else 0.0
     return {"verdict": diagnosis.verdict, "stop": diagnosis.stop,
             "named": [_candidate_json(c) for c in diagnosis.accepted],
             "gate": {"excess_threshold": diagnosis.gate, "baseline_excess_holdout": base,
                      "final_excess_holdout": J["final_holdout"] - 1.0,
-                     "material": base > diagnosis.gate},
+                     "model_form_holdout": gate_eff - diagnosis.gate,
+                     "effective_threshold": gate_eff,
+                     "material": base > gate_eff},
+            "floor": floor,
             "cost": {k: float(v) for k, v in J.items()},
+            # (0 when the nominal twin has no excess to reduce: a floor-weighted J < 1)
             "holdout_error_reduction": float(1.0 - (J["final_holdout"] - 1.0)
-                                             / max(J["nominal_holdout"] - 1.0, 1e-12)),
+                                             / (J["nominal_holdout"] - 1.0))
+            if J["nominal_holdout"] - 1.0 > 1e-12 else 0.0,
             "baseline_scales": diagnosis.scales, "rounds": rounds,
             "localisation": diagnosis.localisation, "timing": diagnosis.timing}
 
@@ -131,6 +150,47 @@ def _plots(out: Path, diagnosis) -> list[str]:
     return ["overlay.png", "spectra.png"]
 
 
+def _floor_lines(f) -> list[str]:
+    """The report's section on the twin's own floor (:mod:`.floor`)."""
+    if f is None:
+        return []
+
+    def lab(st):
+        return (f"{'/'.join(map(str, st['variables']))} variables per link, "
+                f"{st['kinematics']}, step {1e3 * st['dt']:g} ms")
+    out = ["## Model-form floor (the twin's own numerical and model error on this run)", "",
+           f"Replay at {lab(f['default_setting'])} against a refined twin "
+           f"({lab(f['reference_setting'])}), nominal parameters, J units:", "",
+           "| | fit | held out |", "|---|---|---|",
+           f"| replay's own error (twin - refined twin) | {f['own_error_default']['fit']:.3g} "
+           f"| {f['own_error_default']['holdout']:.3g} |",
+           f"| J data - replay | {f['J_default']['fit']:.4g} | "
+           f"{f['J_default']['holdout']:.4g} |",
+           f"| J data - refined twin | {f['J_reference']['fit']:.4g} | "
+           f"{f['J_reference']['holdout']:.4g} |", ""]
+    if f["refined"]:
+        out.append(f"The refined twin is closer to the data: the diagnosis replays at "
+                   f"{lab(f['chosen_setting'])} (own error {f['own_error_chosen']['fit']:.3g}"
+                   f" / {f['own_error_chosen']['holdout']:.3g}, target <= {f['target']:g}).")
+        if f.get("J_chosen_floor_weighted"):
+            jc, jw = f["J_chosen"], f["J_chosen_floor_weighted"]
+            out.append(f"Samples where the chosen and the refined twin disagree (the "
+                       f"transients after set-point steps) weigh less: J data - replay "
+                       f"{jc['fit']:.4g} / {jc['holdout']:.4g} unweighted, {jw['fit']:.4g} / "
+                       f"{jw['holdout']:.4g} weighted; the difference is model form.")
+    else:
+        out.append("The refined twin is not materially closer to the data (or the data's "
+                   "residual along the twins' difference is not that of a finer model's "
+                   "run): the replay keeps its setting.")
+    out += [f"Model form (not a physical effect, counted by the gate): "
+            f"{f['model_form']['holdout']:.3g} of the held-out excess "
+            f"({100 * f['model_form_share_of_baseline_excess']:.1f} % of the baseline's, "
+            f"{100 * f['model_form_share_of_final_excess']:.1f} % of what remains), "
+            f"{f['model_form']['fit']:.3g} on the fit recording. Measured in "
+            f"{f['wall_s']:.1f} s.", ""]
+    return out
+
+
 def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:
     """Write diagnosed_arm.yaml, diagnosis.json, report.md (+ PNGs) into out_dir."""
     out = Path(out_dir)
@@ -153,9 +213,11 @@ def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:
           f"{J['baseline_holdout']:.4g} |",
           f"| diagnosed | {J['final_fit']:.4g} | {J['final_holdout']:.4g} |", "",
           f"Gate: material when the held-out excess of the baseline exceeds "
-          f"{diagnosis.gate:g} (here {J['baseline_holdout'] - 1:.3g}). Held-out excess "
+          f"{s['gate']['effective_threshold']:.3g} = {diagnosis.gate:g} + the model-form "
+          f"floor {s['gate']['model_form_holdout']:.3g} (here "
+          f"{J['baseline_holdout'] - 1:.3g}). Held-out excess "
           f"error reduced by {100 * s['holdout_error_reduction']:.1f} % against the nominal "
-          f"twin. The search ended: {diagnosis.stop}.", ""]
+          f"twin. The search ended: {diagnosis.stop}.", ""] + _floor_lines(s["floor"])
     for k, rd in enumerate(s["rounds"]):
         margin = "-" if rd["margin"] is None else f"{rd['margin']:.3f}"
         md += [f"## Round {k + 1}: picked {rd['picked'] or 'nothing'} (runner-up "
