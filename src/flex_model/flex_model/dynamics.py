@@ -82,7 +82,7 @@ class FlexArmModel:
             if tim is not None and not tim.is_off:
                 raise ValueError(f"{self.arm.source}: effects: timoshenko on {lk.name}: "
                                  "only with discretization: wavelet")
-            from .discretizations import discretized_basis
+            from .link_discretization import discretized_basis
             last = lk is self.arm.links[-1]
             return discretized_basis(lk, self.arm.payload_mass if last else 0.0,
                                      self.arm.payload_inertia if last else 0.0)
@@ -354,11 +354,11 @@ class FlexArmModel:
         cogging (flex_model.effects); not stick-slip friction, whose torque depends on its
         bristle state as well (:meth:`stick_slip_torques`)."""
         from .integrators import joint_passive_forces
-        from .simulate import _input_data
+        from .inputs import input_data
         q = np.asarray(q, float)
         v = np.zeros(self.nq) if v is None else np.asarray(v, float)
         if not hasattr(self, "_E0"):
-            self._E0 = _input_data(self, None, (), np.zeros(self.n_links))
+            self._E0 = input_data(self, None, (), np.zeros(self.n_links))
         return joint_passive_forces(q, v, self._E0)
 
     @property

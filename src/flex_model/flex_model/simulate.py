@@ -29,6 +29,7 @@ from typing import Callable
 import numpy as np
 
 from .dynamics import FlexArmModel
+from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: public here)
 from .integrators import consistent_acceleration, dopri5, generalized_alpha, joint_torques
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
@@ -39,25 +40,6 @@ class SimulationDivergedError(RuntimeError):
     """The state became non-finite or diverged; the message says when and which variable."""
 
 
-@dataclass(frozen=True)
-class JointPD:
-    """tau = kp (theta_set - theta) - kd theta_dot per joint (N m/rad, N m s/rad, rad)."""
-
-    kp: np.ndarray
-    kd: np.ndarray
-    setpoints: np.ndarray
-
-
-@dataclass(frozen=True)
-class Pulse:
-    """Constant joint torques (N m), tip force (N, base frame) and tip torque (N m) on
-    ``start <= t < end`` (s)."""
-
-    start: float
-    end: float
-    joint_torques: tuple = ()
-    tip_force: tuple = (0.0, 0.0)
-    tip_torque: float = 0.0
 
 
 @dataclass
@@ -141,28 +123,6 @@ class SimulationResult:
                    fmt="%.17g")
 
 
-def _input_data(model: FlexArmModel, pd: JointPD | None, pulses, u):
-    nl = model.n_links
-    if pd is None:
-        kp = kd = sp = np.zeros(nl)
-    else:
-        kp, kd, sp = (np.asarray(a, float).reshape(nl) for a in (pd.kp, pd.kd, pd.setpoints))
-    n = len(pulses)
-    t0 = np.array([p.start for p in pulses], float)
-    t1 = np.array([p.end for p in pulses], float)
-    ptau = np.zeros((n, nl))
-    pf = np.zeros((n, 2))
-    pc = np.zeros(n)
-    for k, p in enumerate(pulses):
-        if len(p.joint_torques):
-            ptau[k] = p.joint_torques
-        pf[k] = p.tip_force
-        pc[k] = p.tip_torque
-    return (model.K, model.D, model.G, float(model.gravity[0]), float(model.gravity[1]),
-            kp, kd, sp, u, t0, t1, ptau, pf, pc, model.torque_limit, model.contact,
-            model.Ga, model.joint_data)
-
-
 def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:
     names = model.coordinate_names()
     names = names + [n + "_rate" for n in names] + [
@@ -209,7 +169,7 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
     z0 = np.zeros(nz) if bristles0 is None else np.asarray(bristles0, float).reshape(nz)
     x0 = np.concatenate([q0, v0, z0])
     u = np.zeros(nl)
-    E = _input_data(model, pd, pulses, u)
+    E = input_data(model, pd, pulses, u)
     n_samples = int(round(t_final / sample_period)) + 1
     t_samples = np.arange(n_samples) * sample_period
     control_period = (control_period or sample_period) if policy is not None else None

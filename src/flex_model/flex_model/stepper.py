@@ -14,9 +14,10 @@ import copy
 import numpy as np
 
 from .dynamics import FlexArmModel
+from .inputs import input_data
 from .integrators import consistent_acceleration, generalized_alpha, joint_torques
 from .simulate import (DIVERGENCE_LIMIT, SimulationDivergedError, _apply_payload_change,
-                       _diverged, _input_data)
+                       _diverged)
 
 
 class Stepper:
@@ -27,7 +28,7 @@ class Stepper:
         self.model = copy.copy(model)  # payload changes stay local to this stepper
         self.max_step, self.rho_inf = float(max_step), float(rho_inf)
         self.u = np.zeros(model.n_links)
-        self.E = _input_data(self.model, None, (), self.u)
+        self.E = input_data(self.model, None, (), self.u)
         self.q0 = self.model.q_from_joint_angles(np.zeros(model.n_links)) if q0 is None \
             else np.asarray(q0, float)
         self.v0 = np.zeros(model.nq) if v0 is None else np.asarray(v0, float)

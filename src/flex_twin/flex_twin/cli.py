@@ -9,13 +9,13 @@ import argparse
 import json
 import sys
 import time
-from datetime import datetime
-from pathlib import Path
 
 import numpy as np
 
 from flex_model import ros_environment
 from flex_model.command import run_command  # noqa: F401  (the suite's exit codes)
+
+from .run_dir import run_dir
 
 
 class Progress:
@@ -126,10 +126,6 @@ def cmd_static(args) -> int:
     return 0
 
 
-def _run_dir(base: str | None, name: str) -> Path:
-    path = Path(base) if base else Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-{name}"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def _simulate(scenario_ref, args, label: str):
@@ -149,7 +145,7 @@ def _simulate(scenario_ref, args, label: str):
     t0, c0 = time.perf_counter(), time.process_time()
     res = sc.run(progress=Progress(label, not args.json), model=model)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    out_dir = _run_dir(args.out, sc.name)
+    out_dir = run_dir(args.out, sc.name)
     csv = out_dir / f"{sc.name}.csv"
     res.to_csv(csv)
     summary = {"scenario": sc.name, "arm": sc.arm.name, "kinematics": sc.arm.kinematics,

@@ -279,9 +279,9 @@ def add_sweep_parser(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import _run_dir
+    from .run_dir import run_dir
     from .cluster import batch_executor
-    out = _run_dir(args.out, "sweep")
+    out = run_dir(args.out, "sweep")
     with batch_executor(args.scheduler, args.workers) as ex:
         rows = run_sweep(args.scenario, args.vary, out, ex, args.samples, args.seed,
                          args.after, plot=not args.no_plot,

@@ -98,7 +98,7 @@ def test_bag_without_the_reference_topic_is_refused_by_name():
     bag = Path(__file__).resolve().parents[3] / "test" / "data" / "bags" / "model_lockstep"
     if not bag.exists():
         pytest.skip(f"golden bag {bag} not present")
-    from flex_twin.diagnosis.recording import load_recording
+    from flex_twin.diagnosis.sources import load_recording
     with pytest.raises(RecordingError, match="missing topic\\(s\\) /flex_planner/trajectory"):
         load_recording(bag, 2)
 

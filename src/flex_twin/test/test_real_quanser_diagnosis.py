@@ -12,7 +12,7 @@ import pytest
 from flex_model.arm import load_arm
 from flex_twin.cli import run_command
 from flex_twin.diagnosis.controller import load_controller
-from flex_twin.diagnosis.recording import load_recording
+from flex_twin.diagnosis.sources import load_recording
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
 from flex_twin.real_arms import quanser_data as qd

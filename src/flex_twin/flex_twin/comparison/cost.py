@@ -19,7 +19,8 @@ import numpy as np
 from flex_model.integrators import derivative
 from flex_model.modes import natural_modes
 from flex_model.scenario import load_scenario
-from flex_model.simulate import SimulationDivergedError, _input_data
+from flex_model.inputs import input_data
+from flex_model.simulate import SimulationDivergedError
 from .methods import METHODS, with_discretization
 
 SCENARIO = "thesis_three_link_pd"
@@ -33,7 +34,7 @@ def _scenario(disc: str, n_vars: int, options: dict):
 
 def eom_microseconds(model, sc, repeats: int = 2000) -> float:
     """Best of five: microseconds per evaluation of dx/dt."""
-    e = _input_data(model, sc.pd, sc.pulses, np.zeros(model.n_links))
+    e = input_data(model, sc.pd, sc.pulses, np.zeros(model.n_links))
     x = np.concatenate([model.q_from_joint_angles(sc.theta0), np.full(model.nq, 0.01)])
     derivative(0.0, x, model.P, e)
     best = np.inf

@@ -136,7 +136,7 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
 
     from .controller import check_integrable, load_controller
     from .engine import DEFAULT_GATE, diagnose
-    from .recording import load_recording
+    from .sources import load_recording
     from .report import write_report
 
     t0 = time.perf_counter()

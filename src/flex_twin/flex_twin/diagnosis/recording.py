@@ -133,14 +133,3 @@ def save_csv(rec: Recording, path) -> None:
     names = list(rec.channels)
     np.savetxt(path, np.column_stack([rec.t] + [rec.channels[n] for n in names]),
                delimiter=",", header=",".join(["t"] + names), comments="", fmt="%.12g")
-
-
-def load_recording(path, n_joints: int) -> Recording:
-    """A CSV file, or a rosbag2 directory / .mcap file (needs rclpy)."""
-    path = Path(path)
-    if not path.exists():
-        raise RecordingError(f"{path}: no such file or directory")
-    if path.is_dir() or path.suffix == ".mcap":
-        from .ros_recording import load_bag
-        return load_bag(path, n_joints)
-    return load_csv(path, n_joints)

@@ -31,7 +31,8 @@ from numba import njit
 from flex_model.dynamics import FlexArmModel
 from flex_model.integrators import consistent_acceleration, generalized_alpha
 from flex_model.kernels import link_origins
-from flex_model.simulate import JointPD, SimulationDivergedError, _input_data
+from flex_model.inputs import JointPD, input_data
+from flex_model.simulate import SimulationDivergedError
 from flex_model.statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
 
@@ -215,7 +216,7 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
         raise ValueError(f"sample period {sample_period:g} s is not a multiple of the "
                          f"integration step {h:g} s (controller period {period:g} s)")
     n_periods = int(round(t_final / period))
-    E = _input_data(model, None, (), np.zeros(model.n_links))
+    E = input_data(model, None, (), np.zeros(model.n_links))
     C = controller.channel_matrix(model)
     nc = len(controller.channels)
     ref = controller.reference(qset_at_instants[:n_periods + 1])
@@ -252,7 +253,7 @@ def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
     ref = controller.reference(qset_at_instants[:n_periods + 1])
     ff = np.asarray(ff_at_instants[:n_periods + 1], float)
     kp, kd = controller.joint_pd()
-    E = _input_data(model, JointPD(kp, kd, np.zeros(model.n_links)), (),
+    E = input_data(model, JointPD(kp, kd, np.zeros(model.n_links)), (),
                     np.zeros(model.n_links))
     U = np.ascontiguousarray(ff + (ref - bias) @ controller.gains.T)
     X, status, t_stop = _continuous_loop(np.asarray(x0, float), model.P, E, h, per_period,

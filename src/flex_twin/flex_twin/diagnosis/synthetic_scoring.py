@@ -101,7 +101,7 @@ def _twin_sigma(case) -> dict:
     (:func:`.evaluation.noise_levels`)."""
     from flex_model.arm import load_arm
     from .evaluation import noise_levels
-    from .recording import load_recording
+    from .sources import load_recording
     return noise_levels(load_recording(case.fit_csv, load_arm(case.nominal_arm).n_links))
 
 
@@ -186,7 +186,7 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool,
     :func:`.engine.diagnose`."""
     from flex_model.arm import load_arm
     from .controller import load_controller
-    from .recording import load_recording
+    from .sources import load_recording
     d = Path(out) / f"{kind.replace(':', '_').replace('+', '_')}-{seed}"
     t0 = time.perf_counter()
     res = {"kind": kind, "seed": seed, "dir": str(d), "materiality": None}

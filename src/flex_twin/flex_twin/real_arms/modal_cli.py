@@ -47,7 +47,7 @@ def _tol(fit) -> str:
 # ----------------------------------------------------------------------------- cantilever
 def cmd_cantilever(args) -> int:
     from flex_model.arm import load_arm
-    from ..cli import _run_dir
+    from ..run_dir import run_dir
     from .cantilever import DATA_SET, cantilever_study, read_data_set
 
     say = _say(args)
@@ -65,7 +65,7 @@ def cmd_cantilever(args) -> int:
     if not records:
         say(f"no shaker data at {data}: identification skipped")
     study = cantilever_study(arm, records, measured, sigma=args.sigma, progress=say)
-    out = _run_dir(args.out, "cantilever")
+    out = run_dir(args.out, "cantilever")
     result = study.as_dict()
     result["data"] = str(data) if records else None
     _plot_cantilever(study, out / "cantilever.png")
@@ -233,7 +233,7 @@ def _plot_cantilever(st, path) -> None:
 # ----------------------------------------------------------------------------- frequency gap
 def cmd_frequency_gap(args) -> int:
     from flex_model.arm import load_arm
-    from ..cli import _run_dir
+    from ..run_dir import run_dir
     from .modal_diagnosis import ModalSetup, frequency_gap, modal_frequencies, reach_hz
     from .modal_diagnosis import standard_candidates
 
@@ -259,7 +259,7 @@ def cmd_frequency_gap(args) -> int:
     fits = frequency_gap(setup, cands, args.measured_hz, mode=args.mode, sigma=args.sigma,
                          count=count)
     reach = [reach_hz(setup, c, args.mode) for c in cands]
-    out = _run_dir(args.out, "frequency-gap")
+    out = run_dir(args.out, "frequency-gap")
     result = {"arm": arm.name, "mode": args.mode, "measured_hz": args.measured_hz,
               "nominal_hz": nominal.tolist(), "sigma": args.sigma,
               "fits": [dict(f.as_dict(), reach_hz=list(r)) for f, r in zip(fits, reach)]}

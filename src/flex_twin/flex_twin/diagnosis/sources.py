@@ -1,0 +1,18 @@
+"""A recording from any source a user has: a CSV file (:mod:`.recording`) or a rosbag2
+directory / .mcap file of the suite's topics (:mod:`.ros_recording`, needs rclpy)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .recording import Recording, RecordingError, load_csv
+from .ros_recording import load_bag
+
+
+def load_recording(path, n_joints: int) -> Recording:
+    """A CSV file, or a rosbag2 directory / .mcap file (needs rclpy)."""
+    path = Path(path)
+    if not path.exists():
+        raise RecordingError(f"{path}: no such file or directory")
+    if path.is_dir() or path.suffix == ".mcap":
+        return load_bag(path, n_joints)
+    return load_csv(path, n_joints)
