@@ -410,12 +410,7 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
 def consistent_acceleration(t, x, P, E):
     _check_state(x, E)
     n = E[0].shape[0]
-    z = x[2 * n:]
-    zd = z
-    if z.shape[0] > 0:
-        zd = bristle_rates(x[n:2 * n], z, E)
-    B, rhs = _balance(t, x[:n], x[n:2 * n], z, zd, P, E)
-    return solve_spd(B, rhs)
+    return _derivative(t, x, P, E)[n:2 * n]
 
 
 @njit(cache=_CACHE)

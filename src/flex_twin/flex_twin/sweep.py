@@ -21,6 +21,7 @@ wall time. Writes ``sweep.csv``, ``sweep.json`` and ``sweep.png``.
 """
 from __future__ import annotations
 
+import argparse
 import copy
 import csv
 import itertools
@@ -261,7 +262,7 @@ def plot_sweep(rows, params, path, title) -> None:
 def add_sweep_parser(sub) -> None:
     sp = sub.add_parser("sweep", help="a scenario over a grid or Monte-Carlo draw of its "
                         "parameters (locally or on a Dask cluster)", description=__doc__,
-                        formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
     sp.add_argument("scenario", help="scenario preset name or YAML path")
     sp.add_argument("--vary", action="append", default=[], metavar="PATH=SPEC",
                     help="field and values (repeatable)")
