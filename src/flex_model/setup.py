@@ -9,6 +9,7 @@ package_name = 'flex_model'
 os.chdir(os.path.dirname(os.path.abspath(__file__)))
 presets = sorted(glob(os.path.join(package_name, 'presets', '*.yaml')))
 scenarios = sorted(glob(os.path.join(package_name, 'presets', 'scenarios', '*.yaml')))
+spatial = sorted(glob(os.path.join(package_name, 'presets', 'spatial', '*.yaml')))
 
 data_files = [
     ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
@@ -20,12 +21,15 @@ if presets:
     data_files.append(('share/' + package_name + '/presets', presets))
 if scenarios:
     data_files.append(('share/' + package_name + '/presets/scenarios', scenarios))
+if spatial:
+    data_files.append(('share/' + package_name + '/presets/spatial', spatial))
 
 setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
-    package_data={package_name: ['presets/*.yaml', 'presets/scenarios/*.yaml']},
+    package_data={package_name: ['presets/*.yaml', 'presets/scenarios/*.yaml',
+                                'presets/spatial/*.yaml']},
     data_files=data_files,
     install_requires=['numpy', 'scipy', 'numba', 'pyyaml', 'matplotlib'],
     extras_require={'test': ['pytest']},

@@ -1,0 +1,310 @@
+"""Spatial arm description: a YAML file placing joints by a Denavit-Hartenberg table (seed 000).
+
+Convention: **standard DH** (seed 000 Eq. 17, Fu et al.), the transform from frame i-1 to
+frame i is
+
+    A_i = Trans_z(d_i) Rot_z(theta_i) Trans_x(a_i) Rot_x(alpha_i),
+
+the joint variable q_i adds to ``theta`` (revolute) or to ``d`` (prismatic); both act
+along/about z_{i-1}. Example (seed 000's real arm, vertical joint axis)::
+
+    name: seed000_real_arm_3d
+    gravity: [0.0, 0.0, -9.81]          # m/s^2, base frame
+    links:
+      - name: link1
+        joint: {name: joint1, type: revolute, a: 0.28, alpha: 0.0, d: 0.0, theta: 0.0}
+        flexible:
+          placement: dh_x                # beam along x_i from the joint, length a (default)
+          section: {EI_y: 248.0, EI_z: 0.70656, GJ: 1.0, rhoA: 0.1289, rhoJ: 1.0e-7}
+          variables: 8                   # per bending plane, (deflection, rotation) pairs
+          torsion_variables: 8           # even (+1: the root twist rate); 0: rigid
+        end_body: {mass: 0.025607, inertia: [0, 0, 0], offset: [0, 0, 0]}
+
+A flexible link's beam frame has x along the beam, y in the plane normal to the joint
+axis and z parallel to it; the deflection v (along y) bends about z (stiffness ``EI_z``),
+w (along z) bends about y (``EI_y``), phi twists about x (``GJ``; ``rhoJ`` the polar mass
+moment per length, kg m). Placements:
+
+- ``dh_x``: the beam runs along x from the point Trans_z(d) Rot_z(theta) to the origin of
+  frame i (length ``a``); its tip transform E (seed 000 Eq. 19) sits between
+  Trans_x(a) and Rot_x(alpha) -- A_i = Trans_z(d) Rot_z(theta) Trans_x(a) E Rot_x(alpha).
+- ``aux_z``: seed 000 Fig. 5 / Eq. 21: the beam runs along z_i from the origin of frame i
+  (length ``length``), i.e. T = A_i A_aux E with A_aux = Trans_z(length).
+
+``rigid`` links (no ``flexible`` key) are A_i. ``root_body`` (in the frame after
+Trans_z(d) Rot_z(theta), or frame i for ``aux_z``) and ``end_body`` (in the link's
+end frame i) are rigid bodies: ``mass`` (kg), ``inertia`` (kg m^2 about their centre,
+3 diagonal values or a 3 x 3 matrix), ``offset`` (m, centre in that frame). A section
+value may be a ``[root, tip]`` pair (linear taper).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config import ConfigError, Fields, read_yaml
+from ..sections import Segment, SectionProfile
+
+JOINT_TYPES = ("revolute", "prismatic")
+PLACEMENTS = ("dh_x", "aux_z")
+SECTION_FIELDS = (("EI_y", "N m^2"), ("EI_z", "N m^2"), ("GJ", "N m^2"), ("rhoA", "kg/m"),
+                  ("rhoJ", "kg m"))
+
+
+@dataclass(frozen=True)
+class RigidBody:
+    """A rigid body fixed in a link frame: mass (kg), centre offset (m), inertia about its
+    centre (kg m^2, 3 x 3 in that frame)."""
+
+    mass: float = 0.0
+    offset: tuple = (0.0, 0.0, 0.0)
+    inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+    @property
+    def is_empty(self) -> bool:
+        return self.mass == 0.0 and not np.any(np.asarray(self.inertia))
+
+
+@dataclass(frozen=True)
+class SpatialJoint:
+    """Joint i and its standard DH row (m, rad): the variable adds to theta or d."""
+
+    name: str
+    type: str = "revolute"
+    a: float = 0.0
+    alpha: float = 0.0
+    d: float = 0.0
+    theta: float = 0.0
+
+
+@dataclass(frozen=True)
+class FlexibleBeam:
+    """The elastic part of a link: one profile per bending plane and one for torsion.
+
+    ``bend_v``: EI_z and rhoA (deflection v along beam y); ``bend_w``: EI_y and rhoA
+    (deflection w along beam z); ``torsion``: GJ (as "EI") and rhoJ (as "m"). Profiles are
+    flex_model.sections.SectionProfile, so the planar wavelet basis (basis.py) applies.
+    """
+
+    length: float
+    bend_v: SectionProfile
+    bend_w: SectionProfile
+    torsion: SectionProfile
+    variables: int = 4
+    torsion_variables: int = 4
+    placement: str = "dh_x"
+
+
+@dataclass(frozen=True)
+class SpatialLink:
+    name: str
+    joint: SpatialJoint
+    flexible: FlexibleBeam | None = None
+    root_body: RigidBody = RigidBody()
+    end_body: RigidBody = RigidBody()
+
+
+@dataclass(frozen=True)
+class SpatialArm:
+    """A serial chain of rigid and flexible links placed by a standard DH table."""
+
+    name: str
+    links: tuple
+    gravity: tuple = (0.0, 0.0, -9.81)
+    description: str = ""
+    source: str = "<memory>"
+    convention: str = "standard_dh"
+
+    @property
+    def n_links(self) -> int:
+        return len(self.links)
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [lk.joint.name for lk in self.links]
+
+    def without_gravity(self) -> "SpatialArm":
+        return dataclasses.replace(self, gravity=(0.0, 0.0, 0.0))
+
+
+# ---------------------------------------------------------------- parsing
+
+def _pair(f: Fields, key: str, unit: str, nonnegative: bool = False):
+    value = f.raw(key)
+    allowed = f"a number {'>= 0' if nonnegative else '> 0'} or a [root, tip] pair ({unit})"
+    vals = value if isinstance(value, (list, tuple)) else [value, value]
+    if len(vals) != 2:
+        raise f.error(key, value, allowed)
+    try:
+        out = tuple(float(v) for v in vals)
+    except (TypeError, ValueError):
+        raise f.error(key, value, allowed) from None
+    if any(isinstance(v, bool) for v in vals) or not all(np.isfinite(out)) or \
+            min(out) < 0 or (not nonnegative and min(out) <= 0):
+        raise f.error(key, value, allowed)
+    return out
+
+
+def explicit_profile(length: float, stiffness, mass) -> SectionProfile:
+    """A one-segment explicit profile: stiffness (N m^2) and mass (per length), each a
+    number or a (root, tip) pair."""
+    s = tuple(stiffness) if np.ndim(stiffness) else (float(stiffness),) * 2
+    m = tuple(mass) if np.ndim(mass) else (float(mass),) * 2
+    return SectionProfile([Segment(length=length, shape="explicit", dims={"EI": s, "m": m})])
+
+
+def _body(f: Fields) -> RigidBody:
+    mass = f.number("mass", 0.0, nonnegative=True, unit="kg")
+    offset = tuple(f.vector("offset", 3, [0.0, 0.0, 0.0], unit="m"))
+    raw = f.raw("inertia", [0.0, 0.0, 0.0])
+    allowed = "3 diagonal values >= 0 or a symmetric positive semi-definite 3 x 3 matrix (kg m^2)"
+    try:
+        arr = np.array(raw, dtype=float)
+    except (TypeError, ValueError):
+        raise f.error("inertia", raw, allowed) from None
+    if arr.shape == (3,):
+        arr = np.diag(arr)
+    if arr.shape != (3, 3) or not np.all(np.isfinite(arr)):
+        raise f.error("inertia", raw, allowed)
+    scale = max(1e-30, float(np.max(np.abs(arr))))
+    if np.max(np.abs(arr - arr.T)) > 1e-12 * scale or \
+            np.min(np.linalg.eigvalsh(0.5 * (arr + arr.T))) < -1e-12 * scale:
+        raise f.error("inertia", raw, allowed)
+    f.done(["mass", "offset", "inertia"])
+    return RigidBody(mass=mass, offset=offset, inertia=tuple(map(tuple, arr)))
+
+
+def _joint(f: Fields, index: int) -> SpatialJoint:
+    j = SpatialJoint(name=f.string("name", f"joint{index + 1}"),
+                     type=f.string("type", "revolute", choices=list(JOINT_TYPES)),
+                     a=f.number("a", 0.0, unit="m"), alpha=f.number("alpha", 0.0, unit="rad"),
+                     d=f.number("d", 0.0, unit="m"), theta=f.number("theta", 0.0, unit="rad"))
+    f.done(["name", "type", "a", "alpha", "d", "theta"])
+    return j
+
+
+def _flexible(f: Fields, joint: SpatialJoint) -> FlexibleBeam:
+    placement = f.string("placement", "dh_x", choices=list(PLACEMENTS))
+    if placement == "dh_x":
+        if f.has("length"):
+            raise f.error("length", f.data["length"],
+                          "no 'length' with placement dh_x (the beam length is the DH a)")
+        if joint.a <= 0:
+            raise ConfigError(f.source, f.path.rsplit(".", 1)[0] + ".joint.a", joint.a,
+                              "a > 0 (m): the length of a dh_x flexible beam")
+        length = joint.a
+    else:
+        length = f.number("length", positive=True, unit="m")
+    sec = f.mapping("section")
+    vals = {k: _pair(sec, k, u, nonnegative=(k == "rhoJ")) for k, u in SECTION_FIELDS
+            if k != "rhoJ" or sec.has(k)}
+    vals.setdefault("rhoJ", (0.0, 0.0))
+    sec.done([k for k, _ in SECTION_FIELDS])
+    nv = f.integer("variables", 4, min_value=2, max_value=200, even=True)
+    nt = f.integer("torsion_variables", nv, min_value=0, max_value=200, even=True)
+    if nt and max(vals["rhoJ"]) <= 0:
+        raise sec.error("rhoJ", 0.0, "a polar mass moment per length > 0 (kg m) when the "
+                        "link twists (torsion_variables > 0)")
+    f.done(["placement", "length", "section", "variables", "torsion_variables"])
+    return FlexibleBeam(length=length,
+                        bend_v=explicit_profile(length, vals["EI_z"], vals["rhoA"]),
+                        bend_w=explicit_profile(length, vals["EI_y"], vals["rhoA"]),
+                        torsion=explicit_profile(length, vals["GJ"], vals["rhoJ"]),
+                        variables=nv, torsion_variables=nt, placement=placement)
+
+
+def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
+    """Validate a parsed spatial arm description; errors name ``source`` and the field."""
+    f = Fields(data, source, "")
+    name = f.string("name")
+    description = f.string("description", "")
+    convention = f.string("convention", "standard_dh", choices=["standard_dh"])
+    gravity = tuple(f.vector("gravity", 3, [0.0, 0.0, -9.81], unit="m/s^2"))
+    links = []
+    for i, raw in enumerate(f.items("links", min_len=1)):
+        lf = Fields(raw, source, f"links[{i}]")
+        lname = lf.string("name", f"link{i + 1}")
+        joint = _joint(lf.mapping("joint", {}), i)
+        flex = _flexible(lf.mapping("flexible"), joint) if lf.has("flexible") else None
+        root = _body(lf.mapping("root_body")) if lf.has("root_body") else RigidBody()
+        end = _body(lf.mapping("end_body")) if lf.has("end_body") else RigidBody()
+        lf.done(["name", "joint", "flexible", "root_body", "end_body"])
+        links.append(SpatialLink(name=lname, joint=joint, flexible=flex, root_body=root,
+                                 end_body=end))
+    names = [lk.joint.name for lk in links]
+    if len(set(names)) != len(names):
+        raise f.error("links", names, "unique joint names")
+    f.done(["name", "description", "convention", "gravity", "links"])
+    return SpatialArm(name=name, links=tuple(links), gravity=gravity, description=description,
+                      source=source, convention=convention)
+
+
+def load_spatial_arm(name_or_path) -> SpatialArm:
+    """Load a spatial arm by path or preset name (flex_model/presets/spatial/<name>.yaml)."""
+    from ..arm import resolve_preset
+    path = resolve_preset(name_or_path, SPATIAL_PRESET_DIR)
+    return spatial_arm_from_dict(read_yaml(path), str(path))
+
+
+# ---------------------------------------------------------------- planar embedding
+
+def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: float | None = None,
+                torsion_inertia: float | None = None) -> SpatialArm:
+    """The spatial form of a planar ArmDescription (flex_model.arm), for the embedding test.
+
+    Each planar link becomes a ``dh_x`` flexible link with a = L, alpha = 0, d = 0 (all
+    joint axes parallel to the base z axis, the planar motion in the x-y plane); its
+    in-plane profile is the planar one (any section, taper or segments); the data a planar
+    file lacks are chosen: EI_y = ``out_of_plane_stiffness`` x EI_z, GJ =
+    ``torsion_stiffness`` (default the mean EI / 1.3) and rhoJ = ``torsion_inertia``
+    (default mean m (L/200)^2). M-, J- become the root body (J about z), M+, J+ (and the
+    payload on the last link) the end body. Gravity (g_x, g_y) -> (g_x, g_y, 0). Only
+    ``wavelet`` links with ``small_deflection`` kinematics and no effects are accepted.
+    """
+    if arm.kinematics != "small_deflection":
+        raise ConfigError(arm.source, "kinematics", arm.kinematics,
+                          "small_deflection (second_order is not in the spatial core yet)")
+    if arm.effects:
+        raise ConfigError(arm.source, "effects", [e.TYPE for e in arm.effects],
+                          "no effects (the spatial core has none yet)")
+    links = []
+    for i, (lk, jt) in enumerate(zip(arm.links, arm.joints)):
+        if lk.discretization != "wavelet":
+            raise ConfigError(arm.source, f"links[{i}].discretization", lk.discretization,
+                              "wavelet (the spatial core uses the wavelet basis only)")
+        prof = lk.profile
+        zs = np.linspace(0.0, lk.length, 41)
+        ei, m, _ = prof.properties(zs)
+        ei_mean, m_mean = float(np.mean(ei)), float(np.mean(m))
+        segs_w = [s.scaled(stiffness=out_of_plane_stiffness) for s in prof.segments]
+        gj = ei_mean / 1.3 if torsion_stiffness is None else torsion_stiffness
+        rj = m_mean * (lk.length / 200.0) ** 2 if torsion_inertia is None else torsion_inertia
+        last = i == arm.n_links - 1
+        m_plus = lk.M_plus + (arm.payload_mass if last else 0.0)
+        j_plus = lk.J_plus + (arm.payload_inertia if last else 0.0)
+        beam = FlexibleBeam(length=lk.length, bend_v=prof, bend_w=SectionProfile(segs_w),
+                            torsion=explicit_profile(lk.length, gj, rj), variables=lk.n_vars,
+                            torsion_variables=lk.n_vars, placement="dh_x")
+        links.append(SpatialLink(
+            name=lk.name, joint=SpatialJoint(name=jt.name, a=lk.length), flexible=beam,
+            root_body=RigidBody(mass=lk.M_minus, inertia=tuple(map(tuple, np.diag(
+                [0.0, 0.0, lk.J_minus])))),
+            end_body=RigidBody(mass=m_plus, inertia=tuple(map(tuple, np.diag(
+                [0.0, 0.0, j_plus]))))))
+    g = tuple(arm.gravity) + (0.0,)
+    return SpatialArm(name=arm.name + "_3d", links=tuple(links), gravity=g,
+                      description=arm.description, source=arm.source)
+
+
+def rigid_dh_table(arm: SpatialArm) -> np.ndarray:
+    """(n, 4) standard DH rows [a, alpha, d, theta] of the arm (offsets, joint at zero)."""
+    return np.array([[lk.joint.a, lk.joint.alpha, lk.joint.d, lk.joint.theta]
+                     for lk in arm.links])
+
+
+#: spatial presets live apart from the planar ones (the planar loader reads every
+#: presets/*.yaml as a planar arm)
+SPATIAL_PRESET_DIR = Path(__file__).resolve().parent.parent / "presets" / "spatial"

@@ -1,0 +1,341 @@
+"""SpatialArmModel: equations of motion of a spatial flexible arm (Lagrange, Gauss quadrature).
+
+    M(q) a + c(q, v) + K q = Q
+
+``q = [q_1, f_1, ..., q_n, f_n]``: joint variable q_i (rad or m) and, for a flexible link,
+f_i = [v-variables, w-variables, phi-variables] of the wavelet basis of thesis Ch. II
+(basis.py, one basis per bending plane with its EI; the same Hermite wavelets for the
+torsion angle, whose root rate phi'(0) is free). The kinetic energy is that of point
+masses rhoA ds at the Gauss points of the centre line, the sections' polar mass moment
+rhoJ ds about the beam axis (torsional rotary inertia; Euler-Bernoulli: no bending rotary
+inertia) and the rigid root/end bodies:
+
+    M = sum m Jp^T Jp + sum Jw^T I Jw,
+    c = sum m Jp^T (dJp/dt v) + sum Jw^T (I dJw/dt v + w x I w) - sum m Jp^T g,
+
+the Newton-Euler form of Lagrange's equations (equal to the Christoffel form for these
+kinetic energies); dJ/dt v is computed **exactly by a complex step** of the kinematics
+(J(q + i h v), h = 1e-20: no truncation, no cancellation). K is block diagonal: the
+bending blocks are the basis's int EI w'' w''^T (thesis Eq. 14) per plane, the torsion
+block int GJ phi' phi'^T.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..basis import link_basis
+from .description import SpatialArm
+from .kinematics import P_AUX, Frame, cross, point_jacobians, rot_x, rot_y, rot_z, skew
+
+_XI, _WXI = np.polynomial.legendre.leggauss(6)
+_H = 1e-20   # complex step
+
+
+class BeamData:
+    """Sampled bases of one flexible link at its Gauss points (and constant blocks)."""
+
+    def __init__(self, beam):
+        self.beam = beam
+        L = beam.length
+        nv, nt = beam.variables, beam.torsion_variables
+        # torsion is a second-order problem: only phi(0) = 0 is clamped, the root twist rate
+        # phi'(0) is a variable (first), before the wavelet pairs
+        nt = nt + 1 if nt else 0
+        self.nv, self.nt = nv, nt
+        self.bv = link_basis(beam.bend_v, nv // 2)
+        self.bw = link_basis(beam.bend_w, nv // 2)
+        self.bt = link_basis(beam.torsion, nt // 2) if nt else None
+        h1 = self.bt.nodes[1] if nt else 1.0
+        cuts = [self.bv.nodes, beam.bend_v.breaks, beam.bend_w.breaks, beam.torsion.breaks]
+        cuts = np.unique(np.round(np.concatenate(cuts), 14))
+        # tapered sections: non-polynomial wavelets (moments of 1/EI), finer quadrature
+        tapered = any(sg.tapered for p in (beam.bend_v, beam.bend_w, beam.torsion)
+                      for sg in p.segments)
+        sub = 8 if tapered else 1
+        z, w = [], []
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            for a1, b1 in zip(np.linspace(a, b, sub + 1)[:-1], np.linspace(a, b, sub + 1)[1:]):
+                z.append(a1 + 0.5 * (b1 - a1) * (_XI + 1.0))
+                w.append(0.5 * (b1 - a1) * _WXI)
+        self.z, self.w = np.concatenate(z), np.concatenate(w)
+        self.mass_w = self.w * beam.bend_v.properties(self.z)[1]        # rhoA ds
+        gj, rhoj, _ = beam.torsion.properties(self.z)
+        self.polar_w = self.w * rhoj                                      # rhoJ ds
+        self.Wv, self.dWv = self.bv.shape_matrix(self.z), self.bv.slope_matrix(self.z)
+        self.Ww, self.dWw = self.bw.shape_matrix(self.z), self.bw.slope_matrix(self.z)
+        n = 2 * nv + nt
+        self.n = n
+        K = np.zeros((n, n))
+        K[:nv, :nv] = self.bv.K
+        K[nv:2 * nv, nv:2 * nv] = self.bw.K
+        if nt:
+            xi = np.clip(self.z / h1, 0.0, 1.0)
+            root = np.where(self.z < h1, self.z * (1 - xi) ** 2, 0.0)      # Hermite, phi'(0)
+            droot = np.where(self.z < h1, (1 - xi) * (1 - 3 * xi), 0.0)
+            self.Pt = np.column_stack([root, self.bt.shape_matrix(self.z)])
+            dPt = np.column_stack([droot, self.bt.slope_matrix(self.z)])
+            K[2 * nv:, 2 * nv:] = (dPt * (self.w * gj)[:, None]).T @ dPt
+        else:
+            self.Pt = np.zeros((len(self.z), 0))
+        self.K = 0.5 * (K + K.T)
+        self.length = L
+        # tip: deflection and slope are the last pair of each basis (clamped root)
+        self.tip_v, self.tip_dv = nv - 2, nv - 1
+        self.tip_w, self.tip_dw = nv + nv - 2, nv + nv - 1
+        self.tip_phi = 2 * nv + nt - 2 if nt else None
+        self.P = P_AUX if beam.placement == "aux_z" else np.eye(3)
+
+    def split(self, f):
+        nv = self.nv
+        return f[:nv], f[nv:2 * nv], f[2 * nv:]
+
+
+class SpatialArmModel:
+    """Equations of motion, kinematics and energy of a SpatialArm (parameters only)."""
+
+    def __init__(self, arm: SpatialArm):
+        self.arm = arm
+        self.beams = [BeamData(lk.flexible) if lk.flexible is not None else None
+                      for lk in arm.links]
+        sizes = [1 + (b.n if b is not None else 0) for b in self.beams]
+        self.off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
+        self.nq = int(np.sum(sizes))
+        self.n_links = arm.n_links
+        self.K = np.zeros((self.nq, self.nq))
+        for i, b in enumerate(self.beams):
+            if b is not None:
+                s = self.flex_slice(i)
+                self.K[s, s] = b.K
+        self.gravity = np.asarray(arm.gravity, float)
+        self._consts = []
+        for lk in arm.links:
+            j = lk.joint
+            pre = (rot_z(j.theta), np.array([0.0, 0.0, j.d]))      # Trans_z(d) Rot_z(theta)
+            dh_rest = (rot_x(j.alpha), np.array([j.a, 0.0, 0.0]))  # Trans_x(a) Rot_x(alpha)
+            bodies = []
+            for body in (lk.root_body, lk.end_body):
+                bodies.append(None if body.is_empty else
+                              (body.mass, np.asarray(body.offset, float),
+                               np.asarray(body.inertia, float)))
+            self._consts.append((pre, dh_rest, bodies))
+
+    # ------------------------------------------------------------ indexing
+    @property
+    def joint_indices(self) -> np.ndarray:
+        return self.off.copy()
+
+    def flex_slice(self, i: int) -> slice:
+        n = self.beams[i].n if self.beams[i] is not None else 0
+        return slice(int(self.off[i]) + 1, int(self.off[i]) + 1 + n)
+
+    def plane_indices(self, plane: str) -> np.ndarray:
+        """Indices of the joint variables and the 'v', 'w' or 'phi' variables of every link
+        (plane 'v' with the joints: the in-plane coordinates of a planar arm)."""
+        idx = []
+        for i, b in enumerate(self.beams):
+            if plane == "joints" or plane == "v":
+                idx.append(self.off[i])
+            if b is None:
+                continue
+            s = self.flex_slice(i).start
+            rng = {"v": range(0, b.nv), "w": range(b.nv, 2 * b.nv),
+                   "phi": range(2 * b.nv, b.n)}.get(plane, range(0))
+            idx += [s + k for k in rng]
+        return np.array(sorted(idx), dtype=int)
+
+    # ------------------------------------------------------------ kinematics
+    def _chain(self, q, with_masses: bool):
+        """Propagate the frames; return the end frame of every link and, with
+        ``with_masses``, the mass groups: points (m, p, Jp) and rotors (I, Jw)."""
+        if not np.iscomplexobj(q):
+            q = np.asarray(q, dtype=float)
+        nq = self.nq
+        F = Frame.base(nq, dtype=q.dtype)
+        ends, points, rotors = [], [], []
+        for i, (lk, b) in enumerate(zip(self.arm.links, self.beams)):
+            k = self.off[i]
+            (Rpre, tpre), (Rdh, tdh), (root_body, end_body) = self._consts[i]
+            F = F.prismatic(q[k], k) if lk.joint.type == "prismatic" else F.revolute(q[k], k)
+            F = F.fixed(Rpre, tpre)
+            if b is not None and b.beam.placement == "aux_z":
+                F = F.fixed(Rdh, tdh)
+            root = F
+            if with_masses and root_body is not None:
+                self._add_body(root, root_body, points, rotors)
+            if b is not None:
+                F = self._beam(F, q, i, b, with_masses, points, rotors)
+                F = F.fixed(b.P.T, np.zeros(3))
+                if b.beam.placement == "dh_x":
+                    F = F.fixed(Rdh, np.zeros(3))
+            else:
+                F = F.fixed(Rdh, tdh)
+            if with_masses and end_body is not None:
+                self._add_body(F, end_body, points, rotors)
+            ends.append(F)
+        return ends, points, rotors
+
+    @staticmethod
+    def _add_body(F, body, points, rotors):
+        m, c, I = body
+        p, Jp = point_jacobians(F, c[None, :])
+        if m:
+            points.append((np.array([m]), p, Jp))
+        if np.any(I):
+            rotors.append(((F.R @ I @ F.R.T)[None], F.Jw[None]))
+
+    def _beam(self, F, q, i, b: BeamData, with_masses, points, rotors) -> Frame:
+        """Mass points of link i's beam and the frame at its deflected tip (Eq. 19)."""
+        s = self.flex_slice(i)
+        fv, fw, ft = b.split(q[s])
+        Rb = F.R @ b.P
+        Fb = Frame(Rb, F.o, F.Jo, F.Jw)
+        cols = np.arange(s.start, s.stop)
+        nv = b.nv
+        if with_masses:
+            n = len(b.z)
+            v, w = b.Wv @ fv, b.Ww @ fw
+            r = np.stack([b.z + 0 * v, v, w], axis=1)
+            p, Jp = point_jacobians(Fb, r)
+            Jp[:, :, cols[:nv]] += Rb[None, :, 1, None] * b.Wv[:, None, :]
+            Jp[:, :, cols[nv:2 * nv]] += Rb[None, :, 2, None] * b.Ww[:, None, :]
+            points.append((b.mass_w, p, Jp))
+            if b.nt:
+                phi, dv, dw = b.Pt @ ft, b.dWv @ fv, b.dWw @ fw
+                Rx = rot_x(phi)
+                Rxy = Rx @ rot_y(-dw)
+                ax_w = -Rx[:, :, 1]                       # d omega / d w'  (beam frame)
+                ax_v = Rxy[:, :, 2]                       # d omega / d v'
+                Jw = np.broadcast_to(F.Jw, (n, 3, self.nq)).copy()
+                Jw[:, :, cols[:nv]] += (ax_v @ Rb.T)[:, :, None] * b.dWv[:, None, :]
+                Jw[:, :, cols[nv:2 * nv]] += (ax_w @ Rb.T)[:, :, None] * b.dWw[:, None, :]
+                Jw[:, :, cols[2 * nv:]] += Rb[None, :, 0, None] * b.Pt[:, None, :]
+                a = (Rb @ (Rxy @ rot_z(dv))[:, :, 0].T).T   # section x axis, base frame
+                I = b.polar_w[:, None, None] * a[:, :, None] * a[:, None, :]
+                rotors.append((I, Jw))
+        # tip frame
+        L = b.length
+        v, w, dv, dw = fv[nv - 2], fw[nv - 2], fv[nv - 1], fw[nv - 1]
+        phi = ft[-2] if b.nt else 0.0 * v
+        rl = Rb @ np.array([L + 0 * v, v, w])
+        Jo = F.Jo - skew(rl) @ F.Jw
+        Jo[:, cols[nv - 2]] += Rb[:, 1]
+        Jo[:, cols[2 * nv - 2]] += Rb[:, 2]
+        Rx = rot_x(phi)
+        Rxy = Rx @ rot_y(-dw)
+        Jw = F.Jw.copy()
+        Jw[:, cols[nv - 1]] += Rb @ Rxy[:, 2]
+        Jw[:, cols[2 * nv - 1]] += Rb @ (-Rx[:, 1])
+        if b.nt:
+            Jw[:, cols[-2]] += Rb[:, 0]
+        return Frame(Rb @ Rxy @ rot_z(dv), F.o + rl, Jo, Jw)
+
+    def frames(self, q) -> list[np.ndarray]:
+        """4 x 4 pose of every link's end frame i (base frame), seed 000 Eqs. 20-22."""
+        q = np.asarray(q)
+        return [F.matrix() for F in self._chain(q, False)[0]]
+
+    def tip_frame(self, q) -> Frame:
+        q = np.asarray(q)
+        return self._chain(q, False)[0][-1]
+
+    def tip_position(self, q) -> np.ndarray:
+        return np.real(self.tip_frame(np.asarray(q, float)).o)
+
+    def tip_jacobian(self, q) -> np.ndarray:
+        """(6, nq): linear and angular velocity of the end frame per q-dot."""
+        F = self.tip_frame(np.asarray(q, float))
+        return np.vstack([F.Jo, F.Jw])
+
+    # ------------------------------------------------------------ dynamics
+    def mass_matrix(self, q) -> np.ndarray:
+        """M(q) = sum m Jp^T Jp + sum Jw^T I Jw (symmetric positive definite)."""
+        _, points, rotors = self._chain(np.asarray(q, float), True)
+        nq = self.nq
+        M = np.zeros((nq, nq))
+        for m, _, Jp in points:
+            M += (Jp * m[:, None, None]).reshape(-1, nq).T @ Jp.reshape(-1, nq)
+        for I, Jw in rotors:
+            M += Jw.reshape(-1, nq).T @ (I @ Jw).reshape(-1, nq)
+        return 0.5 * (M + M.T)
+
+    def bias(self, q, v) -> np.ndarray:
+        """c(q, v): velocity (Coriolis, centrifugal, gyroscopic) and gravity forces."""
+        return self.terms(q, v)[1]
+
+    def terms(self, q, v):
+        """(M(q), c(q, v)) from one complex-step evaluation of the kinematics."""
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        _, points, rotors = self._chain(q + 1j * _H * v, True)
+        nq = self.nq
+        c = np.zeros(nq)
+        M = np.zeros((nq, nq))
+        g = self.gravity
+        for m, _, Jp in points:
+            J, Jd = Jp.real, Jp.imag / _H
+            acc = (Jd @ v - g) * m[:, None]                  # m (dJ/dt v - g), (n, 3)
+            J2 = J.reshape(-1, nq)
+            c += acc.reshape(-1) @ J2
+            M += (J * m[:, None, None]).reshape(-1, nq).T @ J2
+        for I, Jw in rotors:
+            J, Jd, Ir = Jw.real, Jw.imag / _H, I.real
+            w = J @ v
+            Iw = (Ir @ w[:, :, None])[:, :, 0]
+            tau = (Ir @ (Jd @ v)[:, :, None])[:, :, 0] + cross(w, Iw)
+            J2 = J.reshape(-1, nq)
+            c += tau.reshape(-1) @ J2
+            M += J2.T @ (Ir @ J).reshape(-1, nq)
+        return 0.5 * (M + M.T), c
+
+    def gravity_force(self, q) -> np.ndarray:
+        """dU_g/dq = -sum m Jp^T g."""
+        return self.bias(q, np.zeros(self.nq))
+
+    def gravity_stiffness(self, q) -> np.ndarray:
+        """d(dU_g/dq)/dq by complex steps (exact to rounding), nq x nq."""
+        q = np.asarray(q, float)
+        out = np.zeros((self.nq, self.nq))
+        for k in range(self.nq):
+            dq = np.zeros(self.nq, dtype=complex)
+            dq[k] = 1j * _H
+            _, points, _ = self._chain(q + dq, True)
+            col = np.zeros(self.nq)
+            for m, _, Jp in points:
+                col -= np.einsum("n,nik,i->k", m, Jp.imag / _H, self.gravity)
+            out[:, k] = col
+        return 0.5 * (out + out.T)
+
+    def stiffness_matrix(self) -> np.ndarray:
+        return self.K
+
+    def acceleration(self, q, v, Q=None) -> np.ndarray:
+        rhs = -self.bias(q, v) - self.K @ np.asarray(q, float)
+        if Q is not None:
+            rhs = rhs + Q
+        return np.linalg.solve(self.mass_matrix(q), rhs)
+
+    # ------------------------------------------------------------ energy
+    def gravity_potential(self, q) -> float:
+        _, points, _ = self._chain(np.asarray(q, float), True)
+        return float(-sum(np.sum(m * (p @ self.gravity)) for m, p, _ in points))
+
+    def energy(self, q, v) -> dict:
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        return {"kinetic": float(0.5 * v @ self.mass_matrix(q) @ v),
+                "elastic": float(0.5 * q @ self.K @ q),
+                "gravity": self.gravity_potential(q)}
+
+    def total_energy(self, q, v) -> float:
+        return float(sum(self.energy(q, v).values()))
+
+    # ------------------------------------------------------------ deflections
+    def tip_deflections(self, q) -> dict:
+        """Per flexible link: tip v, w (m), tip slopes v', w' and tip twist phi (rad)."""
+        q = np.asarray(q, float)
+        out = {}
+        for i, (lk, b) in enumerate(zip(self.arm.links, self.beams)):
+            if b is None:
+                continue
+            fv, fw, ft = b.split(q[self.flex_slice(i)])
+            out[lk.name] = {"v": fv[-2], "w": fw[-2], "dv": fv[-1], "dw": fw[-1],
+                            "phi": ft[-2] if b.nt else 0.0}
+        return out
