@@ -7,10 +7,15 @@ controller runs in the model's update loop (flex_model.control_loop.ControlLoop,
 model node does with ``controller:=eq95``): the real-time factor is simulated / wall time
 of the loop alone (no ROS), the tip error at the waypoints checks it is the demo's run.
 
-    python bench/bench_in_loop.py [--rate 500] [--repeat 3]
+    python bench/bench_in_loop.py [--rate 500] [--repeat 3] [--demo-seconds 3]
 
-Compare with the topic loop of ``python bench/bench_ros_suite.py`` (model and controller
-nodes over ROS topics in lockstep) and the twin demo's printed real-time factor.
+Prints, from one run: the core loop with the law compiled into it (one compiled call for
+the whole task, flex_model.control_kernel) and with the law called from Python every
+period (users' own controllers; ``compiled=False``), both as real-time factors of wall
+and of CPU time (the CPU figure is what the loop costs on a machine shared with other
+jobs); the model node in lockstep with ``controller:=eq95``; and the twin demo (nodes,
+bag recorder) with the controller in the model's loop and over topics (the controller
+node), side by side.
 """
 from __future__ import annotations
 
@@ -35,6 +40,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rate", type=float, default=500.0, help="control rate (Hz)")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--demo-seconds", type=float, default=3.0,
+                    help="simulated seconds of each twin demo run (0: skip)")
     args = ap.parse_args()
     model = FlexArmModel(load_arm("thesis_example1_motors"))
     period = 1.0 / args.rate
@@ -43,30 +50,62 @@ def main() -> None:
     q0 = static_equilibrium(model, theta0, joints="clamped").q
     n = int(round(TIMES[-1] / period))
     marks = {int(round(t / period)): k for k, t in enumerate(TIMES)}
-    best = None
-    for _ in range(args.repeat):
+    # warm-up: numba loads (or compiles) both paths before anything is timed
+    for compiled in (True, False):
         ctl = load_controller("eq95", model.arm.joint_names, {"h": [25.0], "a": [5.0]})
         ctl.set_trajectory(traj)
-        loop = ControlLoop(Stepper(model, q0), ctl, period)
-        errors = {}
-        t0 = time.perf_counter()
-        for k in range(n + 1):
-            if k in marks:
+        ControlLoop(Stepper(model, q0), ctl, period, compiled=compiled).advance(3)
+    final = {}
+    for compiled in (True, False):
+        best = best_cpu = None
+        for _ in range(args.repeat):
+            ctl = load_controller("eq95", model.arm.joint_names, {"h": [25.0], "a": [5.0]})
+            ctl.set_trajectory(traj)
+            loop = ControlLoop(Stepper(model, q0), ctl, period, compiled=compiled)
+            errors = {}
+            t0, c0 = time.perf_counter(), time.process_time()
+            done = 0
+            for k in sorted(marks):  # the whole task, in one call between the waypoints
+                loop.advance(k - done)
+                done = k
                 errors[marks[k]] = float(np.linalg.norm(
                     model.link_origins(loop.stepper.q)[-1] - WAYPOINTS[marks[k]]))
-            if k < n:
-                loop.advance(1)
-        wall = time.perf_counter() - t0
-        best = wall if best is None else min(best, wall)
-    rtf = TIMES[-1] / best
-    print(f"in-loop Eq. (95) at {args.rate:g} Hz, 1 ms model steps, {TIMES[-1]:g} s task: "
-          f"wall {best:.3f} s (best of {args.repeat}), real-time factor {rtf:.1f}, "
-          f"{1e6 * best / n:.0f} us per control period")
-    print("tip error at the waypoints (mm): "
-          + ", ".join(f"{1e3 * errors[k]:.2f}" for k in sorted(errors)))
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            best = wall if best is None else min(best, wall)
+            best_cpu = cpu if best_cpu is None else min(best_cpu, cpu)
+        final[compiled] = loop.stepper.x
+        what = "compiled law, one call per advance" if compiled else \
+            "law called from Python every period"
+        print(f"core loop, {what}: Eq. (95) at {args.rate:g} Hz, 1 ms model steps, "
+              f"{TIMES[-1]:g} s task: wall {best:.3f} s (best of {args.repeat}), real-time "
+              f"factor {TIMES[-1] / best:.1f} (CPU time: {TIMES[-1] / best_cpu:.1f}), "
+              f"{1e6 * best_cpu / n:.0f} us CPU per control period")
+        print("  tip error at the waypoints (mm): "
+              + ", ".join(f"{1e3 * errors[k]:.2f}" for k in sorted(errors)))
+    print(f"  compiled vs Python path, largest state difference after {TIMES[-1]:g} s: "
+          f"{np.abs(final[True] - final[False]).max():.2e}")
     node_rtf = run_node(traj, theta0, args.rate)
     print(f"model node, lockstep, controller:=eq95 (SingleThreadedExecutor, publishing at "
-          f"250 Hz): real-time factor {node_rtf:.1f}")
+          f"250 Hz, one compiled call per control period): real-time factor {node_rtf:.1f}")
+    if args.demo_seconds > 0:
+        run_demos(args.demo_seconds, args.rate)
+
+
+def run_demos(seconds: float, rate: float) -> None:
+    """The twin demo (flex_twin.ros_twin_demo) for ``seconds``, the controller in the
+    model's loop and over topics; the real-time factor of the stepping loop (nodes,
+    recorder, bag), without the setup (planning, node creation)."""
+    import tempfile
+
+    from flex_twin.ros_twin_demo import run
+    rows = []
+    for in_loop in (True, False):
+        with tempfile.TemporaryDirectory() as tmp:
+            s = run(tmp, duration=seconds, rate=rate, in_loop=in_loop)
+        rows.append((s["controller"], s["loop_real_time_factor"]))
+    print(f"twin demo, {seconds:g} s recorded (real-time factor of the loop): " + "; ".join(
+        f"{what} {rtf:.1f}" for what, rtf in rows)
+        + f"; ratio {rows[0][1] / rows[1][1]:.1f}")
 
 
 def run_node(traj, theta0, rate: float) -> float:

@@ -1,7 +1,9 @@
-"""flex-twin up: model and controller nodes from the suite's parameter file, lockstep, in
-one process and in three; the loop settles at the static equilibrium of the arm held by the
-PD of Eq. (95) (Kp = h a^2 per joint, seen at the joints through the sampled loop); Ctrl-C
-leaves zero torques commanded."""
+"""flex-twin up: the suite's parameter file, lockstep; by default the controller runs in the
+model node's loop (one process, or a process per node), with ``--topic-loop`` the model
+and controller nodes talk over topics (three processes); either way the loop settles at
+the static equilibrium of the arm held by the PD of Eq. (95) (Kp = h a^2 per joint, seen
+at the joints through the sampled loop); Ctrl-C leaves zero torques commanded by the
+controller node."""
 import signal
 import subprocess
 import sys
@@ -14,7 +16,7 @@ import pytest
 from flex_model.arm import load_arm
 from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_twin.ros_suite import node_parameters
+from flex_twin.ros_suite import in_loop_parameters, node_parameters
 from flex_model.statics import static_equilibrium
 
 PARAMS = Path(__file__).resolve().parents[1] / "ros2_ws" / "params" / "suite.yaml"
@@ -29,12 +31,25 @@ def pd_equilibrium_deg(params):
     return np.degrees(eq.joint_angles)
 
 
-@pytest.mark.parametrize("processes", [True, False], ids=["three", "one"])
-def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
+def test_in_loop_parameters_fold_the_controller_into_the_model():
+    params = in_loop_parameters(node_parameters(PARAMS))
+    assert list(params) == ["flex_model", "flex_planner"]
+    m = params["flex_model"]
+    assert (m["controller"], m["controller_rate"]) == ("eq95", 500.0)
+    assert m["controller_params.h"] == [25.0, 25.0] and m["controller_params.a"] == [5.0, 5.0]
+    assert not any(k.startswith("controller_params.") and k[18:] in (
+        "rate_hz", "use_sim_time", "state_timeout", "parameter_services") for k in m)
+
+
+@pytest.mark.parametrize("processes,topic_loop", [(True, True), (False, False), (True, False)],
+                         ids=["three-topic-loop", "one-in-loop", "processes-in-loop"])
+def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes, topic_loop):
     """``flex-twin up`` as a process, with ``--processes`` (each node its own process,
-    python -m) or without: the equilibrium is the same (the loop over DDS between processes
+    python -m) or without, the controller in the model's loop (default) or a node
+    (``--topic-loop``): the equilibrium is the same (the loop over DDS between processes
     is not deterministic: a tick may see the previous state, which does not move a static
-    equilibrium); SIGINT makes the controller command zero torques and everything exit 0."""
+    equilibrium); SIGINT makes the controller node command zero torques and everything
+    exit 0."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
@@ -42,7 +57,7 @@ def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
 
     params = node_parameters(PARAMS)
     proc = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "up", str(PARAMS)]
-                            + ["--processes"] * processes)
+                            + ["--processes"] * processes + ["--topic-loop"] * topic_loop)
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -56,12 +71,15 @@ def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
         end = time.monotonic() + 60.0
         # 2 s of twin time and a command seen by the probe (its subscription may match the
         # controller's publisher after the model's, which steps with the held command)
-        while not (states and states[-1].header.stamp.sec >= 2 and commands):
+        while not (states and states[-1].header.stamp.sec >= 2
+                   and (commands or not topic_loop)):
             assert time.monotonic() < end and proc.poll() is None, "no lockstep progress"
             ex.spin_once(timeout_sec=0.05)
             del states[:-1], commands[:-1]
         theta = np.degrees(states[-1].position)
-        assert np.abs(commands[-1]).max() > 1.0   # N m: holding the arm against gravity
+        # N m: holding the arm against gravity (in the loop: the applied torques)
+        assert np.abs(commands[-1] if topic_loop else states[-1].effort).max() > 1.0
+        assert commands == [] or topic_loop  # in the loop: no command topic
         proc.send_signal(signal.SIGINT)
         stop_by = time.monotonic() + 30.0   # its nodes get 10 s in all, then are killed
         while proc.poll() is None:
@@ -75,7 +93,8 @@ def test_up_holds_the_equilibrium_and_ctrl_c_commands_zero(processes):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0
-    assert commands[-1] == [0.0, 0.0]
+    if topic_loop:
+        assert commands[-1] == [0.0, 0.0]
     np.testing.assert_allclose(theta, pd_equilibrium_deg(params), atol=0.02)
 
 
@@ -100,7 +119,7 @@ def test_a_killed_up_leaves_no_node_running():
     """SIGKILL of ``flex-twin up --processes`` (no chance to forward a signal) ends its node
     processes too: none is left publishing on the domain."""
     proc = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "up", str(PARAMS),
-                             "--processes"])
+                             "--processes", "--topic-loop"])
     try:
         end = time.monotonic() + 60.0
         while len(_children(proc.pid)) < 3:

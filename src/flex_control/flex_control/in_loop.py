@@ -13,11 +13,16 @@ h, a, schedule_file, feedforward, kpp, kpv, gear_ratio, torque_limits), without 
 own (rate_hz, state_timeout, stale_action), or ``gains`` (4 per joint) and ``limit`` for
 ``state_feedback``. Until a trajectory arrives the controller holds the joint angles it
 senses at its first update, as the controller node does.
+
+After that first update each law also offers ``compiled_law()`` (a
+:class:`flex_model.control_kernel.LinearLaw`), with which ControlLoop runs its periods in
+one compiled call; the gain-scheduled Eq. (95) stays in Python.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from flex_model import control_kernel as ck
 from flex_model.trajectory import JointTrajectoryData
 
 from .laws import hold_reference, joint_vector
@@ -39,15 +44,33 @@ class InLoopLaw:
         self.joint_names = list(self.params.joint_names)
         self.controller = None
         self.pending = None
+        self._compiled = None
 
     def set_trajectory(self, trajectory: JointTrajectoryData) -> None:
         if list(trajectory.joint_names) != self.joint_names:
             raise ValueError(f"trajectory joint_names: got {list(trajectory.joint_names)}; "
                              f"expected {self.joint_names}")
+        self._compiled = None
         if self.controller is None:
             self.pending = trajectory
         else:
             self.controller.set_reference(trajectory)
+
+    def compiled_law(self):
+        """This law for flex_model's compiled loop (None before the first update, which
+        fixes the held reference, and for a gain schedule)."""
+        c = self.controller
+        if c is None or getattr(c, "schedule", None) is not None:
+            return None
+        if self._compiled is None:
+            if self.params.law == "eq45":
+                self._compiled = ck.linear_law(
+                    ck.EQ45, ck.SAMPLER, c.reference, [c.kpp, c.kpv, c.gear_ratio], False,
+                    c.torque_limits)
+            else:
+                self._compiled = ck.linear_law(ck.EQ95, ck.SAMPLER, c.reference, [c.h, c.a],
+                                               c.feedforward, c.torque_limits)
+        return self._compiled
 
     def update(self, time: float, period: float, state) -> np.ndarray:
         if self.controller is None:
@@ -78,12 +101,24 @@ class JointStateFeedback:
             raise ValueError(f"limit: got {self.limit!r}; expected > 0")
         self.feedforward = bool(p.get("feedforward", True))
         self.reference = None
+        self._compiled = None
 
     def set_trajectory(self, trajectory: JointTrajectoryData) -> None:
         if list(trajectory.joint_names) != self.joint_names:
             raise ValueError(f"trajectory joint_names: got {list(trajectory.joint_names)}; "
                              f"expected {self.joint_names}")
         self.reference = trajectory
+        self._compiled = None
+
+    def compiled_law(self):
+        """This law for flex_model's compiled loop (None before the first update)."""
+        if self.reference is None:
+            return None
+        if self._compiled is None:
+            self._compiled = ck.linear_law(ck.STATE_FEEDBACK, ck.TRAJECTORY_SAMPLE,
+                                           self.reference, self.K.T, self.feedforward,
+                                           self.limit)
+        return self._compiled
 
     def update(self, time: float, period: float, state) -> np.ndarray:
         if self.reference is None:

@@ -5,25 +5,34 @@ Every control ``period`` the controller (:mod:`flex_model.controller_interface`)
 sensed state of the arm, its command is held (zero-order hold) while the model integrates
 the period in steps of at most the stepper's ``max_step``. No message crosses a process or
 an executor inside the loop; the model node publishes the state at its own rates.
+
+A controller whose ``compiled_law()`` returns a :class:`~flex_model.control_kernel.LinearLaw`
+(flex_control's built-in laws) runs all the periods of one :meth:`ControlLoop.advance` in
+one compiled call (:func:`flex_model.control_kernel.run_periods`), same results; any other
+controller (or ``compiled=False``) is called from Python every period.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .control_kernel import run_periods
 from .controller_interface import SensedState
+from .simulate import DIVERGENCE_LIMIT, SimulationDivergedError, _diverged
 from .stepper import Stepper
 
 
 class ControlLoop:
     """A :class:`~flex_model.stepper.Stepper` driven by an in-loop controller."""
 
-    def __init__(self, stepper: Stepper, controller, period: float):
+    def __init__(self, stepper: Stepper, controller, period: float, compiled: bool = True):
         if not period > 0:
             raise ValueError(f"control period: got {period!r}; expected > 0 s")
         self.stepper, self.controller, self.period = stepper, controller, float(period)
+        self.compiled = bool(compiled)
         m = stepper.model
-        self._G = m.G
-        self._defl = np.array([m.tip_deflection_index(i) for i in range(m.n_links)])
+        self._G = np.ascontiguousarray(m.G, dtype=float)
+        self._defl = np.array([m.tip_deflection_index(i) for i in range(m.n_links)],
+                              dtype=np.int64)
         self.n_updates = 0
         self.t0 = 0.0  # the trajectory's start (simulation time, s)
 
@@ -50,8 +59,41 @@ class ControlLoop:
         self.n_updates += 1
         return u
 
+    def compiled_law(self):
+        """The controller's LinearLaw for the compiled loop, or None (Python path)."""
+        get = getattr(self.controller, "compiled_law", None) if self.compiled else None
+        return get() if callable(get) else None
+
     def advance(self, n_periods: int = 1) -> None:
         """``n_periods`` control periods: update, then integrate one period, each."""
-        for _ in range(int(n_periods)):
-            self.update()
-            self.stepper.advance(self.period)
+        n = int(n_periods)
+        while n > 0:
+            law = self.compiled_law()
+            if law is None:  # users' controllers; a built-in law before its first update
+                self.update()
+                self.stepper.advance(self.period)
+                n -= 1
+            else:
+                self._run_compiled(law, n)
+                n = 0
+
+    def _run_compiled(self, law, n: int) -> None:
+        st = self.stepper
+        m = st.model
+        status, done, t, x, a, abar, t_fail, x_fail = run_periods(
+            st.t, st.x, st.a, st.abar, n, self.period, st.max_step, st.rho_inf, self.t0,
+            self._G, self._defl, law.law, law.interpolation, law.times, law.reference,
+            law.gains, law.feedforward, law.limits, 1e-10, DIVERGENCE_LIMIT, m.P, st.E)
+        st.t, st.x, st.a, st.abar = t, x, a, abar
+        self.n_updates += done + (status in (1, 2))
+        if status == 3:
+            raise ValueError(f"in-loop controller: got the command {x_fail.tolist()}; "
+                             f"expected {m.n_links} finite values")
+        if status == 1:
+            raise _diverged(m, t_fail, x_fail)
+        if status == 2:
+            raise SimulationDivergedError(
+                f"Newton iterations did not converge at t = {t_fail:.6g} s with step "
+                f"{self.period / max(1, int(np.ceil(self.period / st.max_step - 1e-9))):.3g}"
+                " s: the state ran away, most often under an implausible joint command or "
+                "payload or an unstable control loop")

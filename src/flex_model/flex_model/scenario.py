@@ -15,18 +15,29 @@ Example (shipped as preset ``thesis_three_link_pd``)::
       state: undeformed               # or: static (start at the PD/clamped equilibrium)
     control:
       pd: {kp: [...], kd: [...], setpoints_deg: [...]}       # N m/rad, N m s/rad
+      setpoint_schedule:              # steps and ramps of the PD set-points (needs pd)
+        - {time: 1.0, setpoints_deg: [10, 0, 0]}               # a step at 1 s
+        - {time: 2.0, setpoints_deg: [20, 0, 0], ramp: 0.5}    # a ramp over 2-2.5 s
       torque_table: {t: [0, 1, 2], torques: [[..], [..], [..]]}   # N m, linear in t
-    pulses:                           # joint torque pulses on [start, end)
-      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}
+    pulses:                           # joint torque pulses on [start, end); end: .inf = on
+      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}    # to the end of the run
     tip_loads:                        # tip force (N, base frame) / torque (N m) on [start, end)
       - {force: [0.0, -10.0], torque: 0.0, start: 0.0, end: 1.0}
     payload_changes:                  # pick and place: the tip payload from a time on
       - {time: 2.0, mass: 0.5, inertia: 0.001}
-    integrator: {method: variable, rtol: 1.0e-7}   # or {method: fixed, step: 1.0e-4}
+    integrator: {method: variable, rtol: 1.0e-7}   # or {method: fixed, step: 1.0e-4,
+                                                   #     rho_inf: 0.9}
+
+A set-point schedule is the PD of thesis Eq. 27 with a moving set-point s(t): the torque
+``kp (s(t) - theta) + kd (s'(t) - theta')``, i.e. the constant-set-point PD plus
+``kp (s(t) - s(0)) + kd s'(t)``. Steps enter as torque steps at their instant (exact: the
+fixed-step method restarts there); ramps as that torque averaged over each sample period
+and held (exact on average; the kd term is the ramp's rate).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +70,42 @@ class Scenario:
     step: float | None
     source: str
     payload_changes: tuple = ()
+    setpoint_schedule: tuple = ()   # (time, setpoints (rad), ramp (s)), increasing times
+    rho_inf: float = 0.9            # fixed step: generalized-alpha spectral radius
+
+    def setpoint_inputs(self):
+        """(pulses, policy or None): the schedule's steps as torque pulses to the end of the
+        run, its ramps as a policy (the ramp torque averaged over each sample period)."""
+        if not self.setpoint_schedule:
+            return [], None
+        kp, kd = np.asarray(self.pd.kp, float), np.asarray(self.pd.kd, float)
+        prev = np.asarray(self.pd.setpoints, float)
+        end = self.duration + self.sample_period
+        pulses, ramps = [], []
+        for t, sp, ramp in self.setpoint_schedule:
+            delta = np.asarray(sp, float) - prev
+            prev = np.asarray(sp, float)
+            if ramp > 0:
+                ramps.append((t, ramp, delta))
+            else:
+                pulses.append(Pulse(t, max(end, t + self.sample_period), tuple(kp * delta)))
+        if not ramps:
+            return pulses, None
+        T = self.sample_period
+
+        def ramp_torque(t, x):
+            """kp times the mean of the ramps over [t, t + T] + kd times their mean rate."""
+            tau = np.zeros(len(kp))
+            for t0, r, delta in ramps:
+                def frac(tt):  # the ramp's fraction at tt, and its integral from t0
+                    y = min(max((tt - t0) / r, 0.0), 1.0)
+                    area = 0.0 if tt <= t0 else (
+                        (tt - t0) ** 2 / (2 * r) if tt <= t0 + r else r / 2 + (tt - t0 - r))
+                    return y, area
+                (y0, a0), (y1, a1) = frac(t), frac(t + T)
+                tau += kp * delta * (a1 - a0) / T + kd * delta * (y1 - y0) / T
+            return tau
+        return pulses, ramp_torque
 
     def model(self) -> FlexArmModel:
         return FlexArmModel(self.arm)
@@ -82,10 +129,27 @@ class Scenario:
             tt, torques = self.torque_table
             policy = lambda t, x: np.array([np.interp(t, tt, col)  # noqa: E731
                                             for col in torques.T])
+        sp_pulses, ramps = self.setpoint_inputs()
+        if ramps is not None:
+            policy = ramps if policy is None else (
+                lambda t, x, table=policy: table(t, x) + ramps(t, x))
+        # end: .inf = to the end of the run
+        end = self.duration + self.sample_period
+        pulses = [p if np.isfinite(p.end) else replace(p, end=max(end, p.start + end))
+                  for p in self.pulses] + sp_pulses
         return simulate(model, q0, v0, t_final=self.duration, sample_period=self.sample_period,
-                        pd=self.pd, pulses=self.pulses, policy=policy, method=self.method,
-                        rtol=self.rtol, dt=self.step, payload_changes=self.payload_changes,
-                        progress=progress)
+                        pd=self.pd, pulses=pulses, policy=policy, method=self.method,
+                        rtol=self.rtol, dt=self.step, rho_inf=self.rho_inf,
+                        payload_changes=self.payload_changes, progress=progress)
+
+    def advice(self, model: FlexArmModel | None = None):
+        """:func:`flex_model.step_advice.step_advice` for this scenario's arm, start and
+        integrator."""
+        from .step_advice import step_advice
+        model = model or self.model()
+        return step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
+                           method=self.method, step=self.step,
+                           kp=None if self.pd is None else self.pd.kp)
 
 
 def scenario_names() -> list[str]:
@@ -142,6 +206,9 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
     if not f.boolean("gravity", True):
         arm = arm.without_gravity()
     nl = arm.n_links
+    if _is_inf(f.raw("duration", 1.0)):
+        raise f.error("duration", f.raw("duration"), "a finite time > 0 s (a simulation "
+                      "ends; for an open-ended run start the model node: flex-twin up)")
     duration = f.number("duration", positive=True, unit="s")
     sample = f.number("sample_period", 0.01, positive=True, unit="s")
     if sample > duration:
@@ -164,6 +231,20 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
         sp = np.radians(p.vector("setpoints_deg", nl, list(np.degrees(theta0)), unit="deg"))
         p.done()
         pd = JointPD(kp, kd, sp)
+    schedule = []
+    for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
+        sf = Fields(raw, src, f"{ctl.sub('setpoint_schedule')}[{k}]")
+        if pd is None:
+            raise ctl.error("setpoint_schedule", raw, "control.pd as well (the schedule "
+                            "moves the PD's set-points)")
+        t = sf.number("time", nonnegative=True, unit="s")
+        ramp = sf.number("ramp", 0.0, nonnegative=True, unit="s")
+        if schedule and t < schedule[-1][0] + schedule[-1][2]:
+            end = schedule[-1][0] + schedule[-1][2]
+            raise sf.error("time", t, f"a time >= {end:.6g} s (the end of the previous step "
+                           "or ramp)")
+        schedule.append((t, np.radians(sf.vector("setpoints_deg", nl, unit="deg")), ramp))
+        sf.done()
     table = None
     if ctl.has("torque_table"):
         tf = ctl.mapping("torque_table")
@@ -184,7 +265,7 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
         j = _joint_index(pf, "joint", arm)
         tau = np.zeros(nl)
         tau[j] = pf.number("torque", unit="N m")
-        start, end = pf.number("start", nonnegative=True), pf.number("end", nonnegative=True)
+        start, end = pf.number("start", nonnegative=True), _end(pf)
         if end <= start:
             raise pf.error("end", end, f"a time after start ({start} s)")
         pf.done()
@@ -193,7 +274,7 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
         lf = Fields(raw, src, f"tip_loads[{k}]")
         force = tuple(lf.vector("force", 2, [0.0, 0.0], unit="N"))
         torque = lf.number("torque", 0.0, unit="N m")
-        start, end = lf.number("start", nonnegative=True), lf.number("end", nonnegative=True)
+        start, end = lf.number("start", nonnegative=True), _end(lf)
         if end <= start:
             raise lf.error("end", end, f"a time after start ({start} s)")
         lf.done()
@@ -209,9 +290,25 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
     method = integ.string("method", "variable", choices=["variable", "fixed"])
     rtol = integ.number("rtol", 1e-7, positive=True, max_value=1e-2)
     step = integ.number("step", 0.0, nonnegative=True, unit="s") or None
+    rho_inf = integ.number("rho_inf", 0.9, min_value=0.0, max_value=1.0)
     integ.done()
     f.done()
     return Scenario(name=name, arm=arm, duration=duration, sample_period=sample,
                     theta0=theta0, dtheta0=dtheta0, start_static=start_static, pd=pd,
                     torque_table=table, pulses=pulses, method=method, rtol=rtol, step=step,
-                    source=src, payload_changes=tuple(changes))
+                    source=src, payload_changes=tuple(changes),
+                    setpoint_schedule=tuple(schedule), rho_inf=rho_inf)
+
+
+def _is_inf(value) -> bool:
+    if isinstance(value, str):
+        value = value.strip().lower()
+        return value in (".inf", "inf", "+.inf", "+inf", "infinity")
+    return isinstance(value, float) and math.isinf(value) and value > 0
+
+
+def _end(f: Fields) -> float:
+    """``end`` of a pulse or tip load: a time >= 0 s, or .inf (to the end of the run)."""
+    if _is_inf(f.raw("end")):
+        return math.inf
+    return f.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")

@@ -141,7 +141,25 @@ def _simulate(scenario_ref, args, label: str):
         sc.duration = args.duration
     if args.method:
         sc.method = args.method
+    if getattr(args, "step", None) is not None:
+        if not 0 < args.step <= sc.sample_period:
+            raise ValueError(f"--step: got {args.step}; expected a step > 0 s and at most "
+                             f"the sample period ({sc.sample_period} s)")
+        sc.step, sc.method = args.step, "fixed"
+    if getattr(args, "rho_inf", None) is not None:
+        if not 0 <= args.rho_inf <= 1:
+            raise ValueError(f"--rho-inf: got {args.rho_inf}; expected 0 <= rho_inf <= 1")
+        sc.rho_inf = args.rho_inf
     model = sc.model()
+    advice = sc.advice(model)
+    if advice.warning:
+        print(f"flex-twin: warning: {advice.warning}", file=sys.stderr)
+    # numba loads (or compiles) the integrator on its first call: a run of two samples
+    # first, timed apart, so the CPU-s per simulated second are the integration's alone
+    t0, c0 = time.perf_counter(), time.process_time()
+    from dataclasses import replace
+    replace(sc, duration=min(sc.duration, 2 * sc.sample_period)).run(model=model)
+    load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
     t0, c0 = time.perf_counter(), time.process_time()
     res = sc.run(progress=Progress(label, not args.json), model=model)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -151,8 +169,14 @@ def _simulate(scenario_ref, args, label: str):
     summary = {"scenario": sc.name, "arm": sc.arm.name, "kinematics": sc.arm.kinematics,
                "vars_per_link":
                [lk.n_vars for lk in sc.arm.links], "duration_s": sc.duration,
-               "method": sc.method, "wall_s": wall, "cpu_s": cpu,
+               "method": sc.method, "step_s": res.stats.get("dt"),
+               "rho_inf": sc.rho_inf if sc.method == "fixed" else None,
+               "wall_s": wall, "cpu_s": cpu,
                "cpu_s_per_simulated_s": cpu / sc.duration, "steps": res.stats["steps"],
+               "load_compile_wall_s": load_wall, "load_compile_cpu_s": load_cpu,
+               "highest_mode_hz": advice.highest_mode_hz,
+               "highest_excited_mode_hz": advice.highest_excited_mode_hz,
+               "warning": advice.warning,
                "csv": str(csv),
                "final_joint_angles_deg": np.degrees(res.joint_angles[-1]).tolist(),
                "final_tip_m": res.tip_xy[-1].tolist(),
@@ -169,9 +193,14 @@ def _print_summary(summary: dict) -> None:
     print(f"scenario {summary['scenario']} on arm {summary['arm']} "
           f"({summary['vars_per_link']} variables per link, {summary['kinematics']} "
           f"kinematics, {summary['method']} step)")
+    step = f", step {summary['step_s']:.3g} s, rho_inf {summary['rho_inf']:g}" \
+        if summary.get("rho_inf") is not None else ""
     print(f"  simulated {summary['duration_s']:g} s in {summary['wall_s']:.3f} s wall, "
           f"{summary['cpu_s_per_simulated_s']:.4f} CPU-s per simulated s, "
-          f"{summary['steps']} steps")
+          f"{summary['steps']} steps{step}")
+    print(f"  numba load/compile before the run (not in the figure above): "
+          f"{summary['load_compile_cpu_s']:.2f} CPU-s, {summary['load_compile_wall_s']:.2f} s "
+          "wall")
     print("  final joint angles [deg]: " + ", ".join(
         f"{a:.4f}" for a in summary["final_joint_angles_deg"]))
     print("  final tip [m]: ({:.5f}, {:.5f})".format(*summary["final_tip_m"]))
@@ -222,9 +251,11 @@ def cmd_demo(args) -> int:
 def cmd_twin_demo(args) -> int:
     """The thesis Ch. V task over ROS: planner, controller and model nodes, recorded."""
     from .ros_twin_demo import run
-    print("flex-twin twin demo: planner -> controller (Eq. 95) -> model over ROS topics, "
-          "thesis Ch. V task", file=sys.stderr)
-    s = run(args.out, duration=args.duration, progress=Progress("twin demo", not args.json))
+    how = "controller (Eq. 95) -> model over ROS topics" if args.topic_loop else \
+        "model with Eq. (95) in its loop"
+    print(f"flex-twin twin demo: planner -> {how}, thesis Ch. V task", file=sys.stderr)
+    s = run(args.out, duration=args.duration, progress=Progress("twin demo", not args.json),
+            in_loop=not args.topic_loop)
     if args.json:
         print(json.dumps(s))
         return 0
@@ -235,7 +266,8 @@ def cmd_twin_demo(args) -> int:
         f"{v:.1f}" for v in s["max_abs_tip_deflection_mm"]))
     print("peak torques [N m]: " + ", ".join(f"{v:.1f}" for v in s["peak_torque_nm"]))
     print(f"simulated {s['simulated_s']:g} s in {s['wall_s']:.1f} s wall "
-          f"(real-time factor {s['real_time_factor']:.2f})")
+          f"(real-time factor {s['real_time_factor']:.2f}; the loop alone "
+          f"{s['loop_real_time_factor']:.2f}, controller {s['controller']})")
     print(f"bag: {s['bag']} (open it in Foxglove: File > Open local file, the .mcap inside; "
           f"/flex/shape shows the deflected arm)")
     print(f"plots: {s['png']}")
@@ -327,6 +359,11 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--vars-per-link", type=int, default=None, metavar="N")
         sp.add_argument("--duration", type=float, default=None, help="override, s")
         sp.add_argument("--method", choices=["variable", "fixed"], default=None)
+        sp.add_argument("--step", type=float, default=None, metavar="S",
+                        help="fixed step (s; implies --method fixed)")
+        sp.add_argument("--rho-inf", type=float, default=None, metavar="R",
+                        help="fixed step: numerical damping of the unresolved high modes, "
+                        "0 (most) .. 1 (none); default: the scenario's, else 0.9")
         sp.add_argument("--out", default=None, help="output directory (default runs/...)")
         sp.add_argument("--no-plot", action="store_true")
         sp.add_argument("--json", action="store_true")
@@ -345,6 +382,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "controller, model), recorded to a bag")
     sp.add_argument("--out", default=None, help="output directory (default runs/...)")
     sp.add_argument("--duration", type=float, default=15.0, help="simulated time, s")
+    sp.add_argument("--topic-loop", action="store_true",
+                    help="the controller node over topics instead of Eq. (95) in the model's "
+                    "loop (the default)")
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_twin_demo)
 

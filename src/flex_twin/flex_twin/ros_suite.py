@@ -6,13 +6,21 @@ as ``ros2 launch`` would pass it with ``--params-file``. One SingleThreadedExecu
 them all (``--processes`` starts one process per node with the same file instead, each
 spinning its own). The run ends on Ctrl-C, or when the model's simulation time reaches
 ``--duration`` (one process).
+
+By default the controller runs inside the model node's loop (:func:`in_loop_parameters`:
+the ``flex_controller`` section becomes the model's ``controller``, ``controller_rate``
+and ``controller_params.*``; no controller node, no DDS round trip per control period);
+``--topic-loop`` starts the controller node instead, the model and controller then talk
+over /joint_states and /effort_controller/commands as the file describes.
 """
 from __future__ import annotations
 
 import signal
 import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 from flex_model.config import ConfigError, read_yaml
 
@@ -33,6 +41,42 @@ def node_parameters(path) -> dict:
                               "a mapping of parameters")
         out[name] = dict(body.get("ros__parameters", {}))
     return out
+
+
+#: controller node parameters that are not the law's (the node's own, or implied in the
+#: model's loop)
+CONTROLLER_NODE_ONLY = ("rate_hz", "state_timeout", "stale_action", "use_sim_time",
+                        "parameter_services", "qos_event_warnings",
+                        "start_type_description_service", "clock_topic", "joint_names",
+                        "use_deflections", "law")
+
+
+def in_loop_parameters(params: dict) -> dict:
+    """The suite with its ``flex_controller`` run in the model's loop: the model gets
+    ``controller`` (the law, default eq95), ``controller_rate`` (rate_hz, default 500 Hz)
+    and ``controller_params.<name>`` for the law's parameters; the controller node is left
+    out. Unchanged if there is no controller or no model, or the model has a controller."""
+    if "flex_controller" not in params or "flex_model" not in params \
+            or params["flex_model"].get("controller"):
+        return params
+    from flex_control.controller_node import NODE_DEFAULTS
+    ctl = dict(NODE_DEFAULTS, **params["flex_controller"])
+    model = dict(params["flex_model"], controller=str(ctl.get("law", "eq95")),
+                 controller_rate=float(ctl.get("rate_hz", 500.0)))
+    for name, value in ctl.items():
+        if name not in CONTROLLER_NODE_ONLY:
+            model[f"controller_params.{name}"] = value
+    return {name: (model if name == "flex_model" else body)
+            for name, body in params.items() if name != "flex_controller"}
+
+
+def write_parameter_file(params: dict, path) -> Path:
+    """``params`` as a ROS 2 parameter file (``<node>: {ros__parameters: ...}``)."""
+    import yaml
+    path = Path(path)
+    path.write_text(yaml.safe_dump({name: {"ros__parameters": body}
+                                    for name, body in params.items()}, sort_keys=False))
+    return path
 
 
 def run_in_one_process(params: dict, duration: float | None = None, progress=None):
@@ -126,8 +170,12 @@ def run_in_processes(path, names) -> int:
 
 def cmd_up(args) -> int:
     params = node_parameters(args.config)
+    if not args.topic_loop:
+        params = in_loop_parameters(params)
     if args.processes:
-        return run_in_processes(args.config, list(params))
+        with tempfile.TemporaryDirectory(prefix="flex-twin-up-") as tmp:
+            path = write_parameter_file(params, Path(tmp) / "params.yaml")
+            return run_in_processes(path, list(params))
     run_in_one_process(params, args.duration)
     return 0
 
@@ -136,6 +184,9 @@ def add_up_parser(sub) -> None:
     sp = sub.add_parser("up", help="start the suite's nodes from a ROS 2 parameter file")
     sp.add_argument("config", help="parameter file (<node>: {ros__parameters: ...})")
     sp.add_argument("--processes", action="store_true", help="one process per node")
+    sp.add_argument("--topic-loop", action="store_true",
+                    help="start the controller node (model <-> controller over topics) "
+                    "instead of running its law in the model's loop (the default)")
     sp.add_argument("--duration", type=float, default=None,
                     help="stop when the model's simulation time reaches this (s; one "
                     "process)")

@@ -1,9 +1,14 @@
 """The twin demo over ROS: the thesis Ch. V task (VALIDATION.md section F).
 
 The planner node inverts the four tip waypoints and publishes the joint trajectory with the
-admissible nominal torque, the controller node applies Eq. (95) (h = 25, a = 5) with that
-feed-forward, the model node integrates the arm in lockstep; the three talk over ROS
-topics in one process (one SingleThreadedExecutor, see flex_model.ros_main). Everything is
+admissible nominal torque; Eq. (95) (h = 25, a = 5) with that feed-forward runs inside the
+model node's loop (``controller:=eq95``, flex_model.control_loop: no DDS round trip per
+control period, the ros2_control pattern), the model node integrates the arm in lockstep
+and publishes at 50 Hz. With ``in_loop=False`` (``flex-twin twin-demo --topic-loop``) the
+controller node applies the law instead, over ROS topics (the model publishes /joint_states
+and /clock after every control period, the controller answers on
+/effort_controller/commands). The nodes share one process (one SingleThreadedExecutor,
+see flex_model.ros_main). Everything is
 recorded into a rosbag2 (MCAP) bag under runs/<timestamp>/ with the simulation time as log
 time (bag duration = simulated duration; ``flex-twin play --clock`` replays it in sim time);
 then a summary table and PNG plots.
@@ -46,8 +51,9 @@ def _waypoints_msg(stamp):
 
 
 def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0,
-        progress=None) -> dict:
-    """Run the demo; returns the summary (also written as summary.json)."""
+        progress=None, in_loop: bool = True, publish_rate: float = 50.0) -> dict:
+    """Run the demo; returns the summary (also written as summary.json). ``in_loop``: the
+    controller in the model's loop (default), else the controller node over topics."""
     import json
 
     import rclpy
@@ -80,11 +86,13 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     try:
         planner = PlannerNode(context=ctx, parameter_overrides=[
             P("arm", value=arm), P("sample_period", value=1.0 / rate), *lean])
-        controller = ControllerNode(context=ctx, parameter_overrides=[
-            P("h", value=[25.0, 25.0]), P("a", value=[5.0, 5.0]), P("rate_hz", value=rate),
-            P("use_sim_time", value=True), P("state_timeout", value=0.5), *lean])
+        nodes.append(planner)
+        if not in_loop:
+            nodes.append(ControllerNode(context=ctx, parameter_overrides=[
+                P("h", value=[25.0, 25.0]), P("a", value=[5.0, 5.0]), P("rate_hz", value=rate),
+                P("use_sim_time", value=True), P("state_timeout", value=0.5), *lean]))
         probe = rclpy.create_node("demo_probe", context=ctx)
-        nodes += [planner, controller, probe]
+        nodes.append(probe)
         ex = SingleThreadedExecutor(context=ctx)
         for n in nodes:
             ex.add_node(n)
@@ -113,12 +121,22 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         pub.publish(_waypoints_msg(conv.stamp))
         spin_until(lambda: plans, "the plan")
         first = np.degrees(plans[-1].points[0].positions)
+        own = [P("controller", value="eq95"), P("controller_rate", value=rate),
+               P("controller_params.h", value=[25.0]), P("controller_params.a", value=[5.0]),
+               P("start_paused", value=True)] if in_loop else []
         model = ModelNode(context=ctx, parameter_overrides=[
             P("arm", value=arm), P("mode", value="lockstep"), P("rate", value=rate),
-            P("publish_rate", value=50.0), P("initial_joint_angles_deg", value=list(first)),
-            P("start_static", value=True), P("lockstep_timeout", value=0.5), *lean])
+            P("publish_rate", value=publish_rate),
+            P("initial_joint_angles_deg", value=list(first)),
+            P("start_static", value=True), P("lockstep_timeout", value=0.5), *lean, *own])
         nodes.append(model)
         ex.add_node(model)
+        if in_loop:  # the plan, handed over in-process from t = 0 (on flex_planner/trajectory
+            # it would start when it arrives); the demo steps the node itself, see below
+            model.loop.set_trajectory(conv.trajectory_from_msg(plans[-1], model.names), 0.0)
+        period, per_publish = 1.0 / rate, max(1, int(round(rate / publish_rate)))
+        n_periods, done = int(round(duration * rate)), 0
+        loop_wall = 0.0
         with BagWriter(out_dir / "bag") as bag:
             # one time base, the simulation's: log time = the latest /clock (sim time from
             # 0, as ``ros2 bag record --use-sim-time``), header stamps (the same sim time)
@@ -126,8 +144,21 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             recorder = Recorder(probe, bag, RECORDED, use_sim_time=True, use_header_stamp=(
                 "/joint_states", "/flex/deflections", "/flex/tip_pose"))
             next_mark = 0.0
+            if in_loop:  # the start (the node published it before the recorder was there)
+                model.publish_state(full=True)
+            w0 = time.perf_counter()
             while model.stepper.t < duration - 1e-9:
-                ex.spin_once(timeout_sec=0.01)
+                if in_loop:  # up to the next publication in one compiled call (paused node:
+                    # its own timer does not step), then the recorder takes the messages
+                    k = min(per_publish, n_periods - done)
+                    model.step(k * period)
+                    done += k
+                    if model.diverged is not None:
+                        raise RuntimeError("twin demo: the model diverged: "
+                                           f"{model.diverged.message}")
+                    _drain(ex)
+                else:
+                    ex.spin_once(timeout_sec=0.01)
                 if progress is not None and model.stepper.t >= next_mark:
                     progress(model.stepper.t, duration)
                     next_mark += duration / 20
@@ -137,6 +168,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             drain_end = time.monotonic() + 0.3
             while time.monotonic() < drain_end:
                 ex.spin_once(timeout_sec=0.01)
+            loop_wall = time.perf_counter() - w0
             recorder.stop()
         wall = time.perf_counter() - wall0
     finally:
@@ -146,8 +178,25 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             n.destroy_node()
         rclpy.try_shutdown(context=ctx)
     summary = _summarize(tips, states, defl, commands, plans[-1], wall, duration, out_dir)
+    summary.update(controller="in the model's loop (eq95)" if in_loop
+                   else "controller node over topics",
+                   loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
+
+
+def _drain(ex, limit: int = 100) -> None:
+    """Run the executor's ready callbacks (what the last publications made ready) until
+    none is left; one wait set serves all the callbacks ready at once."""
+    from rclpy.executors import ShutdownException, TimeoutException
+    for _ in range(limit):
+        try:
+            handler, _, _ = ex.wait_for_ready_callbacks(timeout_sec=0.0)
+        except (TimeoutException, ShutdownException):
+            return
+        handler()
+        if handler.exception() is not None:
+            raise handler.exception()
 
 
 def _stamp_s(msg):

@@ -1,0 +1,75 @@
+"""Benchmark: the stiff hub-less two-link arm of issue 24 at real-time steps. Prints figures.
+
+Thesis Example 1's arm (two aluminium links of 2 m, square tube 20 x 1 mm, no hub inertia,
+vertical plane), ``second_order`` kinematics, 8 variables per link, PD Kp 625 N m/rad,
+Kd 176.8 N m s/rad on both joints, held at rest, then a set-point step of 15 deg on joint 2
+at 0.1 s (``control.setpoint_schedule``). The largest error of the two links' tip
+deflections over the run, in % of their largest value, against a converged run (fixed
+step 1/32 ms); for the fixed step of 1 ms with several rho_inf (numerical damping of the
+unresolved high modes) and for smaller steps; with the step advice
+(flex_model.step_advice) printed once.
+
+    python bench/bench_stiff_hubless.py [--duration 1.0] [--vars 8]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from flex_model.scenario import scenario_from_dict
+
+
+def scenario(duration: float, nv: int, step: float, rho_inf: float):
+    return scenario_from_dict({
+        "name": "hubless_two_link", "arm": "thesis_example1", "vars_per_link": nv,
+        "kinematics": "second_order", "duration": duration, "sample_period": 1e-3,
+        "initial": {"joint_angles_deg": [0.0, 0.0], "state": "static"},
+        "control": {"pd": {"kp": [625.0, 625.0], "kd": [176.8, 176.8],
+                           "setpoints_deg": [0.0, 0.0]},
+                    "setpoint_schedule": [{"time": 0.1, "setpoints_deg": [0.0, 15.0]}]},
+        "integrator": {"method": "fixed", "step": step, "rho_inf": rho_inf}})
+
+
+def run(duration, nv, step, rho_inf):
+    sc = scenario(duration, nv, step, rho_inf)
+    model = sc.model()
+    c0 = time.process_time()
+    res = sc.run(model=model)
+    return res.tip_deflections, (time.process_time() - c0) / duration, sc, model
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=1.0)
+    ap.add_argument("--vars", type=int, default=8)
+    args = ap.parse_args()
+    run(0.002, args.vars, 1e-3, 0.9)  # numba load / compile
+    ref, cpu_ref, sc, model = run(args.duration, args.vars, 1e-3 / 32, 0.9)
+    scale = np.abs(ref).max(axis=0)
+    adv = sc.advice(model)
+    at_1ms = scenario(args.duration, args.vars, 1e-3, 0.9).advice(model).warning
+    print(f"hub-less two-link arm, {args.vars} variables per link, second_order, "
+          f"{args.duration:g} s, 15 deg set-point step on joint 2 at 0.1 s")
+    print(f"step advice: highest mode {adv.highest_mode_hz:.4g} Hz, highest mode a joint "
+          f"torque excites {adv.highest_excited_mode_hz:.4g} Hz, step needed "
+          f"{adv.step_needed_s:.2g} s; at 1 ms: {at_1ms}")
+    print(f"converged run (step 1/32 ms): {cpu_ref:.3f} CPU-s per simulated s, largest tip "
+          f"deflections {', '.join(f'{1e3 * v:.2f}' for v in scale)} mm")
+    print(f"{'step [ms]':>9} {'rho_inf':>7} {'tip deflection error [% of max]':>32} "
+          f"{'CPU-s per s':>12}")
+    for step, rho in [(1e-3, 0.9), (1e-3, 0.6), (1e-3, 0.3), (1e-3, 0.0), (5e-4, 0.9),
+                      (2.5e-4, 0.9), (1.25e-4, 0.9), (2.5e-4, 0.3), (1.25e-4, 0.3)]:
+        try:
+            d, cpu, _, _ = run(args.duration, args.vars, step, rho)
+        except Exception as exc:  # noqa: BLE001  (a figure, not a crash)
+            print(f"{1e3 * step:9.4g} {rho:7.2g} {'failed: ' + str(exc)[:60]:>32}")
+            continue
+        err = np.abs(d - ref).max(axis=0) / scale
+        print(f"{1e3 * step:9.4g} {rho:7.2g} {', '.join(f'{100 * e:.2f}' for e in err):>32} "
+              f"{cpu:12.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,74 @@
+"""Does the chosen time step resolve the arm? One line of advice before a simulation.
+
+The modes that matter are those a joint torque excites: for mode k (mass-normalized shape
+phi_k, circular frequency omega_k) the static tip of a unit torque step at joint j holds the
+share ``(G phi_k)_j^2 / omega_k^2`` of the joint's static compliance (modal expansion of
+K^-1). The highest mode with at least ``share`` (1 %) of some joint's compliance is the
+highest *excited* mode f_x. Generalized-alpha at step h follows a mode of period T with
+a phase error growing with h/T and damps it the more the closer h/T gets to 1; below
+``steps_per_period`` (4) steps per period of f_x the fixed step misses the response to
+torque and set-point jumps: the advice names f_x and the step it needs, 1 / (4 f_x).
+Calibrated on the hub-less two-link arm of issue 24 (bench/bench_stiff_hubless.py: f_x
+1706 Hz, 1 / (4 f_x) = 0.15 ms; tip deflections 1.8 % off at 0.25 ms, 0.36 % at
+0.125 ms, Newton fails at 1 ms after the 15 deg set-point step). The explicit variable-step mode
+(Dormand-Prince) is bounded by stability at about 3.3 / omega_max per step whatever the
+tolerance: with the highest mode of the arm above ~2 kHz that is > 10^4 steps per
+simulated second, and the advice suggests the fixed mode.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Dormand-Prince 5(4): stability interval on the imaginary axis, |h omega| <= ~3.3
+DOPRI_STABILITY = 3.3
+#: variable mode: warn above this many stability-bound steps per simulated second
+MAX_VARIABLE_STEPS = 1e4
+
+
+@dataclass(frozen=True)
+class StepAdvice:
+    highest_mode_hz: float          # the arm's highest mode (linearized, joints as run)
+    highest_excited_mode_hz: float  # the highest a joint torque step excites (>= share)
+    step_needed_s: float            # 1 / (steps_per_period f_x)
+    variable_steps_per_s: float     # stability-bound steps of the explicit mode per s
+    warning: str | None
+
+
+def step_advice(model, joint_angles, *, method: str, step: float | None = None,
+                kp=None, share: float = 0.01, steps_per_period: float = 4.0) -> StepAdvice:
+    """Advice for integrating ``model`` near ``joint_angles`` (rad) with ``method``
+    (fixed: ``step`` s, default 1 ms); ``kp`` the joint PD gains (N m/rad; none: clamped
+    joints for the frequencies, a torque then acts on the flexible links alone)."""
+    from .modes import natural_modes
+    joints = "pd" if kp is not None and np.any(np.asarray(kp) > 0) else "clamped"
+    res = natural_modes(model, joint_angles, joints=joints,
+                        kp=None if joints == "clamped" else np.asarray(kp, float))
+    omega = np.asarray(res.omega, float)
+    G = model.G
+    gphi = G @ np.asarray(res.shapes_q)  # (joints, modes): modal force of a unit torque
+    flexible = omega > 1e-6 * max(omega.max(), 1.0)
+    comp = np.zeros_like(gphi)
+    comp[:, flexible] = gphi[:, flexible] ** 2 / omega[flexible] ** 2
+    total = comp.sum(axis=1, keepdims=True)
+    frac = np.divide(comp, total, out=np.zeros_like(comp), where=total > 0)
+    excited = np.any(frac >= share, axis=0)
+    f_max = float(omega.max() / (2 * np.pi))
+    f_x = float(omega[excited].max() / (2 * np.pi)) if np.any(excited) else 0.0
+    needed = 1.0 / (steps_per_period * f_x) if f_x > 0 else np.inf
+    n_var = float(omega.max() / DOPRI_STABILITY)
+    warning = None
+    if method == "fixed":
+        h = step or 1e-3
+        if h > needed * (1 + 1e-9):
+            warning = (f"step {h:.3g} s cannot resolve the arm: a joint torque excites its "
+                       f"mode at {f_x:.4g} Hz ({1 / (f_x * h):.1f} steps per period); it needs "
+                       f"a step of {needed:.2g} s or less (or more damping of the high "
+                       "modes: a smaller rho_inf, or hub inertia at the joints)")
+    elif n_var > MAX_VARIABLE_STEPS:
+        warning = (f"the variable-step mode is explicit: the arm's highest mode at "
+                   f"{f_max:.4g} Hz bounds its step to {DOPRI_STABILITY / omega.max():.2g} s "
+                   f"(>= {n_var:.3g} steps per simulated second, whatever rtol); the fixed "
+                   f"mode (integrator: {{method: fixed}}, or --method fixed) steps over it")
+    return StepAdvice(f_max, f_x, needed, n_var, warning)
