@@ -9,7 +9,8 @@ package_name = 'flex_model'
 os.chdir(os.path.dirname(os.path.abspath(__file__)))
 presets = sorted(glob(os.path.join(package_name, 'presets', '*.yaml')))
 scenarios = sorted(glob(os.path.join(package_name, 'presets', 'scenarios', '*.yaml')))
-spatial = sorted(glob(os.path.join(package_name, 'presets', 'spatial', '*.yaml')))
+spatial = sorted(glob(os.path.join(package_name, 'presets', 'spatial', '*.yaml'))
+                 + glob(os.path.join(package_name, 'presets', 'spatial', '*.urdf')))
 
 data_files = [
     ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
@@ -29,7 +30,7 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
     package_data={package_name: ['presets/*.yaml', 'presets/scenarios/*.yaml',
-                                'presets/spatial/*.yaml']},
+                                'presets/spatial/*.yaml', 'presets/spatial/*.urdf']},
     data_files=data_files,
     install_requires=['numpy', 'scipy', 'numba', 'pyyaml', 'matplotlib'],
     extras_require={'test': ['pytest']},

@@ -5,7 +5,9 @@
     python -m flex_model.spatial simulate seed000_real_arm_3d --duration 0.5 --step 1e-3 \
         [--joint-values 0.3] [--joint-rates 1.0] [--out run.npz]
     python -m flex_model.spatial modes thesis_three_link --from-planar
+    python -m flex_model.spatial modes ur5_like_flexible_forearm       # URDF + side file
 
+``simulate`` uses the compiled loop (numba; ``--python``: the reference loop).
 Output is JSON on stdout. ``--from-planar`` reads a planar arm (flex_model.arm) and embeds it.
 """
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 from .analysis import natural_modes, static_equilibrium
 from .description import from_planar, load_spatial_arm
 from .dynamics import SpatialArmModel
-from .integrate import simulate_fixed
+from .integrate import simulate_fixed, simulate_fixed_compiled
 
 
 def _model(args) -> SpatialArmModel:
@@ -53,6 +55,8 @@ def main(argv=None) -> int:
     p.add_argument("--step", type=float, default=1e-3)
     p.add_argument("--rho-inf", type=float, default=0.9)
     p.add_argument("--out", help="simulate: write t, q, v to this .npz")
+    p.add_argument("--python", action="store_true",
+                   help="simulate with the Python reference loop (default: compiled)")
     args = p.parse_args(argv)
     model = _model(args)
     qj = _values(args.joint_values, model.n_links, "joint-values")
@@ -79,7 +83,10 @@ def main(argv=None) -> int:
         v0 = np.zeros(model.nq)
         v0[model.off] = _values(args.joint_rates, model.n_links, "joint-rates")
         n = int(round(args.duration / args.step))
-        run = simulate_fixed(model, q0, v0, args.step, n, rho_inf=args.rho_inf)
+        if args.python:
+            run = simulate_fixed(model, q0, v0, args.step, n, rho_inf=args.rho_inf)
+        else:
+            run = simulate_fixed_compiled(model, q0, v0, args.step, n, rho_inf=args.rho_inf)
         if args.out:
             np.savez(args.out, t=run.t, q=run.q, v=run.v)
         e0, e1 = model.total_energy(q0, v0), model.total_energy(run.q[-1], run.v[-1])

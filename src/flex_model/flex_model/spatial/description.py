@@ -50,6 +50,10 @@ from ..sections import Segment, SectionProfile
 
 JOINT_TYPES = ("revolute", "prismatic")
 PLACEMENTS = ("dh_x", "aux_z")
+#: placements of flexible links built from a URDF (not a YAML field): ``link_x`` is a beam
+#: along the x axis of the link (joint) frame from its origin; the link's end frame is the
+#: tip section frame E (seed 000 Eq. 19), the URDF loader moves what follows by Trans_x(-L).
+ALL_PLACEMENTS = PLACEMENTS + ("link_x",)
 SECTION_FIELDS = (("EI_y", "N m^2"), ("EI_z", "N m^2"), ("GJ", "N m^2"), ("rhoA", "kg/m"),
                   ("rhoJ", "kg m"))
 
@@ -70,7 +74,12 @@ class RigidBody:
 
 @dataclass(frozen=True)
 class SpatialJoint:
-    """Joint i and its standard DH row (m, rad): the variable adds to theta or d."""
+    """Joint i and its standard DH row (m, rad): the variable adds to theta or d.
+
+    ``axis`` (unit, in the joint frame) is z for a DH joint, any direction for a URDF joint
+    (the DH row is then zero and the link's ``origin`` places the joint). ``lower``,
+    ``upper`` (rad or m), ``effort`` (N m or N) and ``velocity`` are the URDF limits
+    (infinite when absent; see :func:`flex_model.spatial.limits`)."""
 
     name: str
     type: str = "revolute"
@@ -78,6 +87,11 @@ class SpatialJoint:
     alpha: float = 0.0
     d: float = 0.0
     theta: float = 0.0
+    axis: tuple = (0.0, 0.0, 1.0)
+    lower: float = -np.inf
+    upper: float = np.inf
+    effort: float = np.inf
+    velocity: float = np.inf
 
 
 @dataclass(frozen=True)
@@ -100,11 +114,20 @@ class FlexibleBeam:
 
 @dataclass(frozen=True)
 class SpatialLink:
+    """One link: its joint, optional beam and bodies. ``origin`` (a (R, t) pair: 3 x 3
+    rotation and 3 translation, m) is a fixed transform applied before the joint motion
+    (URDF ``<joint><origin>``; None for DH). ``end_transform`` (R, t) is the fixed
+    transform from the link frame (rigid) or the beam's tip section frame to the link's
+    end frame (URDF: fixed joints after the last moving
+    joint; None: identity)."""
+
     name: str
     joint: SpatialJoint
     flexible: FlexibleBeam | None = None
     root_body: RigidBody = RigidBody()
     end_body: RigidBody = RigidBody()
+    origin: tuple | None = None
+    end_transform: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -217,7 +240,11 @@ def _flexible(f: Fields, joint: SpatialJoint) -> FlexibleBeam:
 
 
 def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
-    """Validate a parsed spatial arm description; errors name ``source`` and the field."""
+    """Validate a parsed spatial arm description; errors name ``source`` and the field.
+    A description with a ``urdf`` key is a URDF side file (spatial/urdf.py)."""
+    if isinstance(data, dict) and "urdf" in data:
+        from .urdf import spatial_arm_from_side_file
+        return spatial_arm_from_side_file(data, source)
     f = Fields(data, source, "")
     name = f.string("name")
     description = f.string("description", "")

@@ -108,10 +108,18 @@ class SpatialArmModel:
                 self.K[s, s] = b.K
         self.gravity = np.asarray(arm.gravity, float)
         self._consts = []
+        self._extra = []     # URDF-style data per link: origin, axis, end transform
         for lk in arm.links:
             j = lk.joint
             pre = (rot_z(j.theta), np.array([0.0, 0.0, j.d]))      # Trans_z(d) Rot_z(theta)
             dh_rest = (rot_x(j.alpha), np.array([j.a, 0.0, 0.0]))  # Trans_x(a) Rot_x(alpha)
+            axis = np.asarray(j.axis, float)
+            origin = None if lk.origin is None else (np.asarray(lk.origin[0], float),
+                                                     np.asarray(lk.origin[1], float))
+            end = None if lk.end_transform is None else (
+                np.asarray(lk.end_transform[0], float), np.asarray(lk.end_transform[1], float))
+            general = not np.array_equal(axis, [0.0, 0.0, 1.0])
+            self._extra.append((origin, axis if general else None, end))
             bodies = []
             for body in (lk.root_body, lk.end_body):
                 bodies.append(None if body.is_empty else
@@ -155,7 +163,15 @@ class SpatialArmModel:
         for i, (lk, b) in enumerate(zip(self.arm.links, self.beams)):
             k = self.off[i]
             (Rpre, tpre), (Rdh, tdh), (root_body, end_body) = self._consts[i]
-            F = F.prismatic(q[k], k) if lk.joint.type == "prismatic" else F.revolute(q[k], k)
+            origin, axis, end = self._extra[i]
+            if origin is not None:
+                F = F.fixed(*origin)
+            if axis is not None:
+                F = F.prismatic_axis(q[k], k, axis) if lk.joint.type == "prismatic" else \
+                    F.revolute_axis(q[k], k, axis)
+            else:
+                F = F.prismatic(q[k], k) if lk.joint.type == "prismatic" else \
+                    F.revolute(q[k], k)
             F = F.fixed(Rpre, tpre)
             if b is not None and b.beam.placement == "aux_z":
                 F = F.fixed(Rdh, tdh)
@@ -169,6 +185,8 @@ class SpatialArmModel:
                     F = F.fixed(Rdh, np.zeros(3))
             else:
                 F = F.fixed(Rdh, tdh)
+            if end is not None:
+                F = F.fixed(*end)
             if with_masses and end_body is not None:
                 self._add_body(F, end_body, points, rotors)
             ends.append(F)

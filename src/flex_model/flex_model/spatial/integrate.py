@@ -9,6 +9,10 @@
   (The planar generalized-alpha kernel of integrators.py is compiled against the planar
   model's parameter tuple, so it is not reused here.)
 
+- ``simulate_fixed_compiled``: the same generalized-alpha scheme compiled (numba,
+  compiled.galpha_loop; analytic velocity terms), joint torques as an array, clipped to
+  the URDF effort limits.
+
 ``force(t, q, v)`` returns the generalized applied force Q (nq), e.g. ``H tau`` with
 ``H = joint_input_matrix(model)``.
 """
@@ -113,3 +117,33 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
         qs.append(q.copy())
         vs.append(v.copy())
     return SpatialRun(np.array(ts), np.array(qs), np.array(vs), iters)
+
+
+def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: int,
+                            joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
+                            max_iter: int = 20, damping=None,
+                            clip_to_effort: bool = True) -> SpatialRun:
+    """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the
+    analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
+    (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
+    t_{n+1}, as simulate_fixed's ``force(t_{n+1})``); clipped to the URDF effort limits
+    when ``clip_to_effort`` (limits.clip_efforts)."""
+    from .compiled import galpha_loop, pack
+    from .limits import joint_limits
+    data = getattr(model, "_compiled_data", None)
+    if data is None:
+        data = pack(model)
+        model._compiled_data = data
+    nj = model.n_links
+    tau = np.zeros((n_steps, nj)) if joint_torques is None else \
+        np.broadcast_to(np.asarray(joint_torques, float), (n_steps, nj))
+    tau = np.array(tau, dtype=float, order="C")   # a writable copy: one compiled signature
+    effort = joint_limits(model.arm)["effort"] if clip_to_effort else np.full(nj, np.inf)
+    D = np.zeros((model.nq, model.nq)) if damping is None else np.asarray(damping, float)
+    qs, vs, iters = galpha_loop(data, np.ascontiguousarray(model.K), np.ascontiguousarray(D),
+                                joint_input_matrix(model), effort,
+                                np.asarray(q0, float).copy(), np.asarray(v0, float).copy(),
+                                float(h), tau, float(rho_inf), float(tol), int(max_iter))
+    if iters < 0:
+        raise RuntimeError(f"generalized-alpha: no convergence at t = {(-iters) * h:.6g} s")
+    return SpatialRun(h * np.arange(len(qs)), qs, vs, int(iters))

@@ -60,6 +60,18 @@ def cross(a, b):
                      a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
+def rot_axis(u, t):
+    """Rotation by t about the unit axis u (Rodrigues; analytic in t)."""
+    S = skew(np.asarray(u, float))
+    return np.eye(3) + np.sin(t) * S + (1.0 - np.cos(t)) * (S @ S)
+
+
+def rpy_matrix(rpy) -> np.ndarray:
+    """URDF fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = (float(x) for x in rpy)
+    return rot_z(y) @ rot_y(p) @ rot_x(r)
+
+
 def homogeneous(R, t) -> np.ndarray:
     T = np.eye(4, dtype=np.result_type(R, t, float))
     T[:3, :3] = R
@@ -110,6 +122,20 @@ class Frame:
         Jw = self.Jw.copy()
         Jw[:, k] += self.R[:, 2]
         return Frame(self.R @ rot_z(q), self.o, self.Jo, Jw)
+
+    def revolute_axis(self, q, k: int, u) -> "Frame":
+        """Rotate about the local unit axis u by q (coordinate k)."""
+        Jw = self.Jw.copy()
+        Jw[:, k] += self.R @ u
+        return Frame(self.R @ rot_axis(u, q), self.o, self.Jo, Jw)
+
+    def prismatic_axis(self, q, k: int, u) -> "Frame":
+        """Translate along the local unit axis u by q (coordinate k)."""
+        e = self.R @ u
+        r = e * q
+        Jo = self.Jo - skew(r) @ self.Jw
+        Jo[:, k] += e
+        return Frame(self.R, self.o + r, Jo, self.Jw)
 
     def prismatic(self, q, k: int) -> "Frame":
         """Translate along the local z axis by q (coordinate k)."""

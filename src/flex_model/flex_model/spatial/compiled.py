@@ -1,0 +1,804 @@
+"""Compiled (numba) equations of motion of a spatial arm and a compiled generalized-alpha loop.
+
+The same model as :class:`SpatialArmModel` (dynamics.py, the Python reference and oracle):
+
+    M = sum m Jp^T Jp + sum Jw^T I Jw,
+    c = sum m Jp^T (a_p - g) + sum Jw^T (I alpha + w x I w),
+
+but the velocity terms are computed **analytically** by a recursive Newton-Euler forward
+pass instead of the complex step: along the chain every frame carries, besides its pose
+and Jacobians, its angular velocity w = Jw v and the bias accelerations (the accelerations
+at zero q-ddot, i.e. dJ/dt v) of its origin, a_o, and its rotation, alpha:
+
+- fixed offset r = R t:        a_o += alpha x r + w x (w x r)
+- revolute joint, axis e = R u: alpha += w x e qd;  w += e qd
+- prismatic joint, r = e q:    a_o += alpha x r + w x (w x r) + 2 w x e qd
+- beam point (s, v, w)_beam:   a_p = a_o + alpha x r + w x (w x r) + 2 w x (R_b rdot)
+- section rotation Rx(phi) Ry(-w') Rz(v') (seed 000 Eq. 19) with relative rate
+  w_rel = e_x phi' + a_w dw' + a_v dv' (a_w = -Rx e_y, a_v = Rx Ry e_z, beam frame):
+  alpha_rel = e_x phi' x a_w dw' + (e_x phi' + a_w dw') x a_v dv';
+  w += R_b w_rel;  alpha += w x R_b w_rel + R_b alpha_rel.
+
+The model data is a tuple of arrays built once by :func:`pack` (per link: joint type and
+axis, the fixed transforms before and after the joint and the beam, bodies; per beam
+Gauss point: mass and polar weights and the sampled bases, padded).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .dynamics import SpatialArmModel
+
+_CACHE = True
+
+
+def _combine(A, B):
+    """(R, t) of the transform A followed by B (both (R, t) pairs)."""
+    return A[0] @ B[0], A[0] @ B[1] + A[1]
+
+
+def pack(model: SpatialArmModel) -> tuple:
+    """The model data tuple of the compiled kernels (see the module docstring)."""
+    arm = model.arm
+    n = model.n_links
+    eye = (np.eye(3), np.zeros(3))
+    jtype = np.zeros(n, np.int64)
+    koff = np.asarray(model.off, np.int64)
+    axis = np.zeros((n, 3))
+    T = np.zeros((n, 4, 3, 4))      # origin, pre, before-beam, after-beam: [R | t]
+    P = np.zeros((n, 3, 3))
+    flex = np.zeros(n, np.int64)
+    nv = np.zeros(n, np.int64)
+    nt = np.zeros(n, np.int64)
+    fstart = np.zeros(n, np.int64)
+    length = np.zeros(n)
+    bm = np.zeros((n, 2))            # root, end body mass
+    bc = np.zeros((n, 2, 3))
+    bI = np.zeros((n, 2, 3, 3))
+    pstart = np.zeros(n + 1, np.int64)
+    beams = [b for b in model.beams if b is not None]
+    maxnv = max([b.nv for b in beams] + [1])
+    maxnt = max([b.nt for b in beams] + [1])
+    zs, mw, pw, Wv, dWv, Ww, dWw, Pt = [], [], [], [], [], [], [], []
+    count = 0
+    for i, (lk, b) in enumerate(zip(arm.links, model.beams)):
+        (Rpre, tpre), (Rdh, tdh), bodies = model._consts[i]
+        origin, ax, end = model._extra[i]
+        jtype[i] = 1 if lk.joint.type == "prismatic" else 0
+        axis[i] = np.asarray(lk.joint.axis, float)
+        stages = [origin or eye, (Rpre, tpre), eye, eye]
+        P[i] = np.eye(3)
+        if b is not None:
+            flex[i] = 1
+            nv[i], nt[i] = b.nv, b.nt
+            fstart[i] = model.flex_slice(i).start
+            length[i] = b.length
+            P[i] = b.P
+            after = (b.P.T, np.zeros(3))
+            if b.beam.placement == "aux_z":
+                stages[2] = (Rdh, tdh)
+            elif b.beam.placement == "dh_x":
+                after = _combine(after, (Rdh, np.zeros(3)))
+            stages[3] = after
+            npt = len(b.z)
+            zs.append(b.z)
+            mw.append(b.mass_w)
+            pw.append(b.polar_w)
+            for dst, src in ((Wv, b.Wv), (dWv, b.dWv), (Ww, b.Ww), (dWw, b.dWw)):
+                a = np.zeros((npt, maxnv))
+                a[:, :src.shape[1]] = src
+                dst.append(a)
+            a = np.zeros((npt, maxnt))
+            a[:, :b.Pt.shape[1]] = b.Pt
+            Pt.append(a)
+            count += npt
+        else:
+            stages[3] = (Rdh, tdh)
+        if end is not None:
+            stages[3] = _combine(stages[3], end)
+        for s, (R, t) in enumerate(stages):
+            T[i, s, :, :3] = R
+            T[i, s, :, 3] = t
+        for j, body in enumerate(bodies):
+            if body is not None:
+                bm[i, j], bc[i, j], bI[i, j] = body
+        pstart[i + 1] = count
+
+    def cat(parts, width=None):
+        if parts:
+            return np.ascontiguousarray(np.concatenate(parts))
+        return np.zeros((0,) if width is None else (0, width))
+
+    return (jtype, koff, axis, T, P, flex, nv, nt, fstart, length, bm, bc, bI, pstart,
+            cat(zs), cat(mw), cat(pw), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
+            cat(dWw, maxnv), cat(Pt, maxnt), np.asarray(model.gravity, float),
+            int(model.nq))
+
+
+# ------------------------------------------------------------------ small vector helpers
+
+@njit(cache=_CACHE, inline="always")
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=_CACHE)
+def _mv(A, x):
+    """A x for a 3 x 3 A (no BLAS call: small products dominate otherwise)."""
+    out = np.empty(3)
+    for a in range(3):
+        out[a] = A[a, 0] * x[0] + A[a, 1] * x[1] + A[a, 2] * x[2]
+    return out
+
+
+@njit(cache=_CACHE)
+def _mm(A, B):
+    out = np.empty((3, 3))
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = A[a, 0] * B[0, b] + A[a, 1] * B[1, b] + A[a, 2] * B[2, b]
+    return out
+
+
+@njit(cache=_CACHE)
+def _matvec(A, x):
+    n, m = A.shape
+    out = np.zeros(n)
+    for a in range(n):
+        s = 0.0
+        for b in range(m):
+            s += A[a, b] * x[b]
+        out[a] = s
+    return out
+
+
+@njit(cache=_CACHE)
+def _rotx(t):
+    c, s = np.cos(t), np.sin(t)
+    R = np.zeros((3, 3))
+    R[0, 0] = 1.0
+    R[1, 1] = c
+    R[2, 2] = c
+    R[1, 2] = -s
+    R[2, 1] = s
+    return R
+
+
+@njit(cache=_CACHE)
+def _roty(t):
+    c, s = np.cos(t), np.sin(t)
+    R = np.zeros((3, 3))
+    R[1, 1] = 1.0
+    R[0, 0] = c
+    R[2, 2] = c
+    R[2, 0] = -s
+    R[0, 2] = s
+    return R
+
+
+@njit(cache=_CACHE)
+def _rotz(t):
+    c, s = np.cos(t), np.sin(t)
+    R = np.zeros((3, 3))
+    R[2, 2] = 1.0
+    R[0, 0] = c
+    R[1, 1] = c
+    R[0, 1] = -s
+    R[1, 0] = s
+    return R
+
+
+@njit(cache=_CACHE)
+def _fixed(R, o, Jo, Jw, w, ao, al, Tc, ncols, W):
+    """Move the frame (in place) by the constant transform Tc = [Rc | tc] (in the
+    frame); Jacobian columns < ncols; W a 3 x 3 work array."""
+    t0, t1, t2 = Tc[0, 3], Tc[1, 3], Tc[2, 3]
+    r0 = R[0, 0] * t0 + R[0, 1] * t1 + R[0, 2] * t2
+    r1 = R[1, 0] * t0 + R[1, 1] * t1 + R[1, 2] * t2
+    r2 = R[2, 0] * t0 + R[2, 1] * t1 + R[2, 2] * t2
+    if r0 != 0.0 or r1 != 0.0 or r2 != 0.0:
+        for j in range(ncols):   # Jo -= r x Jw  (= Jw x r)
+            Jo[0, j] += Jw[1, j] * r2 - Jw[2, j] * r1
+            Jo[1, j] += Jw[2, j] * r0 - Jw[0, j] * r2
+            Jo[2, j] += Jw[0, j] * r1 - Jw[1, j] * r0
+        u0 = w[1] * r2 - w[2] * r1
+        u1 = w[2] * r0 - w[0] * r2
+        u2 = w[0] * r1 - w[1] * r0
+        ao[0] += (al[1] * r2 - al[2] * r1) + (w[1] * u2 - w[2] * u1)
+        ao[1] += (al[2] * r0 - al[0] * r2) + (w[2] * u0 - w[0] * u2)
+        ao[2] += (al[0] * r1 - al[1] * r0) + (w[0] * u1 - w[1] * u0)
+        o[0] += r0
+        o[1] += r1
+        o[2] += r2
+    for a in range(3):
+        for b in range(3):
+            W[a, b] = R[a, 0] * Tc[0, b] + R[a, 1] * Tc[1, b] + R[a, 2] * Tc[2, b]
+    R[:, :] = W
+
+
+@njit(cache=_CACHE)
+def _rotate_axis(R, u, t, W):
+    """R <- R Rot(u, t) in place (Rodrigues)."""
+    c, s = np.cos(t), np.sin(t)
+    k = 1.0 - c
+    u0, u1, u2 = u[0], u[1], u[2]
+    Q = np.empty((3, 3))
+    Q[0, 0] = c + k * u0 * u0
+    Q[0, 1] = k * u0 * u1 - s * u2
+    Q[0, 2] = k * u0 * u2 + s * u1
+    Q[1, 0] = k * u1 * u0 + s * u2
+    Q[1, 1] = c + k * u1 * u1
+    Q[1, 2] = k * u1 * u2 - s * u0
+    Q[2, 0] = k * u2 * u0 - s * u1
+    Q[2, 1] = k * u2 * u1 + s * u0
+    Q[2, 2] = c + k * u2 * u2
+    for a in range(3):
+        for b in range(3):
+            W[a, b] = R[a, 0] * Q[0, b] + R[a, 1] * Q[1, b] + R[a, 2] * Q[2, b]
+    R[:, :] = W
+
+
+@njit(cache=_CACHE)
+def _section(phi, dv, dw, phid, dvd, dwd):
+    """Section rotation Rs = Rx(phi) Ry(-w') Rz(v'), its axes a_w, a_v (beam frame) and
+    the relative angular velocity and bias acceleration (beam frame)."""
+    Rx = _rotx(phi)
+    Rxy = _mm(Rx, _roty(-dw))
+    Rs = _mm(Rxy, _rotz(dv))
+    aw = np.empty(3)
+    av = np.empty(3)
+    for a in range(3):
+        aw[a] = -Rx[a, 1]
+        av[a] = Rxy[a, 2]
+    w1 = np.array([phid, 0.0, 0.0])
+    w2 = aw * dwd
+    w3 = av * dvd
+    wrel = w1 + w2 + w3
+    t1 = np.zeros(3)
+    t2 = np.zeros(3)
+    _cross(w1, w2, t1)
+    _cross(w1 + w2, w3, t2)
+    return Rs, aw, av, wrel, t1 + t2
+
+
+@njit(cache=_CACHE)
+def _group_point(G, m, r, acc):
+    """Add a point mass m at r (from the group frame's origin, base axes) with absolute
+    acceleration-minus-gravity acc to the group G = [m, S(3), J2(9), f_lin(3), f_ang(3)]."""
+    G[0] += m
+    rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
+    for a in range(3):
+        G[1 + a] += m * r[a]
+        for b in range(3):
+            G[4 + 3 * a + b] += m * ((rr if a == b else 0.0) - r[a] * r[b])
+        G[13 + a] += m * acc[a]
+    G[16] += m * (r[1] * acc[2] - r[2] * acc[1])
+    G[17] += m * (r[2] * acc[0] - r[0] * acc[2])
+    G[18] += m * (r[0] * acc[1] - r[1] * acc[0])
+
+
+@njit(cache=_CACHE)
+def _flush(G, C6, c0, c1, Jo, Jw, ncols, M, c, X, want_m):
+    """M += J6^T I6 J6 and c += J6^T f6 for the group G at a frame with Jacobians
+    J6 = [Jo; Jw] (columns < ncols), I6 = [[m, -[S]x], [[S]x, J2]], f6 = [f_lin; f_ang];
+    plus the coupling with the group's own columns [c0, c1): M[a, j] += J6[:, a] . C6[:, j]
+    (a < ncols <= c0: upper triangle)."""
+    if not want_m:
+        for a in range(ncols):
+            c[a] += (Jo[0, a] * G[13] + Jo[1, a] * G[14] + Jo[2, a] * G[15]
+                     + Jw[0, a] * G[16] + Jw[1, a] * G[17] + Jw[2, a] * G[18])
+        return
+    m = G[0]
+    S0, S1, S2 = G[1], G[2], G[3]
+    for j in range(ncols):
+        o0, o1, o2 = Jo[0, j], Jo[1, j], Jo[2, j]
+        w0, w1, w2 = Jw[0, j], Jw[1, j], Jw[2, j]
+        # top: m Jo - S x Jw ; bottom: S x Jo + J2 Jw
+        X[0, j] = m * o0 - (S1 * w2 - S2 * w1)
+        X[1, j] = m * o1 - (S2 * w0 - S0 * w2)
+        X[2, j] = m * o2 - (S0 * w1 - S1 * w0)
+        X[3, j] = (S1 * o2 - S2 * o1) + G[4] * w0 + G[5] * w1 + G[6] * w2
+        X[4, j] = (S2 * o0 - S0 * o2) + G[7] * w0 + G[8] * w1 + G[9] * w2
+        X[5, j] = (S0 * o1 - S1 * o0) + G[10] * w0 + G[11] * w1 + G[12] * w2
+    for a in range(ncols):
+        o0, o1, o2 = Jo[0, a], Jo[1, a], Jo[2, a]
+        w0, w1, w2 = Jw[0, a], Jw[1, a], Jw[2, a]
+        if o0 == 0.0 and o1 == 0.0 and o2 == 0.0 and w0 == 0.0 and w1 == 0.0 and w2 == 0.0:
+            continue
+        c[a] += o0 * G[13] + o1 * G[14] + o2 * G[15] + w0 * G[16] + w1 * G[17] + w2 * G[18]
+        for b in range(a, ncols):
+            M[a, b] += (o0 * X[0, b] + o1 * X[1, b] + o2 * X[2, b] + w0 * X[3, b]
+                        + w1 * X[4, b] + w2 * X[5, b])
+        for j in range(c0, c1):
+            M[a, j] += (o0 * C6[0, j] + o1 * C6[1, j] + o2 * C6[2, j] + w0 * C6[3, j]
+                        + w1 * C6[4, j] + w2 * C6[5, j])
+
+
+@njit(cache=_CACHE)
+def _nonzero(x):
+    for a in range(x.shape[0]):
+        if x[a] != 0.0:
+            return True
+    return False
+
+
+@njit(cache=_CACHE)
+def _body_into(G, R, or0, or1, or2, ao, al, w, m, off, Ib, g, rv, acc, W):
+    """A rigid body (mass m at offset ``off`` in frame R, inertia Ib about its centre)
+    fixed to the group's frame; (or0, or1, or2): frame origin minus the group origin."""
+    if m != 0.0:
+        for a in range(3):
+            rv[a] = (R[a, 0] * off[0] + R[a, 1] * off[1] + R[a, 2] * off[2]
+                     + (or0 if a == 0 else (or1 if a == 1 else or2)))
+        r0, r1, r2 = rv[0], rv[1], rv[2]
+        u0 = w[1] * r2 - w[2] * r1
+        u1 = w[2] * r0 - w[0] * r2
+        u2 = w[0] * r1 - w[1] * r0
+        acc[0] = ao[0] + (al[1] * r2 - al[2] * r1) + (w[1] * u2 - w[2] * u1) - g[0]
+        acc[1] = ao[1] + (al[2] * r0 - al[0] * r2) + (w[2] * u0 - w[0] * u2) - g[1]
+        acc[2] = ao[2] + (al[0] * r1 - al[1] * r0) + (w[0] * u1 - w[1] * u0) - g[2]
+        _group_point(G, m, rv, acc)
+    if Ib[0, 0] != 0.0 or Ib[1, 1] != 0.0 or Ib[2, 2] != 0.0 or Ib[0, 1] != 0.0 \
+            or Ib[0, 2] != 0.0 or Ib[1, 2] != 0.0:
+        for a in range(3):     # W = R Ib
+            for b in range(3):
+                W[a, b] = R[a, 0] * Ib[0, b] + R[a, 1] * Ib[1, b] + R[a, 2] * Ib[2, b]
+        for a in range(3):     # I = W R^T, into G; I w into rv, I alpha into acc
+            rv[a] = 0.0
+            acc[a] = 0.0
+            for b in range(3):
+                Iab = W[a, 0] * R[b, 0] + W[a, 1] * R[b, 1] + W[a, 2] * R[b, 2]
+                G[4 + 3 * a + b] += Iab
+                rv[a] += Iab * w[b]
+                acc[a] += Iab * al[b]
+        G[16] += acc[0] + w[1] * rv[2] - w[2] * rv[1]
+        G[17] += acc[1] + w[2] * rv[0] - w[0] * rv[2]
+        G[18] += acc[2] + w[0] * rv[1] - w[1] * rv[0]
+
+
+@njit(cache=_CACHE)
+def spatial_terms(Pm, q, v):
+    """(M(q), c(q, v)) of the spatial arm ``Pm`` = :func:`pack` (model): c holds the
+    velocity terms (analytic Newton-Euler bias accelerations) and gravity."""
+    return spatial_eval(Pm, q, v, np.zeros(q.shape[0]), True)
+
+
+@njit(cache=_CACHE)
+def spatial_eval(Pm, q, v, qdd, want_m):
+    """(M(q) or zeros, M(q) qdd + c(q, v)): the recursive Newton-Euler pass with the
+    accelerations qdd included (inverse dynamics, O(n) without M when not ``want_m``). The mass
+    points and rotors of a link are lumped per frame into a spatial inertia (mass, first
+    and second moments) so that M costs one J6^T I6 J6 product per frame group."""
+    (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq) = Pm
+    M = np.zeros((nq, nq))
+    c = np.zeros(nq)
+    R = np.eye(3)
+    o = np.zeros(3)
+    Jo = np.zeros((3, nq))
+    Jw = np.zeros((3, nq))
+    w = np.zeros(3)
+    ao = np.zeros(3)
+    al = np.zeros(3)
+    tmp = np.zeros(3)
+    G = np.zeros(19)
+    C6 = np.zeros((6, nq))
+    acc = np.zeros(3)
+    rv = np.zeros(3)
+    xv = np.zeros(3)
+    tau = np.zeros(3)
+    t1 = np.zeros(3)
+    t2 = np.zeros(3)
+    t3 = np.zeros(3)
+    t4 = np.zeros(3)
+    W = np.zeros((3, 3))
+    X6 = np.zeros((6, nq))
+    Rb = np.zeros((3, 3))
+    o_root = np.zeros(3)
+    ao_root = np.zeros(3)
+    Jo_root = np.zeros((3, nq))
+    e = np.zeros(3)
+    n_links = jtype.shape[0]
+    for i in range(n_links):
+        k = koff[i]
+        ncols = k + 1
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 0], ncols, W)
+        u = axis[i]
+        for a in range(3):
+            e[a] = R[a, 0] * u[0] + R[a, 1] * u[1] + R[a, 2] * u[2]
+        qd = v[k]
+        if jtype[i] == 0:
+            e0, e1, e2 = e[0] * qd, e[1] * qd, e[2] * qd
+            for a in range(3):
+                Jw[a, k] += e[a]
+            al[0] += w[1] * e2 - w[2] * e1 + e[0] * qdd[k]
+            al[1] += w[2] * e0 - w[0] * e2 + e[1] * qdd[k]
+            al[2] += w[0] * e1 - w[1] * e0 + e[2] * qdd[k]
+            w[0] += e0
+            w[1] += e1
+            w[2] += e2
+            _rotate_axis(R, u, q[k], W)
+        else:
+            r = e * q[k]
+            for j in range(ncols):
+                Jo[0, j] += Jw[1, j] * r[2] - Jw[2, j] * r[1]
+                Jo[1, j] += Jw[2, j] * r[0] - Jw[0, j] * r[2]
+                Jo[2, j] += Jw[0, j] * r[1] - Jw[1, j] * r[0]
+            for a in range(3):
+                Jo[a, k] += e[a]
+            t1 = np.zeros(3)
+            t2 = np.zeros(3)
+            t3 = np.zeros(3)
+            _cross(al, r, t1)
+            _cross(w, r, t2)
+            _cross(w, t2, t3)
+            _cross(w, e * qd, t2)
+            ao += t1 + t3 + 2.0 * t2 + e * qdd[k]
+            o += r
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 1], ncols, W)
+        if flex[i]:
+            _fixed(R, o, Jo, Jw, w, ao, al, T[i, 2], ncols, W)
+        G[:] = 0.0
+        _body_into(G, R, 0.0, 0.0, 0.0, ao, al, w, bm[i, 0], bc[i, 0], bI[i, 0], g, rv,
+                   acc, W)
+        if not flex[i]:
+            # rigid link: the end body joins the root group (same Jacobians up to r)
+            if _nonzero(G) or bm[i, 1] != 0.0 or _nonzero(bI[i, 1].ravel()):
+                for a in range(3):
+                    o_root[a] = o[a]
+                    ao_root[a] = ao[a]
+                    for j in range(ncols):
+                        Jo_root[a, j] = Jo[a, j]
+                _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
+                _body_into(G, R, o[0] - o_root[0], o[1] - o_root[1], o[2] - o_root[2],
+                           ao_root, al, w, bm[i, 1], bc[i, 1], bI[i, 1], g, rv, acc, W)
+                _flush(G, C6, 0, 0, Jo_root, Jw, ncols, M, c, X6, want_m)
+            else:
+                _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
+            continue
+        # ---------------------------------------------------------------- flexible beam
+        nv, nt, s0 = nvs[i], nts[i], fstart[i]
+        s1 = s0 + 2 * nv + nt
+        C6[:, s0:s1] = 0.0
+        for a in range(3):
+            for b in range(3):
+                Rb[a, b] = R[a, 0] * P[i, 0, b] + R[a, 1] * P[i, 1, b] + R[a, 2] * P[i, 2, b]
+        fv, fw, ft = q[s0:s0 + nv], q[s0 + nv:s0 + 2 * nv], q[s0 + 2 * nv:s1]
+        gv, gw, gt = v[s0:s0 + nv], v[s0 + nv:s0 + 2 * nv], v[s0 + 2 * nv:s1]
+        hv, hw, ht = qdd[s0:s0 + nv], qdd[s0 + nv:s0 + 2 * nv], qdd[s0 + 2 * nv:s1]
+        by = np.ascontiguousarray(Rb[:, 1])
+        bz = np.ascontiguousarray(Rb[:, 2])
+        bx = np.ascontiguousarray(Rb[:, 0])
+        # per point, in scalars (no temporaries): the own columns of a point are
+        # x_j = b_y Wv_j (v) and b_z Ww_j (w), orthonormal directions, and those of a
+        # section's rotation are a_v dWv_j, a_w dWw_j, b_x Pt_j with the rank-one section
+        # inertia rhoJ ds a a^T (a the section's x axis)
+        n2 = 2 * nv
+        sown = np.zeros(n2 + nt)
+        for p in range(pstart[i], pstart[i + 1]):
+            yv = 0.0
+            yw = 0.0
+            ydv = 0.0
+            ydw = 0.0
+            sv = 0.0
+            sw = 0.0
+            sdv = 0.0
+            sdw = 0.0
+            for j in range(nv):
+                yv += Wv[p, j] * fv[j]
+                yw += Ww[p, j] * fw[j]
+                ydv += dWv[p, j] * fv[j]
+                ydw += dWw[p, j] * fw[j]
+                sv += Wv[p, j] * gv[j]
+                sw += Ww[p, j] * gw[j]
+                sdv += dWv[p, j] * gv[j]
+                sdw += dWw[p, j] * gw[j]
+            av_ = 0.0
+            aw_ = 0.0
+            adv = 0.0
+            adw = 0.0
+            for j in range(nv):
+                av_ += Wv[p, j] * hv[j]
+                aw_ += Ww[p, j] * hw[j]
+                adv += dWv[p, j] * hv[j]
+                adw += dWw[p, j] * hw[j]
+            mp = mw[p]
+            zp = zs[p]
+            r0 = zp * bx[0] + yv * by[0] + yw * bz[0]
+            r1 = zp * bx[1] + yv * by[1] + yw * bz[1]
+            r2 = zp * bx[2] + yv * by[2] + yw * bz[2]
+            d0 = sv * by[0] + sw * bz[0]
+            d1 = sv * by[1] + sw * bz[1]
+            d2 = sv * by[2] + sw * bz[2]
+            ex0 = av_ * by[0] + aw_ * bz[0]
+            ex1 = av_ * by[1] + aw_ * bz[1]
+            ex2 = av_ * by[2] + aw_ * bz[2]
+            # w x r, w x (w x r), al x r, w x rd
+            u0 = w[1] * r2 - w[2] * r1
+            u1 = w[2] * r0 - w[0] * r2
+            u2 = w[0] * r1 - w[1] * r0
+            acc[0] = ao[0] + (al[1] * r2 - al[2] * r1) + (w[1] * u2 - w[2] * u1) \
+                + 2.0 * (w[1] * d2 - w[2] * d1) - g[0] + ex0
+            acc[1] = ao[1] + (al[2] * r0 - al[0] * r2) + (w[2] * u0 - w[0] * u2) \
+                + 2.0 * (w[2] * d0 - w[0] * d2) - g[1] + ex1
+            acc[2] = ao[2] + (al[0] * r1 - al[1] * r0) + (w[0] * u1 - w[1] * u0) \
+                + 2.0 * (w[0] * d1 - w[1] * d0) - g[2] + ex2
+            rv[0] = r0
+            rv[1] = r1
+            rv[2] = r2
+            _group_point(G, mp, rv, acc)
+            ay = by[0] * acc[0] + by[1] * acc[1] + by[2] * acc[2]
+            az = bz[0] * acc[0] + bz[1] * acc[1] + bz[2] * acc[2]
+            cy0 = r1 * by[2] - r2 * by[1]
+            cy1 = r2 * by[0] - r0 * by[2]
+            cy2 = r0 * by[1] - r1 * by[0]
+            cz0 = r1 * bz[2] - r2 * bz[1]
+            cz1 = r2 * bz[0] - r0 * bz[2]
+            cz2 = r0 * bz[1] - r1 * bz[0]
+            for j in range(nv):
+                c[s0 + j] += mp * Wv[p, j] * ay
+                c[s0 + nv + j] += mp * Ww[p, j] * az
+                if not want_m:
+                    continue
+                wv = mp * Wv[p, j]
+                ww = mp * Ww[p, j]
+                jv = s0 + j
+                jw = s0 + nv + j
+                C6[0, jv] += wv * by[0]
+                C6[1, jv] += wv * by[1]
+                C6[2, jv] += wv * by[2]
+                C6[3, jv] += wv * cy0
+                C6[4, jv] += wv * cy1
+                C6[5, jv] += wv * cy2
+                C6[0, jw] += ww * bz[0]
+                C6[1, jw] += ww * bz[1]
+                C6[2, jw] += ww * bz[2]
+                C6[3, jw] += ww * cz0
+                C6[4, jw] += ww * cz1
+                C6[5, jw] += ww * cz2
+                for jj in range(j, nv):
+                    M[jv, s0 + jj] += wv * Wv[p, jj]
+                    M[jw, s0 + nv + jj] += ww * Ww[p, jj]
+            if nt:
+                phi = 0.0
+                sphi = 0.0
+                for j in range(nt):
+                    phi += Pt[p, j] * ft[j]
+                    sphi += Pt[p, j] * gt[j]
+                aphi = 0.0
+                for j in range(nt):
+                    aphi += Pt[p, j] * ht[j]
+                cf, sf = np.cos(phi), np.sin(phi)
+                cp, sp = np.cos(ydw), -np.sin(ydw)          # Ry(-w')
+                ct, st = np.cos(ydv), np.sin(ydv)
+                # beam-frame axes: a_w = -Rx e_y, a_v = Rx Ry e_z, section x axis
+                aw0, aw1, aw2 = 0.0, -cf, -sf
+                av0, av1, av2 = sp, -sf * cp, cf * cp
+                xs0 = ct * cp
+                xs1 = ct * sf * sp + st * cf
+                xs2 = -ct * cf * sp + st * sf
+                # relative angular velocity and bias acceleration (beam frame)
+                wr0 = sphi + aw0 * sdw + av0 * sdv
+                wr1 = aw1 * sdw + av1 * sdv
+                wr2 = aw2 * sdw + av2 * sdv
+                e0, e1, e2 = aw0 * sdw, aw1 * sdw, aw2 * sdw         # a_w dw'
+                f0, f1, f2 = av0 * sdv, av1 * sdv, av2 * sdv         # a_v dv'
+                # (phi' e_x) x e + (phi' e_x + e) x f
+                ar0 = (e1 * f2 - e2 * f1)
+                ar1 = -sphi * e2 + (e2 * f0 - (sphi + e0) * f2)
+                ar2 = sphi * e1 + ((sphi + e0) * f1 - e1 * f0)
+                # plus the second derivatives: e_x phi'' + a_w dw'' + a_v dv''
+                ar0 += aphi + aw0 * adw + av0 * adv
+                ar1 += aw1 * adw + av1 * adv
+                ar2 += aw2 * adw + av2 * adv
+                # to base axes
+                awb0 = Rb[0, 1] * aw1 + Rb[0, 2] * aw2
+                awb1 = Rb[1, 1] * aw1 + Rb[1, 2] * aw2
+                awb2 = Rb[2, 1] * aw1 + Rb[2, 2] * aw2
+                avb0 = Rb[0, 0] * av0 + Rb[0, 1] * av1 + Rb[0, 2] * av2
+                avb1 = Rb[1, 0] * av0 + Rb[1, 1] * av1 + Rb[1, 2] * av2
+                avb2 = Rb[2, 0] * av0 + Rb[2, 1] * av1 + Rb[2, 2] * av2
+                wb0 = Rb[0, 0] * wr0 + Rb[0, 1] * wr1 + Rb[0, 2] * wr2
+                wb1 = Rb[1, 0] * wr0 + Rb[1, 1] * wr1 + Rb[1, 2] * wr2
+                wb2 = Rb[2, 0] * wr0 + Rb[2, 1] * wr1 + Rb[2, 2] * wr2
+                ab0 = Rb[0, 0] * ar0 + Rb[0, 1] * ar1 + Rb[0, 2] * ar2
+                ab1 = Rb[1, 0] * ar0 + Rb[1, 1] * ar1 + Rb[1, 2] * ar2
+                ab2 = Rb[2, 0] * ar0 + Rb[2, 1] * ar1 + Rb[2, 2] * ar2
+                x0 = Rb[0, 0] * xs0 + Rb[0, 1] * xs1 + Rb[0, 2] * xs2
+                x1 = Rb[1, 0] * xs0 + Rb[1, 1] * xs1 + Rb[1, 2] * xs2
+                x2 = Rb[2, 0] * xs0 + Rb[2, 1] * xs1 + Rb[2, 2] * xs2
+                wp0, wp1, wp2 = w[0] + wb0, w[1] + wb1, w[2] + wb2
+                lp0 = al[0] + (w[1] * wb2 - w[2] * wb1) + ab0
+                lp1 = al[1] + (w[2] * wb0 - w[0] * wb2) + ab1
+                lp2 = al[2] + (w[0] * wb1 - w[1] * wb0) + ab2
+                pj = pw[p]
+                xw = x0 * wp0 + x1 * wp1 + x2 * wp2
+                xl = x0 * lp0 + x1 * lp1 + x2 * lp2
+                # tau = pj (x (x . alpha) + (x . w) w x x)
+                tau[0] = pj * (x0 * xl + xw * (wp1 * x2 - wp2 * x1))
+                tau[1] = pj * (x1 * xl + xw * (wp2 * x0 - wp0 * x2))
+                tau[2] = pj * (x2 * xl + xw * (wp0 * x1 - wp1 * x0))
+                xv[0] = x0
+                xv[1] = x1
+                xv[2] = x2
+                for a in range(3):
+                    for b in range(3):
+                        G[4 + 3 * a + b] += pj * xv[a] * xv[b]
+                    G[16 + a] += tau[a]
+                Av = x0 * avb0 + x1 * avb1 + x2 * avb2
+                Aw = x0 * awb0 + x1 * awb1 + x2 * awb2
+                Ax = x0 * bx[0] + x1 * bx[1] + x2 * bx[2]
+                Tv = avb0 * tau[0] + avb1 * tau[1] + avb2 * tau[2]
+                Tw = awb0 * tau[0] + awb1 * tau[1] + awb2 * tau[2]
+                Tx = bx[0] * tau[0] + bx[1] * tau[1] + bx[2] * tau[2]
+                for j in range(nv):
+                    sown[j] = Av * dWv[p, j]
+                    sown[nv + j] = Aw * dWw[p, j]
+                    c[s0 + j] += Tv * dWv[p, j]
+                    c[s0 + nv + j] += Tw * dWw[p, j]
+                for j in range(nt):
+                    sown[n2 + j] = Ax * Pt[p, j]
+                    c[s0 + n2 + j] += Tx * Pt[p, j]
+                nown = n2 + nt
+                for j in range(nown if want_m else 0):
+                    sj = pj * sown[j]
+                    C6[3, s0 + j] += sj * x0
+                    C6[4, s0 + j] += sj * x1
+                    C6[5, s0 + j] += sj * x2
+                    for jj in range(j, nown):
+                        M[s0 + j, s0 + jj] += sj * sown[jj]
+        _flush(G, C6, s0, s1, Jo, Jw, ncols, M, c, X6, want_m)
+        # tip frame (seed 000 Eq. 19)
+        L = length[i]
+        tv, tw, tdv, tdw = fv[nv - 2], fw[nv - 2], fv[nv - 1], fw[nv - 1]
+        sv, sw, sdv, sdw = gv[nv - 2], gw[nv - 2], gv[nv - 1], gw[nv - 1]
+        av_, aw_, adv, adw = hv[nv - 2], hw[nv - 2], hv[nv - 1], hw[nv - 1]
+        phi = ft[nt - 2] if nt else 0.0
+        sphi = gt[nt - 2] if nt else 0.0
+        aphi = ht[nt - 2] if nt else 0.0
+        r = L * bx + tv * by + tw * bz
+        rd = by * sv + bz * sw
+        _cross(al, r, t1)
+        _cross(w, r, t2)
+        _cross(w, t2, t3)
+        _cross(w, rd, t4)
+        ao += t1 + t3 + 2.0 * t4 + av_ * by + aw_ * bz
+        for j in range(ncols):
+            Jo[0, j] += Jw[1, j] * r[2] - Jw[2, j] * r[1]
+            Jo[1, j] += Jw[2, j] * r[0] - Jw[0, j] * r[2]
+            Jo[2, j] += Jw[0, j] * r[1] - Jw[1, j] * r[0]
+        o += r
+        Rs, aw, av, wrel, arel = _section(phi, tdv, tdw, sphi, sdv, sdw)
+        awb = _mv(Rb, aw)
+        avb = _mv(Rb, av)
+        for a in range(3):
+            Jo[a, s0 + nv - 2] += by[a]
+            Jo[a, s0 + 2 * nv - 2] += bz[a]
+            Jw[a, s0 + nv - 1] += avb[a]
+            Jw[a, s0 + 2 * nv - 1] += awb[a]
+            if nt:
+                Jw[a, s0 + 2 * nv + nt - 2] += bx[a]
+        wb = _mv(Rb, wrel)
+        _cross(w, wb, tmp)
+        arel[0] += aphi
+        arel += aw * adw + av * adv
+        al += tmp + _mv(Rb, arel)
+        w += wb
+        R[:, :] = _mm(Rb, Rs)
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], s1, W)
+        G[:] = 0.0
+        _body_into(G, R, 0.0, 0.0, 0.0, ao, al, w, bm[i, 1], bc[i, 1], bI[i, 1], g, rv,
+                   acc, W)
+        if _nonzero(G):
+            _flush(G, C6, 0, 0, Jo, Jw, s1, M, c, X6, want_m)
+    for a in range(nq):
+        for b in range(a + 1, nq):
+            M[b, a] = M[a, b]
+    return M, c
+
+
+
+@njit(cache=_CACHE)
+def _chol_solve(Lc, r):
+    n = r.shape[0]
+    y = np.empty(n)
+    for i in range(n):
+        s = r[i]
+        for j in range(i):
+            s -= Lc[i, j] * y[j]
+        y[i] = s / Lc[i, i]
+    x = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        s = y[i]
+        for j in range(i + 1, n):
+            s -= Lc[j, i] * x[j]
+        x[i] = s / Lc[i, i]
+    return x
+
+
+@njit(cache=_CACHE)
+def galpha_loop(Pm, K, D, H, effort, q0, v0, h, tau, rho_inf, tol, max_iter):
+    """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
+    integrate.simulate_fixed: Newton on the accelerations with M + beta' h^2 K + gamma' h D
+    frozen per step (M from the first iterate), the residual by the O(n) inverse dynamics
+    of spatial_eval. ``tau`` (n_steps, n_joints): joint torques/forces held over step n
+    (applied at t_{n+1}), clipped to +-``effort``; generalized force H tau. Returns
+    (q, v) at every step (n_steps + 1, nq) and the Newton iteration count (-1 - n: no
+    convergence at step n)."""
+    nq = q0.shape[0]
+    n_steps = tau.shape[0]
+    am = (2 * rho_inf - 1) / (rho_inf + 1)
+    af = rho_inf / (rho_inf + 1)
+    gam = 0.5 + af - am
+    beta = 0.25 * (gam + 0.5) ** 2
+    cq = h * h * beta * (1 - af) / (1 - am)
+    cv = h * gam * (1 - af) / (1 - am)
+    has_d = np.any(D != 0.0)
+    qs = np.empty((n_steps + 1, nq))
+    vs = np.empty((n_steps + 1, nq))
+    q = q0.copy()
+    v = v0.copy()
+    qs[0] = q
+    vs[0] = v
+    u0 = np.minimum(np.maximum(tau[0], -effort), effort)
+    M, c = spatial_terms(Pm, q, v)
+    a = np.linalg.solve(M, _matvec(H, u0) - c - _matvec(K, q) - _matvec(D, v))
+    abar = a.copy()
+    iters = 0
+    for n in range(n_steps):
+        u = np.minimum(np.maximum(tau[n], -effort), effort)
+        Q = _matvec(H, u)
+        a1 = a.copy()
+        Lc = np.zeros((nq, nq))
+        ok = False
+        for it in range(max_iter):
+            ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
+            q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
+            v1 = v + h * ((1 - gam) * abar + gam * ab1)
+            # residual M a + c + K q + D v - Q by inverse dynamics; M only once a step
+            M1, f1 = spatial_eval(Pm, q1, v1, a1, it == 0)
+            r = f1 + _matvec(K, q1) - Q
+            if has_d:
+                r += _matvec(D, v1)
+            if it == 0:
+                Lc = np.linalg.cholesky(M1 + cq * K + cv * D)
+            da = _chol_solve(Lc, r)
+            a1 -= da
+            iters += 1
+            if np.max(np.abs(da)) <= tol * max(1.0, np.max(np.abs(a1))):
+                ok = True
+                break
+        if not ok:
+            return qs[:n + 1], vs[:n + 1], -1 - n
+        ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
+        q = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
+        v = v + h * ((1 - gam) * abar + gam * ab1)
+        a = a1
+        abar = ab1
+        qs[n + 1] = q
+        vs[n + 1] = v
+    return qs, vs, iters
+
+
+class CompiledSpatialModel:
+    """The compiled kernels of a SpatialArmModel: ``terms(q, v)`` -> (M, c)."""
+
+    def __init__(self, model: SpatialArmModel):
+        self.model = model
+        self.data = pack(model)
+
+    def terms(self, q, v):
+        return spatial_terms(self.data, np.ascontiguousarray(q, dtype=float),
+                             np.ascontiguousarray(v, dtype=float))
+
+    def mass_matrix(self, q):
+        return self.terms(q, np.zeros(self.model.nq))[0]
+
+    def bias(self, q, v):
+        return self.terms(q, v)[1]
+
+    def gravity_force(self, q):
+        return self.terms(q, np.zeros(self.model.nq))[1]

@@ -1,0 +1,366 @@
+"""A spatial arm from a URDF (``robot_description``) and a side YAML marking flexible links.
+
+Only the standard library XML parser (xml.etree.ElementTree) is used. The URDF must be a
+serial chain (each link has at most one child joint). Mapping:
+
+- ``revolute`` / ``continuous`` / ``prismatic`` joints become spatial joints with their
+  ``<origin xyz rpy>`` (fixed transform before the joint motion; rpy = URDF fixed-axis
+  roll-pitch-yaw, R = Rz(y) Ry(p) Rx(r)) and their ``<axis>`` (any unit direction, URDF
+  default 1 0 0); ``<limit lower upper effort velocity>`` are kept on the joint
+  (``continuous``: no position limits; absent values are infinite). Limits are honoured by
+  :func:`flex_model.spatial.limits.clip_efforts` (the compiled fixed-step loop clips the
+  joint torques to the effort limits) and reported by ``limit_violations``; position
+  limits are *not* enforced as stops (no contact model on spatial joints yet).
+- ``fixed`` joints are merged: their origin composes into the next moving joint's origin
+  (or, after the last moving joint, into the last link's ``end_transform``, e.g. the tool
+  frame), and the child link's inertial is lumped into the moving link it hangs on.
+- A rigid link keeps its ``<inertial>`` (mass, origin, 3 x 3 inertia rotated by the origin
+  rpy) as a rigid body in the link frame. The root link (no parent) is the fixed base: its
+  inertial is ignored.
+- A link named under ``flexible_links`` in the side YAML becomes a flexible beam along
+  **the link frame's x axis** from the link origin (placement ``link_x``): bending v
+  along y (``EI_z``), w along z (``EI_y``), twist about x (``GJ``, ``rhoJ``), the wavelet
+  basis of thesis Ch. II. Its length defaults to the x coordinate of the next joint's
+  origin. Everything beyond (child joint origins, merged fixed links) is fixed to the tip
+  section: the link's end frame is the tip frame E (seed 000 Eq. 19: at (L, v, w), rotated
+  by Rx(phi) Ry(-w') Rz(v')) and the URDF's transforms from the link frame are applied
+  after Trans_x(-L) (the rigid limit is the URDF's kinematics). ``end_body`` of the side
+  YAML is in the tip frame. The URDF
+  ``<inertial>`` of a flexible link is **ignored** (the section's rhoA gives the beam's
+  mass; ``root_body`` / ``end_body`` in the side YAML add motors, flanges).
+
+Side YAML (a spatial preset with a ``urdf`` key; paths relative to the YAML)::
+
+    name: ur5_like_flexible_forearm
+    urdf: ur5_like.urdf
+    gravity: [0, 0, -9.81]
+    flexible_links:
+      forearm_link:
+        length: 0.39225          # optional (default: x of the next joint origin)
+        section: {EI_y: 1.8e4, EI_z: 1.8e4, GJ: 1.3e4, rhoA: 1.53, rhoJ: 1.4e-3}
+        variables: 4             # per bending plane; torsion_variables as in YAML arms
+        root_body: {mass: 1.0}
+        end_body: {mass: 0.5}
+"""
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from ..config import ConfigError, Fields
+from .description import (SECTION_FIELDS, FlexibleBeam, RigidBody, SpatialArm, SpatialJoint,
+                          SpatialLink, _body, _pair, explicit_profile)
+from .kinematics import rpy_matrix
+
+MOVING = ("revolute", "continuous", "prismatic")
+JOINT_KINDS = MOVING + ("fixed",)
+
+
+class _Urdf:
+    """Error helper: every error names the file and the element (tag and name)."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def error(self, elem_path: str, value, allowed: str) -> ConfigError:
+        return ConfigError(self.source, elem_path, value, allowed)
+
+    def floats(self, el, attr: str, n: int, default, where: str):
+        raw = el.get(attr) if el is not None else None
+        if raw is None:
+            return np.array(default, float)
+        try:
+            vals = np.array([float(x) for x in raw.split()], float)
+        except ValueError:
+            raise self.error(f"{where}/@{attr}", raw, f"{n} numbers") from None
+        if len(vals) != n or not np.all(np.isfinite(vals)):
+            raise self.error(f"{where}/@{attr}", raw, f"{n} finite numbers")
+        return vals
+
+    def number(self, el, attr: str, where: str, default=None, nonnegative=False):
+        raw = el.get(attr)
+        if raw is None:
+            if default is None:
+                raise self.error(f"{where}/@{attr}", None, "a number")
+            return default
+        try:
+            val = float(raw)
+        except ValueError:
+            raise self.error(f"{where}/@{attr}", raw, "a number") from None
+        if not np.isfinite(val) or (nonnegative and val < 0):
+            raise self.error(f"{where}/@{attr}", raw,
+                             "a finite number" + (" >= 0" if nonnegative else ""))
+        return val
+
+    def origin(self, parent, where: str):
+        el = parent.find("origin")
+        xyz = self.floats(el, "xyz", 3, [0.0, 0.0, 0.0], f"{where}/origin")
+        rpy = self.floats(el, "rpy", 3, [0.0, 0.0, 0.0], f"{where}/origin")
+        return rpy_matrix(rpy), xyz
+
+
+def _compose(A, B):
+    return A[0] @ B[0], A[0] @ B[1] + A[1]
+
+
+def _inverse(A):
+    return A[0].T, -A[0].T @ A[1]
+
+
+def _lump(bodies) -> RigidBody:
+    """One rigid body equal to point bodies (m, c, I_c) given in one frame (parallel axes)."""
+    m = sum(b[0] for b in bodies)
+    if m <= 0.0:
+        I = sum((b[2] for b in bodies), np.zeros((3, 3)))
+        return RigidBody(inertia=tuple(map(tuple, I)))
+    c = sum(b[0] * b[1] for b in bodies) / m
+    I = np.zeros((3, 3))
+    for mb, cb, Ib in bodies:
+        d = cb - c
+        I += Ib + mb * (d @ d * np.eye(3) - np.outer(d, d))
+    return RigidBody(mass=float(m), offset=tuple(c), inertia=tuple(map(tuple, 0.5 * (I + I.T))))
+
+
+def _inertial(u: _Urdf, link, where: str):
+    """(m, c, I_c) of a URDF link's <inertial> in the link frame, or None."""
+    el = link.find("inertial")
+    if el is None:
+        return None
+    R, c = u.origin(el, f"{where}/inertial")
+    mel = el.find("mass")
+    m = 0.0 if mel is None else u.number(mel, "value", f"{where}/inertial/mass",
+                                         nonnegative=True)
+    iel = el.find("inertia")
+    I = np.zeros((3, 3))
+    if iel is not None:
+        w = f"{where}/inertial/inertia"
+        ixx, iyy, izz = (u.number(iel, a, w, 0.0) for a in ("ixx", "iyy", "izz"))
+        ixy, ixz, iyz = (u.number(iel, a, w, 0.0) for a in ("ixy", "ixz", "iyz"))
+        I = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        if np.min(np.linalg.eigvalsh(I)) < -1e-12 * max(1e-30, np.max(np.abs(I))):
+            raise u.error(w, [ixx, iyy, izz, ixy, ixz, iyz],
+                          "a positive semi-definite inertia (kg m^2)")
+    return m, c, R @ I @ R.T
+
+
+def _flexible(f: Fields, default_length, link_name: str, u: _Urdf):
+    if f.has("length"):
+        length = f.number("length", positive=True, unit="m")
+    else:
+        if default_length is None or default_length <= 0:
+            raise ConfigError(f.source, f.path + ".length", default_length,
+                              f"a beam length > 0 (m): link '{link_name}' has no child joint "
+                              "whose origin x gives it")
+        length = float(default_length)
+    sec = f.mapping("section")
+    vals = {k: _pair(sec, k, unit, nonnegative=(k == "rhoJ")) for k, unit in SECTION_FIELDS
+            if k != "rhoJ" or sec.has(k)}
+    vals.setdefault("rhoJ", (0.0, 0.0))
+    sec.done([k for k, _ in SECTION_FIELDS])
+    nv = f.integer("variables", 4, min_value=2, max_value=200, even=True)
+    nt = f.integer("torsion_variables", nv, min_value=0, max_value=200, even=True)
+    if nt and max(vals["rhoJ"]) <= 0:
+        raise sec.error("rhoJ", 0.0, "a polar mass moment per length > 0 (kg m) when the "
+                        "link twists (torsion_variables > 0)")
+    root = _body(f.mapping("root_body")) if f.has("root_body") else RigidBody()
+    end = _body(f.mapping("end_body")) if f.has("end_body") else RigidBody()
+    f.done(["length", "section", "variables", "torsion_variables", "root_body", "end_body"])
+    beam = FlexibleBeam(length=length,
+                        bend_v=explicit_profile(length, vals["EI_z"], vals["rhoA"]),
+                        bend_w=explicit_profile(length, vals["EI_y"], vals["rhoA"]),
+                        torsion=explicit_profile(length, vals["GJ"], vals["rhoJ"]),
+                        variables=nv, torsion_variables=nt, placement="link_x")
+    return beam, root, end
+
+
+def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
+                          flexible_links: dict | None = None, name: str | None = None,
+                          gravity=(0.0, 0.0, -9.81), side_source: str | None = None,
+                          description: str = "") -> SpatialArm:
+    """A SpatialArm from URDF text (``robot_description``); ``flexible_links`` maps link
+    names to their flexible data (the side YAML's ``flexible_links``)."""
+    u = _Urdf(source)
+    try:
+        robot = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise u.error("xml", str(exc), "well-formed URDF XML") from None
+    if robot.tag != "robot":
+        raise u.error("/", f"<{robot.tag}>", "a <robot> root element")
+    links = {}
+    for el in robot.findall("link"):
+        nm = el.get("name")
+        if not nm:
+            raise u.error("robot/link", None, "a link with a name attribute")
+        if nm in links:
+            raise u.error(f"robot/link[@name='{nm}']", nm, "unique link names")
+        links[nm] = el
+    joints, child_of = [], {}
+    for el in robot.findall("joint"):
+        nm = el.get("name")
+        where = f"robot/joint[@name='{nm}']"
+        if not nm:
+            raise u.error("robot/joint", None, "a joint with a name attribute")
+        kind = el.get("type")
+        if kind not in JOINT_KINDS:
+            raise u.error(f"{where}/@type", kind, " | ".join(JOINT_KINDS) +
+                          " (the spatial core has no floating or planar joints)")
+        parent, child = el.find("parent"), el.find("child")
+        pl = parent.get("link") if parent is not None else None
+        cl = child.get("link") if child is not None else None
+        for tag, ln in (("parent", pl), ("child", cl)):
+            if ln not in links:
+                raise u.error(f"{where}/{tag}/@link", ln,
+                              "the name of a <link> of this robot: " + ", ".join(links))
+        if cl in child_of:
+            raise u.error(f"{where}/child/@link", cl, "a link that is the child of one joint")
+        child_of[cl] = el
+        joints.append(el)
+    roots = [ln for ln in links if ln not in child_of]
+    if len(roots) != 1:
+        raise u.error("robot", roots, "exactly one root link (a connected serial chain)")
+    children = {}
+    for el in joints:
+        pl = el.find("parent").get("link")
+        if pl in children:
+            raise u.error(f"robot/joint[@name='{el.get('name')}']/parent/@link", pl,
+                          f"a serial chain: link '{pl}' already has the child joint "
+                          f"'{children[pl].get('name')}'")
+        children[pl] = el
+    flex = dict(flexible_links or {})
+    side = side_source or source
+    for ln in flex:
+        if ln not in links:
+            raise ConfigError(side, f"flexible_links.{ln}", ln,
+                              "the name of a <link> of the URDF: " + ", ".join(links))
+
+    eye = (np.eye(3), np.zeros(3))
+    acc = eye                 # fixed transform from the current moving link's end frame
+    out = []                  # per moving link: dict of its data
+    link = roots[0]
+    while link in children:
+        el = children[link]
+        jn, kind = el.get("name"), el.get("type")
+        where = f"robot/joint[@name='{jn}']"
+        origin = u.origin(el, where)
+        child = el.find("child").get("link")
+        cwhere = f"robot/link[@name='{child}']"
+        if kind == "fixed":
+            acc = _compose(acc, origin)
+            if out:
+                inert = _inertial(u, links[child], cwhere)
+                if inert is not None:
+                    m, c, I = inert
+                    out[-1]["bodies"].append((m, acc[0] @ c + acc[1], acc[0] @ I @ acc[0].T))
+            if child in flex:
+                raise ConfigError(side, f"flexible_links.{child}", child,
+                                  "a link moved by a revolute, continuous or prismatic joint "
+                                  f"(it hangs on the fixed joint '{jn}')")
+            link = child
+            continue
+        if out and out[-1]["flex"] is not None and out[-1]["default_length"] is None:
+            out[-1]["default_length"] = float((_compose(acc, origin))[1][0])
+        axis = u.floats(el.find("axis"), "xyz", 3, [1.0, 0.0, 0.0], f"{where}/axis")
+        nrm = float(np.linalg.norm(axis))
+        if nrm < 1e-12:
+            raise u.error(f"{where}/axis/@xyz", el.find("axis").get("xyz"), "a non-zero axis")
+        lim = el.find("limit")
+        lower, upper, effort, velocity = -np.inf, np.inf, np.inf, np.inf
+        if lim is not None:
+            lw = f"{where}/limit"
+            effort = u.number(lim, "effort", lw, np.inf, nonnegative=True)
+            velocity = u.number(lim, "velocity", lw, np.inf, nonnegative=True)
+            if kind != "continuous":
+                lower = u.number(lim, "lower", lw, -np.inf)
+                upper = u.number(lim, "upper", lw, np.inf)
+                if lower > upper:
+                    raise u.error(f"{lw}/@lower", lower, f"lower <= upper ({upper})")
+        joint = SpatialJoint(name=jn, type="prismatic" if kind == "prismatic" else "revolute",
+                             axis=tuple(axis / nrm), lower=lower, upper=upper, effort=effort,
+                             velocity=velocity)
+        origin = _compose(acc, origin)
+        acc = eye
+        bodies = []
+        if child not in flex:
+            inert = _inertial(u, links[child], cwhere)
+            if inert is not None:
+                bodies.append(inert)
+        out.append({"name": child, "joint": joint, "origin": origin, "bodies": bodies,
+                    "flex": flex.get(child), "default_length": None})
+        link = child
+    if not out:
+        raise u.error("robot", [j.get("name") for j in joints],
+                      "at least one revolute, continuous or prismatic joint")
+    end_last = None if np.allclose(acc[0], np.eye(3), atol=0) and not np.any(acc[1]) else acc
+
+    result = []
+    shift_next = None         # Trans_x(-L) of a flexible link, moved into the next origin
+    for i, d in enumerate(out):
+        end_tf = end_last if i == len(out) - 1 else None
+        origin = d["origin"] if shift_next is None else _compose(shift_next, d["origin"])
+        shift_next = None
+        if d["flex"] is not None:
+            f = Fields(d["flex"], side, f"flexible_links.{d['name']}")
+            dl = d["default_length"]
+            if dl is None and end_tf is not None:
+                dl = float(end_tf[1][0])
+            beam, root, end = _flexible(f, dl, d["name"], u)
+            # the end frame of a link_x beam is its tip section frame; what the URDF places
+            # in the link frame is moved by Trans_x(-L)
+            shift = (np.eye(3), np.array([-beam.length, 0.0, 0.0]))
+            d["bodies"] = [(m, c + shift[1], I) for m, c, I in d["bodies"]]
+            if i == len(out) - 1:
+                end_tf = _compose(shift, end_tf if end_tf is not None else eye)
+            else:
+                shift_next = shift
+        to_end = eye if end_tf is None else _inverse(end_tf)
+        if d["flex"] is None:
+            beam, root, end = None, RigidBody(), RigidBody()
+        if d["flex"] is not None:
+            parts = [(end.mass, to_end[0] @ np.asarray(end.offset, float) + to_end[1],
+                      to_end[0] @ np.asarray(end.inertia, float) @ to_end[0].T)] \
+                if not end.is_empty else []
+            # end_body of the side file is given in the tip section frame
+            parts += [(m, to_end[0] @ c + to_end[1], to_end[0] @ I @ to_end[0].T)
+                      for m, c, I in d["bodies"]]
+            end = _lump(parts) if parts else RigidBody()
+        else:
+            if d["bodies"]:
+                root = _lump(d["bodies"])
+        tf = None if end_tf is None else (tuple(map(tuple, end_tf[0])), tuple(end_tf[1]))
+        result.append(SpatialLink(
+            name=d["name"], joint=d["joint"], flexible=beam, root_body=root, end_body=end,
+            origin=(tuple(map(tuple, origin[0])), tuple(origin[1])),
+            end_transform=tf))
+    return SpatialArm(name=name or robot.get("name", "urdf_arm"), links=tuple(result),
+                      gravity=tuple(float(g) for g in gravity), description=description,
+                      source=source, convention="urdf")
+
+
+def spatial_arm_from_side_file(data: dict, source: str) -> SpatialArm:
+    """A spatial preset with a ``urdf`` key: the URDF path (relative to the YAML) and the
+    flexible links (see the module docstring)."""
+    f = Fields(data, source, "")
+    name = f.string("name")
+    description = f.string("description", "")
+    rel = f.string("urdf")
+    gravity = tuple(f.vector("gravity", 3, [0.0, 0.0, -9.81], unit="m/s^2"))
+    flex = f.raw("flexible_links", {}) or {}
+    if not isinstance(flex, dict) or not all(isinstance(v, dict) for v in flex.values()):
+        raise f.error("flexible_links", flex, "a mapping: link name -> flexible data")
+    f.done(["name", "description", "urdf", "gravity", "flexible_links", "convention"])
+    path = Path(rel)
+    if not path.is_absolute():
+        path = Path(source).resolve().parent / path
+    if not path.is_file():
+        raise f.error("urdf", rel, f"an existing URDF file (looked for {path})")
+    return spatial_arm_from_urdf(path.read_text(), str(path), flexible_links=flex, name=name,
+                                 gravity=gravity, side_source=source, description=description)
+
+
+def load_urdf_arm(urdf_path, flexible_links: dict | None = None, **kw) -> SpatialArm:
+    """Read a URDF file (and the flexible links' data) into a SpatialArm."""
+    path = Path(urdf_path)
+    return spatial_arm_from_urdf(path.read_text(), str(path), flexible_links=flexible_links,
+                                 **kw)
