@@ -57,7 +57,7 @@ class TipStateFeedback:
         i = model.tip_deflection_index(0)
 
         def policy(t, x):
-            q, v = x[:nq], x[nq:]
+            q, v = x[:nq], x[nq:2 * nq]   # a stick-slip joint appends bristle states
             return [self.voltage(t, g @ q, g @ v, q[i], v[i])]
 
         return policy

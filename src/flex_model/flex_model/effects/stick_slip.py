@@ -90,7 +90,8 @@ class StickSlipFriction(Effect):
     )
     EQUIVALENT = ("joint_friction",
                   "viscous friction and DC-motor back-EMF damping (sliding)")
-    LIBRARY = False  # not a diagnosis hypothesis yet: its replay carries no bristle state
+    LIBRARY = True   # a diagnosis hypothesis (flex_twin.diagnosis.hypotheses): the
+    # replay carries the bristle states in x = [q; v; z]
 
     @property
     def is_off(self) -> bool:

@@ -200,7 +200,8 @@ class ControllerDescription:
 
         def law(t, x):
             k = max(0, int(np.searchsorted(t_ref, t + 1e-9, side="right")) - 1)
-            return (ff[k] + self.gains @ (r[k] - C @ x[:nq]) - self.rate_gains @ (C @ x[nq:]))
+            return (ff[k] + self.gains @ (r[k] - C @ x[:nq])
+                    - self.rate_gains @ (C @ x[nq:2 * nq]))   # x = [q; v; bristles z]
         return law
 
     def simulate_inputs(self, model, t_ref, qset, ff=None) -> dict:

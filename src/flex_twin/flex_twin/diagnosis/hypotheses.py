@@ -12,6 +12,11 @@ hypothesis           free parameters                           fixed
 ==================== ========================================= ===========================
 joint_friction       viscous, coulomb, static - coulomb        Stribeck velocity 0.05 rad/s,
                                                                regularization 1e-3 rad/s
+stick_slip_friction  viscous, coulomb, static - coulomb        Stribeck velocity 0.05 rad/s,
+                                                               pre-sliding F_s / sigma_0
+                                                               1 mrad, elastic fraction 0.5,
+                                                               bristle damping
+                                                               2 sqrt(sigma_0 J_j)
 gear                 rotor_inertia (ratio of the nominal, or 1)
 joint_elasticity     stiffness (fitted as a compliance),       motor_inertia: the gear's
                      damping                                   n^2 J_r (moved there)
@@ -28,6 +33,14 @@ sensor_bias          bias of the joint encoder (seen by the controller too)
 sensor_delay         delay of the joint encoder and rate (whole control periods)
 stiffness            relative change of a link's E beyond its tolerance
 ==================== ========================================= ===========================
+
+``stick_slip_friction`` (elasto-plastic, Dupont et al. 2002) is in the class of
+``joint_friction``: in sliding the two are one law (the same three levels), they differ
+near rest, where the tanh-regularized law creeps at eps atanh(tau / F_s) and cannot keep
+the place where a joint stuck, the elasto-plastic one holds it within its pre-sliding
+displacement. The fit names the one that explains more. The pre-sliding displacement is
+fixed (a joint encoder rarely resolves it); the bristle damping is critical for the
+apparent inertia J_j of the joint (everything else free) at the recording's first pose.
 
 The two delays are not screened under a continuous law (the replay cannot delay it).
 Left out: ``dc_motor`` under a torque command (its parameters act only on a voltage
@@ -48,6 +61,10 @@ FRICTION_EPS = 1e-3
 STRIBECK_VELOCITY = 0.05
 MOTOR_INERTIA = 1e-3
 BACKLASH_SMOOTHING = 1e-4
+#: stick_slip_friction: the pre-sliding displacement F_s / sigma_0 (rad) and the elastic
+#: (drift-free) share of it (Dupont's z_ba sigma_0 / F_c)
+PRESLIDING = 1e-3
+ELASTIC_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -67,6 +84,7 @@ class Hypothesis:
     inverse: tuple = ()   # per parameter: value = scale / x (a compliance; x = 0: rigid)
     fit_from_probe: bool = True   # the fit starts at the best probe, then the starts
     off_at: tuple = ()    # x of the "off" value when it is not 0 (see :meth:`off`)
+    fixed: tuple = ()     # fixed values the effect needs (stick-slip: the joint inertia)
 
     @property
     def label(self) -> str:
@@ -110,6 +128,9 @@ class Hypothesis:
         if self.kind == "joint_friction":
             return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
                 [w[0], w[1], float(np.hypot(w[1], w[2]))]
+        if self.kind == "stick_slip_friction":
+            return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
+                [w[0], w[1], float(np.hypot(w[1], w[2]))]
         if self.kind == "stiffness":
             seg = next(lk for lk in twin.links if lk.name == self.target).segments[0]
             if seg.shape == "explicit":  # no Young's modulus: the link's E I at its root
@@ -140,6 +161,8 @@ class Hypothesis:
         if k == "joint_friction":
             eff = (E[k](self.target, (v[0], v[1], v[1] + v[2], STRIBECK_VELOCITY,
                                       FRICTION_EPS)),)
+        elif k == "stick_slip_friction":
+            eff = (E[k](self.target, stick_slip_values(v, self.fixed[0])),)
         elif k == "gear":
             old = arm.effect("gear", self.target)
             ratio = old["ratio"] if old else 1.0
@@ -246,13 +269,34 @@ class HypothesisPair:
         return b.apply(a.apply(arm, xa)[0], xb)
 
 
+def stick_slip_values(v, inertia) -> tuple:
+    """The stick_slip_friction parameters (flex_model.effects.stick_slip) of the
+    hypothesis' values (viscous, coulomb, static excess) on a joint of apparent inertia
+    ``inertia``: Stribeck velocity :data:`STRIBECK_VELOCITY`, pre-sliding displacement
+    F_s / sigma_0 = :data:`PRESLIDING`, critically damped bristles."""
+    fv, fc, fs = v[0], v[1], v[1] + v[2]
+    fc = max(fc, 1e-3 * fs)   # a break-away needs a sliding level > 0 (the effect's check)
+    sigma0 = min(max(fs / PRESLIDING, 1e-3), 1e12)
+    return (fv, fc, fs, STRIBECK_VELOCITY, sigma0, 2.0 * np.sqrt(sigma0 * inertia),
+            ELASTIC_FRACTION)
+
+
+def joint_inertias(arm, theta) -> np.ndarray:
+    """Apparent inertia of every joint at the joint angles ``theta`` with everything else
+    free, 1 / (G B^-1 G^T)_jj (kg m^2): what a stiff bristle spring at the joint moves."""
+    from flex_model.dynamics import FlexArmModel
+    m = FlexArmModel(arm)
+    B = m.mass_matrix(m.q_from_joint_angles(np.asarray(theta, float)))
+    return 1.0 / np.einsum("ij,ji->i", m.Ga, np.linalg.solve(B, m.Ga.T))
+
+
 def parts_of(hyp, x) -> list:
     """[(hypothesis, x), ...] of a hypothesis or a pair."""
     return hyp.parts(x) if isinstance(hyp, HypothesisPair) else [(hyp, np.asarray(x, float))]
 
 
 def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None,
-       discrete=False, linear=True, inverse=(), fit_from_probe=True, off_at=()):
+       discrete=False, linear=True, inverse=(), fit_from_probe=True, off_at=(), fixed=()):
     """A hypothesis; ``probe`` (one value per parameter) gives one probe per parameter
     from the off value, ``probes`` lists whole probe points."""
     if probes is None:
@@ -264,7 +308,7 @@ def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None
     return Hypothesis(kind, target, tuple(names), tuple(float(s) for s in scale),
                       tuple(lower), tuple(upper), tuple(tuple(s) for s in starts),
                       tuple(tuple(p) for p in probes), discrete, linear, tuple(inverse),
-                      fit_from_probe, tuple(off_at))
+                      fit_from_probe, tuple(off_at), tuple(fixed))
 
 
 def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> list[Hypothesis]:
@@ -275,6 +319,7 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
     taus = rec.stack("tau")
     rates = rec.stack("v")
     out = []
+    inertia = joint_inertias(arm, rec.stack("q")[0])
     for j, name in enumerate(arm.joint_names):
         tmax = max(float(np.max(np.abs(taus[:, j])) if twin_peaks is None
                          else twin_peaks[j]), 1e-3)
@@ -287,6 +332,12 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
             _h("joint_friction", name, ("viscous", "coulomb", "static_excess"),
                (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms), (0, 0, 0), (50, 20, 20),
                [(1.0, 1.0, 0.3)], (1.0, 1.0, 1.0)),
+            # sticking is not linear in the levels: screened by its probes' costs
+            _h("stick_slip_friction", name, ("viscous", "coulomb", "static_excess"),
+               (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms), (0, 0, 0), (50, 20, 20),
+               [(1.0, 1.0, 0.3), (0.3, 3.0, 1.0)],
+               probes=[(1.0, 1.0, 0.3), (0.3, 3.0, 1.0)], linear=False,
+               fixed=(float(inertia[j]),)),
             # a rotor lighter or heavier than the nominal one: probes on both sides
             _h("gear", name, ("rotor_inertia",),
                ((rotor["rotor_inertia"] if has_rotor else 0.1),),

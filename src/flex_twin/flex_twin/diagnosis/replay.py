@@ -11,7 +11,10 @@ the generalized-alpha integrator of :mod:`flex_model.integrators` between contro
 instants, so a 20 s run costs a fraction of a second. A control period whose Newton
 iterations stall (the rounded corners of a backlash or of friction crossed within one
 step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of
-measured torques through the rigid-body modes drifts and is not offered.
+measured torques through the rigid-body modes drifts and is not offered. Joints with
+``stick_slip_friction`` carry their bristle deflections z in the state, x = [q; v; z]
+(the integrator advances them, flex_model.effects.stick_slip); a replay starts with them
+unloaded.
 
 A continuous law (``timing: continuous``, :mod:`.controller`) is the compiled joint PD of
 :mod:`flex_model.integrators` (E[5], E[6]: its stiffness and damping are in the
@@ -48,7 +51,7 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
     out_stride steps, the commands at the n_periods + 1 instants (the last one at the
     final state) and a status (0 ok, 1 diverged, 2 Newton failed)."""
     nx = x0.shape[0]
-    n = nx // 2
+    n = E[0].shape[0]   # x = [q; v; z]: z the bristle deflections of stick-slip joints
     nj = Kp.shape[0]
     nc = C.shape[0]
     n_steps = n_periods * per_period
@@ -62,7 +65,7 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
     X[0] = x
     for k in range(n_periods + 1):
         Y[k] = C @ x[:n] + bias
-        YD[k] = C @ x[n:]
+        YD[k] = C @ x[n:2 * n]
         y = np.empty(nc)
         yd = np.empty(nc)
         for c in range(nc):
@@ -159,15 +162,17 @@ class Prediction:
 
 
 def initial_state(model: FlexArmModel, theta0, rates0=None) -> np.ndarray:
-    """[q; v]: joints at ``theta0`` with the links in static equilibrium under gravity
-    (joints clamped), moving with the joint rates ``rates0`` (undeformed velocity field)."""
+    """[q; v; z]: joints at ``theta0`` with the links in static equilibrium under gravity
+    (joints clamped), moving with the joint rates ``rates0`` (undeformed velocity field),
+    the bristles z of stick-slip joints unloaded (the friction then takes up the held
+    torque within the pre-sliding displacement, F_s / sigma_0)."""
     theta0 = np.asarray(theta0, float)
     try:
         q = static_equilibrium(model, theta0, joints="clamped").q
     except (StaticConvergenceError, np.linalg.LinAlgError):
         q = static_equilibrium(model, theta0, joints="clamped", linear=True).q
     v = model.v_from_joint_rates(np.zeros(model.n_links) if rates0 is None else rates0)
-    return np.concatenate([q, v])
+    return np.concatenate([q, v, np.zeros(model.n_bristles)])
 
 
 def measured_start(rec, window: float = 0.05):
@@ -193,7 +198,8 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
                          t_final: float, qset_at_instants, ff_at_instants, *,
                          sample_period: float, dt: float = DEFAULT_STEP, rho_inf: float = 0.9,
                          sensor_bias=None, sensor_delay=None):
-    """(X, CMD) every ``sample_period`` over [0, t_final]: the states of the arm under the
+    """(X, CMD) every ``sample_period`` over [0, t_final]: the states [q; v; z] of the arm
+    (z: bristle deflections of stick-slip joints, flex_model.effects.stick_slip) under the
     sampled law and the command issued at the latest control instant (a continuous law:
     its command at the sample).
 

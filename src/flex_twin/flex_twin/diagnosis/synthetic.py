@@ -92,7 +92,7 @@ CASE_KINDS = ("healthy",) + HIDDEN_KINDS + ("out_of_library:cogging",)
 #: the hidden kinds a diagnosis may name instead and still be "in the declared class"
 #: (flex_model.effects EQUIVALENT, in case-kind names)
 EQUIVALENT_KINDS = {
-    "joint_friction": ("joint_friction",),
+    "joint_friction": ("joint_friction", "stick_slip_friction"),
     "joint_elasticity": ("joint_elasticity", "backlash", "stiffness"),
     "backlash": ("backlash", "joint_elasticity"),
     "structural_damping": ("structural_damping",),

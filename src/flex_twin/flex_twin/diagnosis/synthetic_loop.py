@@ -80,7 +80,7 @@ def record(true_model: FlexArmModel, nominal: FlexArmModel, law: ControllerDescr
 
     def policy(time, x):
         k = int(round(time / h))
-        hist[k] = G @ x[:true_model.nq], G @ x[true_model.nq:]
+        hist[k] = G @ x[:true_model.nq], G @ x[true_model.nq:2 * true_model.nq]
         qm, vm = measured(k, hist[:, 0], hist[:, 1])
         cmd[k:k + step] = ff[k] + law.gains @ (qset[k] - qm) - law.rate_gains @ vm
         return cmd[k] + n_tau[k // step]
@@ -121,7 +121,8 @@ def _initial_state(model: FlexArmModel, law: ControllerDescription, ff0, theta_s
     G = model.Ga
 
     def hold(time, x):
-        return ff0 + law.gains @ (theta_set - G @ x[:nq] - bias) - law.rate_gains @ (G @ x[nq:])
+        return (ff0 + law.gains @ (theta_set - G @ x[:nq] - bias)
+                - law.rate_gains @ (G @ x[nq:2 * nq]))
 
     pre = simulate(model, q0, t_final=settle, sample_period=law.period, policy=hold,
                    control_period=law.period, method="fixed")

@@ -17,7 +17,8 @@ def _policy_factory():
     except ModuleNotFoundError:
         raise ValueError("closed-loop replay needs flex_control (the lab's state feedback); "
                          "install it or use --mode open") from None
-    return lab_policy_factory
+    from .stick_slip_study import mechanical_policy
+    return mechanical_policy(lab_policy_factory)   # twins with stick-slip: x = [q; v; z]
 
 
 def _progress(text: str) -> None:
@@ -107,6 +108,19 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_stick_slip(args) -> int:
+    from .quanser_twin import data_root
+    from .stick_slip_study import study, write_markdown
+    out = Path(args.out)
+    report = study(data_root(args.data), _policy_factory(), out, _progress)
+    write_markdown(report, out / "stick_slip.md")
+    if args.json:
+        print(json.dumps(report, indent=1, default=float))
+    else:
+        print((out / "stick_slip.md").read_text())
+    return 0
+
+
 def cmd_diagnose(args) -> int:
     """Export a lab run (and a held-out run with the same law) as diagnosis inputs into
     ``OUT/inputs`` and run ``flex-twin diagnose`` on them (report, diagnosed_arm.yaml)."""
@@ -135,10 +149,10 @@ def cmd_diagnose(args) -> int:
     (Path(args.out) / "inputs" / "runs.json").write_text(json.dumps(
         {"fit": fit["case"]["run"].name, "holdout": args.holdout and ho["case"]["run"].name}))
     _progress(f"inputs: {p['data']}, {p['controller']}, {p['arm']}")
-    ns = argparse.Namespace(data=str(p["data"]), arm=str(p["arm"]),
+    ns = argparse.Namespace(data=[str(p["data"])], arm=str(p["arm"]),
                             controller=str(p["controller"]), holdout=holdout, out=args.out,
-                            gate=None, segment=None, workers=args.workers,
-                            no_plots=args.no_plots, json=args.json)
+                            gate=None, segment=None, workers=args.workers, scheduler=None,
+                            no_floor=False, no_plots=args.no_plots, json=args.json)
     return engine_diagnose(ns)
 
 
@@ -186,6 +200,14 @@ def add_real_arm_parsers(sub) -> None:
                     "directories of real-arm diagnose to add to the report")
     rp.add_argument("--json", action="store_true")
     rp.set_defaults(func=cmd_report)
+    sp2 = rsub.add_parser("stick-slip", help="the calibrated twins with stick-slip friction "
+                          "(levels refitted on the fit runs) on every CU Boulder run, and "
+                          "the holds' evidence for stiction against backlash (minutes)")
+    sp2.add_argument("--data", default=None, help="folder of the real data (default "
+                     "../shared/data/real)")
+    sp2.add_argument("--out", default="runs/quanser-stick-slip", help="output directory")
+    sp2.add_argument("--json", action="store_true")
+    sp2.set_defaults(func=cmd_stick_slip)
     dp = rsub.add_parser("diagnose", help="flex-twin diagnose on a lab run against the "
                          "nominal (handout) twin: writes the inputs (CSV, controller and arm "
                          "YAML) and the diagnosis report (minutes)")
