@@ -13,9 +13,12 @@ import subprocess
 import sys
 import time
 import uuid
+from pathlib import Path as FilePath
 
+import numpy as np
 import pytest
 import rclpy
+import yaml
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.executors import SingleThreadedExecutor
@@ -358,3 +361,133 @@ def test_bad_parameter_process_exits_2_with_one_line(module, arg, text):
     assert proc.returncode == 2, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and text in lines[0], proc.stderr
+
+
+TWO_ARMS = FilePath(__file__).resolve().parents[1] / "docs" / "examples" / "two_arms.yaml"
+
+
+def test_two_arm_parameter_file_closes_both_loops():
+    """Issue 23: the two-arm parameter file of docs/ros.md (docs/examples/two_arms.yaml),
+    passed as rcl's --params-file, configures two lockstep twins in /robot1 and /robot2:
+    each controller holds its own model's start pose, runs on its own twin's clock
+    (/robotN/clock, simulation time: within one 2 ms period of its model's) and neither
+    twin publishes the global /clock."""
+    text = TWO_ARMS.read_text()
+    spec = yaml.safe_load(text)
+    page = (TWO_ARMS.parents[1] / "ros.md").read_text()
+    section = page[page.index("## Two arms side by side"):]
+    block = section[section.index("```yaml\n") + 8:]
+    assert block[:block.index("```")] == text  # docs/ros.md shows this very file
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, args=["--ros-args", "--params-file", str(TWO_ARMS)])
+    nodes, twins = [], {}
+    try:
+        for ns in ("/robot1", "/robot2"):
+            model = ModelNode(context=ctx, namespace=ns)
+            ctrl = ControllerNode(context=ctx, namespace=ns)
+            nodes += [model, ctrl]
+            want = spec[f"{ns}/flex_model"]["ros__parameters"]
+            assert model.p["initial_joint_angles_deg"] == want["initial_joint_angles_deg"]
+            assert model.frames.base == want["frame_prefix"] + "base_link"
+            assert model.pub_clock.topic_name == f"{ns}/clock"
+            assert ctrl.get_parameter("use_sim_time").value is True
+            assert "/clock" not in {s.topic_name for s in ctrl.subscriptions}
+            twins[ns] = (model, ctrl, np.radians(want["initial_joint_angles_deg"]))
+        ex = SingleThreadedExecutor(context=ctx)
+        for node in nodes:
+            ex.add_node(node)
+        end = time.monotonic() + 60.0
+        while not all(m.stepper.t >= 0.1 for m, _, _ in twins.values()):
+            assert time.monotonic() < end, "timed out waiting for both loops"
+            ex.spin_once(timeout_sec=0.01)
+        probe = nodes[0]
+        # no node of the two twins on the global /clock (other tests' nodes may be)
+        assert not [i for i in probe.get_publishers_info_by_topic("/clock")
+                    if i.node_namespace in twins]
+        for ns, (model, ctrl, angles) in twins.items():
+            assert probe.count_publishers(f"{ns}/clock") == 1
+            assert probe.count_publishers(f"{ns}/effort_controller/commands") == 1
+            np.testing.assert_allclose(ctrl.controller.reference.positions[0], angles,
+                                       atol=1e-3)
+            now = ctrl.get_clock().now().nanoseconds * 1e-9
+            assert abs(now - model.stepper.t) <= 2e-3 + 1e-9, (now, model.stepper.t)
+            np.testing.assert_allclose(ctrl.state[0], model.stepper.joint_state()[0],
+                                       atol=0.05)
+        ex.shutdown()
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_lockstep_stall_applies_the_command_timeout():
+    """Issue 23 (defect 10): the default command_timeout (0.5 s) with timeout_action zero;
+    in lockstep a step of the watchdog (no command for lockstep_timeout of wall time)
+    applies it at once, so a stalled loop no longer holds the last torque."""
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    node = None
+    try:
+        node = ModelNode(context=ctx, namespace=f"/c{uuid.uuid4().hex[:8]}",
+                         parameter_overrides=[Parameter("mode", value="lockstep"),
+                                              Parameter("lockstep_timeout", value=0.05)])
+        assert node.p["command_timeout"] == 0.5 and node.p["timeout_action"] == "zero"
+        node.on_command(Float64MultiArray(data=[3.0, -2.0]))
+        assert list(node.stepper.u) == [3.0, -2.0] and node.stepper.t == pytest.approx(1e-3)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        end = time.monotonic() + 20.0
+        while node.stepper.t < 2.5e-3:
+            assert time.monotonic() < end, "timed out waiting for the watchdog step"
+            ex.spin_once(timeout_sec=0.01)
+        assert list(node.stepper.u) == [0.0, 0.0]
+        node.on_command(Float64MultiArray(data=[1.0, 1.0]))  # commands resume
+        assert list(node.stepper.u) == [1.0, 1.0]
+        ex.shutdown()
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_planner_stamps_with_its_twins_simulation_clock():
+    """use_sim_time: the planner's nominal_path is stamped with the simulation time of the
+    clock named by clock_topic (here the namespace's clock, 12.5 s), not the wall clock."""
+    from rosgraph_msgs.msg import Clock
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    ns = f"/p{uuid.uuid4().hex[:8]}"
+    nodes = []
+    try:
+        plan = PlannerNode(context=ctx, namespace=ns, parameter_overrides=[
+            Parameter("sample_period", value=0.05), Parameter("use_sim_time", value=True),
+            Parameter("clock_topic", value="clock")])
+        probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=ctx, namespace=ns)
+        nodes += [plan, probe]
+        clock = probe.create_publisher(Clock, "clock", 10)
+        waypoints = probe.create_publisher(Path, "flex_planner/waypoints", RELIABLE)
+        paths = []
+        probe.create_subscription(Path, "flex_planner/nominal_path", paths.append, RELIABLE)
+        ex = SingleThreadedExecutor(context=ctx)
+        for node in nodes:
+            ex.add_node(node)
+        end = time.monotonic() + 60.0
+        while not (clock.get_subscription_count() and waypoints.get_subscription_count()):
+            assert time.monotonic() < end, "timed out waiting for discovery"
+            ex.spin_once(timeout_sec=0.01)
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = 12, 500_000_000
+        clock.publish(msg)
+        while plan.get_clock().now().nanoseconds != 12_500_000_000:
+            assert time.monotonic() < end, "timed out waiting for the clock"
+            ex.spin_once(timeout_sec=0.01)
+        waypoints.publish(path([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
+        while not paths:
+            assert time.monotonic() < end, "timed out waiting for the plan"
+            ex.spin_once(timeout_sec=0.01)
+        assert (paths[0].header.stamp.sec, paths[0].header.stamp.nanosec) == (12, 500_000_000)
+        ex.shutdown()
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=ctx)

@@ -13,8 +13,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.ros_main import (Param, ParameterError, ReasonLog, declare_parameters,
-                                 guard_parameters, lean_node, run_node)
+from flex_model.ros_main import (Param, ParameterError, ReasonLog, clock_topic_param,
+                                 declare_parameters, follow_clock, guard_parameters,
+                                 lean_node, run_node)
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
@@ -50,6 +51,7 @@ def parameter_specs() -> tuple:
                            item=float if isinstance(default, list) else None))
     specs += [Param(name, default, "false: see flex_model.ros_main.lean_node")
               for name, default in NODE_PARAMETERS]
+    specs.append(clock_topic_param("the timer and the trajectory time run on it"))
     return tuple(specs)
 
 
@@ -80,7 +82,10 @@ class ControllerNode(Node):
     the parameter, the value and what is allowed. Node parameters ``parameter_services``
     and ``qos_event_warnings`` (default true): false leaves out rclpy's parameter services
     (no run-time changes then), resp. its QoS-event handlers, for a faster lockstep loop
-    (flex_model.ros_main).
+    (flex_model.ros_main). With ``use_sim_time: true`` the timer, the state-age checks and
+    the trajectory time run on the simulation clock of ``clock_topic`` (default /clock; a
+    relative ``clock`` is the namespace's: one clock per lockstep twin,
+    flex_model.ros_main.follow_clock).
 
     Safety: until a trajectory arrives the controller holds the first measured pose; joint
     states older than ``state_timeout`` (by arrival time) give zero torques (or the last
@@ -95,6 +100,7 @@ class ControllerNode(Node):
         self.specs = parameter_specs()
         values = declare_parameters(self, self.specs)
         lean = [values.pop(name) for name, _ in NODE_PARAMETERS]
+        clock_topic = values.pop("clock_topic")
         names = tuple(values["joint_names"])
         if not names:  # checked with stand-in joints now, with the model's when they come
             k = max(len(values[f]) for f in ("h", "a", "torque_limits"))
@@ -127,6 +133,7 @@ class ControllerNode(Node):
             self.create_subscription(JointState, "flex/deflections", self.on_deflections,
                                      qos_profile_sensor_data)
         guard_parameters(self, self.specs, self.apply_parameters)
+        follow_clock(self, clock_topic)
         self.timer = self.create_timer(1.0 / self.params.rate_hz, self.on_timer)
         lean_node(self, *lean)
         joints = list(names) if names else "the joints of joint_states"
@@ -315,7 +322,7 @@ class ControllerNode(Node):
         """Run-time gains, limits, timeouts (checked types): validated by building the
         controller before it is swapped in (raises ValueError with the reason)."""
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()
-                  if k not in dict(NODE_PARAMETERS)}
+                  if k not in dict(NODE_PARAMETERS) and k != "clock_topic"}
         params = replace(self.params, **values)
         try:
             controller = build_controller(params, reference=self.controller.reference)

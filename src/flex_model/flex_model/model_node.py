@@ -1,16 +1,25 @@
 """ModelNode: the flexible arm as a ROS 2 node (a thin adapter around flex_model.stepper).
 
 Topic names are relative, so a namespace (``--ros-args -r __ns:=/robot1``) moves the whole
-model-controller loop; in the root namespace they are the absolute names below. /clock and
-/diagnostics stay global (ROS tools expect them there; remap /clock for two lockstep twins).
+model-controller loop; in the root namespace they are the absolute names below.
+/diagnostics, /tf and /tf_static stay global (ROS tools expect them there; frame_prefix
+keeps two TF trees apart); the clock is ``clock_topic`` (default /clock; ``clock`` puts it
+in the namespace, for two lockstep twins).
 
-Publications (simulation time in every header):
+Publications (simulation time in every header; frames: flex_model.urdf, REP 103 z up):
     joint_states        sensor_msgs/JointState   joint angles (encoder), rates, applied torques
     flex/deflections    sensor_msgs/JointState   link<i>/tip_deflection (m), tip_rotation (rad)
-    flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``frame_id``
-    flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords
-    flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor
-    /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock)
+    flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``arm_plane`` (the
+                        model's plane coordinates)
+    flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords, in
+                        ``frame_id`` (the base, z up)
+    flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor,
+                        in the last link's tip frame
+    robot_description   std_msgs/String          the URDF (transient local, depth 1)
+    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips; base ->
+                        arm_plane (only where tf2_msgs can be imported: not in the pip venv)
+    /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
+                        ``clock_topic``
     /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a divergence (every
                         second until ~/reset), OK after the reset
 Subscriptions:
@@ -26,14 +35,17 @@ sampled rate feedback acts on the tiny root inertia of a flexible link and diver
 0.1 s), vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz, model loop),
 publish_rate (Hz), shape_rate (Hz, /flex/shape, at most publish_rate), max_step (s),
 initial_joint_angles_deg (one per joint, or one for all), start_static (start deflected at
-rest under gravity), start_paused (until ~/pause false), command_timeout (s, 0 = never),
-timeout_action (hold | zero), lockstep_timeout (s, wall), frame_id, shape_points,
-publish_clock, the plausibility limits max_torque (N m), max_payload_mass (kg) and
-max_payload_inertia (kg m^2) (a command or payload beyond them is dropped with a logged
-reason; 0, the default: automatic from the arm, :func:`plausibility_limits`, logged at
-start: 100 N m or 10 x the static gravity torque of the stretched arm or 100 s^-2 x its
-inertia about joint 1, whichever is largest, 10 x the arm's mass, 10 x that inertia;
-thesis_example1_motors: 490 N m, 8.2 kg, 49 kg m^2), realtime_priority (0 = off; 1-99:
+rest under gravity), start_paused (until ~/pause false), command_timeout (s of simulation
+time, default 0.5, 0 = never; lockstep: a watchdog step applies it at once; not with an
+in-loop controller), timeout_action (zero, the default, | hold), lockstep_timeout (s,
+wall), frame_id (the base frame, root of the URDF and TF), frame_prefix, publish_tf,
+clock_topic, shape_points, publish_clock, the plausibility limits max_torque (N m),
+max_payload_mass (kg) and max_payload_inertia (kg m^2) (a command or payload beyond them
+is dropped with a logged reason; 0, the default: automatic from the arm,
+:func:`plausibility_limits`, logged at start: 100 N m or 10 x the static gravity torque
+of the stretched arm or 100 s^-2 x its inertia about joint 1, whichever is largest, 10 x
+the arm's mass, 10 x that inertia; thesis_example1_motors: 490 N m, 8.2 kg, 49 kg m^2),
+realtime_priority (0 = off; 1-99:
 SCHED_FIFO priority of the thread that creates and spins the node, realtime mode, as
 ros2_control's thread_priority; needs CAP_SYS_NICE), parameter_services and
 qos_event_warnings (default true; false: the node has no parameter services, resp. no
@@ -70,8 +82,9 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64MultiArray, Header
+from std_msgs.msg import Float64MultiArray, Header, String
 from std_srvs.srv import SetBool, Trigger
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import Imu, JointState
@@ -79,6 +92,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from . import ros_conversions as conv
+from . import urdf
 from .arm import load_arm
 from .control_loop import ControlLoop
 from .controller_interface import load_controller
@@ -90,6 +104,19 @@ from .stepper import Stepper
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
 LOCKSTEP_SLICE = 0.02
+#: QoS of robot_description and /tf_static (as robot_state_publisher: latched, depth 1)
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def tf_message_type():
+    """(tf2_msgs/TFMessage, None), or (None, why not): the pip ROS wheels have no tf2_msgs
+    (a ROS install and the docker image do)."""
+    try:
+        from tf2_msgs.msg import TFMessage
+    except ImportError as exc:
+        return None, str(exc)
+    return TFMessage, None
 
 
 def _positive(v):
@@ -137,13 +164,25 @@ PARAMETERS = (
           check=lambda v: None if 0 < v <= 0.1 else "a step in (0, 0.1] s"),
     Param("initial_joint_angles_deg", [0.0], "initial joint angles (deg): one per joint, "
           "or one value for every joint"),
-    Param("command_timeout", 0.0, "s without a valid command before timeout_action "
-          "(0: never)", True, lambda v: None if v >= 0 else "a time >= 0 s (0: never)"),
-    Param("timeout_action", "hold", "hold | zero", True, _choice("hold", "zero")),
+    Param("command_timeout", 0.5, "s (simulation time) without a valid command before "
+          "timeout_action (0: never); lockstep: a step of the lockstep_timeout watchdog (the "
+          "loop stalled) applies it at once; not used with an in-loop controller", True,
+          lambda v: None if v >= 0 else "a time >= 0 s (0: never)"),
+    Param("timeout_action", "zero", "hold | zero (the command after command_timeout)", True,
+          _choice("hold", "zero")),
     Param("lockstep_timeout", 1.0, "lockstep: wall s without a command before the model "
           "steps with the held one", True, _positive),
-    Param("frame_id", "base_link", "frame of tip pose and shape",
+    Param("frame_id", "base_link", "the robot's base frame (REP 105): root of "
+          "robot_description and of the TF tree; flex/shape is drawn in it, z up (REP 103)",
           check=lambda v: None if v else "a non-empty frame name"),
+    Param("frame_prefix", "", "prefix of every frame name (frame_id too), e.g. robot1/ for "
+          "two arms in one TF tree"),
+    Param("publish_tf", True, "publish /tf, /tf_static (needs the tf2_msgs package; without "
+          "it TF is off, logged once at start); robot_description is always published"),
+    Param("clock_topic", "/clock", "topic of the simulation clock (lockstep, or "
+          "publish_clock): a relative name (clock) puts it in the node's namespace, so two "
+          "lockstep twins do not share one /clock",
+          check=lambda v: None if v else "a topic name (/clock, or clock: the namespace's)"),
     Param("shape_points", 15, "points per link of flex/shape",
           check=lambda v: None if 2 <= v <= 10000 else "an integer in [2, 10000]"),
     Param("publish_clock", False, "publish /clock in realtime mode too"),
@@ -212,23 +251,28 @@ class ModelNode(Node):
         self.next_diagnostic = 0.0  # wall time of the next repeat of that status
         self.warned = set()
         self.drops = ReasonLog(self)
-        frame = p["frame_id"]
+        # REP 103/105 frames (flex_model.urdf): the plane's coordinates in the base frame
+        self.frames = urdf.Frames.of(self.model, p["frame_prefix"], p["frame_id"])
+        self.plane = urdf.plane_rotation(self.model.gravity)
         self.msg_js = JointState(name=list(self.names))
         self.msg_defl = JointState(name=conv.deflection_names(self.links))
-        self.msg_tip = PoseStamped(header=Header(frame_id=frame))
-        self.msg_shape = conv.ShapeMarkers(n, int(p["shape_points"]), frame)
+        self.msg_tip = PoseStamped(header=Header(frame_id=self.frames.plane))
+        self.msg_shape = conv.ShapeMarkers(n, int(p["shape_points"]), self.frames.base)
         self.msg_clock = Clock()
         qos = 10
-        # relative names: a namespace (__ns:=/robot1) moves the whole loop; /clock and
-        # /diagnostics stay global, as ROS tools (TimeSource, the aggregator) expect
+        # relative names: a namespace (__ns:=/robot1) moves the whole loop; /diagnostics
+        # stays global, as ROS tools (the aggregator) expect; the clock is clock_topic
         self.pub_js = self.create_publisher(JointState, "joint_states", qos)
         self.pub_defl = self.create_publisher(JointState, "flex/deflections", qos)
         self.pub_tip = self.create_publisher(PoseStamped, "flex/tip_pose", qos)
         self.pub_shape = self.create_publisher(MarkerArray, "flex/shape", qos)
         self.pub_imu = self.create_publisher(Imu, "flex/tip_imu", qos) if self.has_imu \
             else None
-        self.pub_clock = self.create_publisher(Clock, "/clock", qos) \
+        self.pub_clock = self.create_publisher(Clock, p["clock_topic"], qos) \
             if p["mode"] == "lockstep" or p["publish_clock"] else None
+        self.pub_description = self.create_publisher(String, "robot_description", LATCHED)
+        self.pub_tf = self.msg_tf = None
+        self._tf_setup(p)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
         self.create_subscription(Float64MultiArray, "effort_controller/commands",
                                  self.on_command, qos)
@@ -247,6 +291,9 @@ class ModelNode(Node):
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
+        self.pub_description.publish(String(data=urdf.robot_description(
+            self.model, p["frame_prefix"], p["frame_id"],
+            effort_limits=[self.limit("max_torque")] * n)))
         self.publish_state(full=True)
         self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates, joints "
                                f"{', '.join(self.names)}), {p['mode']} at {p['rate']:g} Hz, "
@@ -254,6 +301,25 @@ class ModelNode(Node):
                                f"limits {self.limit('max_torque'):.4g} N m, payload "
                                f"{self.limit('max_payload_mass'):.4g} kg, "
                                f"{self.limit('max_payload_inertia'):.4g} kg m^2")
+
+    def _tf_setup(self, p) -> None:
+        """/tf_static (base -> arm_plane, latched) once and /tf publishers, if tf2_msgs can
+        be imported and publish_tf; else one line saying TF is off and why."""
+        if not p["publish_tf"]:
+            return
+        tf_type, why = tf_message_type()
+        if tf_type is None:
+            self.get_logger().info(f"TF off: tf2_msgs cannot be imported ({why}; the pip "
+                                   "ROS wheels have none, a ROS install has it); "
+                                   "robot_description is published, /tf and /tf_static not")
+            return
+        static = urdf.static_transforms(self.model, self.frames)
+        self.create_publisher(tf_type, "/tf_static", LATCHED).publish(
+            tf_type(transforms=conv.Transforms(static).msgs))
+        self.pub_tf = self.create_publisher(tf_type, "/tf", 100)
+        self.tf_msgs = conv.Transforms(urdf.arm_transforms(self.model, self.stepper.q,
+                                                           self.frames))
+        self.msg_tf = tf_type(transforms=self.tf_msgs.msgs)
 
     def _in_loop_controller(self, p) -> ControlLoop:
         """The controller named by the parameter ``controller`` in the model's loop (the
@@ -398,7 +464,9 @@ class ModelNode(Node):
             # then back to the executor (trajectories, payload, services)
             end = now + LOCKSTEP_SLICE
             while self.diverged is None and time.monotonic() < end:
-                self.step(self.loop.period)
+                # one compiled call up to the next publication (flex_model.control_kernel)
+                k = max(1, int(round((self.next_publish - self.stepper.t) / self.loop.period)))
+                self.step(k * self.loop.period)
             return
         if self.p["mode"] == "lockstep":  # watchdog: no command for lockstep_timeout
             if elapsed < self.p["lockstep_timeout"]:
@@ -406,7 +474,9 @@ class ModelNode(Node):
                 return
             if self.commanded:  # the loop stalled
                 self._warn_once("lockstep", "lockstep: no command within lockstep_timeout; "
-                                "stepping with the held command")
+                                "stepping with the held command (timeout_action after "
+                                "command_timeout)")
+                self.apply_command_timeout(stalled=True)
             else:  # the start: a time-triggered controller waits for this first step
                 self._warn_once("start", "lockstep: no command yet; stepping with the held "
                                 "command every lockstep_timeout until one arrives", "info")
@@ -426,12 +496,7 @@ class ModelNode(Node):
         """Advance the model by dt (s), apply the command timeout, publish."""
         if self.diverged is not None:
             return
-        timeout = self.p["command_timeout"]
-        if timeout > 0 and self.stepper.t - self.command_time > timeout:
-            if self.p["timeout_action"] == "zero" and np.any(self.stepper.u):
-                self.stepper.set_command(np.zeros(self.model.n_links))
-            self._warn_once("timeout", f"no valid command for {timeout:g} s: "
-                            f"{self.p['timeout_action']}")
+        self.apply_command_timeout()
         try:
             if self.loop is None:
                 self.stepper.advance(dt)
@@ -449,6 +514,22 @@ class ModelNode(Node):
             self.next_shape = t + 1.0 / self.p["shape_rate"]
         if full or (self.p["mode"] == "lockstep" and self.loop is None):
             self.publish_state(full=full, shape=shape)
+
+    def apply_command_timeout(self, stalled: bool = False) -> None:
+        """After command_timeout s (simulation time) without a valid command, or at once on
+        a lockstep watchdog step (``stalled``: no command for lockstep_timeout of wall
+        time), timeout_action: zero torque, or hold. Not with an in-loop controller."""
+        timeout = self.p["command_timeout"]
+        if self.loop is not None or timeout <= 0:
+            return
+        if stalled or self.stepper.t - self.command_time > timeout:
+            if self.p["timeout_action"] == "zero" and np.any(self.stepper.u):
+                self.stepper.set_command(np.zeros(self.model.n_links))
+                self._warn_once("timeout", f"no valid command for command_timeout = "
+                                f"{timeout:g} s (or a stalled lockstep loop): zero torque")
+            elif self.p["timeout_action"] == "hold":
+                self._warn_once("timeout-hold", f"no valid command for command_timeout = "
+                                f"{timeout:g} s: holding the last command")
 
     def on_divergence(self, exc: Exception) -> None:
         """The integration failed: name the likely cause (the inputs held), command zero
@@ -494,12 +575,20 @@ class ModelNode(Node):
         self.pub_defl.publish(conv.fill_deflection_state(self.msg_defl, t, *st.deflections()))
         x, y, phi = st.tip_pose()
         self.pub_tip.publish(conv.fill_tip_pose(self.msg_tip, t, x, y, phi))
-        if shape:
-            shapes = self.model.shape(st.q, int(self.p["shape_points"]))
+        if shape:  # in the base frame, z up (REP 103)
+            shapes = [urdf.plane_to_base(self.model.gravity, line)
+                      for line in self.model.shape(st.q, int(self.p["shape_points"]))]
             self.pub_shape.publish(self.msg_shape.update(t, shapes))
-        if self.pub_imu is not None:
+        if self.pub_imu is not None:  # in the last link's tip frame
             rate = float(self.model.tip_torque_vector() @ st.v)  # tip frame rotation rate
-            self.pub_imu.publish(conv.imu(t, st.tip_specific_force(), rate, phi))
+            orientation = urdf.quaternion_from_matrix(
+                self.plane @ urdf.matrix_from_quaternion(urdf.yaw_quaternion(phi)))
+            self.pub_imu.publish(conv.imu(t, st.tip_specific_force(), rate, phi,
+                                          self.frames.tips[-1], orientation))
+        if self.pub_tf is not None:
+            self.msg_tf.transforms = self.tf_msgs.update(
+                t, urdf.arm_transforms(self.model, st.q, self.frames))
+            self.pub_tf.publish(self.msg_tf)
 
 
 def main(args=None) -> None:

@@ -47,6 +47,36 @@ def lean_node(node, parameter_services: bool, qos_event_warnings: bool) -> None:
             entity.event_handlers = []
 
 
+def follow_clock(node, topic: str) -> None:
+    """With ``use_sim_time`` take the simulation clock from ``topic`` instead of /clock
+    (rclpy's TimeSource subscribes to the absolute /clock only): a relative ``clock`` is
+    the namespace's, the one a model node with ``clock_topic: clock`` publishes, so two
+    lockstep twins in two namespaces each run on their own clock. Best effort, depth 1, as
+    rclpy's TimeSource and ROS clock publishers (ClockQoS). Read at start."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rclpy.time import Time
+    from rosgraph_msgs.msg import Clock
+
+    resolved = node.resolve_topic_name(topic)
+    if resolved == "/clock" or not node.get_parameter("use_sim_time").value:
+        return
+    for sub in list(node.subscriptions):
+        if sub.topic_name == "/clock":
+            node.destroy_subscription(sub)
+    clock = node.get_clock()
+    node.create_subscription(
+        Clock, resolved, lambda msg: clock.set_ros_time_override(Time.from_msg(msg.clock)),
+        QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+
+
+def clock_topic_param(doc_user: str) -> "Param":
+    """The ``clock_topic`` parameter of the nodes that follow a simulation clock."""
+    return Param("clock_topic", "/clock", f"with use_sim_time: the clock's topic "
+                 f"({doc_user}); a relative name (clock) is the namespace's, as a model node "
+                 "with clock_topic: clock publishes it (two lockstep twins)",
+                 check=lambda v: None if v else "a topic name")
+
+
 class ParameterError(ValueError):
     """A node parameter out of its domain: one line naming the parameter, the value and
     what is allowed (:func:`run_node` prints it and exits with status 2, no traceback)."""

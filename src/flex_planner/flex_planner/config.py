@@ -43,7 +43,7 @@ TASKS = {"thesis_ch5": ("thesis_example1", SECTION_F_WAYPOINTS, SECTION_F_TIMES)
 class PlannerConfig:
     """Parameters of the planner node (and the defaults of ``flex-twin plan``)."""
 
-    arm: str = "thesis_example1"
+    arm: str = "thesis_example1_motors"
     vars_per_link: int = 0
     sample_period: float = 1e-3
     elbow: str = "up"

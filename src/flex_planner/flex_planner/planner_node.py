@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
-from flex_model.ros_main import (Param, ParameterError, declare_parameters, guard_parameters,
+from flex_model.ros_main import (Param, ParameterError, clock_topic_param,
+                                 declare_parameters, follow_clock, guard_parameters,
                                  lean_node, run_node)
 from nav_msgs.msg import Path
 from rclpy.node import Node
@@ -34,6 +35,7 @@ def parameter_specs() -> tuple:
                        "request needing more is refused", True, _max_samples))
     specs += [Param(name, True, "false: see flex_model.ros_main.lean_node")
               for name in ("parameter_services", "qos_event_warnings")]
+    specs.append(clock_topic_param("the stamps of nominal_path"))
     return tuple(specs)
 
 
@@ -64,7 +66,8 @@ class PlannerNode(Node):
     the point, nothing is published for it, and the node keeps serving. A bad parameter at
     start is one line naming it, its value and what is allowed. Node parameters
     ``parameter_services`` and ``qos_event_warnings`` (default true, read-only at run
-    time): flex_model.ros_main.lean_node.
+    time): flex_model.ros_main.lean_node. With ``use_sim_time: true`` its stamps are the
+    simulation time of ``clock_topic`` (default /clock; ``clock``: the namespace's).
     """
 
     def __init__(self, **kwargs):
@@ -73,6 +76,7 @@ class PlannerNode(Node):
         values = declare_parameters(self, self.specs)
         self.max_samples = values.pop("max_samples")
         lean = [values.pop(name) for name in ("parameter_services", "qos_event_warnings")]
+        clock_topic = values.pop("clock_topic")
         try:
             self.config = PlannerConfig(**values)
             self.model = self.config.model()
@@ -88,6 +92,7 @@ class PlannerNode(Node):
                                                      latched)
         self.create_subscription(Path, "~/waypoints", self.on_waypoints, reliable)
         guard_parameters(self, self.specs, self.apply_parameters)
+        follow_clock(self, clock_topic)
         lean_node(self, *lean)
         self.get_logger().info(f"planning for {self.model.arm.name} ({self.model.nq} "
                                f"coordinates) in frame {self.config.frame_id!r}")

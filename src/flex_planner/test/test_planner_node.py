@@ -33,7 +33,8 @@ class Harness:
         rclpy.init(context=self.ctx)
         self.ns = f"/t{os.getpid()}_{uuid.uuid4().hex[:6]}"
         self.node = PlannerNode(context=self.ctx, namespace=self.ns, parameter_overrides=[
-            Parameter("sample_period", value=SAMPLE_PERIOD)])
+            Parameter("sample_period", value=SAMPLE_PERIOD),
+            Parameter("arm", value="thesis_example1")])   # the section F arm of its figures
         self.probe = rclpy.create_node("planner_probe", namespace=self.ns, context=self.ctx)
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
