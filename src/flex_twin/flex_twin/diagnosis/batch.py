@@ -149,6 +149,12 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
     check_integrable(controller, arm)
     fit = load_recording(run.data, arm.n_links)
     holdout = load_recording(run.holdout, arm.n_links) if run.holdout else None
+    for path, rec in ((run.data, fit), (run.holdout, holdout)):
+        if rec is not None and controller.period > 0 and \
+                rec.t[-1] - rec.t[0] < controller.period:
+            raise ValueError(f"{path}: t: the run lasts {rec.t[-1] - rec.t[0]:.6g} s, shorter "
+                             f"than one control step ({controller.period:g} s in "
+                             f"{run.controller}): nothing to replay")
     if segment is not None and not segment > 0:
         raise ValueError(f"--segment: got {segment}; expected a time > 0 s")
     if executor is None:

@@ -59,13 +59,14 @@ def baseline_jacobian(executor, ctx, scales, effects, r0):
 
 
 def fit_baseline(executor, ctx, effects=(), iterations: int = 3,
-                 start=None) -> tuple[FitResult, np.ndarray]:
+                 start=None, r0=None) -> tuple[FitResult, np.ndarray]:
     """Gauss-Newton in the tolerance box (bounded linear step, re-linearized) from the
     nominal scales or ``start``; returns the fit and the baseline Jacobian at its
-    solution."""
+    solution. ``r0``: the residual vector at the start point when it is known (a replay
+    saved)."""
     lo, hi = scale_bounds(ctx.baseline_params)
     s = np.ones(len(lo)) if start is None else np.clip(np.asarray(start, float), lo, hi)
-    r = evaluate((ctx, s, list(effects)))
+    r = evaluate((ctx, s, list(effects))) if r0 is None else r0
     if r is None:
         raise ValueError("the nominal twin diverges on this recording")
     n_eval = 1

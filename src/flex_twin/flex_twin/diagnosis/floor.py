@@ -110,6 +110,9 @@ class Floor:
     sigma: dict = None           # per recording: channel -> per-sample noise level (refined)
     J_weighted: dict = None      # J(data - chosen) with those noise levels
     along: dict = None           # the data's residual along the twins' difference (units)
+    #: per recording: the nominal twin's residual vector at the chosen setting with the
+    #: contexts' own noise levels (what the engine would replay again; it drops them)
+    residuals: dict = None
 
     @property
     def changed(self) -> bool:
@@ -219,15 +222,20 @@ def measure_floor(executor, ctx, ctx_ho, progress=None) -> Floor:
     finer = all(FINER_RANGE[0] <= along[k] <= FINER_RANGE[1] for k, _ in keys)
     refine = finer and all(gain[k] > max(FLOOR_TARGET, FLOOR_SHARE * (costs(s0)[k] - 1.0))
                            for k, _ in keys)
-    if refine:   # the ladder only where it is needed (a twin-made run: two replays each)
-        run(ladder)
+    if refine:   # the ladder only where it is needed (a twin-made run: two replays each),
+        # cheapest first, up to the first setting within the target (the one chosen)
+        for s in ladder:
+            run([s])
+            if max(own(s).values()) <= FLOOR_TARGET:
+                break
+    tried = [s for s in ladder if s in r]
     J = {s: costs(s) for s in r}
     chosen = s0
     rows = [{"setting": s.as_dict(), "own_error": own(s), "J": J[s]}
-            for s in [s0] + (ladder if refine else [])]
+            for s in [s0] + (tried if refine else [])]
     if refine:
-        ok = [s for s in ladder if max(own(s).values()) <= FLOOR_TARGET]
-        chosen = ok[0] if ok else min(ladder or [ref], key=lambda s: max(own(s).values()))
+        ok = [s for s in tried if max(own(s).values()) <= FLOOR_TARGET]
+        chosen = ok[0] if ok else min(tried or [ref], key=lambda s: max(own(s).values()))
         if any(v is None for v in r[chosen].values()):   # every finer setting diverged
             chosen, refine = s0, False
     d = own(chosen)
@@ -250,7 +258,7 @@ def measure_floor(executor, ctx, ctx_ho, progress=None) -> Floor:
     per = np.split(diff, len(names))
     floor = Floor(s0, ref, chosen, own(s0), d, J[s0], J[ref], J[chosen], model_form,
                   {c: float(np.mean(p * p)) for c, p in zip(names, per)}, refine, rows,
-                  time.perf_counter() - t0, sig, Jw, along)
+                  time.perf_counter() - t0, sig, Jw, along, dict(r[chosen]))
     if progress:
         progress(f"floor: replay {s0.label()} against {ref.label()}: own error "
                  f"{floor.own_error_default['holdout']:.3g} (held out), residual "
