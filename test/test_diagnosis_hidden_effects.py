@@ -192,7 +192,7 @@ def test_encoder_bias_moves_the_arm_not_the_measurement(tmp_path, healthy_start)
 # ------------------------------------------------------------------ no truth leaks
 def test_files_the_diagnosis_reads_hold_no_truth(tmp_path):
     a = generate_case("two:payload+joint_friction", 3, tmp_path / "a", duration=0.5)
-    b = generate_case("healthy", 4, tmp_path / "b", duration=0.5)
+    generate_case("healthy", 4, tmp_path / "b", duration=0.5)
     for name in ("nominal_arm.yaml", "controller.yaml"):   # identical for every unit
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
     arm = load_arm(a.nominal_arm)
@@ -230,9 +230,8 @@ def test_every_kind_is_declared():
 
 # ------------------------------------------------------------------ acceptance subset
 #: the fixed-seed runs of the issue's targets (kind, seed)
-SUBSET = (("healthy", 1000), ("healthy", 1001), ("out_of_library:cogging", 1000),
-          ("payload", 1001), ("joint_friction", 1000), ("sensor_bias", 1000),
-          ("contact_surface", 1000))
+SUBSET = (("healthy", 1000), ("out_of_library:cogging", 1000), ("payload", 1001),
+          ("joint_friction", 1000), ("sensor_bias", 1000))
 #: every acceptance diagnosis (kind, seed, options of diagnose), the longest first
 ACCEPTANCE = (("two:sensor_bias+joint_elasticity", 1004, {}),
               ("two:sensor_bias+joint_elasticity", 1005, {}),
@@ -249,8 +248,8 @@ skip_acceptance = pytest.mark.skipif(
 def _diagnose_serially(kind, seed, out, options):
     """One diagnosis without the model-form floor: these runs are made by the twin's own
     equations at the replay's discretization, so their floor is zero by construction (it
-    measured 0 on all 13 and doubled the fixture's time); test_diagnosis_floor.py and the
-    independent suite's test exercise the floor."""
+    measured 0 on all of them and doubled the fixture's time); test_diagnosis_floor.py and
+    the independent suite's test exercise the floor."""
     from flex_twin.diagnosis import synthetic_scoring as bench
     from flex_twin.diagnosis.evaluation import SerialExecutor
     return bench.run_one(kind, seed, out, "nominal", False, executor=SerialExecutor(),
@@ -278,15 +277,15 @@ def acceptance(tmp_path_factory):
 
 @skip_acceptance
 def test_acceptance_subset(acceptance):
-    """Fixed seeds: healthy -> none; cogging -> unexplained or none; payload, friction,
-    encoder bias and contact named with their parameters within 20 % and the held-out
-    error reduced >= 70 %. (Kinds the engine does not name yet are measured by
-    bench/bench_diagnosis.py, not asserted here.)"""
+    """Fixed seeds: healthy -> none; cogging -> unexplained or none; payload, friction and
+    encoder bias named with their parameters within 20 % and the held-out error reduced
+    >= 70 % (contact: seed 1005 below; more healthy runs: the engine's and the independent
+    suite's tests; every kind and seed: bench/bench_diagnosis.py)."""
     from flex_twin.diagnosis import synthetic_scoring as bench
     runs = [acceptance[key] for key in SUBSET]
-    assert all(r["verdict"] == "no material discrepancy" for r in runs[:2])
-    assert runs[2]["verdict"] in bench.OK_OUT_OF_LIBRARY
-    for r in runs[3:]:
+    assert runs[0]["verdict"] == "no material discrepancy"
+    assert runs[1]["verdict"] in bench.OK_OUT_OF_LIBRARY
+    for r in runs[2:]:
         assert r["right"] == [True] and all(r["in_class"]), r
         assert max(r["param_errors"]) < 0.2
         assert r["holdout_reduction"] >= 0.7

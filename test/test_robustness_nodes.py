@@ -140,7 +140,7 @@ def suite():
     s.close()
 
 
-def path(points, frame="base_link"):
+def path(points, frame="arm_plane"):
     msg = Path()
     msg.header.frame_id = frame
     for x, y, t in points:
@@ -221,7 +221,7 @@ INPUTS = [
     ("plan", "waypoints", path([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1e5)]),
      "expected at most max_samples = 200000"),
     ("plan", "waypoints", path([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)], frame="world"),
-     "Path.header.frame_id: got 'world'; expected 'base_link'"),
+     "Path.header.frame_id: got 'world'; expected 'arm_plane'"),
     ("plan", "waypoints", path([(-1.0, -1.0, 0.0), (NAN, -1.0, 1.0)]),
      "Path.poses[1].pose.position: got (nan, -1.0); expected finite x, y (m)"),
     ("plan", "waypoints", path([(-1.0, -1.0, 0.0)]),

@@ -117,10 +117,10 @@ def make_planner_short(path: Path) -> None:
     p = PLANNER_SHORT
     model = FlexArmModel(load_arm(p["arm"]))
     request = PathMsg()
-    request.header.frame_id = "base_link"
+    request.header.frame_id = "arm_plane"
     for (x, y), t in zip(p["waypoints"], p["times"]):
         pose = PoseStamped()
-        pose.header.frame_id = "base_link"
+        pose.header.frame_id = "arm_plane"
         pose.header.stamp = conv.stamp(t)
         pose.pose.position.x, pose.pose.position.y = x, y
         pose.pose.orientation.w = 1.0
@@ -131,7 +131,7 @@ def make_planner_short(path: Path) -> None:
         bag.add_topic("/flex_planner/waypoints", "nav_msgs/msg/Path")
         bag.add_topic("/flex_planner/trajectory", "trajectory_msgs/msg/JointTrajectory")
         bag.write("/flex_planner/waypoints", request, 0)
-        bag.write("/flex_planner/trajectory", trajectory_msg(traj, "base_link"), 1)
+        bag.write("/flex_planner/trajectory", trajectory_msg(traj, "arm_plane"), 1)
     (path / "provenance.yaml").write_text(yaml.safe_dump({
         "generator": "test/tools/make_golden_bags.py", "scenario": "planner_short",
         "parameters": p, "planner": "flex_planner.plan_tip_path"}))

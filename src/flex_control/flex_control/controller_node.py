@@ -322,7 +322,7 @@ class ControllerNode(Node):
         """Run-time gains, limits, timeouts (checked types): validated by building the
         controller before it is swapped in (raises ValueError with the reason)."""
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()
-                  if k not in dict(NODE_PARAMETERS) and k != "clock_topic"}
+                  if k not in dict(NODE_PARAMETERS)}
         params = replace(self.params, **values)
         try:
             controller = build_controller(params, reference=self.controller.reference)

@@ -20,7 +20,8 @@ Example (shipped as preset ``thesis_three_link_pd``)::
         - {time: 2.0, setpoints_deg: [20, 0, 0], ramp: 0.5}    # a ramp over 2-2.5 s
       torque_table: {t: [0, 1, 2], torques: [[..], [..], [..]]}   # N m, linear in t
     pulses:                           # joint torque pulses on [start, end); end: .inf = on
-      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}    # to the end of the run
+      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}
+      - {joint: joint2, torque: 5.0, start: 1.0, end: .inf}       # to the end of the run
     tip_loads:                        # tip force (N, base frame) / torque (N m) on [start, end)
       - {force: [0.0, -10.0], torque: 0.0, start: 0.0, end: 1.0}
     payload_changes:                  # pick and place: the tip payload from a time on

@@ -12,8 +12,8 @@ Calibrated on the hub-less two-link arm of issue 24 (bench/bench_stiff_hubless.p
 1706 Hz, 1 / (4 f_x) = 0.15 ms; tip deflections 1.8 % off at 0.25 ms, 0.36 % at
 0.125 ms, Newton fails at 1 ms after the 15 deg set-point step). The explicit variable-step mode
 (Dormand-Prince) is bounded by stability at about 3.3 / omega_max per step whatever the
-tolerance: with the highest mode of the arm above ~2 kHz that is > 10^4 steps per
-simulated second, and the advice suggests the fixed mode.
+tolerance: with the highest mode of the arm above 10^4 x 3.3 / (2 pi) = 5.3 kHz that is
+> 10^4 steps per simulated second, and the advice suggests the fixed mode.
 """
 from __future__ import annotations
 
@@ -64,8 +64,8 @@ def step_advice(model, joint_angles, *, method: str, step: float | None = None,
         if h > needed * (1 + 1e-9):
             warning = (f"step {h:.3g} s cannot resolve the arm: a joint torque excites its "
                        f"mode at {f_x:.4g} Hz ({1 / (f_x * h):.1f} steps per period); it needs "
-                       f"a step of {needed:.2g} s or less (or more damping of the high "
-                       "modes: a smaller rho_inf, or hub inertia at the joints)")
+                       f"a step of {needed:.2g} s or less (numerical damping does not help: "
+                       "the mode is part of the response; hub inertia at the joints would)")
     elif n_var > MAX_VARIABLE_STEPS:
         warning = (f"the variable-step mode is explicit: the arm's highest mode at "
                    f"{f_max:.4g} Hz bounds its step to {DOPRI_STABILITY / omega.max():.2g} s "

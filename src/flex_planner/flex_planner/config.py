@@ -4,8 +4,8 @@
 validation (errors name the field, the value and what is allowed). A waypoint file is
 YAML::
 
-    # tip waypoints (m, base frame) and their times from the start (s)
-    frame_id: base_link            # optional; must match the planner's frame
+    # tip waypoints (m, in the arm's plane) and their times from the start (s)
+    frame_id: arm_plane            # optional; must match the planner's frame
     elbow: up                      # optional: up | down
     tip_load: {force: [0.0, 0.0], torque: 0.0}   # optional known tip load (N, N m)
     waypoints:
@@ -32,7 +32,8 @@ DESCRIPTIONS = {
     "vars_per_link": "deformation variables per link (even >= 2; 0 = as in the arm file)",
     "sample_period": "sample period of the published trajectory (s)",
     "elbow": "elbow branch at the first waypoint: up | down",
-    "frame_id": "frame of the waypoints and of the published paths",
+    "frame_id": "frame of the waypoints and of the published paths: the arm's plane "
+                "(the model node's arm_plane frame, with its frame_prefix; REP 103)",
 }
 
 #: named tasks: (default arm, waypoints, times)
@@ -47,7 +48,7 @@ class PlannerConfig:
     vars_per_link: int = 0
     sample_period: float = 1e-3
     elbow: str = "up"
-    frame_id: str = "base_link"
+    frame_id: str = "arm_plane"
 
     def __post_init__(self):
         if not isinstance(self.arm, str) or not self.arm:

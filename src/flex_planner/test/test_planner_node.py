@@ -69,7 +69,7 @@ class Harness:
             self.executor.spin_once(timeout_sec=0.02)
         return condition()
 
-    def request(self, points, times, frame_id="base_link"):
+    def request(self, points, times, frame_id="arm_plane"):
         msg = Path()
         msg.header.frame_id = frame_id
         for (x, y), t in zip(points, times):
@@ -116,7 +116,7 @@ def test_valid_path_gives_the_core_plan(harness):
     np.testing.assert_allclose(arrays["accelerations"], expected.accelerations, atol=1e-12)
     np.testing.assert_allclose(arrays["effort"], expected.efforts, atol=1e-9)
     path = harness.got["nominal_path"][0]
-    assert path.header.frame_id == "base_link"
+    assert path.header.frame_id == "arm_plane"
     tip = np.array([[p.pose.position.x, p.pose.position.y] for p in path.poses])
     np.testing.assert_allclose(tip, expected.tip, atol=1e-12)
     defl = harness.got["nominal_deflections"][0]
@@ -128,13 +128,13 @@ def test_valid_path_gives_the_core_plan(harness):
 
 
 @pytest.mark.parametrize("points, times, frame, logged", [
-    ([[-1.0, -1.0], [5.0, 0.0], [-2.0, -2.0]], [0.0, 5.0, 10.0], "base_link",
+    ([[-1.0, -1.0], [5.0, 0.0], [-2.0, -2.0]], [0.0, 5.0, 10.0], "arm_plane",
      "waypoint 1 at (5, 0) m is unreachable"),
-    (SECTION_F_WAYPOINTS, [0.0, 5.0, 5.0, 15.0], "base_link",
+    (SECTION_F_WAYPOINTS, [0.0, 5.0, 5.0, 15.0], "arm_plane",
      "Path.poses[2].header.stamp: got 5 s after 5 s"),
-    ([], [], "base_link", "Path.poses: got 0 poses"),
+    ([], [], "arm_plane", "Path.poses: got 0 poses"),
     (SECTION_F_WAYPOINTS, SECTION_F_TIMES, "world",
-     "Path.header.frame_id: got 'world'; expected 'base_link'"),
+     "Path.header.frame_id: got 'world'; expected 'arm_plane'"),
 ])
 def test_bad_request_publishes_nothing_and_the_node_keeps_serving(harness, points, times,
                                                                   frame, logged):

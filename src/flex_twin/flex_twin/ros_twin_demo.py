@@ -39,10 +39,10 @@ def _waypoints_msg(stamp):
     from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import Path as PathMsg
     msg = PathMsg()
-    msg.header.frame_id = "base_link"
+    msg.header.frame_id = "arm_plane"
     for (x, y), t in zip(WAYPOINTS, TIMES):
         pose = PoseStamped()
-        pose.header.frame_id = "base_link"
+        pose.header.frame_id = "arm_plane"
         pose.header.stamp = stamp(t)
         pose.pose.position.x, pose.pose.position.y = float(x), float(y)
         pose.pose.orientation.w = 1.0

@@ -99,7 +99,7 @@ class StickSlipFriction(Effect):
 
     @classmethod
     def check(cls, f, values) -> None:
-        fv, fc, fs = values[0], values[1], values[2]
+        fc, fs = values[1], values[2]
         if fs < fc:
             raise f.error("static", fs, f"a break-away torque >= coulomb ({fc} N m)")
         if fs > 0.0 and fc <= 0.0:

@@ -127,7 +127,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
     (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
     t_{n+1}, as simulate_fixed's ``force(t_{n+1})``); clipped to the URDF effort limits
-    when ``clip_to_effort`` (limits.clip_efforts)."""
+    when ``clip_to_effort`` (inside the compiled loop, as limits.clip_efforts does))."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)

@@ -1,9 +1,9 @@
 """Joint limits of a spatial arm (URDF ``<limit>``): arrays, effort clipping, violations.
 
-Effort limits are honoured by :func:`clip_efforts` (used by the compiled fixed-step loop,
-compiled.galpha_loop, and by integrate.simulate_fixed_compiled); position and velocity
-limits are reported by :func:`limit_violations`, not enforced as stops (no joint contact
-model on spatial joints yet).
+Effort limits are honoured by the compiled fixed-step loop (compiled.galpha_loop clips the
+joint torques inline; :func:`clip_efforts` is the same clip for Python callers); position
+and velocity limits are reported by :func:`limit_violations`, not enforced as stops (no
+joint contact model on spatial joints yet).
 """
 from __future__ import annotations
 

@@ -7,9 +7,9 @@ serial chain (each link has at most one child joint). Mapping:
   ``<origin xyz rpy>`` (fixed transform before the joint motion; rpy = URDF fixed-axis
   roll-pitch-yaw, R = Rz(y) Ry(p) Rx(r)) and their ``<axis>`` (any unit direction, URDF
   default 1 0 0); ``<limit lower upper effort velocity>`` are kept on the joint
-  (``continuous``: no position limits; absent values are infinite). Limits are honoured by
-  :func:`flex_model.spatial.limits.clip_efforts` (the compiled fixed-step loop clips the
-  joint torques to the effort limits) and reported by ``limit_violations``; position
+  (``continuous``: no position limits; absent values are infinite). Effort limits are
+  honoured by the compiled fixed-step loop (it clips the joint torques; the same clip for
+  Python callers: ``limits.clip_efforts``), the others reported by ``limit_violations``; position
   limits are *not* enforced as stops (no contact model on spatial joints yet).
 - ``fixed`` joints are merged: their origin composes into the next moving joint's origin
   (or, after the last moving joint, into the last link's ``end_transform``, e.g. the tool

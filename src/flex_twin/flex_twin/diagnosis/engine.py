@@ -81,6 +81,8 @@ SCREEN_MARGIN = 0.5
 #: refinement within a declared class: an accepted effect -> the richer effect that nests
 #: it (backlash with a zero play is the joint elasticity of its spring)
 REFINEMENTS = {"joint_elasticity": "backlash"}
+#: two models of one mechanism: never two effects of one joint together
+ALTERNATIVES = ({"joint_friction", "stick_slip_friction"},)
 #: time block (s) of the sandwich covariance of the intervals: longer than the correlation
 #: time of what a fit leaves (the closed-loop first mode is 0.8 Hz)
 CI_BLOCK = 1.0
@@ -356,9 +358,11 @@ def _split(pick, hyp, x, twin) -> list:
 
 def _nested(a, b) -> bool:
     """One hypothesis nests the other on the same target (:data:`REFINEMENTS`: a backlash
-    with a zero play is the joint elasticity of its spring): not two effects."""
-    return a.target == b.target and {a.kind, b.kind} in [{k, v} for k, v in
-                                                          REFINEMENTS.items()]
+    with a zero play is the joint elasticity of its spring), or both model one mechanism
+    (:data:`ALTERNATIVES`: the two friction laws of a joint): not two effects."""
+    kinds = {a.kind, b.kind}
+    return a.target == b.target and (kinds in [{k, v} for k, v in REFINEMENTS.items()]
+                                     or kinds in ALTERNATIVES)
 
 
 def _screened_pair(ranked, scores, pair_scores):

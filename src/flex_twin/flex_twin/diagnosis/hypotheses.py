@@ -125,10 +125,7 @@ class Hypothesis:
         """(names, values, half-widths) as the updated arm states them: friction's
         break-away torque ``static`` (coulomb + excess), a link's Young's modulus ``E``."""
         v, w = list(values), list(halfwidths)
-        if self.kind == "joint_friction":
-            return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
-                [w[0], w[1], float(np.hypot(w[1], w[2]))]
-        if self.kind == "stick_slip_friction":
+        if self.kind in ("joint_friction", "stick_slip_friction"):
             return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
                 [w[0], w[1], float(np.hypot(w[1], w[2]))]
         if self.kind == "stiffness":
