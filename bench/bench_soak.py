@@ -48,11 +48,10 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 from flex_model.arm import load_arm  # noqa: E402
 from flex_model.dynamics import FlexArmModel  # noqa: E402
 from flex_model.model_node import ModelNode  # noqa: E402
-from flex_planner.planning import plan  # noqa: E402
+from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS, plan  # noqa: E402
 from flex_planner.ros_messages import trajectory_msg  # noqa: E402
 
-WAYPOINTS = np.array([[-1.0, -1.0], [-2.0, -1.0], [-2.0, -2.0], [-1.0, -2.0]])
-TIMES = np.array([0.0, 5.0, 10.0, 15.0])
+WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
 RATE = 500.0
 PUBLISH_RATE = 100.0
 

@@ -11,12 +11,12 @@ from flex_model.controller_interface import load_controller
 from flex_model.dynamics import FlexArmModel
 from flex_model.statics import static_equilibrium
 from flex_model.stepper import Stepper
+from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS
 from flex_planner.planning import plan
 
 NAMES = ["joint1", "joint2"]
 PERIOD = 2e-3
-WAYPOINTS = np.array([[-1.0, -1.0], [-2.0, -1.0], [-2.0, -2.0], [-1.0, -2.0]])
-TIMES = np.array([0.0, 5.0, 10.0, 15.0])
+WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
 
 
 @pytest.fixture(scope="module")

@@ -24,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-WAYPOINTS = np.array([[-1.0, -1.0], [-2.0, -1.0], [-2.0, -2.0], [-1.0, -2.0]])
-TIMES = np.array([0.0, 5.0, 10.0, 15.0])
+from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS
+
+WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
 RECORDED = {"/joint_states": "sensor_msgs/msg/JointState",
             "/flex/deflections": "sensor_msgs/msg/JointState",
             "/flex/tip_pose": "geometry_msgs/msg/PoseStamped",

@@ -221,6 +221,15 @@ def _flexible(f: Fields, joint: SpatialJoint) -> FlexibleBeam:
         length = joint.a
     else:
         length = f.number("length", positive=True, unit="m")
+    beam = flexible_beam(f, length, placement)
+    f.done(["placement", "length", "section", "variables", "torsion_variables"])
+    return beam
+
+
+def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
+    """The beam of a flexible link from its ``section`` (SECTION_FIELDS, each a number or
+    [root, tip]), ``variables`` and ``torsion_variables`` fields (the YAML arm file and the
+    URDF side file share them)."""
     sec = f.mapping("section")
     vals = {k: _pair(sec, k, u, nonnegative=(k == "rhoJ")) for k, u in SECTION_FIELDS
             if k != "rhoJ" or sec.has(k)}
@@ -231,7 +240,6 @@ def _flexible(f: Fields, joint: SpatialJoint) -> FlexibleBeam:
     if nt and max(vals["rhoJ"]) <= 0:
         raise sec.error("rhoJ", 0.0, "a polar mass moment per length > 0 (kg m) when the "
                         "link twists (torsion_variables > 0)")
-    f.done(["placement", "length", "section", "variables", "torsion_variables"])
     return FlexibleBeam(length=length,
                         bend_v=explicit_profile(length, vals["EI_z"], vals["rhoA"]),
                         bend_w=explicit_profile(length, vals["EI_y"], vals["rhoA"]),

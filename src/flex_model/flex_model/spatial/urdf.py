@@ -50,8 +50,8 @@ from pathlib import Path
 import numpy as np
 
 from ..config import ConfigError, Fields
-from .description import (SECTION_FIELDS, FlexibleBeam, RigidBody, SpatialArm, SpatialJoint,
-                          SpatialLink, _body, _pair, explicit_profile)
+from .description import (RigidBody, SpatialArm, SpatialJoint, SpatialLink, _body,
+                          flexible_beam)
 from .kinematics import rpy_matrix
 
 MOVING = ("revolute", "continuous", "prismatic")
@@ -154,24 +154,10 @@ def _flexible(f: Fields, default_length, link_name: str, u: _Urdf):
                               f"a beam length > 0 (m): link '{link_name}' has no child joint "
                               "whose origin x gives it")
         length = float(default_length)
-    sec = f.mapping("section")
-    vals = {k: _pair(sec, k, unit, nonnegative=(k == "rhoJ")) for k, unit in SECTION_FIELDS
-            if k != "rhoJ" or sec.has(k)}
-    vals.setdefault("rhoJ", (0.0, 0.0))
-    sec.done([k for k, _ in SECTION_FIELDS])
-    nv = f.integer("variables", 4, min_value=2, max_value=200, even=True)
-    nt = f.integer("torsion_variables", nv, min_value=0, max_value=200, even=True)
-    if nt and max(vals["rhoJ"]) <= 0:
-        raise sec.error("rhoJ", 0.0, "a polar mass moment per length > 0 (kg m) when the "
-                        "link twists (torsion_variables > 0)")
+    beam = flexible_beam(f, length, "link_x")
     root = _body(f.mapping("root_body")) if f.has("root_body") else RigidBody()
     end = _body(f.mapping("end_body")) if f.has("end_body") else RigidBody()
     f.done(["length", "section", "variables", "torsion_variables", "root_body", "end_body"])
-    beam = FlexibleBeam(length=length,
-                        bend_v=explicit_profile(length, vals["EI_z"], vals["rhoA"]),
-                        bend_w=explicit_profile(length, vals["EI_y"], vals["rhoA"]),
-                        torsion=explicit_profile(length, vals["GJ"], vals["rhoJ"]),
-                        variables=nv, torsion_variables=nt, placement="link_x")
     return beam, root, end
 
 

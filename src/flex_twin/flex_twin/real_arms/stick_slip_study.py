@@ -30,7 +30,7 @@ def with_stick_slip(arm: ArmDescription, coulomb=None, static=None, viscous=None
                     presliding: float = PRESLIDING) -> ArmDescription:
     """The arm with its joint_friction (or given levels) as stick_slip_friction; the
     bristles critically damped for the hub's inertia n^2 J_r + J_hub + link."""
-    from flex_model.dynamics import FlexArmModel
+    from flex_twin.diagnosis.hypotheses import joint_inertias
     j = arm.joint_names[0]
     fr = arm.effect("joint_friction", j)
     fv = viscous if viscous is not None else (fr["viscous"] if fr else 0.0)
@@ -39,9 +39,7 @@ def with_stick_slip(arm: ArmDescription, coulomb=None, static=None, viscous=None
     fs = max(fs, fc)
     base = dataclasses.replace(arm, effects=tuple(e for e in arm.effects
                                                   if e.TYPE != "joint_friction"))
-    m = FlexArmModel(base)
-    B = m.mass_matrix(m.q_from_joint_angles([0.0]))
-    inertia = 1.0 / float(m.Ga[0] @ np.linalg.solve(B, m.Ga[0]))
+    inertia = float(joint_inertias(base, [0.0])[0])
     sigma0 = max(fs, 1e-6) / presliding
     return base.with_effects(StickSlipFriction(j, (
         fv, fc, fs, STRIBECK_VELOCITY, sigma0, 2.0 * np.sqrt(sigma0 * inertia),
