@@ -38,7 +38,10 @@ def input_data(model, pd: JointPD | None, pulses, u) -> tuple:
     if pd is None:
         kp = kd = sp = np.zeros(nl)
     else:
-        kp, kd, sp = (np.asarray(a, float).reshape(nl) for a in (pd.kp, pd.kd, pd.setpoints))
+        # fresh C-contiguous, writable copies: a read-only (np.broadcast_to) or strided
+        # gain array is another numba type, and every new type of E compiles the whole
+        # integrator again (~10 s each on a fresh clone)
+        kp, kd, sp = (np.array(a, float).reshape(nl) for a in (pd.kp, pd.kd, pd.setpoints))
     n = len(pulses)
     t0 = np.array([p.start for p in pulses], float)
     t1 = np.array([p.end for p in pulses], float)
