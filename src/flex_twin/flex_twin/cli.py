@@ -72,6 +72,9 @@ def _gains(values, name, model):
 def cmd_modes(args) -> int:
     from flex_model.modes import natural_modes
 
+    from .spatial_cli import cmd_spatial_modes, is_spatial
+    if is_spatial(args.arm):
+        return cmd_spatial_modes(args)
     model = _model(args)
     kp, kd = _gains(args.kp, "kp", model), _gains(args.kd, "kd", model)
     if args.joints == "pd" and kp is None:
@@ -105,6 +108,9 @@ def cmd_modes(args) -> int:
 def cmd_static(args) -> int:
     from flex_model.statics import TipLoad, static_equilibrium
 
+    from .spatial_cli import cmd_spatial_static, is_spatial
+    if is_spatial(args.arm):
+        return cmd_spatial_static(args)
     model = _model(args)
     kp = _gains(args.kp, "kp", model)
     if args.joints == "pd" and kp is None:
@@ -297,13 +303,19 @@ def cmd_presets(args) -> int:
     from flex_model.arm import load_arm, preset_names
     from flex_model.scenario import scenario_names
 
+    from flex_model.spatial.description import SPATIAL_PRESET_DIR, load_spatial_arm
+
     arms = {n: load_arm(n).description for n in preset_names()}
+    spatial = {p.stem: load_spatial_arm(p).description
+               for p in sorted(SPATIAL_PRESET_DIR.glob("*.yaml"))}
     if args.json:
-        print(json.dumps({"arms": arms, "scenarios": scenario_names()}))
+        print(json.dumps({"arms": arms, "spatial_arms": spatial,
+                          "scenarios": scenario_names()}))
         return 0
-    print("arms:")
-    for n, d in arms.items():
-        print(f"  {n:22s} {d}")
+    for title, group in (("arms", arms), ("spatial arms (modes, static)", spatial)):
+        print(f"{title}:")
+        for n, d in group.items():
+            print(f"  {n:26s} {d}")
     print("scenarios:")
     for n in scenario_names():
         print(f"  {n}")
@@ -315,11 +327,13 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     def arm_args(sp):
-        sp.add_argument("arm", help="arm preset name or YAML path")
+        sp.add_argument("arm", help="arm preset name or YAML path (planar, or spatial: a DH "
+                        "table or a URDF side file)")
         sp.add_argument("--vars-per-link", type=int, default=None, metavar="N",
                         help="deformation variables of every link (even, >= 2)")
         sp.add_argument("--joint-angles-deg", type=float, nargs="+", default=None,
-                        help="joint (relative) angles of the configuration, deg")
+                        help="joint (relative) angles of the configuration, deg (a spatial "
+                        "arm's prismatic joints: m)")
         sp.add_argument("--json", action="store_true", help="machine-readable output")
         kinematics_arg(sp)
 
