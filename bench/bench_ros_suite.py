@@ -1,7 +1,7 @@
 """Benchmark: the ROS suite (issue 7). Prints figures; not a timed test.
 
 (a) realtime: the model node alone at 1 kHz (SingleThreadedExecutor) on the Ch. V arm
-    (thesis_example1_motors), publishing at 250 Hz (/flex/shape at 50 Hz): the share of
+    (thesis_example1_motors), without a controller and with Eq. 95 in its loop at 1 kHz, publishing at 250 Hz (/flex/shape at 50 Hz): the share of
     missed 1 ms periods (timer callbacks that came one period or more late; the node then
     integrates the owed steps, so simulation time keeps up), the distribution of tick
     periods and of the time spent in a tick, the steps per tick, and the /joint_states
@@ -88,9 +88,10 @@ def _dist(values, scale=1e3) -> dict:
             "max": float(v.max())}
 
 
-def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
+def realtime(seconds: float, tmp: Path, priority: int = 0, controller: bool = False) -> dict:
     """(a): the model node at 1 kHz in this process (``priority``: its realtime_priority
-    parameter), a probe in another."""
+    parameter; ``controller``: Eq. 95 (h = 25, a = 5) in its loop at 1 kHz, holding the
+    initial pose), a probe in another."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
@@ -105,7 +106,11 @@ def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
             Parameter("publish_rate", value=250.0), Parameter("shape_rate", value=50.0),
             Parameter("initial_joint_angles_deg", value=[150.0, 130.0]),
             Parameter("start_paused", value=True),
-            Parameter("realtime_priority", value=priority)])
+            Parameter("realtime_priority", value=priority)] + ([
+                Parameter("controller", value="eq95"),
+                Parameter("controller_rate", value=1000.0),
+                Parameter("controller_params.h", value=[25.0]),
+                Parameter("controller_params.a", value=[5.0])] if controller else []))
         ex = SingleThreadedExecutor()
         ex.add_node(node)
         _spin_for(ex, 30.0, lambda: node.pub_js.get_subscription_count() > 0)
@@ -151,7 +156,8 @@ def realtime(seconds: float, tmp: Path, priority: int = 0) -> dict:
             t_tick, t_pub = published[stamp]
             lat_tick.append(arrival - t_tick)
             lat_pub.append(arrival - t_pub)
-    return {"priority": priority, "load_average": load,
+    return {"priority": priority, "controller": "eq95 in the loop" if controller else "none",
+            "load_average": load,
             "seconds": wall, "ticks": len(ticks), "periods": wall / PERIOD,
             "missed_share": float(missed / (wall / PERIOD)),
             "tick_period_ms": _dist(gaps), "tick_time_ms": _dist([t[1] for t in ticks]),
@@ -194,6 +200,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=5.0, help="wall seconds per figure")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--only", choices=["realtime", "lockstep"], default=None,
+                    help="one part of the benchmark")
     ap.add_argument("--probe", help=argparse.SUPPRESS)
     ap.add_argument("--out", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -202,15 +210,19 @@ def main(argv=None) -> int:
         return 0
     os.chdir(ROOT)
     with tempfile.TemporaryDirectory() as tmp:
-        rt = [realtime(args.seconds, Path(tmp), prio) for prio in (0, 50)]
-        ls = [lockstep(args.seconds, p, Path(tmp)) for p in (False, True)]
+        rt = [] if args.only == "lockstep" else [
+            realtime(args.seconds, Path(tmp), prio, ctl) for ctl in (False, True)
+            for prio in (0, 50)]
+        ls = [] if args.only == "realtime" else [
+            lockstep(args.seconds, p, Path(tmp)) for p in (False, True)]
     if args.json:
         print(json.dumps({"realtime": rt, "lockstep": ls}, indent=1))
         return 0
     f = "{median:.3f} / {p99:.3f} / {max:.3f}".format
     for r in rt:
         how = f"SCHED_FIFO {r['priority']}" if r["priority"] else "normal scheduling"
-        print(f"(a) realtime model node at 1 kHz, {how}, {r['seconds']:.1f} s (load average "
+        print(f"(a) realtime model node at 1 kHz, controller {r['controller']}, {how}, "
+              f"{r['seconds']:.1f} s (load average "
               f"{r['load_average']:.1f}): {r['ticks']} ticks for {r['periods']:.0f} periods, "
               f"missed periods {100 * r['missed_share']:.2f} % (aim < 1 %), simulated/wall "
               f"{r['sim_over_wall']:.4f}")
@@ -221,7 +233,8 @@ def main(argv=None) -> int:
         print(f"    /joint_states at 250 Hz in another process ({r['received']} of "
               f"{r['published']}), latency ms from the tick: {f(**r['latency_from_tick_ms'])}")
         print(f"    {'':56s}from the publish: {f(**r['latency_from_publish_ms'])}")
-    print("(b) lockstep suite (model + controller at 500 Hz, planner idle), flex-twin up:")
+    if ls:
+        print("(b) lockstep suite (model + controller at 500 Hz, planner idle), flex-twin up:")
     for r in ls:
         where = f"{r['processes']} process{'es' if r['processes'] > 1 else ''}"
         if "error" in r:
