@@ -5,7 +5,8 @@ For each command line in a ```bash block of those pages:
 * ``flex-twin ...``: the sub-command path exists in :func:`flex_twin.cli.build_parser`, its
   ``--help`` succeeds, every option used is an option of that sub-parser (spelled out, not
   an abbreviation), the whole line parses (choices, types, required arguments), and an arm
-  or scenario given by name is a preset (:func:`flex_model.arm.preset_names`,
+  or scenario given by name is a preset (:func:`flex_model.arm.preset_names`, the spatial
+  presets,
   :func:`flex_model.scenario.scenario_names`);
 * ``flex-model-node``, ``flex-controller-node``, ``flex-planner-node`` (and ``ros2 run PKG
   EXE``): the entry point is in the package's setup.py, and every ``-p name:=value`` names a
@@ -117,7 +118,9 @@ def flex_twin_parser() -> argparse.ArgumentParser:
 def presets() -> tuple[set, set]:
     from flex_model.arm import preset_names
     from flex_model.scenario import scenario_names
-    return set(preset_names()), set(scenario_names())
+    from flex_model.spatial.description import SPATIAL_PRESET_DIR
+    spatial = {p.stem for p in SPATIAL_PRESET_DIR.glob("*.yaml")}
+    return set(preset_names()) | spatial, set(scenario_names())
 
 
 @functools.lru_cache(maxsize=None)
