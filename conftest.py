@@ -12,8 +12,12 @@ Runs at import time, i.e. before any test module (or anything it imports) loads 
   these kernels (a 20 s replay 0.55 against 0.53 CPU-s, a 20 s fixed-step run 0.42 against
   0.43 CPU-s) and computes the same numbers (no fast-math: IEEE results do not depend on
   the optimization level). Subprocesses (process pools, Dask workers, nodes) inherit it.
+
+When a session collects most of the suite, test/numba_warmup.py compiles the loops that
+later tests need in a background process (the second core; FLEX_TWIN_NUMBA_WARMUP=0: off).
 """
 import os
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -46,3 +50,24 @@ def shared_dir() -> Path:
     if not path.is_dir():
         pytest.skip(f"../shared not found beside the checkout: {path}")
     return path
+
+
+#: a session with at least this many tests is "most of the suite" (the warm-up pays off)
+WARMUP_MIN_TESTS = 300
+
+
+def pytest_collection_finish(session):
+    if len(session.items) < WARMUP_MIN_TESTS or \
+            os.environ.get("FLEX_TWIN_NUMBA_WARMUP", "1") == "0":
+        return
+    session.config._numba_warmup = subprocess.Popen(
+        [sys.executable, str(REPO_ROOT / "test" / "numba_warmup.py")],
+        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True)
+
+
+def pytest_sessionfinish(session):
+    proc = getattr(session.config, "_numba_warmup", None)
+    if proc is not None and proc.poll() is None:
+        proc.kill()
+        proc.wait()
