@@ -1,0 +1,158 @@
+"""Recording topics into a bag (``flex-twin record``).
+
+The log time is the receive time (wall clock, as rosbag2) or, with ``use_sim_time``
+(``record --use-sim-time``, the default when /clock is recorded; the twin demo), the
+latest /clock. rclpy is imported lazily.
+"""
+from __future__ import annotations
+
+import time
+
+from .message_types import BagError, get_message
+from .writer import BagWriter
+
+
+def discover_types(node, names, timeout_s: float = 5.0, stop_event=None) -> dict[str, str]:
+    """``{name: type}`` of the given topics, polling the graph up to ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        graph = dict(node.get_topic_names_and_types())
+        missing = [n for n in names if n not in graph]
+        if not missing:
+            return {n: graph[n][0] for n in names}
+        if time.monotonic() > deadline or (stop_event is not None and stop_event.is_set()):
+            raise BagError(f"topic(s) {missing} not on the graph after {timeout_s} s "
+                           "(give the type as NAME=pkg/msg/Type or start the publisher)")
+        time.sleep(0.05)
+
+
+class Recorder:
+    """Records topics of the graph into a :class:`BagWriter` with raw subscriptions.
+
+    ``topics`` maps names to types, or lists names whose types are looked up on the graph
+    (waiting up to ``discovery_timeout_s``).
+
+    Log time (one time base per bag): by default the node clock at the callback (the
+    receive time, as rosbag2 records). With ``use_sim_time`` the simulation time of the
+    latest /clock message instead (``ros2 bag record --use-sim-time``): /clock itself is
+    stamped with its own value, messages received before the first /clock with the first
+    /clock value. Topics in ``use_header_stamp`` are stamped with their ``header.stamp``
+    (the same time base as /clock for a lockstep suite).
+
+    QoS as rosbag2 adapts it: a topic is subscribed once a publisher is on the graph (a
+    0.1 s steady timer polls for it), RELIABLE unless a publisher offers BEST_EFFORT, and
+    TRANSIENT_LOCAL when all publishers offer it, so that latched messages (published
+    before the recorder started) are recorded. Topics without a publisher until
+    :meth:`stop` are declared in the bag with no messages.
+    """
+
+    def __init__(self, node, bag_writer: BagWriter, topics, *, use_header_stamp=(),
+                 depth: int = 100, discovery_timeout_s: float = 5.0,
+                 use_sim_time: bool = False):
+        from rclpy.clock import Clock, ClockType
+        self.node, self.writer, self.depth = node, bag_writer, depth
+        self.use_header_stamp = set(use_header_stamp)
+        self.use_sim_time = use_sim_time
+        self._subs, self._pending, self._types = {}, {}, {}
+        self._sim_ns = None   # the latest /clock (use_sim_time)
+        self._early = []      # (name, data, receive ns) before the first /clock
+        self._clock_sub = None
+        if use_sim_time:
+            from rclpy.qos import QoSProfile, ReliabilityPolicy
+            from rosgraph_msgs.msg import Clock as ClockMsg
+            # BEST_EFFORT, VOLATILE: compatible with every /clock publisher
+            self._clock_sub = node.create_subscription(
+                ClockMsg, "/clock", self._on_clock,
+                QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
+        self._timer = node.create_timer(0.1, self._subscribe_pending,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.add_topics(dict(topics) if isinstance(topics, dict) else discover_types(
+            node, list(topics), discovery_timeout_s))
+
+    def add_topics(self, types: dict[str, str]) -> list[str]:
+        """Record ``{name: type}`` topics not yet recorded; returns the new names."""
+        new = [n for n in types if n not in self._types]
+        for name in new:
+            get_message(types[name])  # a standard, installed type
+            self._types[name] = types[name]
+            self._pending[name] = types[name]
+        self._subscribe_pending()
+        return new
+
+    def _subscribe_pending(self) -> None:
+        """Subscribe the pending topics that have a publisher, with its QoS."""
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        for name, type_str in list(self._pending.items()):
+            offered = [i.qos_profile for i in self.node.get_publishers_info_by_topic(name)]
+            if not offered:
+                continue
+            del self._pending[name]
+            qos = QoSProfile(depth=self.depth)
+            if any(q.reliability == ReliabilityPolicy.BEST_EFFORT for q in offered):
+                qos.reliability = ReliabilityPolicy.BEST_EFFORT
+            if all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered):
+                qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+            self.writer.add_topic(name, type_str, qos=offered)
+            cls = get_message(type_str)
+            self._subs[name] = self.node.create_subscription(
+                cls, name, self._callback(name, cls), qos, raw=True)
+
+    @property
+    def sim_time_ns(self) -> int | None:
+        """The latest /clock received (``use_sim_time``), None before the first."""
+        return self._sim_ns
+
+    def _on_clock(self, msg) -> None:
+        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        first = self._sim_ns is None
+        self._sim_ns = t_ns if first else max(self._sim_ns, t_ns)
+        if first:
+            self._write_early(t_ns)
+
+    def _write_early(self, t_ns=None) -> None:
+        early, self._early = self._early, []
+        for name, data, received_ns in early:
+            if not self.writer.closed:
+                self.writer.write(name, data, received_ns if t_ns is None else t_ns)
+
+    def _callback(self, name, cls):
+        from rclpy.serialization import deserialize_message
+        by_header = name in self.use_header_stamp
+        is_clock = self.use_sim_time and name == "/clock" and not by_header
+
+        def callback(data):
+            if by_header:
+                stamp = deserialize_message(data, cls).header.stamp
+                t_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+            elif is_clock:
+                clock = deserialize_message(data, cls).clock
+                t_ns = clock.sec * 1_000_000_000 + clock.nanosec
+            elif self.use_sim_time:
+                if self._sim_ns is None:  # stamped with the first /clock when it comes
+                    self._early.append((name, data, self.node.get_clock().now().nanoseconds))
+                    return
+                t_ns = self._sim_ns
+            else:
+                t_ns = self.node.get_clock().now().nanoseconds
+            if not self.writer.closed:
+                self.writer.write(name, data, t_ns)
+        return callback
+
+    def stop(self) -> None:
+        """Destroy the subscriptions and declare topics that never had a publisher (the
+        writer stays open; the caller closes it). Messages held for the first /clock are
+        written with their receive time when no /clock came."""
+        self._write_early(None)
+        if not self.writer.closed:
+            for name, type_str in self._pending.items():
+                self.writer.add_topic(name, type_str)
+        self._pending = {}
+        for sub in self._subs.values():
+            self.node.destroy_subscription(sub)
+        self._subs = {}
+        if self._clock_sub is not None:
+            self.node.destroy_subscription(self._clock_sub)
+            self._clock_sub = None
+        if self._timer is not None:
+            self.node.destroy_timer(self._timer)
+            self._timer = None
