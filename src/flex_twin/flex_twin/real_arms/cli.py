@@ -121,6 +121,35 @@ def cmd_stick_slip(args) -> int:
     return 0
 
 
+def cmd_two_mass(args) -> int:
+    """The two-mass motor bench (issue 22): replay of records A and B on the
+    ``two_mass_bench`` twin, FRF and time overlays, the frequency-domain diagnosis of the
+    rigid nominal twin; ``--engine`` also runs ``flex-twin diagnose`` on it (minutes)."""
+    from .two_mass_data import data_dir, read_two_mass
+    from .two_mass_study import study
+    out = Path(args.out)
+    report = study(data_dir(args.data), out, _progress)
+    if args.engine:
+        from .two_mass_diagnosis import export_case, run_diagnosis
+        from .two_mass_twin import parameters_from_arm
+        from flex_model.arm import load_arm
+        root = data_dir(args.data)
+        paths = export_case(read_two_mass("A", root), read_two_mass("B", root),
+                            parameters_from_arm(load_arm("two_mass_bench")),
+                            out / "engine" / "inputs", args.duration)
+        s = run_diagnosis(paths, out / "engine", workers=args.workers)
+        report["engine"] = {k: s.get(k) for k in ("verdict", "named",
+                                                  "holdout_error_reduction")}
+        (out / "two_mass.json").write_text(json.dumps(report, indent=1, default=float))
+    if args.json:
+        print(json.dumps(report, indent=1, default=float))
+    else:
+        print((out / "two_mass.md").read_text())
+        if args.engine:
+            print(f"engine: {report['engine']['verdict']}; report {out / 'engine'}/report.md")
+    return 0
+
+
 def cmd_diagnose(args) -> int:
     """Export a lab run (and a held-out run with the same law) as diagnosis inputs into
     ``OUT/inputs`` and run ``flex-twin diagnose`` on them (report, diagnosed_arm.yaml)."""
@@ -157,7 +186,8 @@ def cmd_diagnose(args) -> int:
 
 
 def add_real_arm_parsers(sub) -> None:
-    """``replay``, ``import quanser`` and ``real-arm calibrate|report``."""
+    """``replay``, ``import quanser`` and
+    ``real-arm calibrate|report|stick-slip|two-mass|diagnose``."""
     sp = sub.add_parser("replay", help="replay a recorded real-arm run on its twin "
                         "(closed loop with the lab's law, or open loop from the voltage)")
     sp.add_argument("run", help="a CU Boulder lab log, or the UC Merced data folder")
@@ -208,6 +238,19 @@ def add_real_arm_parsers(sub) -> None:
     sp2.add_argument("--out", default="runs/quanser-stick-slip", help="output directory")
     sp2.add_argument("--json", action="store_true")
     sp2.set_defaults(func=cmd_stick_slip)
+    tp = rsub.add_parser("two-mass", help="the FdiTools two-mass motor bench: twin replay "
+                         "of records A (fit) and B (held out), FRF and time overlays, the "
+                         "diagnosis of the rigid nominal twin (markdown, PNG, JSON)")
+    tp.add_argument("--data", default=None, help="folder of the real data (default "
+                    "../shared/data/real)")
+    tp.add_argument("--out", default="runs/two-mass", help="output directory")
+    tp.add_argument("--engine", action="store_true", help="also run flex-twin diagnose "
+                    "(time domain, restarts every 1 s) on the rigid nominal twin (minutes)")
+    tp.add_argument("--duration", type=float, default=None, help="with --engine: only the "
+                    "first seconds of each record")
+    tp.add_argument("--workers", type=int, default=None, help="with --engine: processes")
+    tp.add_argument("--json", action="store_true")
+    tp.set_defaults(func=cmd_two_mass)
     dp = rsub.add_parser("diagnose", help="flex-twin diagnose on a lab run against the "
                          "nominal (handout) twin: writes the inputs (CSV, controller and arm "
                          "YAML) and the diagnosis report (minutes)")
