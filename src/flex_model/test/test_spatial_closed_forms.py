@@ -166,13 +166,16 @@ def test_l_shaped_arm_twist_bending_coupling_under_tip_force():
     assert full.tip_position[2] != pytest.approx(st.tip_position[2], rel=1e-6)
 
 
-@pytest.mark.parametrize("name", ["thesis_example1", "thesis_three_link", "thesis_example4"])
+@pytest.mark.parametrize("name", ["thesis_example1", "thesis_three_link", "thesis_example4",
+                                  "thesis_example1_motors"])
 def test_planar_dynamics_embedded_in_3d(name):
     """The full nonlinear equations of motion: at random planar states (joint angles,
     rates, deformations and their rates) with joint torques and gravity, the spatial
     model's accelerations equal the planar model's (theta'' = G a_alpha) to 1e-10, and so
     do the energies. (A free run of example 1 over 0.5 s with DOP853 at rtol 1e-11 agrees
-    in the joint angles to 7e-14 rad; too slow for a unit test.)"""
+    in the joint angles to 7e-14 rad; too slow for a unit test.) ``thesis_example1_motors``
+    has a gear on each joint: the spatial rotor on the stator (omega_s + n theta' e, seed
+    000 Eq. 35 in 3D) is the planar J_r c c^T with the stator's rotation in c."""
     arm = load_arm(name)
     planar = FlexArmModel(arm)
     spatial = SpatialArmModel(from_planar(arm))

@@ -4,7 +4,9 @@
   Newton with the exact tangent K + d^2 U_g / dq^2 (complex-step Hessian of gravity).
 - ``natural_modes``: K_t phi = omega^2 M phi about the unloaded configuration (gravity an
   input, as the planar ``modes``) or about the equilibrium under gravity
-  (``gravity_preload``), joints ``clamped`` (removed) or ``hinged`` (free).
+  (``gravity_preload``), joints ``clamped`` (the link-side joint variables removed; the
+  motor coordinates of elastic gears stay free, as in the planar ``modes``) or ``hinged``
+  (free); joints held by a locked motor behind a rigid gear are always removed.
 """
 from __future__ import annotations
 
@@ -108,6 +110,7 @@ def natural_modes(model: SpatialArmModel, joint_values=None, *, joints: str = "c
     keep = np.arange(model.nq) if coordinates is None else np.asarray(coordinates, int)
     if joints == "clamped":
         keep = np.setdiff1d(keep, model.off)
+    keep = np.setdiff1d(keep, model.held)      # joints held by a locked rigid motor
     M = model.mass_matrix(q0)[np.ix_(keep, keep)]
     K = Kt[np.ix_(keep, keep)]
     w2, vec = sla.eigh(K, M)

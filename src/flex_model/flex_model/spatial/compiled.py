@@ -110,15 +110,19 @@ def pack(model: SpatialArmModel) -> tuple:
             return np.ascontiguousarray(np.concatenate(parts))
         return np.zeros((0,) if width is None else (0, width))
 
+    # joint effects: rotor (J_r, n, spin coordinate or -1) per joint, constant motor inertias
+    rot = np.array([[jr, ratio, spin] for jr, ratio, spin in model.rotors], float)
+    # a writable copy: np.diag gives a read-only view, another numba signature (recompiles)
+    mdiag = np.diag(model.M_const).copy()
     return (jtype, koff, axis, T, P, flex, nv, nt, fstart, length, bm, bc, bI, pstart,
             cat(zs), cat(mw), cat(pw), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
             cat(dWw, maxnv), cat(Pt, maxnt), np.asarray(model.gravity, float),
-            int(model.nq))
+            int(model.nq), rot.reshape(n, 3), mdiag)
 
 
 # ------------------------------------------------------------------ small vector helpers
 
-@njit(cache=_CACHE, inline="always")
+@njit(cache=_CACHE)
 def _cross(a, b, out):
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
@@ -254,14 +258,22 @@ def _section(phi, dv, dw, phid, dvd, dwd):
         aw[a] = -Rx[a, 1]
         av[a] = Rxy[a, 2]
     w1 = np.array([phid, 0.0, 0.0])
-    w2 = aw * dwd
-    w3 = av * dvd
-    wrel = w1 + w2 + w3
+    w2 = np.empty(3)
+    w3 = np.empty(3)
+    w12 = np.empty(3)
+    wrel = np.empty(3)
+    for a in range(3):
+        w2[a] = aw[a] * dwd
+        w3[a] = av[a] * dvd
+        w12[a] = w1[a] + w2[a]
+        wrel[a] = w12[a] + w3[a]
     t1 = np.zeros(3)
     t2 = np.zeros(3)
     _cross(w1, w2, t1)
-    _cross(w1 + w2, w3, t2)
-    return Rs, aw, av, wrel, t1 + t2
+    _cross(w12, w3, t2)
+    for a in range(3):
+        t1[a] += t2[a]
+    return Rs, aw, av, wrel, t1
 
 
 @njit(cache=_CACHE)
@@ -360,10 +372,44 @@ def _body_into(G, R, or0, or1, or2, ao, al, w, m, off, Ib, g, rv, acc, W):
 
 
 @njit(cache=_CACHE)
+def _rotor(jr, ratio, spin, e, w, al, Jw, ncols, v, qdd, M, c, a6, want_m):
+    """A geared rotor on the stator frame (angular velocity w, acceleration al, Jacobian
+    Jw, columns < ncols) about the joint axis e: omega_r = w + n e v[spin] (spin < 0:
+    locked, no spin), inertia jr e e^T. Adds Jr^T (I alpha_r + omega_r x I omega_r) to c
+    and jr a a^T to M (a = Jw^T e + n e_spin; upper triangle; a6: work, length nq)."""
+    s = ratio * v[spin] if spin >= 0 else 0.0
+    sa = ratio * qdd[spin] if spin >= 0 else 0.0
+    ew = e[0] * w[0] + e[1] * w[1] + e[2] * w[2] + s
+    ea = e[0] * al[0] + e[1] * al[1] + e[2] * al[2] + sa
+    # torque: jr (e . alpha_r) e + jr (e . omega_r) (w x e)
+    t0 = jr * (ea * e[0] + ew * (w[1] * e[2] - w[2] * e[1]))
+    t1 = jr * (ea * e[1] + ew * (w[2] * e[0] - w[0] * e[2]))
+    t2 = jr * (ea * e[2] + ew * (w[0] * e[1] - w[1] * e[0]))
+    for j in range(ncols):
+        c[j] += Jw[0, j] * t0 + Jw[1, j] * t1 + Jw[2, j] * t2
+    if spin >= 0:
+        c[spin] += ratio * jr * ea
+    if not want_m:
+        return
+    nq = a6.shape[0]
+    a6[:] = 0.0
+    for j in range(ncols):
+        a6[j] = Jw[0, j] * e[0] + Jw[1, j] * e[1] + Jw[2, j] * e[2]
+    if spin >= 0:
+        a6[spin] += ratio
+    for a in range(nq):
+        if a6[a] != 0.0:
+            for b in range(a, nq):
+                M[a, b] += jr * a6[a] * a6[b]
+
+
 def spatial_terms(Pm, q, v):
     """(M(q), c(q, v)) of the spatial arm ``Pm`` = :func:`pack` (model): c holds the
-    velocity terms (analytic Newton-Euler bias accelerations) and gravity."""
-    return spatial_eval(Pm, q, v, np.zeros(q.shape[0]), True)
+    velocity terms (analytic Newton-Euler bias accelerations) and gravity. (Plain Python:
+    a compiled wrapper would link and compile spatial_eval once more.)"""
+    q = np.ascontiguousarray(q, dtype=float)
+    return spatial_eval(Pm, q, np.ascontiguousarray(v, dtype=float), np.zeros(q.shape[0]),
+                        True)
 
 
 @njit(cache=_CACHE)
@@ -373,7 +419,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     points and rotors of a link are lumped per frame into a spatial inertia (mass, first
     and second moments) so that M costs one J6^T I6 J6 product per frame group."""
     (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq) = Pm
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag) = Pm
     M = np.zeros((nq, nq))
     c = np.zeros(nq)
     R = np.eye(3)
@@ -402,6 +448,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     Jo_root = np.zeros((3, nq))
     e = np.zeros(3)
     n_links = jtype.shape[0]
+    zero = koff[0] * 0          # an int64, not a literal: one _flush signature
     for i in range(n_links):
         k = koff[i]
         ncols = k + 1
@@ -409,6 +456,9 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         u = axis[i]
         for a in range(3):
             e[a] = R[a, 0] * u[0] + R[a, 1] * u[1] + R[a, 2] * u[2]
+        if rot[i, 0] != 0.0:
+            _rotor(rot[i, 0], rot[i, 1], int(rot[i, 2]), e, w, al, Jw, ncols, v, qdd, M, c,
+                   X6[0], want_m)
         qd = v[k]
         if jtype[i] == 0:
             e0, e1, e2 = e[0] * qd, e[1] * qd, e[2] * qd
@@ -422,22 +472,22 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             w[2] += e2
             _rotate_axis(R, u, q[k], W)
         else:
-            r = e * q[k]
+            for a in range(3):
+                rv[a] = e[a] * q[k]
+                xv[a] = e[a] * qd
             for j in range(ncols):
-                Jo[0, j] += Jw[1, j] * r[2] - Jw[2, j] * r[1]
-                Jo[1, j] += Jw[2, j] * r[0] - Jw[0, j] * r[2]
-                Jo[2, j] += Jw[0, j] * r[1] - Jw[1, j] * r[0]
+                Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
+                Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
+                Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
             for a in range(3):
                 Jo[a, k] += e[a]
-            t1 = np.zeros(3)
-            t2 = np.zeros(3)
-            t3 = np.zeros(3)
-            _cross(al, r, t1)
-            _cross(w, r, t2)
+            _cross(al, rv, t1)
+            _cross(w, rv, t2)
             _cross(w, t2, t3)
-            _cross(w, e * qd, t2)
-            ao += t1 + t3 + 2.0 * t2 + e * qdd[k]
-            o += r
+            _cross(w, xv, t2)
+            for a in range(3):
+                ao[a] += t1[a] + t3[a] + 2.0 * t2[a] + e[a] * qdd[k]
+                o[a] += rv[a]
         _fixed(R, o, Jo, Jw, w, ao, al, T[i, 1], ncols, W)
         if flex[i]:
             _fixed(R, o, Jo, Jw, w, ao, al, T[i, 2], ncols, W)
@@ -455,7 +505,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                 _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
                 _body_into(G, R, o[0] - o_root[0], o[1] - o_root[1], o[2] - o_root[2],
                            ao_root, al, w, bm[i, 1], bc[i, 1], bI[i, 1], g, rv, acc, W)
-                _flush(G, C6, 0, 0, Jo_root, Jw, ncols, M, c, X6, want_m)
+                _flush(G, C6, zero, zero, Jo_root, Jw, ncols, M, c, X6, want_m)
             else:
                 _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
             continue
@@ -659,18 +709,20 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         phi = ft[nt - 2] if nt else 0.0
         sphi = gt[nt - 2] if nt else 0.0
         aphi = ht[nt - 2] if nt else 0.0
-        r = L * bx + tv * by + tw * bz
-        rd = by * sv + bz * sw
-        _cross(al, r, t1)
-        _cross(w, r, t2)
+        for a in range(3):
+            rv[a] = L * bx[a] + tv * by[a] + tw * bz[a]
+            xv[a] = by[a] * sv + bz[a] * sw
+        _cross(al, rv, t1)
+        _cross(w, rv, t2)
         _cross(w, t2, t3)
-        _cross(w, rd, t4)
-        ao += t1 + t3 + 2.0 * t4 + av_ * by + aw_ * bz
+        _cross(w, xv, t4)
+        for a in range(3):
+            ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a]
+            o[a] += rv[a]
         for j in range(ncols):
-            Jo[0, j] += Jw[1, j] * r[2] - Jw[2, j] * r[1]
-            Jo[1, j] += Jw[2, j] * r[0] - Jw[0, j] * r[2]
-            Jo[2, j] += Jw[0, j] * r[1] - Jw[1, j] * r[0]
-        o += r
+            Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
+            Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
+            Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
         Rs, aw, av, wrel, arel = _section(phi, tdv, tdw, sphi, sdv, sdw)
         awb = _mv(Rb, aw)
         avb = _mv(Rb, av)
@@ -684,16 +736,23 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         wb = _mv(Rb, wrel)
         _cross(w, wb, tmp)
         arel[0] += aphi
-        arel += aw * adw + av * adv
-        al += tmp + _mv(Rb, arel)
-        w += wb
+        for a in range(3):
+            arel[a] += aw[a] * adw + av[a] * adv
+        ab = _mv(Rb, arel)
+        for a in range(3):
+            al[a] += tmp[a] + ab[a]
+            w[a] += wb[a]
         R[:, :] = _mm(Rb, Rs)
         _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], s1, W)
         G[:] = 0.0
         _body_into(G, R, 0.0, 0.0, 0.0, ao, al, w, bm[i, 1], bc[i, 1], bI[i, 1], g, rv,
                    acc, W)
         if _nonzero(G):
-            _flush(G, C6, 0, 0, Jo, Jw, s1, M, c, X6, want_m)
+            _flush(G, C6, zero, zero, Jo, Jw, s1, M, c, X6, want_m)
+    for a in range(nq):
+        if mdiag[a] != 0.0:      # motor inertias of elastic gears (constant)
+            M[a, a] += mdiag[a]
+            c[a] += mdiag[a] * qdd[a]
     for a in range(nq):
         for b in range(a + 1, nq):
             M[b, a] = M[a, b]
@@ -720,66 +779,175 @@ def _chol_solve(Lc, r):
 
 
 @njit(cache=_CACHE)
-def galpha_loop(Pm, K, D, H, effort, q0, v0, h, tau, rho_inf, tol, max_iter):
+def _chol(A):
+    """Lower Cholesky factor of a symmetric positive definite A (small n; no LAPACK)."""
+    n = A.shape[0]
+    Lc = np.zeros((n, n))
+    for j in range(n):
+        s = A[j, j]
+        for k in range(j):
+            s -= Lc[j, k] * Lc[j, k]
+        if s <= 0.0:
+            s = np.nan
+        d = np.sqrt(s)
+        Lc[j, j] = d
+        for i in range(j + 1, n):
+            t = A[i, j]
+            for k in range(j):
+                t -= Lc[i, k] * Lc[j, k]
+            Lc[i, j] = t / d
+    return Lc
+
+
+@njit(cache=_CACHE)
+def _effects(Q0, fric, v, Q, slope):
+    """Q = Q0 + friction torques on their coordinates, slope = their d/dv (effects.friction:
+    -F_v w - (F_c + (F_s - F_c) exp(-(w/w_s)^2)) tanh(w/eps)); fric rows: coordinate,
+    F_v, F_c, F_s, w_s, eps."""
+    Q[:] = Q0
+    slope[:] = 0.0
+    for r in range(fric.shape[0]):
+        a = int(fric[r, 0])
+        fv, fc, fs, ws, eps = fric[r, 1], fric[r, 2], fric[r, 3], fric[r, 4], fric[r, 5]
+        w = v[a]
+        ex = np.exp(-(w / ws) ** 2)
+        th = np.tanh(w / eps)
+        Q[a] += -fv * w - (fc + (fs - fc) * ex) * th
+        slope[a] += -fv + (fs - fc) * ex * 2.0 * w / ws ** 2 * th \
+            - (fc + (fs - fc) * ex) * (1.0 - th * th) / eps
+
+
+@njit(cache=_CACHE)
+def _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1):
+    """The generalized-alpha predictor-corrector (Arnold-Bruels): ab1 from the iterate a1,
+    then q1, v1 (explicit loops: numba array expressions compile slowly)."""
+    for j in range(q.shape[0]):
+        b = ((1 - af) * a1[j] + af * a[j] - am * abar[j]) / (1 - am)
+        ab1[j] = b
+        q1[j] = q[j] + h * v[j] + h * h * ((0.5 - beta) * abar[j] + beta * b)
+        v1[j] = v[j] + h * ((1 - gam) * abar[j] + gam * b)
+
+
+@njit(cache=_CACHE)
+def _hold(S, r, held):
+    """Held coordinates: identity rows and columns of S (if given) and zero residual."""
+    n = r.shape[0]
+    for j in range(n):
+        if held[j]:
+            r[j] = 0.0
+            if S.shape[0]:
+                for b in range(n):
+                    S[j, b] = 0.0
+                    S[b, j] = 0.0
+                S[j, j] = 1.0
+
+
+@njit(cache=_CACHE)
+def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, tol, max_iter):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
-    integrate.simulate_fixed: Newton on the accelerations with M + beta' h^2 K + gamma' h D
-    frozen per step (M from the first iterate), the residual by the O(n) inverse dynamics
-    of spatial_eval. ``tau`` (n_steps, n_joints): joint torques/forces held over step n
-    (applied at t_{n+1}), clipped to +-``effort``; generalized force H tau. Returns
-    (q, v) at every step (n_steps + 1, nq) and the Newton iteration count (-1 - n: no
-    convergence at step n)."""
+    integrate.simulate_fixed: Newton on the accelerations with
+    M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
+    friction slope d Q_f/dv from the current iterate: the steep tanh needs it),
+    the residual by the O(n) inverse dynamics of spatial_eval. ``tau`` (n_steps, n_joints):
+    joint torques/forces held over step n (applied at t_{n+1}), clipped to +-``effort``;
+    generalized force H tau + Q0 + friction (``fric``, see _effects); ``held`` (nq, 0/1):
+    coordinates with zero acceleration. Returns (q, v) at every step (n_steps + 1, nq) and
+    the Newton iteration count (-1 - n: no convergence at step n)."""
     nq = q0.shape[0]
     n_steps = tau.shape[0]
+    nj = tau.shape[1]
     am = (2 * rho_inf - 1) / (rho_inf + 1)
     af = rho_inf / (rho_inf + 1)
     gam = 0.5 + af - am
     beta = 0.25 * (gam + 0.5) ** 2
     cq = h * h * beta * (1 - af) / (1 - am)
     cv = h * gam * (1 - af) / (1 - am)
-    has_d = np.any(D != 0.0)
+    has_d = False
+    for a_ in range(nq):
+        for b_ in range(nq):
+            if D[a_, b_] != 0.0:
+                has_d = True
+    has_f = fric.shape[0] > 0
+    S0 = np.zeros((nq, nq))
+    S = np.zeros((nq, nq))
+    none = np.zeros((0, 0))
     qs = np.empty((n_steps + 1, nq))
     vs = np.empty((n_steps + 1, nq))
+    Qe = np.zeros(nq)
+    slope = np.zeros(nq)
+    u = np.zeros(nj)
+    q1 = np.zeros(nq)
+    v1 = np.zeros(nq)
+    ab1 = np.zeros(nq)
+    r = np.zeros(nq)
+    Dv = np.zeros(nq)
     q = q0.copy()
     v = v0.copy()
     qs[0] = q
     vs[0] = v
-    u0 = np.minimum(np.maximum(tau[0], -effort), effort)
-    M, c = spatial_terms(Pm, q, v)
-    a = np.linalg.solve(M, _matvec(H, u0) - c - _matvec(K, q) - _matvec(D, v))
+    for j in range(nj):
+        u[j] = min(max(tau[0, j], -effort[j]), effort[j])
+    M, c = spatial_eval(Pm, q, v, np.zeros(nq), nq > 0)
+    _effects(Q0, fric, v, Qe, slope)
+    Hu, Kq, Dv = _matvec(H, u), _matvec(K, q), _matvec(D, v)
+    for j in range(nq):
+        r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
+    _hold(M, r, held)
+    a = _chol_solve(_chol(M), r)
     abar = a.copy()
+    a1 = a.copy()
     iters = 0
     for n in range(n_steps):
-        u = np.minimum(np.maximum(tau[n], -effort), effort)
+        for j in range(nj):
+            u[j] = min(max(tau[n, j], -effort[j]), effort[j])
         Q = _matvec(H, u)
-        a1 = a.copy()
-        Lc = np.zeros((nq, nq))
+        a1[:] = a
+        Lc = S0
         ok = False
         for it in range(max_iter):
-            ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
-            q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
-            v1 = v + h * ((1 - gam) * abar + gam * ab1)
-            # residual M a + c + K q + D v - Q by inverse dynamics; M only once a step
+            _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1)
+            # residual M a + c + K q + D v - Q - Q_e by inverse dynamics; M once a step
             M1, f1 = spatial_eval(Pm, q1, v1, a1, it == 0)
-            r = f1 + _matvec(K, q1) - Q
+            _effects(Q0, fric, v1, Qe, slope)
+            Kq = _matvec(K, q1)
             if has_d:
-                r += _matvec(D, v1)
+                Dv = _matvec(D, v1)
+            for j in range(nq):
+                r[j] = f1[j] + Kq[j] - Q[j] - Qe[j] + Dv[j]
             if it == 0:
-                Lc = np.linalg.cholesky(M1 + cq * K + cv * D)
+                for j in range(nq):
+                    for b_ in range(nq):
+                        S0[j, b_] = M1[j, b_] + cq * K[j, b_] + cv * D[j, b_]
+            if it == 0 or has_f:      # friction: its slope refreshed every iteration
+                for j in range(nq):
+                    for b_ in range(nq):
+                        S[j, b_] = S0[j, b_]
+                    S[j, j] -= cv * slope[j]
+                _hold(S, r, held)
+                Lc = _chol(S)
+            else:
+                _hold(none, r, held)
             da = _chol_solve(Lc, r)
-            a1 -= da
+            dmax = 0.0
+            amax = 1.0
+            for j in range(nq):
+                a1[j] -= da[j]
+                dmax = max(dmax, abs(da[j]))
+                amax = max(amax, abs(a1[j]))
             iters += 1
-            if np.max(np.abs(da)) <= tol * max(1.0, np.max(np.abs(a1))):
+            if dmax <= tol * amax:
                 ok = True
                 break
         if not ok:
             return qs[:n + 1], vs[:n + 1], -1 - n
-        ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
-        q = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
-        v = v + h * ((1 - gam) * abar + gam * ab1)
-        a = a1
-        abar = ab1
-        qs[n + 1] = q
-        vs[n + 1] = v
+        _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1)
+        for j in range(nq):
+            q[j] = q1[j]
+            v[j] = v1[j]
+            a[j] = a1[j]
+            abar[j] = ab1[j]
+            qs[n + 1, j] = q1[j]
+            vs[n + 1, j] = v1[j]
     return qs, vs, iters
 
 
@@ -791,8 +959,7 @@ class CompiledSpatialModel:
         self.data = pack(model)
 
     def terms(self, q, v):
-        return spatial_terms(self.data, np.ascontiguousarray(q, dtype=float),
-                             np.ascontiguousarray(v, dtype=float))
+        return spatial_terms(self.data, q, v)
 
     def mass_matrix(self, q):
         return self.terms(q, np.zeros(self.model.nq))[0]

@@ -49,6 +49,11 @@ from ..config import ConfigError, Fields, read_yaml
 from ..sections import Segment, SectionProfile
 
 JOINT_TYPES = ("revolute", "prismatic")
+#: seed 003's joint options (Sect. 2): motor active or locked, gear rigid or elastic
+MOTOR_STATES = ("active", "locked")
+GEAR_TYPES = ("rigid", "elastic")
+#: effects of spatial joints (flex_model.effects classes, same YAML names and bounds)
+SPATIAL_EFFECTS = ("gear", "joint_elasticity", "joint_friction")
 PLACEMENTS = ("dh_x", "aux_z")
 #: placements of flexible links built from a URDF (not a YAML field): ``link_x`` is a beam
 #: along the x axis of the link (joint) frame from its origin; the link's end frame is the
@@ -79,7 +84,12 @@ class SpatialJoint:
     ``axis`` (unit, in the joint frame) is z for a DH joint, any direction for a URDF joint
     (the DH row is then zero and the link's ``origin`` places the joint). ``lower``,
     ``upper`` (rad or m), ``effort`` (N m or N) and ``velocity`` are the URDF limits
-    (infinite when absent; see :func:`flex_model.spatial.limits`)."""
+    (infinite when absent; see :func:`flex_model.spatial.limits`).
+
+    Seed 003's joint options (its Sect. 2, Figs. 2-7): ``motor`` ``active`` | ``locked``
+    (locked: the motor side clamped at ``locked_at``, rad or m, link side of the gear) and
+    ``gear`` ``rigid`` | ``elastic`` (elastic: a ``joint_elasticity`` effect on the joint
+    gives C_xi, B_xi and the motor inertia)."""
 
     name: str
     type: str = "revolute"
@@ -92,6 +102,9 @@ class SpatialJoint:
     upper: float = np.inf
     effort: float = np.inf
     velocity: float = np.inf
+    motor: str = "active"
+    gear: str = "rigid"
+    locked_at: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -140,10 +153,28 @@ class SpatialArm:
     description: str = ""
     source: str = "<memory>"
     convention: str = "standard_dh"
+    effects: tuple = ()
 
     @property
     def n_links(self) -> int:
         return len(self.links)
+
+    def effect(self, kind: str, joint: str):
+        """The effect of type ``kind`` on ``joint`` (None if absent)."""
+        for e in self.effects:
+            if e.TYPE == kind and e.target == joint:
+                return e
+        return None
+
+    def joint_type_003(self, i: int) -> str:
+        """Seed 003's name of joint i (Sect. 2): A|L (motor active or locked), E|R (an
+        elastic element behind the motor or all rigid), with xi (elastic gear first) or
+        theta (rigid gear, flexible link): 'AE_xi', 'LE_theta', 'AR', 'LR'."""
+        lk = self.links[i]
+        head = "A" if lk.joint.motor == "active" else "L"
+        if lk.joint.gear == "elastic":
+            return head + "E_xi"
+        return head + ("E_theta" if lk.flexible is not None else "R")
 
     @property
     def joint_names(self) -> list[str]:
@@ -204,9 +235,52 @@ def _joint(f: Fields, index: int) -> SpatialJoint:
     j = SpatialJoint(name=f.string("name", f"joint{index + 1}"),
                      type=f.string("type", "revolute", choices=list(JOINT_TYPES)),
                      a=f.number("a", 0.0, unit="m"), alpha=f.number("alpha", 0.0, unit="rad"),
-                     d=f.number("d", 0.0, unit="m"), theta=f.number("theta", 0.0, unit="rad"))
-    f.done(["name", "type", "a", "alpha", "d", "theta"])
+                     d=f.number("d", 0.0, unit="m"), theta=f.number("theta", 0.0, unit="rad"),
+                     motor=f.string("motor", "active", choices=list(MOTOR_STATES)),
+                     gear=f.string("gear", "", choices=list(GEAR_TYPES)) if f.has("gear")
+                     else "",
+                     locked_at=f.number("locked_at", 0.0, unit="rad or m"))
+    f.done(["name", "type", "a", "alpha", "d", "theta", "motor", "gear", "locked_at"])
     return j
+
+
+def _joint_effects(f: Fields, links: list, source: str) -> tuple:
+    """The ``effects:`` list of a spatial arm (the planar effect classes and YAML names,
+    flex_model.effects; only SPATIAL_EFFECTS) and seed 003's ``motor``/``gear`` options
+    of every joint checked against it. Returns (effects, links with ``gear`` resolved)."""
+    from ..effects import parse_effects
+    names = [lk.joint.name for lk in links]
+    items = f.items("effects", []) if f.has("effects") else []
+    for k, raw in enumerate(items):
+        if isinstance(raw, dict) and raw.get("type") not in SPATIAL_EFFECTS and \
+                isinstance(raw.get("type"), str):
+            raise ConfigError(source, f"effects[{k}].type", raw.get("type"),
+                              f"one of {', '.join(SPATIAL_EFFECTS)} (the effects of "
+                              "spatial joints so far)")
+    effects = parse_effects(items, source, names, [lk.name for lk in links])
+    kinds = {(e.TYPE, e.target) for e in effects if not e.is_off}
+    out = []
+    for i, lk in enumerate(links):
+        j = lk.joint
+        elastic = ("joint_elasticity", j.name) in kinds
+        path = f"links[{i}].joint"
+        if j.gear == "elastic" and not elastic:
+            raise ConfigError(source, path + ".gear", "elastic",
+                              f"rigid, or a joint_elasticity effect on {j.name} (stiffness, "
+                              "damping, motor_inertia: seed 003's C_xi, B_xi)")
+        if j.gear == "rigid" and elastic:
+            raise ConfigError(source, path + ".gear", "rigid",
+                              f"elastic (the arm has a joint_elasticity effect on {j.name})")
+        if j.motor == "locked" and ("joint_friction", j.name) in kinds:
+            raise ConfigError(source, path + ".motor", "locked",
+                              f"active, or no joint_friction effect on {j.name} (a locked "
+                              "motor does not move: its friction does nothing)")
+        if j.motor == "active" and j.locked_at != 0.0:
+            raise ConfigError(source, path + ".locked_at", j.locked_at,
+                              "no locked_at on an active motor (motor: locked)")
+        out.append(dataclasses.replace(lk, joint=dataclasses.replace(
+            j, gear="elastic" if elastic else "rigid")))
+    return effects, out
 
 
 def _flexible(f: Fields, joint: SpatialJoint) -> FlexibleBeam:
@@ -226,24 +300,54 @@ def _flexible(f: Fields, joint: SpatialJoint) -> FlexibleBeam:
     return beam
 
 
-def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
-    """The beam of a flexible link from its ``section`` (SECTION_FIELDS, each a number or
-    [root, tip]), ``variables`` and ``torsion_variables`` fields (the YAML arm file and the
-    URDF side file share them)."""
-    sec = f.mapping("section")
+def _section_values(sec: Fields) -> dict:
     vals = {k: _pair(sec, k, u, nonnegative=(k == "rhoJ")) for k, u in SECTION_FIELDS
             if k != "rhoJ" or sec.has(k)}
     vals.setdefault("rhoJ", (0.0, 0.0))
-    sec.done([k for k, _ in SECTION_FIELDS])
+    return vals
+
+
+def _profile(pieces, stiffness: str, mass: str) -> SectionProfile:
+    return SectionProfile([Segment(length=ln, shape="explicit",
+                                   dims={"EI": v[stiffness], "m": v[mass]})
+                           for ln, v in pieces])
+
+
+def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
+    """The beam of a flexible link from its ``section`` (SECTION_FIELDS, each a number or
+    [root, tip]; or a list of such sections, each with its ``length``, root first, the
+    lengths adding up to the beam's), ``variables`` and ``torsion_variables`` fields (the
+    YAML arm file and the URDF side file share them)."""
+    raw = f.raw("section")
+    if isinstance(raw, list):
+        pieces = []
+        if not raw:
+            raise f.error("section", raw, "a section mapping or a non-empty list of them")
+        for k, item in enumerate(raw):
+            sec = Fields(item, f.source, f"{f.sub('section')}[{k}]")
+            ln = sec.number("length", positive=True, unit="m")
+            pieces.append((ln, _section_values(sec)))
+            sec.done([k for k, _ in SECTION_FIELDS] + ["length"])
+        total = sum(ln for ln, _ in pieces)
+        if abs(total - length) > 1e-9 * length:
+            raise f.error("section", [ln for ln, _ in pieces],
+                          f"segment lengths adding up to the beam length {length:g} m "
+                          f"(got {total:g} m)")
+        sec_err = Fields(raw[0], f.source, f"{f.sub('section')}[0]")
+    else:
+        sec = f.mapping("section")
+        pieces = [(length, _section_values(sec))]
+        sec.done([k for k, _ in SECTION_FIELDS])
+        sec_err = sec
     nv = f.integer("variables", 4, min_value=2, max_value=200, even=True)
     nt = f.integer("torsion_variables", nv, min_value=0, max_value=200, even=True)
-    if nt and max(vals["rhoJ"]) <= 0:
-        raise sec.error("rhoJ", 0.0, "a polar mass moment per length > 0 (kg m) when the "
-                        "link twists (torsion_variables > 0)")
+    if nt and min(max(v["rhoJ"]) for _, v in pieces) <= 0:
+        raise sec_err.error("rhoJ", 0.0, "a polar mass moment per length > 0 (kg m) when "
+                            "the link twists (torsion_variables > 0)")
     return FlexibleBeam(length=length,
-                        bend_v=explicit_profile(length, vals["EI_z"], vals["rhoA"]),
-                        bend_w=explicit_profile(length, vals["EI_y"], vals["rhoA"]),
-                        torsion=explicit_profile(length, vals["GJ"], vals["rhoJ"]),
+                        bend_v=_profile(pieces, "EI_z", "rhoA"),
+                        bend_w=_profile(pieces, "EI_y", "rhoA"),
+                        torsion=_profile(pieces, "GJ", "rhoJ"),
                         variables=nv, torsion_variables=nt, placement=placement)
 
 
@@ -272,9 +376,10 @@ def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     names = [lk.joint.name for lk in links]
     if len(set(names)) != len(names):
         raise f.error("links", names, "unique joint names")
-    f.done(["name", "description", "convention", "gravity", "links"])
+    effects, links = _joint_effects(f, links, source)
+    f.done(["name", "description", "convention", "gravity", "links", "effects"])
     return SpatialArm(name=name, links=tuple(links), gravity=gravity, description=description,
-                      source=source, convention=convention)
+                      source=source, convention=convention, effects=effects)
 
 
 def load_spatial_arm(name_or_path) -> SpatialArm:
@@ -297,14 +402,18 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
     ``torsion_stiffness`` (default the mean EI / 1.3) and rhoJ = ``torsion_inertia``
     (default mean m (L/200)^2). M-, J- become the root body (J about z), M+, J+ (and the
     payload on the last link) the end body. Gravity (g_x, g_y) -> (g_x, g_y, 0). Only
-    ``wavelet`` links with ``small_deflection`` kinematics and no effects are accepted.
+    ``wavelet`` links with ``small_deflection`` kinematics and the effects of
+    SPATIAL_EFFECTS (gear, joint_elasticity, joint_friction: same objects) are accepted.
     """
     if arm.kinematics != "small_deflection":
         raise ConfigError(arm.source, "kinematics", arm.kinematics,
                           "small_deflection (second_order is not in the spatial core yet)")
-    if arm.effects:
-        raise ConfigError(arm.source, "effects", [e.TYPE for e in arm.effects],
-                          "no effects (the spatial core has none yet)")
+    bad = [e.TYPE for e in arm.effects if e.TYPE not in SPATIAL_EFFECTS]
+    if bad:
+        raise ConfigError(arm.source, "effects", bad,
+                          f"only {', '.join(SPATIAL_EFFECTS)} (the effects of spatial joints "
+                          "so far)")
+    elastic = {e.target for e in arm.effects if e.TYPE == "joint_elasticity" and not e.is_off}
     links = []
     for i, (lk, jt) in enumerate(zip(arm.links, arm.joints)):
         if lk.discretization != "wavelet":
@@ -324,14 +433,16 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
                             torsion=explicit_profile(lk.length, gj, rj), variables=lk.n_vars,
                             torsion_variables=lk.n_vars, placement="dh_x")
         links.append(SpatialLink(
-            name=lk.name, joint=SpatialJoint(name=jt.name, a=lk.length), flexible=beam,
+            name=lk.name, joint=SpatialJoint(name=jt.name, a=lk.length, gear="elastic" if
+                                             jt.name in elastic else "rigid"), flexible=beam,
             root_body=RigidBody(mass=lk.M_minus, inertia=tuple(map(tuple, np.diag(
                 [0.0, 0.0, lk.J_minus])))),
             end_body=RigidBody(mass=m_plus, inertia=tuple(map(tuple, np.diag(
                 [0.0, 0.0, j_plus]))))))
     g = tuple(arm.gravity) + (0.0,)
     return SpatialArm(name=arm.name + "_3d", links=tuple(links), gravity=g,
-                      description=arm.description, source=arm.source)
+                      description=arm.description, source=arm.source,
+                      effects=tuple(arm.effects))
 
 
 def rigid_dh_table(arm: SpatialArm) -> np.ndarray:

@@ -18,6 +18,26 @@ kinetic energies); dJ/dt v is computed **exactly by a complex step** of the kine
 (J(q + i h v), h = 1e-20: no truncation, no cancellation). K is block diagonal: the
 bending blocks are the basis's int EI w'' w''^T (thesis Eq. 14) per plane, the torsion
 block int GJ phi' phi'^T.
+
+Joint effects (flex_model.effects, the planar classes and YAML names; seed 003's joint
+options, description.SpatialJoint):
+
+- ``joint_elasticity`` on an active motor adds a motor coordinate theta_m (after all the
+  link coordinates, in joint order; link-side units) with the constant inertia
+  ``motor_inertia`` and the spring-damper k_t (theta_m - q_i) + b_t (theta_m' - q_i')
+  (seed 002 Eqs. 11-14, seed 003's C_xi, B_xi) in K and D; the joint torque then acts on
+  theta_m. With a **locked** motor theta_m = ``locked_at`` (seed 003 Eq. 6, type LE):
+  the spring goes to ground, K_ii += k_t, Q_i += k_t locked_at, D_ii += b_t.
+- A locked motor behind a rigid gear (type LR, Eq. 10) holds its joint: q_i is
+  ``held`` (its acceleration is zero; removed from the modes).
+- ``gear`` (ratio n, rotor_inertia J_r): an axisymmetric rotor about the joint axis e
+  on the stator (the frame before the joint motion), spinning at n theta_a relative to
+  it (theta_a the joint, or the motor coordinate of an elastic joint; 0 when locked):
+  omega_r = omega_s + n theta_a' e, inertia J_r e e^T, so M += J_r a a^T with
+  a = Jw_s^T e + n e_a (seed 000 Eq. 35 in 3D, with the stator's rotation and the
+  gyroscopic torque J_r (e . omega_r) omega_s x e).
+- ``joint_friction``: tau_f(theta_a') (viscous, Coulomb, Stribeck, tanh-regularized,
+  effects.friction.JointFriction.torque) on the actuator coordinate theta_a.
 """
 from __future__ import annotations
 
@@ -29,6 +49,16 @@ from .kinematics import P_AUX, Frame, cross, point_jacobians, rot_x, rot_y, rot_
 
 _XI, _WXI = np.polynomial.legendre.leggauss(6)
 _H = 1e-20   # complex step
+
+
+def friction_slope(values, w: float) -> float:
+    """d tau_f / d w of effects.friction.JointFriction.torque (values: F_v, F_c, F_s, w_s,
+    eps)."""
+    fv, fc, fs, ws, eps = values
+    ex = np.exp(-(w / ws) ** 2)
+    th = np.tanh(w / eps)
+    return float(-fv + (fs - fc) * ex * 2.0 * w / ws ** 2 * th
+                 - (fc + (fs - fc) * ex) * (1.0 - th * th) / eps)
 
 
 class BeamData:
@@ -99,13 +129,16 @@ class SpatialArmModel:
                       for lk in arm.links]
         sizes = [1 + (b.n if b is not None else 0) for b in self.beams]
         self.off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
-        self.nq = int(np.sum(sizes))
+        self.nq_arm = int(np.sum(sizes))
         self.n_links = arm.n_links
-        self.K = np.zeros((self.nq, self.nq))
+        self._joint_effects()
+        nq = self.nq
+        self.K = np.zeros((nq, nq))
         for i, b in enumerate(self.beams):
             if b is not None:
                 s = self.flex_slice(i)
                 self.K[s, s] = b.K
+        self._fold_effects()
         self.gravity = np.asarray(arm.gravity, float)
         self._consts = []
         self._extra = []     # URDF-style data per link: origin, axis, end transform
@@ -126,6 +159,82 @@ class SpatialArmModel:
                               (body.mass, np.asarray(body.offset, float),
                                np.asarray(body.inertia, float)))
             self._consts.append((pre, dh_rest, bodies))
+
+    # ------------------------------------------------------------ joint effects
+    def _joint_effects(self):
+        """Motor coordinates, actuator coordinate, rotors, held joints (see the module
+        docstring)."""
+        arm = self.arm
+        n = self.n_links
+        self.motor_index = np.full(n, -1, dtype=int)      # motor coordinate of joint i
+        self.actuator_index = np.full(n, -1, dtype=int)   # where the joint torque acts
+        nm = 0
+        for i, lk in enumerate(arm.links):
+            active = lk.joint.motor == "active"
+            if lk.joint.gear == "elastic" and active:
+                self.motor_index[i] = self.nq_arm + nm
+                nm += 1
+            if active:
+                self.actuator_index[i] = self.motor_index[i] if self.motor_index[i] >= 0 \
+                    else self.off[i]
+        self.nq = self.nq_arm + nm
+        self.held = np.array([self.off[i] for i, lk in enumerate(arm.links)
+                              if lk.joint.motor == "locked" and lk.joint.gear == "rigid"],
+                             dtype=int)
+        # rotors: (J_r, n, spin coordinate or -1) per joint (J_r = 0: none)
+        self.rotors = []
+        self.friction = []          # (actuator coordinate, JointFriction effect)
+        for i, lk in enumerate(arm.links):
+            g = arm.effect("gear", lk.joint.name)
+            self.rotors.append((0.0, 1.0, -1) if g is None else
+                               (g["rotor_inertia"], g["ratio"], int(self.actuator_index[i])))
+            f = arm.effect("joint_friction", lk.joint.name)
+            if f is not None and not f.is_off and self.actuator_index[i] >= 0:
+                self.friction.append((int(self.actuator_index[i]), f))
+
+    def _fold_effects(self):
+        """Springs and dampers of elastic gears into K and D, motor inertias into the
+        constant M_const, the locked motors' spring preload into Q_const."""
+        nq = self.nq
+        self.D = np.zeros((nq, nq))
+        self.M_const = np.zeros((nq, nq))
+        self.Q_const = np.zeros(nq)
+        for i, lk in enumerate(self.arm.links):
+            e = self.arm.effect("joint_elasticity", lk.joint.name)
+            if lk.joint.gear != "elastic" or e is None:
+                continue
+            k, b, jm = e["stiffness"], e["damping"], e["motor_inertia"]
+            qi, m = self.off[i], self.motor_index[i]
+            if m >= 0:
+                idx = np.array([qi, m])
+                blk = np.array([[1.0, -1.0], [-1.0, 1.0]])
+                self.K[np.ix_(idx, idx)] += k * blk
+                self.D[np.ix_(idx, idx)] += b * blk
+                self.M_const[m, m] += jm
+            else:   # locked motor: the spring to ground at locked_at
+                self.K[qi, qi] += k
+                self.D[qi, qi] += b
+                self.Q_const[qi] += k * lk.joint.locked_at
+
+    def effect_force(self, v) -> np.ndarray:
+        """Generalized force of the joint effects that is not in K and D: the locked
+        motors' spring preload and the friction torques (N m or N)."""
+        Q = self.Q_const.copy()
+        for a, f in self.friction:
+            Q[a] += float(f.torque(v[a]))
+        return Q
+
+    def effect_force_slope(self, v) -> np.ndarray:
+        """d effect_force / dv (diagonal, <= 0): the friction slopes."""
+        d = np.zeros(self.nq)
+        for a, f in self.friction:
+            d[a] += friction_slope(f.values, float(v[a]))
+        return d
+
+    @property
+    def free_indices(self) -> np.ndarray:
+        """Coordinates that move (all but the held joints of locked rigid motors)."""
+        return np.setdiff1d(np.arange(self.nq), self.held)
 
     # ------------------------------------------------------------ indexing
     @property
@@ -166,6 +275,13 @@ class SpatialArmModel:
             origin, axis, end = self._extra[i]
             if origin is not None:
                 F = F.fixed(*origin)
+            jr, ratio, spin = self.rotors[i]
+            if with_masses and jr:
+                e = F.R @ (np.asarray(lk.joint.axis, float) if axis is None else axis)
+                Jr = F.Jw.copy()
+                if spin >= 0:
+                    Jr[:, spin] += ratio * e
+                rotors.append(((jr * np.outer(e, e))[None], Jr[None]))
             if axis is not None:
                 F = F.prismatic_axis(q[k], k, axis) if lk.joint.type == "prismatic" else \
                     F.revolute_axis(q[k], k, axis)
@@ -274,7 +390,7 @@ class SpatialArmModel:
             M += (Jp * m[:, None, None]).reshape(-1, nq).T @ Jp.reshape(-1, nq)
         for I, Jw in rotors:
             M += Jw.reshape(-1, nq).T @ (I @ Jw).reshape(-1, nq)
-        return 0.5 * (M + M.T)
+        return 0.5 * (M + M.T) + self.M_const
 
     def bias(self, q, v) -> np.ndarray:
         """c(q, v): velocity (Coriolis, centrifugal, gyroscopic) and gravity forces."""
@@ -302,7 +418,7 @@ class SpatialArmModel:
             J2 = J.reshape(-1, nq)
             c += tau.reshape(-1) @ J2
             M += J2.T @ (Ir @ J).reshape(-1, nq)
-        return 0.5 * (M + M.T), c
+        return 0.5 * (M + M.T) + self.M_const, c
 
     def gravity_force(self, q) -> np.ndarray:
         """dU_g/dq = -sum m Jp^T g."""
@@ -326,10 +442,17 @@ class SpatialArmModel:
         return self.K
 
     def acceleration(self, q, v, Q=None) -> np.ndarray:
-        rhs = -self.bias(q, v) - self.K @ np.asarray(q, float)
+        """q'' with the applied force Q, the joint effects (K, D, friction, preload) and
+        the held joints (zero acceleration)."""
+        v = np.asarray(v, float)
+        M, c = self.terms(q, v)
+        rhs = -c - self.K @ np.asarray(q, float) - self.D @ v + self.effect_force(v)
         if Q is not None:
             rhs = rhs + Q
-        return np.linalg.solve(self.mass_matrix(q), rhs)
+        free = self.free_indices
+        a = np.zeros(self.nq)
+        a[free] = np.linalg.solve(M[np.ix_(free, free)], rhs[free])
+        return a
 
     # ------------------------------------------------------------ energy
     def gravity_potential(self, q) -> float:
@@ -339,7 +462,7 @@ class SpatialArmModel:
     def energy(self, q, v) -> dict:
         q, v = np.asarray(q, float), np.asarray(v, float)
         return {"kinetic": float(0.5 * v @ self.mass_matrix(q) @ v),
-                "elastic": float(0.5 * q @ self.K @ q),
+                "elastic": float(0.5 * q @ self.K @ q - self.Q_const @ q),
                 "gravity": self.gravity_potential(q)}
 
     def total_energy(self, q, v) -> float:

@@ -14,7 +14,10 @@
   the URDF effort limits.
 
 ``force(t, q, v)`` returns the generalized applied force Q (nq), e.g. ``H tau`` with
-``H = joint_input_matrix(model)``.
+``H = joint_input_matrix(model)``. The joint effects (dynamics.py) are always in: the
+springs and dampers of elastic gears (model.K, model.D), friction and the locked motors'
+preload (model.effect_force, its slope in the Newton matrix), held joints (zero
+acceleration: their rows and columns of the Newton matrix are the identity).
 """
 from __future__ import annotations
 
@@ -37,23 +40,37 @@ class SpatialRun:
 def joint_input_matrix(model: SpatialArmModel) -> np.ndarray:
     """H (nq x n_joints): joint torques/forces to generalized forces."""
     H = np.zeros((model.nq, model.n_links))
-    H[model.off, np.arange(model.n_links)] = 1.0
+    for i, a in enumerate(model.actuator_index):
+        if a >= 0:    # the motor coordinate of an elastic gear; none for a locked motor
+            H[a, i] = 1.0
     return H
 
 
+def _solve_free(model, M, rhs):
+    a = np.zeros(model.nq)
+    free = model.free_indices
+    a[free] = np.linalg.solve(M[np.ix_(free, free)], rhs[free])
+    return a
+
+
 def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: float = 1e-11,
-                      atol: float = 1e-13) -> SpatialRun:
-    """Integrate with DOP853 and report at the times ``t_out`` (s)."""
+                      atol: float = 1e-13, compiled: bool = False) -> SpatialRun:
+    """Integrate with DOP853 and report at the times ``t_out`` (s); ``compiled``: M, c
+    from the compiled kernels (compiled.py, equal to the Python reference to 1e-10)."""
     nq = model.nq
     t_out = np.asarray(t_out, float)
+    terms = model.terms
+    if compiled:
+        from .compiled import CompiledSpatialModel
+        terms = CompiledSpatialModel(model).terms
 
     def rhs(t, x):
         q, v = x[:nq], x[nq:]
-        M, c = model.terms(q, v)
-        Q = -model.K @ q - c
+        M, c = terms(q, v)
+        Q = -model.K @ q - c - model.D @ v + model.effect_force(v)
         if force is not None:
             Q = Q + force(t, q, v)
-        return np.concatenate([v, np.linalg.solve(M, Q)])
+        return np.concatenate([v, _solve_free(model, M, Q)])
 
     sol = solve_ivp(rhs, (t_out[0], t_out[-1]), np.concatenate([q0, v0]), method="DOP853",
                     t_eval=t_out, rtol=rtol, atol=atol)
@@ -66,26 +83,28 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
                    rho_inf: float = 0.9, tol: float = 1e-10, max_iter: int = 20,
                    damping=None) -> SpatialRun:
     """Generalized-alpha with step ``h`` (s) for ``n_steps`` steps; ``damping`` an optional
-    constant matrix D (force -D v)."""
-    nq = model.nq
+    constant matrix D (force -D v), added to the model's joint dampers."""
     am = (2 * rho_inf - 1) / (rho_inf + 1)
     af = rho_inf / (rho_inf + 1)
     gam = 0.5 + af - am
     beta = 0.25 * (gam + 0.5) ** 2
-    D = np.zeros((nq, nq)) if damping is None else np.asarray(damping, float)
+    D = model.D + (0.0 if damping is None else np.asarray(damping, float))
     K = model.K
+    held = model.held
 
     def residual(t, q, v, a):
         M, c = model.terms(q, v)
-        r = M @ a + c + K @ q + D @ v
+        r = M @ a + c + K @ q + D @ v - model.effect_force(v)
         if force is not None:
             r -= force(t, q, v)
+        r[held] = 0.0
         return r, M
 
     q, v = np.array(q0, float), np.array(v0, float)
     M, c = model.terms(q, v)
-    Q0 = -c - K @ q - D @ v + (force(0.0, q, v) if force is not None else 0.0)
-    a = np.linalg.solve(M, Q0)
+    Q0 = -c - K @ q - D @ v + model.effect_force(v) + \
+        (force(0.0, q, v) if force is not None else 0.0)
+    a = _solve_free(model, M, Q0)
     abar = a.copy()
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
     cq = h * h * beta * (1 - af) / (1 - am)
@@ -100,8 +119,15 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
             q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
             v1 = v + h * ((1 - gam) * abar + gam * ab1)
             r, M1 = residual(t1, q1, v1, a1)
-            if lu is None:  # iteration matrix, frozen for the step
-                lu = np.linalg.cholesky(M1 + cq * K + cv * D)
+            if lu is None:
+                S0 = M1 + cq * K + cv * D
+            if lu is None or model.friction:  # iteration matrix, frozen for the step but
+                # for the friction slope (steep tanh: from the current iterate)
+                S = S0 - cv * np.diag(model.effect_force_slope(v1))
+                S[held, :] = 0.0
+                S[:, held] = 0.0
+                S[held, held] = 1.0
+                lu = np.linalg.cholesky(S)
             da = -np.linalg.solve(lu.T, np.linalg.solve(lu, r))
             a1 += da
             iters += 1
@@ -139,8 +165,12 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
         np.broadcast_to(np.asarray(joint_torques, float), (n_steps, nj))
     tau = np.array(tau, dtype=float, order="C")   # a writable copy: one compiled signature
     effort = joint_limits(model.arm)["effort"] if clip_to_effort else np.full(nj, np.inf)
-    D = np.zeros((model.nq, model.nq)) if damping is None else np.asarray(damping, float)
+    D = model.D + (0.0 if damping is None else np.asarray(damping, float))
+    fric = np.array([[a, *f.values] for a, f in model.friction], float).reshape(-1, 6)
+    held = np.zeros(model.nq, np.int64)
+    held[model.held] = 1
     qs, vs, iters = galpha_loop(data, np.ascontiguousarray(model.K), np.ascontiguousarray(D),
+                                model.Q_const.copy(), fric, held,
                                 joint_input_matrix(model), effort,
                                 np.asarray(q0, float).copy(), np.asarray(v0, float).copy(),
                                 float(h), tau, float(rho_inf), float(tol), int(max_iter))
