@@ -13,4 +13,8 @@ if __name__ == "__main__":
     for script in scripts:
         print(f"\n=== {script.name} ===", flush=True)
         sys.argv = [str(script), *ARGS.get(script.name, [])]
-        runpy.run_path(str(script), run_name="__main__")
+        try:
+            runpy.run_path(str(script), run_name="__main__")
+        except SystemExit as exc:   # a script ending with sys.exit(main()) must not end the loop
+            if exc.code:
+                raise
