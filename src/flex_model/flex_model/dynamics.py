@@ -245,20 +245,22 @@ class FlexArmModel:
             kt[g] += j_plus[i] * self.tip_rotation_scale[i]
         self.lengths = L
         mode = 1 if self.arm.kinematics == "second_order" else 0
-        zq, mu, Wq, Sq = self._quadrature(m_plus) if mode else self._no_quadrature
+        zq, mu, Wq, Sq, na = self._quadrature(m_plus) if mode else self._no_quadrature
         jrig = np.array([lk.J_minus for lk in self.arm.links]) + j_plus
         jplus_tip = j_plus * self.tip_rotation_scale ** 2  # J+ on the tip rotation variable
         self.P = (mode, self.off, self.nf, L, mtot, ntot, jrot, jplus_tip, Bp, ht, kt,
-                  zq, mu, Wq, Sq, jrig, self.B_const)
+                  zq, mu, Wq, Sq, jrig, self.B_const, na)
 
     _no_quadrature = (np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 1)),
-                      np.zeros((1, 1, 1, 1)))
+                      np.zeros((1, 1, 1, 1)), np.zeros((1, 1), dtype=np.int64))
 
     def _quadrature(self, m_plus):
         """Run-time quadrature of the second-order kinematics (kernels.py, mode 1).
 
         Per link: the root point (M-), Gauss points of the distributed mass, padding,
-        and the tip point (M+, with S(L)) last. Cached: only the end masses change.
+        and the tip point (M+, with S(L)) last; ``na[i, k]``: the variables past it have
+        W = 0 and S = 0 at that point (the wavelets' local support: the kernels skip
+        them). Cached: only the end masses change.
         """
         if getattr(self, "_quad_cache", None) is None:
             per_link = []
@@ -283,13 +285,15 @@ class FlexArmModel:
                 zq[i, -1] = self.bases[i].length
                 Wq[i, -1, n - 2] = 1.0
                 Sq[i, -1, :n, :n] = S[-1]
-            self._quad_cache = (zq, mu, Wq, Sq)
-        zq, mu, Wq, Sq = self._quad_cache
+            nz = (Wq != 0.0) | np.any(Sq != 0.0, axis=3)          # (nl, npt, nfm)
+            na = np.where(nz.any(axis=2), nfm - np.argmax(nz[:, :, ::-1], axis=2), 0)
+            self._quad_cache = (zq, mu, Wq, Sq, na.astype(np.int64))
+        zq, mu, Wq, Sq, na = self._quad_cache
         mu = mu.copy()
         for i, lk in enumerate(self.arm.links):
             mu[i, 0] = lk.M_minus
             mu[i, -1] = m_plus[i]
-        return zq, mu, Wq, Sq
+        return zq, mu, Wq, Sq, na
 
     def with_gravity(self, gravity) -> "FlexArmModel":
         """A view of this model with another gravity vector (m/s^2); arrays are shared."""

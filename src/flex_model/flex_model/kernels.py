@@ -22,8 +22,8 @@ the exact Lagrangian of Eqs. (6)-(7), (15)-(16), with cost linear in the number 
 variables for the bias and quadratic (the interconnection coupling) for B.
 
 The model data ``P`` is the tuple built by :class:`flex_model.dynamics.FlexArmModel`:
-``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig, Bc)``, Bc a
-constant inertia added to B (rotor inertias of geared joints, seed 000 Eq. 35). For the
+``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig, Bc, na)``,
+Bc a constant inertia added to B (rotor inertias of geared joints, seed 000 Eq. 35). For the
 thesis model (mode 0), per link i, with the end masses M-, M+ and inertias J-, J+
 included (thesis Eq. 8 and the tilde quantities of Eq. 18): mtot = M, ntot = N,
 jrot = J + M+ L^2, Bp = B_f + M+ e_dn e_dn^T (block of a global nq x nq array),
@@ -35,7 +35,9 @@ which the thesis omits (Remark 5 drops the related higher-order terms): it bring
 geometric stiffening of the links under axial load (gravity, centrifugal and the
 outboard links' inertia). The integrals are then evaluated at run time by Gauss
 quadrature at points zq (per link, padded) with mass weights mu (kg; the end masses are
-points at z = 0 and z = L), shape values Wq and matrices Sq = S(zq); jrig = J- + J+.
+points at z = 0 and z = L), shape values Wq and matrices Sq = S(zq); jrig = J- + J+;
+na (per link and point): W and S vanish past the first na variables (the wavelets' local
+support), so the loops stop there (the sums are the same: only zeros are skipped).
 The equations stay those of an exact Lagrangian (energy is conserved).
 """
 from __future__ import annotations
@@ -225,16 +227,17 @@ def _mass_matrix_1(q, P):
 
 
 @njit(cache=_CACHE)
-def solve_spd(A, b):
-    """Solve A x = b for symmetric positive definite A by Cholesky (A is not modified)."""
-    n = b.shape[0]
+def cholesky(A):
+    """Lower Cholesky factor of the symmetric positive definite A (A is not modified); an
+    empty (0, 0) array when A is not positive definite."""
+    n = A.shape[0]
     Lc = np.zeros((n, n))
     for j in range(n):
         s = A[j, j]
         for k in range(j):
             s -= Lc[j, k] * Lc[j, k]
         if s <= 0.0:
-            return np.full(n, np.nan)
+            return np.zeros((0, 0))
         d = np.sqrt(s)
         Lc[j, j] = d
         for i in range(j + 1, n):
@@ -242,6 +245,13 @@ def solve_spd(A, b):
             for k in range(j):
                 t -= Lc[i, k] * Lc[j, k]
             Lc[i, j] = t / d
+    return Lc
+
+
+@njit(cache=_CACHE)
+def solve_chol(Lc, b):
+    """Solve L L^T x = b for the factor L of :func:`cholesky`."""
+    n = b.shape[0]
     y = np.zeros(n)
     for i in range(n):
         t = b[i]
@@ -255,6 +265,16 @@ def solve_spd(A, b):
             t -= Lc[k, i] * x[k]
         x[i] = t / Lc[i, i]
     return x
+
+
+@njit(cache=_CACHE)
+def solve_spd(A, b):
+    """Solve A x = b for symmetric positive definite A by Cholesky (A is not modified;
+    NaN when A is not positive definite)."""
+    Lc = cholesky(A)
+    if Lc.shape[0] != b.shape[0]:
+        return np.full(b.shape[0], np.nan)
+    return solve_chol(Lc, b)
 
 
 @njit(cache=_CACHE)
@@ -366,8 +386,9 @@ def _point_dq(q, o, n, W, S):
 def _point_kinematics(q, v, o, n, W, S, z, c, s, wd, sv, Jfx, Jfy):
     """Point of a link with second-order kinematics (mode 1).
 
-    Fills the columns Jf (d p / d q_f) and ``sv`` = S q_f; returns the alpha column
-    (Jax, Jay) and the velocity-product acceleration (xix, xiy) for alpha' = wd.
+    Fills the columns Jf (d p / d q_f) and ``sv`` = S q_f for the first n variables (W
+    and S vanish past them: P[17]); returns the alpha column (Jax, Jay) and the
+    velocity-product acceleration (xix, xiy) for alpha' = wd.
     """
     d = 0.0
     dd = 0.0
@@ -404,7 +425,7 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
     """Mode 1 of :func:`inverse_dynamics`: d'Alembert over quadrature points."""
     off, nf, L = P[1], P[2], P[3]
     jplus = P[7]
-    zq, mu, Wq, Sq, jrig = P[11], P[12], P[13], P[14], P[15]
+    zq, mu, Wq, Sq, jrig, na = P[11], P[12], P[13], P[14], P[15], P[17]
     nl = L.shape[0]
     nq = q.shape[0]
     npt = mu.shape[1]
@@ -433,11 +454,12 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
         ny = aoy
         for k in range(npt):
             m = mu[i, k]
-            Jax, Jay, xix, xiy = _point_kinematics(q, v, o, n, Wq[i, k], Sq[i, k], zq[i, k],
+            nk = na[i, k]
+            Jax, Jay, xix, xiy = _point_kinematics(q, v, o, nk, Wq[i, k], Sq[i, k], zq[i, k],
                                                    c, s, wd, sv, Jfx, Jfy)
             px = aox + Jax * ad + xix
             py = aoy + Jay * ad + xiy
-            for j in range(n):
+            for j in range(nk):
                 px += Jfx[j] * a[o + 1 + j]
                 py += Jfy[j] * a[o + 1 + j]
             if k == npt - 1:  # tip point: next origin's acceleration and Jacobian
@@ -445,7 +467,7 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
                 ny = py
                 tipx[i, 0] = Jax
                 tipy[i, 0] = Jay
-                for j in range(n):
+                for j in range(nk):
                     tipx[i, 1 + j] = Jfx[j]
                     tipy[i, 1 + j] = Jfy[j]
             if m == 0.0:
@@ -453,7 +475,7 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
             Fx += m * px
             Fy += m * py
             Fa += m * (Jax * px + Jay * py)
-            for j in range(n):
+            for j in range(nk):
                 f[o + 1 + j] += m * (Jfx[j] * px + Jfy[j] * py)
         g = o + n
         f[o] += Fa + jrig[i] * ad + jplus[i] * a[g]
@@ -478,7 +500,7 @@ def _mass_matrix_2(q, P):
     """Mode 1 of :func:`mass_matrix`: sum of mu J^T J over the quadrature points."""
     off, nf, L = P[1], P[2], P[3]
     jplus = P[7]
-    zq, mu, Wq, Sq, jrig = P[11], P[12], P[13], P[14], P[15]
+    zq, mu, Wq, Sq, jrig, na = P[11], P[12], P[13], P[14], P[15], P[17]
     nl = L.shape[0]
     nq = q.shape[0]
     npt = mu.shape[1]
@@ -504,20 +526,24 @@ def _mass_matrix_2(q, P):
         box = np.zeros(n + 1)
         boy = np.zeros(n + 1)
         for k in range(npt):
-            Jax, Jay, xix, xiy = _point_kinematics(q, v0, o, n, Wq[i, k], Sq[i, k],
+            nk = na[i, k]
+            Jax, Jay, xix, xiy = _point_kinematics(q, v0, o, nk, Wq[i, k], Sq[i, k],
                                                    zq[i, k], c, s, 0.0, sv, Jfx, Jfy)
             Jx[0] = Jax
             Jy[0] = Jay
-            for j in range(n):
+            for j in range(nk):
                 Jx[1 + j] = Jfx[j]
                 Jy[1 + j] = Jfy[j]
+            for j in range(nk, n):
+                Jx[1 + j] = 0.0
+                Jy[1 + j] = 0.0
             m = mu[i, k]
             if m != 0.0:
                 mt += m
-                for j in range(n + 1):
+                for j in range(nk + 1):
                     box[j] += m * Jx[j]
                     boy[j] += m * Jy[j]
-                    for l in range(n + 1):
+                    for l in range(nk + 1):
                         B[o + j, o + l] += m * (Jx[j] * Jx[l] + Jy[j] * Jy[l])
         g = o + n
         B[o, o] += jrig[i]

@@ -15,7 +15,12 @@ Accuracy
   model node's rate; rounded down to divide the sample period), spectral radius
   ``rho_inf`` (default 0.9): implicit, second order (global error O(dt^2)),
   unconditionally stable, so the stiff flexible modes do not limit the step. The method
-  restarts at pulse edges and at policy instants (rounded to the step grid).
+  restarts at pulse edges and at policy instants (rounded to the step grid). ``newton``:
+  each step's equations are solved to 1e-10 m or rad by full Newton (``'full'``) or by
+  simplified Newton (``'simplified'``: the iteration matrix kept across steps, refreshed
+  when the iterations contract slowly; integrators.generalized_alpha_simplified, about a
+  third of the cost); the default takes simplified Newton for ``second_order``
+  kinematics and full Newton (results as before it existed) for the thesis kinematics.
 
 Joints with ``stick_slip_friction`` add one bristle state each: the integrated state is
 ``x = [q; v; z]`` (flex_model.effects.stick_slip); ``SimulationResult.bristles`` holds z.
@@ -30,7 +35,8 @@ import numpy as np
 
 from .dynamics import FlexArmModel
 from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: public here)
-from .integrators import consistent_acceleration, dopri5, generalized_alpha, joint_torques
+from .integrators import (consistent_acceleration, dopri5, generalized_alpha,
+                          generalized_alpha_simplified, joint_torques)
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
@@ -139,7 +145,7 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
              control_period: float | None = None, method: str = "variable",
              rtol: float = 1e-8, atol=None, dt: float | None = None, rho_inf: float = 0.9,
              payload_changes=(), progress: Callable | None = None,
-             bristles0=None) -> SimulationResult:
+             bristles0=None, newton: str | None = None) -> SimulationResult:
     """Integrate the arm from (q0, v0) over [0, t_final], sampling every ``sample_period``.
 
     ``policy(t, x) -> tau`` (N m per joint) adds to the built-in PD and pulses, held for
@@ -148,11 +154,18 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
     (the payload's momentum, zero, joins the arm's: B v is conserved) or a place (the arm
     keeps its velocity). ``progress(t, t_final)`` is called as the run advances.
     ``bristles0``: initial bristle deflections (rad) of the stick_slip_friction joints
-    (default 0: unloaded). Raises :class:`SimulationDivergedError` naming the time and
+    (default 0: unloaded). ``newton``: 'full' or 'simplified' Newton in the fixed mode
+    (default: simplified with second_order kinematics; the module's docstring). Raises
+    :class:`SimulationDivergedError` naming the time and
     variable.
     """
     if method not in ("variable", "fixed"):
         raise ValueError(f"method: got {method!r}; expected 'variable' or 'fixed'")
+    if newton not in (None, "full", "simplified"):
+        raise ValueError(f"newton: got {newton!r}; expected 'full', 'simplified' or None "
+                         "(simplified for second_order kinematics)")
+    if newton is None:
+        newton = "simplified" if model.P[0] == 1 else "full"
     if not (t_final > 0 and sample_period > 0):
         raise ValueError(f"t_final and sample_period must be > 0 (got {t_final}, "
                          f"{sample_period})")
@@ -177,7 +190,7 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
     changes = sorted((float(t), float(m), float(j)) for t, m, j in payload_changes)
     X, U, stats = run(model, x0, E, u, t_samples, policy, control_period, pulses,
                       rtol=rtol, atol=atol, dt=dt, rho_inf=rho_inf, progress=progress,
-                      changes=changes)
+                      changes=changes, newton=newton)
     q = X[:, :nq]
     v = X[:, nq:2 * nq]
     tau = np.empty((n_samples, nl))
@@ -279,7 +292,7 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
 
 
 def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt, rho_inf,
-               progress, changes, **_):
+               progress, changes, newton, **_):
     """Generalized-alpha on a step grid that divides the sample period."""
     sample_period = t_samples[1] - t_samples[0] if len(t_samples) > 1 else t_samples[-1]
     per_sample = max(1, int(np.ceil(sample_period / (dt or 1e-3) - 1e-9)))
@@ -311,7 +324,9 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
         if step == 0 or step in restarts or policy is not None:
             a = consistent_acceleration(t, x, model.P, E)
             abar = a.copy()
-        Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
+        stepper = generalized_alpha_simplified if newton == "simplified" else \
+            generalized_alpha
+        Xs, status, t_stop, x_stop, a, abar, it = stepper(
             t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, model.P, E)
         iters += it
         if status == 1:
