@@ -17,7 +17,7 @@ import numpy as np
 
 from .control_kernel import run_periods
 from .controller_interface import SensedState
-from .simulate import DIVERGENCE_LIMIT, SimulationDivergedError, _diverged
+from .simulate import RUNAWAY, DIVERGENCE_LIMIT, _diverged, newton_failed
 from .stepper import Stepper
 
 
@@ -92,8 +92,6 @@ class ControlLoop:
         if status == 1:
             raise _diverged(m, t_fail, x_fail)
         if status == 2:
-            raise SimulationDivergedError(
-                f"Newton iterations did not converge at t = {t_fail:.6g} s with step "
-                f"{self.period / max(1, int(np.ceil(self.period / st.max_step - 1e-9))):.3g}"
-                " s: the state ran away, most often under an implausible joint command or "
-                "payload or an unstable control loop")
+            raise newton_failed(
+                t_fail, self.period / max(1, int(np.ceil(self.period / st.max_step - 1e-9))),
+                RUNAWAY)

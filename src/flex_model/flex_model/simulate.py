@@ -140,6 +140,17 @@ def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDiverge
         f"(non-finite or beyond {DIVERGENCE_LIMIT:g}); reduce the step or check the inputs")
 
 
+#: why Newton fails in a loop driven by commands (Stepper, ControlLoop)
+RUNAWAY = ("the state ran away, most often under an implausible joint command or payload or "
+           "an unstable control loop")
+
+
+def newton_failed(t: float, h: float, hint: str) -> SimulationDivergedError:
+    """The error of a fixed step whose Newton iterations did not converge."""
+    return SimulationDivergedError(
+        f"Newton iterations did not converge at t = {t:.6g} s with step {h:.3g} s: {hint}")
+
+
 def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period: float,
              pd: JointPD | None = None, pulses=(), policy: Callable | None = None,
              control_period: float | None = None, method: str = "variable",
@@ -332,9 +343,7 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
         if status == 1:
             raise _diverged(model, t_stop, x_stop)
         if status == 2:
-            raise SimulationDivergedError(
-                f"Newton iterations did not converge at t = {t_stop:.6g} s with step "
-                f"{h:.3g} s; reduce the step")
+            raise newton_failed(t_stop, h, "reduce the step")
         idx = step + np.arange(1, m + 1)
         on_grid = idx % per_sample == 0
         X[idx[on_grid] // per_sample] = Xs[1:][on_grid]

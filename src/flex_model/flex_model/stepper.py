@@ -16,8 +16,8 @@ import numpy as np
 from .dynamics import FlexArmModel
 from .inputs import input_data
 from .integrators import consistent_acceleration, generalized_alpha, joint_torques
-from .simulate import (DIVERGENCE_LIMIT, SimulationDivergedError, _apply_payload_change,
-                       _diverged)
+from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, _apply_payload_change, _diverged,
+                       newton_failed)
 
 
 class Stepper:
@@ -75,10 +75,7 @@ class Stepper:
         if status == 1:
             raise _diverged(self.model, t_end, x_end)
         if status == 2:
-            raise SimulationDivergedError(
-                f"Newton iterations did not converge at t = {t_end:.6g} s with step "
-                f"{h:.3g} s: the state ran away, most often under an implausible joint "
-                "command or payload or an unstable control loop")
+            raise newton_failed(t_end, h, RUNAWAY)
         self.t, self.x, self.a, self.abar = self.t + duration, x_end, a, abar
 
     # ------------------------------------------------------------------ outputs
