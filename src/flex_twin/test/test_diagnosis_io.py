@@ -181,3 +181,18 @@ def test_scaled_explicit_section_dumps_as_plain_yaml():
     assert lk["section"]["EI"] == pytest.approx([0.275, 0.22])
     assert lk["section"]["m"] == pytest.approx(0.117)
     assert _yaml.safe_load(_yaml.safe_dump(lk)) == lk
+
+
+def test_scaling_an_effect_parameter_left_out_of_the_yaml_scales_its_default():
+    """A joint_friction entry without stribeck_velocity takes 0.01 rad/s (its off value);
+    the baseline's scale of it is written as 0.01 x scale (it raised KeyError when the
+    report was written, after the whole diagnosis)."""
+    from flex_twin.diagnosis.baseline import ScaleParameter, scale_raw
+    raw = {"effects": [{"type": "joint_friction", "joint": "joint1", "viscous": 0.2}]}
+    params = [ScaleParameter("f.v", "effect", ("joint_friction", "joint1", "viscous"), 0.3),
+              ScaleParameter("f.w", "effect", ("joint_friction", "joint1",
+                                               "stribeck_velocity"), 0.5)]
+    out = scale_raw(raw, params, [1.1, 1.2])["effects"][0]
+    assert out["viscous"] == pytest.approx(0.22)
+    assert out["stribeck_velocity"] == pytest.approx(0.012)
+    assert "stribeck_velocity" not in raw["effects"][0]

@@ -100,8 +100,14 @@ def scale_raw(raw: dict, params, scales) -> dict:
             kind, target, name = p.index
             for e in raw.get("effects", []):
                 if e.get("type") == kind and target in (e.get("joint"), e.get("link"), ""):
-                    e[name] = float(e[name]) * float(s)
+                    e[name] = float(e.get(name, _default(kind, name))) * float(s)
     return raw
+
+
+def _default(kind: str, name: str) -> float:
+    """The value an effect takes for a parameter its YAML entry leaves out."""
+    from flex_model.effects import EFFECT_TYPES
+    return next(p.off for p in EFFECT_TYPES[kind].PARAMETERS if p.name == name)
 
 
 def scale_raw_link(lk: dict, kind: str, s: float) -> None:
