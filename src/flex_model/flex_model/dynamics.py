@@ -14,12 +14,35 @@ from __future__ import annotations
 
 import copy
 import warnings
+from collections import OrderedDict
 
 import numpy as np
 
 from . import kernels
 from .arm import PAIRED, ArmDescription
 from .basis import link_basis
+
+
+#: memo of the Euler-Bernoulli wavelet bases, (repr of the link's segments, intervals) ->
+#: LinkBasis: a replay, a fit or a diagnosis builds the model of the same links many times
+#: (only effects, payload or the other link change); the basis depends on nothing else
+#: and no model changes it (its arrays are copied into the model's).
+_BASIS_MEMO: OrderedDict = OrderedDict()
+_BASIS_MEMO_SIZE = 64
+
+
+def _memo_basis(lk, n_intervals):
+    """``link_basis(lk.profile, n_intervals)``, memoized on the segments' values."""
+    key = (repr(tuple(lk.segments)), int(n_intervals))
+    b = _BASIS_MEMO.get(key)
+    if b is None:
+        b = link_basis(lk.profile, n_intervals)
+        _BASIS_MEMO[key] = b
+        if len(_BASIS_MEMO) > _BASIS_MEMO_SIZE:
+            _BASIS_MEMO.popitem(last=False)
+    else:
+        _BASIS_MEMO.move_to_end(key)
+    return b
 
 
 class FlexArmModel:
@@ -92,7 +115,7 @@ class FlexArmModel:
                 warnings.warn(f"{self.arm.source}: {lk.name}: beta = G A L^2 / (chi E I) = "
                               f"{beta:.3g} < 100: shear flexibility matters; add a "
                               "'timoshenko' effect (thesis Remark 6)", stacklevel=3)
-            return link_basis(lk.profile, lk.n_vars // 2)
+            return _memo_basis(lk, lk.n_vars // 2)
         ga = tim["shear_stiffness"]
         seg = lk.segments[0]
         if np.isnan(ga) and not seg.G > 0:

@@ -179,6 +179,13 @@ def _screen(executor, ctx, hyps, base, lin):
         if c < direct.get(h.label, (np.inf, None))[0]:
             direct[h.label] = (c, x)
     lin0 = cost(project(base.r)[0])
+    # the linearly screened hypotheses (every probe replayed): one thin QR of the baseline's
+    # and all their probe columns makes each single and each pair a small bounded problem
+    full = [h for h in hyps if h.linear and h.label in cols
+            and len(cols[h.label]) == len(h.probes)]
+    columns = _ProbeColumns(lin, [np.column_stack([d for _, d in cols[h.label]])
+                                  for h in full], base.r) if full else None
+    block = {h.label: i for i, h in enumerate(full)}
     scores, starts = {}, {}
     for h in hyps:
         if h.label not in direct:
@@ -187,18 +194,43 @@ def _screen(executor, ctx, hyps, base, lin):
         best, x_best = direct[h.label]
         scores[h.label] = lin0 - best
         starts[h.label] = x_best
-        if not h.linear or len(cols[h.label]) < len(h.probes):
+        if h.label not in block:
             continue
-        A = np.column_stack([lin.J] + [d for _, d in cols[h.label]])
-        m = len(cols[h.label])
-        sol = lsq_linear(A, -base.r, bounds=(np.concatenate([lin.lo, np.full(m, -np.inf)]),
-                                              np.concatenate([lin.hi, np.full(m, np.inf)]))).x
-        J_lin = cost(base.r + A @ sol)
+        sol, J_lin = columns.fit([block[h.label]])
         if lin0 - J_lin > scores[h.label]:
             scores[h.label] = lin0 - J_lin
             starts[h.label] = _linear_start(h, sol[lin.J.shape[1]:], cols[h.label])
-    pair_scores = _screen_pairs(hyps, cols, base.r, lin, lin0)
+    pair_scores = _screen_pairs(full, cols, base.r, lin, lin0, columns, block)
     return scores, starts, pair_scores
+
+
+class _ProbeColumns:
+    """The linearized joint fit of the baseline with the probe columns of some screened
+    hypotheses: min ||r + [J_b D_idx] s|| with the baseline's part of s within its bounds
+    (:class:`.fitting.Linearization`), the probes' free. With the thin QR of all the
+    columns at once, [J_b D] = Q R, ||r + Q R_idx s||^2 = ||Q^T r + R_idx s||^2 + (what of
+    r no column reaches), exactly for any subset: a small bounded problem per subset
+    instead of one on every sample."""
+
+    def __init__(self, lin, blocks, r):
+        self.nb = lin.J.shape[1]
+        self.lo, self.hi = lin.lo, lin.hi
+        self.first = np.cumsum([self.nb] + [b.shape[1] for b in blocks])
+        Q, self.R = np.linalg.qr(np.column_stack([lin.J] + list(blocks)))
+        self.qr = Q.T @ r
+        self.outside = float(r @ r - self.qr @ self.qr)
+        self.n = len(r)
+
+    def fit(self, which):
+        """(s, the linearized cost J) with the baseline and the blocks ``which``."""
+        idx = np.concatenate([np.arange(self.nb)] + [
+            np.arange(self.first[i], self.first[i + 1]) for i in which])
+        m = len(idx) - self.nb
+        A = self.R[:, idx]
+        sol = lsq_linear(A, -self.qr, bounds=(np.r_[self.lo, np.full(m, -np.inf)],
+                                              np.r_[self.hi, np.full(m, np.inf)])).x
+        res = A @ sol + self.qr
+        return sol, (self.outside + float(res @ res)) / self.n
 
 
 def _linear_start(h, coefficients, cols):
@@ -209,32 +241,28 @@ def _linear_start(h, coefficients, cols):
                    h.lower, h.upper)
 
 
-def _screen_pairs(hyps, cols, r, lin, lin0) -> dict:
+def _screen_pairs(hyps, cols, r, lin, lin0, columns=None, block=None) -> dict:
     """The linearized joint fit of every pair of continuous linearly screened hypotheses
     with the baseline (:func:`_screen`'s columns, both hypotheses' at once):
     :class:`.hypotheses.HypothesisPair` -> (cost reduction, start x). Effects that mask
     each other score here, not alone (an encoder bias and the elasticity of the same
-    joint). One thin QR of all the columns makes each pair a small bounded problem."""
+    joint). One thin QR of all the columns (:class:`_ProbeColumns`; ``columns`` and
+    ``block``, label -> its block, when :func:`_screen` has it) makes each pair a small
+    bounded problem."""
     lin_hyps = [h for h in hyps if h.linear and not h.discrete and h.label in cols
                 and len(cols[h.label]) == len(h.probes)]
     if len(lin_hyps) < 2:
         return {}
-    nb = lin.J.shape[1]
-    blocks = [lin.J] + [np.column_stack([d for _, d in cols[h.label]]) for h in lin_hyps]
-    first = np.cumsum([nb] + [b.shape[1] for b in blocks[1:]])
-    Q, R = np.linalg.qr(np.column_stack(blocks))
-    qr = Q.T @ r
-    outside = float(r @ r - qr @ qr)      # the part of r no column reaches
+    if columns is None:
+        columns = _ProbeColumns(lin, [np.column_stack([d for _, d in cols[h.label]])
+                                      for h in lin_hyps], r)
+        block = {h.label: i for i, h in enumerate(lin_hyps)}
+    nb = columns.nb
     out = {}
-    for (ia, a), (ib, b) in combinations(enumerate(lin_hyps), 2):
+    for a, b in combinations(lin_hyps, 2):
         if _nested(a, b):
             continue
-        idx = np.r_[0:nb, first[ia]:first[ia + 1], first[ib]:first[ib + 1]]
-        m = len(idx) - nb
-        sol = lsq_linear(R[:, idx], -qr, bounds=(np.r_[lin.lo, np.full(m, -np.inf)],
-                                                 np.r_[lin.hi, np.full(m, np.inf)])).x
-        res = R[:, idx] @ sol + qr
-        J = (outside + float(res @ res)) / len(r)
+        sol, J = columns.fit([block[a.label], block[b.label]])
         ma = len(cols[a.label])
         out[HypothesisPair(a, b)] = (lin0 - J, np.concatenate([
             _linear_start(a, sol[nb:nb + ma], cols[a.label]),

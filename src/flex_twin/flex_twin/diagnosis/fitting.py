@@ -7,8 +7,10 @@ trial of the effect's parameters x the correction d of the baseline scales and o
 effects accepted before is the bounded linear least-squares solution of r(x) + J d (J
 their Jacobian, :class:`Linearization`), so the nonlinear search runs over the 1-3
 effect parameters only (scipy.optimize.least_squares, 'trf',
-one start per declared start point). Discrete parameters (actuator delay, whole control
-periods) are searched on integers.
+one start per declared start point; the candidates' fits of smooth hypotheses update
+their Jacobian by Broyden's secant between a difference Jacobian at each start and one at
+the solution).
+Discrete parameters (actuator delay, whole control periods) are searched on integers.
 """
 from __future__ import annotations
 
@@ -74,7 +76,10 @@ def fit_baseline(executor, ctx, effects=(), iterations: int = 3,
     for _ in range(iterations):
         Jb = baseline_jacobian(executor, ctx, s, list(effects), r)
         n_eval += len(s)
-        step = lsq_linear(Jb, -r, bounds=(lo - s, hi - s)).x
+        # the bounded linear step on the thin QR factors of Jb: ||r + Jb d|| =
+        # ||Q^T r + R d|| + const, a problem of the size of the scales, not of the samples
+        Q, R = np.linalg.qr(Jb)
+        step = lsq_linear(R, -(Q.T @ r), bounds=(lo - s, hi - s)).x
         s_new = np.clip(s + step, lo, hi)
         r_new = evaluate((ctx, s_new, list(effects)))
         n_eval += 1
@@ -158,10 +163,15 @@ class BaselineProjection:
 
 
 def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
-                  max_nfev: int = 8, ftol: float = 1e-3) -> FitResult:
+                  max_nfev: int = 8, ftol: float = 1e-3, broyden: bool = False) -> FitResult:
     """Fit ``hyp`` jointly with the linearized baseline and accepted effects ``lin`` (a
     :class:`Linearization` at ``base``; variable projection), multi-start (the
-    screening's linearized solution ``start`` first)."""
+    screening's linearized solution ``start`` first).
+
+    The Jacobian is by forward differences (one replay per parameter); with ``broyden``
+    only at each start and at the solution (the intervals' and identifiability's
+    curvature), between them Broyden's rank-one secant update from the accepted steps
+    (J+ = J + (df - J dx) dx^T / dx^T dx), which costs no replay."""
     s0 = base.scales
     project = BaselineProjection(lin)
 
@@ -212,8 +222,21 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
         r = cache[key][0]
         return np.full(len(base.r), 1e3) if r is None else r
 
+    secant = {}   # the last Jacobian of this start and where: x, f, J, by differences
+
     def jac(x):
         f0 = fun(x)
+        if broyden and secant:
+            dx = x - secant["x"]
+            if np.any(dx):
+                J = secant["J"] + np.outer(f0 - secant["f"] - secant["J"] @ dx, dx / (dx @ dx))
+                secant.update(x=np.array(x, float), f=f0, J=J, exact=False)
+                return J
+        J = fd_jac(x, f0)
+        secant.update(x=np.array(x, float), f=f0, J=J, exact=True)
+        return J
+
+    def fd_jac(x, f0):
         # steps wide enough to see through regularized corners (tanh friction, dead zones)
         h = 2e-2 * np.maximum(np.abs(x), 0.5)
         h = np.where(x + h > xu, -h, h)
@@ -234,8 +257,10 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
     starts = list(hyp.starts)
     if start is not None and hyp.fit_from_probe:
         starts = [start] + (starts if len(starts) > 1 else [])
+    exact = True
     for k, x_start in enumerate(starts):
         x0 = np.clip(np.array(x_start, float), xl + 1e-9, xu - 1e-9)
+        secant.clear()
         try:  # the further starts are a check for another basin: half the budget
             sol = least_squares(fun, x0, jac=jac, bounds=(xl, xu), method="trf",
                                 max_nfev=max_nfev if k == 0 else max(3, max_nfev // 2),
@@ -247,9 +272,13 @@ def fit_candidate(executor, ctx, hyp, base: FitResult, lin, start=None,
             continue   # the search ended where the twin diverges: no fit from this start
         if best is None or cost(r) < best[1]:
             best = (sol.x.copy(), cost(r), sol.jac.copy())
+            exact = not broyden or (secant.get("exact", False)
+                                    and np.array_equal(secant["x"], sol.x))
     if best is None:
         return FitResult(s0, base.effects, base.r, DIVERGED_COST, evaluations=n_eval)
     x, J, jacobian = best
+    if not exact:   # the curvature at the solution by differences, not the secant's
+        jacobian = fd_jac(x, fun(x))
     r, d = cache[tuple(np.round(x, 12))]
     return FitResult(*fitted(d, x), r, J, jacobian, x, n_eval)
 
@@ -301,6 +330,11 @@ def fit_task(task):
     (ctx, ctx_holdout, hyp, base, lin, start) -> (FitResult, J_holdout)."""
     from .evaluation import SerialExecutor
     ctx, ctx_ho, hyp, base, lin, start = task
-    fit = fit_candidate(SerialExecutor(), ctx, hyp, base, lin, start=start)
+    # the secant only for smooth hypotheses (every part screened by the linearized fit):
+    # on a contact, a saturation, a gear or a dead zone it leaves the basin (contact seed
+    # 1005 of the benchmark: its floor 24 % off instead of within 10 %)
+    parts = (hyp.first, hyp.second) if hasattr(hyp, "second") else (hyp,)   # a pair
+    smooth = all(p.linear for p in parts)
+    fit = fit_candidate(SerialExecutor(), ctx, hyp, base, lin, start=start, broyden=smooth)
     r_ho = evaluate((ctx_ho, fit.scales, fit.effects))
     return fit, (cost(r_ho) if r_ho is not None else np.inf)

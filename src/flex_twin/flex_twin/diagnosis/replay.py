@@ -42,6 +42,8 @@ from .controller import ControllerDescription
 DEFAULT_STEP = 1e-3
 #: steps per step of a control period retried after a Newton failure
 SUBSTEPS = 4
+# (the compiled loops pass their integer constants to the integrator as np.int64: a bare
+# literal is its own numba type, and each one compiled generalized_alpha once more)
 
 
 @njit(cache=True)
@@ -81,12 +83,12 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
         t = k * per_period * h
         a = consistent_acceleration(t, x, P, E)
         Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-            t, x, a, a.copy(), h, per_period, 1, rho_inf, 1e-10, 1e6, P, E)
+            t, x, a, a.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
         if status == 2:   # Newton stalled (a sharp corner: backlash, friction): the period
             # again in SUBSTEPS steps per step (bit-identical runs where it converges)
             Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-                t, x, a, a.copy(), h / SUBSTEPS, per_period * SUBSTEPS, SUBSTEPS, rho_inf,
-                1e-10, 1e6, P, E)
+                t, x, a, a.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
+                rho_inf, 1e-10, 1e6, P, E)
         if status != 0:
             return X, cmd, status, t_stop
         for s in range(1, per_period + 1):
@@ -124,12 +126,12 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride)
             a = consistent_acceleration(t, x, P, E)
             abar = a.copy()
         Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
-            t, x, a, abar, h, per_period, 1, rho_inf, 1e-10, 1e6, P, E)
+            t, x, a, abar, h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
         if status == 2:   # Newton stalled on a sharp corner: the period in substeps
             a0 = consistent_acceleration(t, x, P, E)
             Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
-                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, SUBSTEPS, rho_inf,
-                1e-10, 1e6, P, E)
+                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
+                rho_inf, 1e-10, 1e6, P, E)
         if status != 0:
             return X, status, t_stop
         a = a1

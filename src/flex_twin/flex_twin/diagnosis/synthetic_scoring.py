@@ -188,7 +188,7 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool,
     from .controller import load_controller
     from .sources import load_recording
     d = Path(out) / f"{kind.replace(':', '_').replace('+', '_')}-{seed}"
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = {"kind": kind, "seed": seed, "dir": str(d), "materiality": None}
     try:
         case = generate_case(kind, seed, d, noise=noise)
@@ -207,7 +207,8 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool,
     except Exception as exc:  # a generator failure is reported, not fatal to the bench
         res["error"] = f"generate_case: {type(exc).__name__}: {exc}"
         return res
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
+    res["generate_cpu_s"] = c1 - c0
     try:
         arm = load_arm(case.nominal_arm)
         diag = diagnose(arm, load_controller(case.controller),
@@ -217,6 +218,8 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool,
         res["error"] = f"{type(exc).__name__}: {exc}"
         return res
     res["diagnose_s"] = time.perf_counter() - t1
+    # this process's CPU time: with a serial executor the diagnosis's whole cost
+    res["diagnose_cpu_s"] = time.process_time() - c1
     res["stop"], res["rounds"] = diag.stop, len(diag.rounds)
     res.update(score(case.truth, diag.verdict, _named_of(diag), dict(diag.J)))
     return res
