@@ -2,9 +2,12 @@
 
 (a) realtime: the model node alone at 1 kHz (SingleThreadedExecutor) on the Ch. V arm
     (thesis_example1_motors), without a controller and with Eq. 95 in its loop at 1 kHz, publishing at 250 Hz (/flex/shape at 50 Hz): the share of
-    missed 1 ms periods (timer callbacks that came one period or more late; the node then
-    integrates the owed steps, so simulation time keeps up), the distribution of tick
-    periods and of the time spent in a tick, the steps per tick, and the /joint_states
+    missed 1 ms periods (ticks that came one period or more late; a tick is one period of
+    the node's loop, ModelNode.realtime_period: a timer callback, or with realtime_priority
+    one period of the callback's realtime slice; the node then integrates the owed steps,
+    so simulation time keeps up), the distribution of tick periods and of the time spent
+    in a tick, the CPU time of the node's process per period, the steps per tick, and the
+    /joint_states
     latency in a subscriber in another process: from the tick that computed the state
     (its wall time is the state's instant) and from the publish call, to the arrival;
     with normal scheduling and with the node's realtime_priority 50 (SCHED_FIFO).
@@ -116,27 +119,28 @@ def realtime(seconds: float, tmp: Path, priority: int = 0, controller: bool = Fa
         _spin_for(ex, 30.0, lambda: node.pub_js.get_subscription_count() > 0)
         _spin_for(ex, 1.0)  # the probe's subscription settles
         ticks, published = [], {}  # (start, duration, simulated), {stamp: (tick, publish)}
-        tick, publish = node.on_tick, node.pub_js.publish
+        period, publish = node.realtime_period, node.pub_js.publish
 
-        def timed_tick():
-            t0, sim0 = time.monotonic(), node.stepper.t
+        def timed_period(elapsed):  # a tick: one period of the loop (the timer's callback,
+            t0, sim0 = time.monotonic(), node.stepper.t  # or one of its realtime slice)
             ticks.append((t0, 0.0, 0.0))
-            tick()
+            period(elapsed)
             ticks[-1] = (t0, time.monotonic() - t0, node.stepper.t - sim0)
 
         def timed_publish(msg):
             published[_stamp_ns(msg)] = (ticks[-1][0], time.monotonic())
             publish(msg)
-        node.timer.callback = timed_tick
+        node.realtime_period = timed_period
         node.pub_js.publish = timed_publish
         node.paused = False  # (the paused ticks kept last_wall on the timer's grid)
         _spin_for(ex, 0.5)  # warm up (numba's cached code loads on the first step)
         del ticks[:]
         published.clear()
         load = os.getloadavg()[0]
-        sim0, wall0 = node.stepper.t, time.monotonic()
+        sim0, wall0, cpu0 = node.stepper.t, time.monotonic(), time.process_time()
         _spin_for(ex, seconds)
         wall, sim = time.monotonic() - wall0, node.stepper.t - sim0
+        cpu = time.process_time() - cpu0  # this process: the node, its executor, DDS
         node.paused = True
         ex.shutdown()
         node.destroy_node()
@@ -160,6 +164,7 @@ def realtime(seconds: float, tmp: Path, priority: int = 0, controller: bool = Fa
             "load_average": load,
             "seconds": wall, "ticks": len(ticks), "periods": wall / PERIOD,
             "missed_share": float(missed / (wall / PERIOD)),
+            "cpu_per_period_ms": 1e3 * cpu / (wall / PERIOD),
             "tick_period_ms": _dist(gaps), "tick_time_ms": _dist([t[1] for t in ticks]),
             "ticks_with_catch_up_share": float(np.mean(steps > 1)),
             "max_steps_per_tick": int(steps.max()), "sim_over_wall": sim / wall,
@@ -226,6 +231,8 @@ def main(argv=None) -> int:
               f"{r['load_average']:.1f}): {r['ticks']} ticks for {r['periods']:.0f} periods, "
               f"missed periods {100 * r['missed_share']:.2f} % (aim < 1 %), simulated/wall "
               f"{r['sim_over_wall']:.4f}")
+        print(f"    CPU time of the node's process per 1 ms period: "
+              f"{r['cpu_per_period_ms']:.3f} ms")
         print(f"    tick period ms (median / p99 / max): {f(**r['tick_period_ms'])}")
         print(f"    time in a tick ms:                   {f(**r['tick_time_ms'])}")
         print(f"    ticks that caught up missed steps: {100 * r['ticks_with_catch_up_share']:.2f}"

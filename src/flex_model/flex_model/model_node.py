@@ -64,7 +64,11 @@ the ERROR diagnostic, sets the command to zero and stops stepping; the node stay
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several
-steps; simulation time stays on the step grid, within a step of the wall clock).
+steps; simulation time stays on the step grid, within a step of the wall clock). With
+realtime_priority in effect (SCHED_FIFO) and the node alone in its executor, one timer
+callback runs the periods of up to REALTIME_SLICE s on a wait set of its own and returns
+at once on any input (the executor's wait-set rebuild per period cost more than the
+period's work).
 joint_states, flex/deflections, flex/tip_pose, flex/tip_imu go out at publish_rate,
 flex/shape at shape_rate. lockstep: deterministic; each command advances the model by
 1/rate and publishes the new joint_states (and /clock) at once, the other topics at their
@@ -78,9 +82,11 @@ from __future__ import annotations
 
 import os
 import time
+from contextlib import ExitStack
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -104,6 +110,10 @@ from .stepper import Stepper
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
 LOCKSTEP_SLICE = 0.02
+#: realtime with realtime_priority, the node alone in its executor: wall time (s) of the
+#: periods one timer callback runs on a wait set of its own (ModelNode._realtime_slice)
+#: before it returns to the executor (0: one period a callback)
+REALTIME_SLICE = 0.05
 #: QoS of robot_description and /tf_static (as robot_state_publisher: latched, depth 1)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -482,15 +492,73 @@ class ModelNode(Node):
                                 "command every lockstep_timeout until one arrives", "info")
             self.step(1.0 / self.p["rate"])
             return
-        # the owed wall time in whole steps, with a quarter step of slack: timer jitter about
-        # the step grid must not alternate ticks of 0 and 2 steps (the state may then run
-        # up to h/4 ahead of the wall clock); a stalled process owes at most 0.1 s
+        self.realtime_period(elapsed)
+        if self.p["realtime_priority"] and self._alone_in_executor() \
+                and os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR):
+            self._realtime_slice()  # (not when SCHED_FIFO was refused: no CAP_SYS_NICE)
+
+    def realtime_period(self, elapsed: float) -> None:
+        """One period of the realtime loop: integrate the owed wall time (``elapsed`` since
+        the last period, s) in whole steps, with a quarter step of slack: timer jitter about
+        the step grid must not alternate ticks of 0 and 2 steps (the state may then run up
+        to h/4 ahead of the wall clock); a stalled process owes at most 0.1 s."""
         h = self.p["max_step"] if self.loop is None else self.loop.period
         self.behind = min(self.behind + elapsed, 0.1)
         n = int(self.behind / h + 0.25)
         if n:
             self.behind -= n * h
             self.step(n * h)
+
+    def _alone_in_executor(self) -> bool:
+        ex = self.executor
+        return REALTIME_SLICE > 0 and ex is not None and len(ex.get_nodes()) == 1
+
+    def _realtime_slice(self) -> None:
+        """Run the next realtime periods inside this timer callback, for up to
+        REALTIME_SLICE s of wall time, waiting on a wait set of this node's own timer,
+        subscriptions and services: rclpy's executor rebuilds its wait set in Python from
+        every entity on each wake-up (0.3-0.7 ms per 1 ms period on the dev machine,
+        more than the period's step and publication), this one costs tens of us. The
+        timer is called as the executor would (its grid and period stay); a ready message
+        or service request ends the slice at once, so the executor handles every input as
+        before. Only with realtime_priority (SCHED_FIFO: the thread that now sleeps most of
+        the period gets its core back at once; with normal scheduling CPU-bound neighbours
+        take it: 17-27 % missed periods at load 1.1-1.8, against 0.3-39 % without) and
+        when this node is alone in its executor (other nodes' callbacks would wait for the
+        slice)."""
+        subs, srvs, timer = list(self.subscriptions), list(self.services), self.timer
+        end = time.monotonic() + REALTIME_SLICE
+        with ExitStack() as stack:
+            for entity in (*subs, *srvs, timer):
+                stack.enter_context(entity.handle)
+            stack.enter_context(self.context.handle)
+            ws = _rclpy.WaitSet(len(subs), 0, 1, 0, len(srvs), 0, self.context.handle)
+            # back to the executor right after a period that left most of the period idle
+            # (not after a publication), so that its wake-up does not delay the next one
+            # (an overloaded loop, never idle, returns after twice the slice: the executor's
+            # guard conditions, Ctrl-C and QoS events wait at most that long)
+            idle = 0.7e9 / self.p["rate"]  # ns
+            while not self.paused and self.diverged is None and not timer.is_canceled():
+                now = time.monotonic()
+                if now >= end + REALTIME_SLICE or (now >= end and
+                                                   timer.time_until_next_call() >= idle):
+                    return
+                ws.clear_entities()
+                for sub in subs:
+                    ws.add_subscription(sub.handle)
+                for srv in srvs:
+                    ws.add_service(srv.handle)
+                ws.add_timer(timer.handle)
+                ws.wait(int(4e9 / self.p["rate"]))  # (a timer is due within a period)
+                if ws.get_ready_entities("subscription") or \
+                        ws.get_ready_entities("service"):
+                    return  # an input: back to the executor, which takes it
+                if not ws.get_ready_entities("timer") or not timer.handle.is_timer_ready():
+                    continue
+                timer.handle.call_timer()
+                now = time.monotonic()
+                elapsed, self.last_wall = now - self.last_wall, now
+                self.realtime_period(elapsed)
 
     def step(self, dt: float) -> None:
         """Advance the model by dt (s), apply the command timeout, publish."""
@@ -575,10 +643,11 @@ class ModelNode(Node):
         self.pub_defl.publish(conv.fill_deflection_state(self.msg_defl, t, *st.deflections()))
         x, y, phi = st.tip_pose()
         self.pub_tip.publish(conv.fill_tip_pose(self.msg_tip, t, x, y, phi))
-        if shape:  # in the base frame, z up (REP 103)
-            shapes = [urdf.plane_to_base(self.model.gravity, line)
+        if shape:  # in the base frame, z up (REP 103; urdf.plane_to_base, R computed once)
+            shapes = [np.column_stack([line, np.zeros(len(line))]) @ self.plane.T
                       for line in self.model.shape(st.q, int(self.p["shape_points"]))]
-            self.pub_shape.publish(self.msg_shape.update(t, shapes))
+            # serialized in place: the same message, 0.03 instead of 0.4 ms (conversions)
+            self.pub_shape.publish(self.msg_shape.serialized(t, shapes))
         if self.pub_imu is not None:  # in the last link's tip frame
             rate = float(self.model.tip_torque_vector() @ st.v)  # tip frame rotation rate
             orientation = urdf.quaternion_from_matrix(

@@ -89,6 +89,8 @@ class ShapeMarkers:
                 m.points = [Point() for _ in range(n)]
                 self.msg.markers.append(m)
 
+        self._raw = None  # the serialized message and where its stamps and points are
+
     def update(self, t, shapes) -> MarkerArray:
         """Stamp t and the centre lines ``shapes`` (list of (points, 2) or (points, 3)
         arrays, m)."""
@@ -102,6 +104,71 @@ class ShapeMarkers:
                 for p, (x, y, z) in zip(m.points, pts):
                     p.x, p.y, p.z = x, y, z
         return self.msg
+
+    def serialized(self, t, shapes) -> bytes:
+        """The message of :meth:`update` (stamp t, centre lines ``shapes``) serialized
+        (CDR), written straight into a serialized copy of the message: byte for byte what
+        rclpy would send, without converting 4 markers of Point objects on every publication
+        (0.2-0.3 ms of the 1 ms realtime tick; Publisher.publish takes bytes)."""
+        if self._raw is None:
+            self._raw = _SerializedShape(self.msg)
+        return self._raw.fill(t, shapes)
+
+
+class _SerializedShape:
+    """A serialized MarkerArray with the byte offsets of every header stamp and point
+    coordinate, found by serializing it once with distinct marker values (the strings
+    and array lengths never change, so the layout does not)."""
+
+    def __init__(self, msg: MarkerArray):
+        from rclpy.serialization import serialize_message
+        markers = msg.markers
+        saved = [(m.header.stamp.sec, m.header.stamp.nanosec,
+                  [(p.x, p.y, p.z) for p in m.points]) for m in markers]
+        k = 0
+        for j, m in enumerate(markers):  # distinct values, none of them elsewhere
+            m.header.stamp.sec, m.header.stamp.nanosec = 0x5EC0_0000 + j, 0x5EC1_0000 + j
+            for p in m.points:
+                p.x, p.y, p.z = (1.0e9 + 1.25 * (3 * k + c) for c in range(3))
+                k += 1
+        raw = serialize_message(msg)
+
+        def find(value: bytes) -> int:
+            at = raw.find(value)
+            if at < 0 or raw.find(value, at + 1) >= 0:
+                raise RuntimeError("flex/shape: a marker value is not unique in the "
+                                   "serialized message")
+            return at
+        end = "<" if raw[1] == 1 else ">"  # CDR encapsulation: 0x0001 little-endian
+        self.sec = [find(np.array(0x5EC0_0000 + j, end + "i4").tobytes())
+                    for j in range(len(markers))]
+        self.nsec = [find(np.array(0x5EC1_0000 + j, end + "u4").tobytes())
+                     for j in range(len(markers))]
+        offsets = [find(np.array(1.0e9 + 1.25 * i, end + "f8").tobytes())
+                   for i in range(3 * k)]
+        self.f8 = np.dtype(end + "f8")
+        self.i4, self.u4 = np.dtype(end + "i4"), np.dtype(end + "u4")
+        self.byte_index = (np.asarray(offsets)[:, None] + np.arange(8)).ravel()
+        self.buf = np.frombuffer(bytearray(raw), dtype=np.uint8)
+        for m, (sec, nsec, pts) in zip(markers, saved):  # the message as it was
+            m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
+            for p, (x, y, z) in zip(m.points, pts):
+                p.x, p.y, p.z = x, y, z
+
+    def fill(self, t, shapes) -> bytes:
+        sec, nsec = divmod(int(round(t * 1e9)), 1_000_000_000)
+        sec_b = np.array([sec], self.i4).view(np.uint8)
+        nsec_b = np.array([nsec], self.u4).view(np.uint8)
+        for a, b in zip(self.sec, self.nsec):
+            self.buf[a:a + 4] = sec_b
+            self.buf[b:b + 4] = nsec_b
+        values = []
+        for line in shapes:  # per link: the centre line, then its chord (first, last)
+            pts3 = np.zeros((len(line), 3))
+            pts3[:, :line.shape[1]] = line
+            values += [pts3.ravel(), pts3[0], pts3[-1]]
+        self.buf[self.byte_index] = np.concatenate(values).astype(self.f8).view(np.uint8)
+        return self.buf.tobytes()
 
 
 class Transforms:
