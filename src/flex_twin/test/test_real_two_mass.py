@@ -92,3 +92,29 @@ def test_diagnosis_names_the_coupling_elasticity(bench):
     assert best["share"] > 0.8
     others = [h["share"] for h in d["hypotheses"][1:]]
     assert max(others) < 0.3
+
+
+def test_engine_export_restarts_the_coupling_twisted_as_measured(bench, tmp_path):
+    """The engine's case (first second of held-out B, 0.1-s segments): the load encoder
+    is the link-side encoder ql1/vl1 and the restarts take the first sample, so the
+    elastic preset follows the bench (cost J measured 232 against the rigid twin's 1.71e4,
+    noise levels of this second); restarted at zero twist from the default 50-ms fit (the
+    export before) it scores 8.4x worse (measured 1947)."""
+    from flex_twin.diagnosis.baseline import baseline_parameters
+    from flex_twin.diagnosis.controller import load_controller
+    from flex_twin.diagnosis.evaluation import Context, cost, residual_vector
+    from flex_twin.diagnosis.recording import load_csv, validate
+    from flex_twin.real_arms.two_mass_diagnosis import SEGMENT, export_case
+    paths = export_case(bench["recs"]["A"], bench["recs"]["B"], bench["p"], tmp_path, 1.0)
+    rec = load_csv(paths["holdout"], 1)
+    assert rec.link_encoders() == [0] and rec.meta["start_window"] == pytest.approx(8e-4)
+    ctl = load_controller(paths["controller"])
+    rigid = arm_from_dict(arm_dict(bench["p"], elastic=False))
+    old = validate(rec.t, {k: v for k, v in rec.channels.items() if k[:2] not in ("ql", "vl")},
+                   1, "old export")
+
+    def J(arm, r):
+        return cost(residual_vector(Context.build(rigid, ctl, r, baseline_parameters(rigid),
+                                                  segment=SEGMENT), arm))
+    j_elastic, j_rigid, j_old = J(bench["arm"], rec), J(rigid, rec), J(bench["arm"], old)
+    assert j_elastic < 0.05 * j_rigid and j_elastic < 0.2 * j_old

@@ -15,9 +15,10 @@ level and the excess J - 1 is the model error in units of that noise power. Anot
 controller recalibrates with ``noise_ratios`` (a mapping channel -> kappa).
 
 Long logs: with ``segment`` the replay restarts every ``segment`` seconds from the measured
-joint angles and rates (links in static equilibrium): multiple shooting, the k-step
-prediction of each window, which bounds the drift of a long closed-loop replay and the
-cost of a divergent candidate.
+joint angles and rates (links in static equilibrium; the link side of an elastic joint at
+its link-side encoder ``ql<i>``, ``vl<i>`` where the recording has one): multiple
+shooting, the k-step prediction of each window, which bounds the drift of a long
+closed-loop replay and the cost of a divergent candidate.
 
 Executor: anything with ``map(fn, iterable)`` returning results in order
 (``concurrent.futures`` executors, ``dask.distributed.Client`` via its
@@ -37,7 +38,8 @@ from flex_model.simulate import SimulationDivergedError
 from flex_model.statics import StaticConvergenceError
 from .baseline import apply_scales
 from .controller import ControllerDescription
-from .replay import _held, initial_state, measured_start, replay
+from .replay import (START_WINDOW, _held, initial_state, measured_link_start, measured_start,
+                     replay)
 
 #: absolute noise floors per channel kind (rad, rad/s, N m, m)
 FLOORS = {"q": 1e-6, "v": 1e-5, "tau": 1e-4, "w": 1e-6, "tip": 1e-6}
@@ -106,6 +108,8 @@ class Context:
     dt: float = 2e-3
     score_from: float = -np.inf   # residuals count from this time on (a held-out segment)
     segment: float | None = None  # multiple shooting: restart every `segment` s (long logs)
+    start_window: float | None = None  # measured_start's window (s); None: the recording's
+    # `# start_window:` setting, else replay.START_WINDOW
 
     @classmethod
     def build(cls, nominal, controller, rec, baseline_params, sigma=None, dt=2e-3,
@@ -153,9 +157,19 @@ def _segments(ctx: Context) -> list[tuple[int, int]]:
     return [(k, min(k + per + 1, n)) for k in range(0, n - 1, per)]
 
 
+def start_window(ctx: Context) -> float:
+    """The window (s) of the (re)starts' state fit (:func:`.replay.measured_start`)."""
+    if ctx.start_window is not None:
+        return float(ctx.start_window)
+    return float(ctx.rec.meta.get("start_window", START_WINDOW))
+
+
 def predict_channels(ctx: Context, arm: ArmDescription):
     """The twin's channels on the context's recording. Encoder bias and delay (sensors of
-    the arm) act on what the controller reads and on the recorded q<i>, v<i>."""
+    the arm) act on what the controller reads and on the recorded q<i>, v<i>. Each
+    (re)start takes the state of :func:`.replay.measured_start` over
+    :func:`start_window`; with link-side encoders ``ql<i>``, ``vl<i>`` an elastic joint
+    starts twisted as measured (:func:`.replay.initial_state`)."""
     model = FlexArmModel(arm)
     bias, delay = encoder_faults(arm)
     rec = ctx.rec
@@ -164,14 +178,16 @@ def predict_channels(ctx: Context, arm: ArmDescription):
     period = ctx.controller.instant_period(rec.dt)
     periods = np.rint(delay / period).astype(np.int64)
     cdelay = np.array([periods[j] if j is not None else 0 for j in joint_of], np.int64)
+    window = start_window(ctx)
     pred = None
     for k0, k1 in _segments(ctx):
         part = rec if (k0, k1) == (0, len(rec.t)) else rec.window(rec.t[k0], rec.t[k1 - 1])
-        q0, v0 = measured_start(part)
+        q0, v0 = measured_start(part, window)
+        link = measured_link_start(part, window) if model.elastic_joints else None
         i0 = int(round((rec.t[k0] - rec.t[0]) / period))
         seg = replay(model, ctx.controller, part, ff=ctx.ff[i0:], dt=ctx.dt,
                      sensor_bias=cbias, sensor_delay=cdelay,
-                     x0=initial_state(model, q0 - bias, v0))
+                     x0=initial_state(model, q0 - bias, v0, *(link or ())))
         if pred is None:
             pred = seg
         else:   # the segment's first sample is the previous one's last: keep the new one

@@ -13,7 +13,15 @@ CSV columns (header row, SI units, radians, joints and links numbered from 1):
 ``tip_x``,     position of the arm's end in the base frame (m)         optional
 ``tip_y``
 ``tau_ff<i>``  recorded feed-forward (``feedforward: recorded``)       optional
+``ql<i>``,     link-side encoder of an elastic joint i: angle (rad)    optional
+``vl<i>``      and rate (rad/s), both or neither; the replay's        (a pair)
+               (re)starts put the link side there and the motor side
+               at q<i>, v<i> (the twist as measured)
 =============  =====================================================  ==========
+
+A comment line ``# start_window: <s>`` sets the window of the quadratic fit that gives
+each replay (re)start its state (:func:`flex_twin.diagnosis.replay.measured_start`,
+default 0.05 s); a window of 2 samples or less starts from the first sample itself.
 
 Missing required channels are named in the refusal; a truncated or corrupt file raises
 :class:`RecordingError` (a ``ValueError``: the CLI exits 2 with one line).
@@ -29,6 +37,8 @@ import numpy as np
 #: the residual channels the replay predicts, in this order, per joint/link index
 MEASURED_KINDS = ("q", "v", "tau", "w")
 MIN_SAMPLES = 50
+#: optional link-side encoder channels of elastic joints (angle, rate), paired
+LINK_KINDS = ("ql", "vl")
 
 
 class RecordingError(ValueError):
@@ -56,6 +66,10 @@ class Recording:
     def has(self, name: str) -> bool:
         return name in self.channels
 
+    def link_encoders(self) -> list[int]:
+        """Joints (0-based) with a link-side encoder (``ql<i>`` and ``vl<i>``)."""
+        return [i for i in range(self.n_joints) if f"ql{i + 1}" in self.channels]
+
     @property
     def residual_channels(self) -> list[str]:
         """Measured channels the diagnosis compares with the twin."""
@@ -80,6 +94,17 @@ def validate(t, channels: dict, n_joints: int, source: str) -> Recording:
                              f"(the {n_joints}-joint arm needs q, v, tau, qset per joint)")
     if len(t) < MIN_SAMPLES:
         raise RecordingError(f"{source}: {len(t)} samples; need at least {MIN_SAMPLES}")
+    for name in channels:
+        kind = name.rstrip("0123456789")
+        if kind in LINK_KINDS:
+            i = name[len(kind):]
+            if not i.isdigit() or not 1 <= int(i) <= n_joints:
+                raise RecordingError(f"{source}: channel {name}: no joint {i or '(none)'} "
+                                     f"(link-side encoders ql<i>, vl<i>, i = 1..{n_joints})")
+            other = ("vl" if kind == "ql" else "ql") + i
+            if other not in channels:
+                raise RecordingError(f"{source}: channel {name} without {other} (a link-side "
+                                     "encoder needs both its angle ql<i> and rate vl<i>)")
     for name, values in channels.items():
         bad = ~np.isfinite(values)
         if bad.any():
@@ -107,6 +132,7 @@ def load_csv(path, n_joints: int) -> Recording:
             rows = list(csv.reader(stream))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise RecordingError(f"{path}: cannot read ({exc})") from None
+    meta = _directives(rows, path)
     rows = [r for r in rows if r and not r[0].startswith("#")]
     if not rows:
         raise RecordingError(f"{path}: empty file")
@@ -125,11 +151,41 @@ def load_csv(path, n_joints: int) -> Recording:
         except ValueError:
             raise RecordingError(f"{path}: line {k + 2}: a field is not a number") from None
     channels = {h: data[:, j] for j, h in enumerate(header) if h != "t"}
-    return validate(data[:, header.index("t")], channels, n_joints, str(path))
+    rec = validate(data[:, header.index("t")], channels, n_joints, str(path))
+    rec.meta.update(meta)
+    return rec
+
+
+#: comment-line settings a CSV may carry (``# name: value``), with their check
+DIRECTIVES = {"start_window": "a number of seconds >= 0"}
+
+
+def _directives(rows, path) -> dict:
+    """``# start_window: <s>`` comment lines -> {"start_window": s}, validated."""
+    out = {}
+    for r in rows:
+        if not r or not r[0].startswith("#"):
+            continue
+        text = ",".join(r).lstrip("#").strip()
+        name, sep, value = text.partition(":")
+        if not sep or name.strip() not in DIRECTIVES:
+            continue   # an ordinary comment
+        name = name.strip()
+        try:
+            x = float(value)
+        except ValueError:
+            x = float("nan")
+        if not (np.isfinite(x) and x >= 0):
+            raise RecordingError(f"{path}: {name}: {value.strip()!r} is not "
+                                 f"{DIRECTIVES[name]}")
+        out[name] = x
+    return out
 
 
 def save_csv(rec: Recording, path) -> None:
     """Write a Recording in the documented CSV layout."""
     names = list(rec.channels)
+    head = "".join(f"# {k}: {rec.meta[k]!r}\n" for k in DIRECTIVES if k in rec.meta)
     np.savetxt(path, np.column_stack([rec.t] + [rec.channels[n] for n in names]),
-               delimiter=",", header=",".join(["t"] + names), comments="", fmt="%.12g")
+               delimiter=",", header=head + ",".join(["t"] + names), comments="",
+               fmt="%.12g")

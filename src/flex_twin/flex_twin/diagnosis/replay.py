@@ -163,23 +163,58 @@ class Prediction:
     v: np.ndarray
 
 
-def initial_state(model: FlexArmModel, theta0, rates0=None) -> np.ndarray:
+def initial_state(model: FlexArmModel, theta0, rates0=None, link0=None,
+                  link_rates0=None) -> np.ndarray:
     """[q; v; z]: joints at ``theta0`` with the links in static equilibrium under gravity
     (joints clamped), moving with the joint rates ``rates0`` (undeformed velocity field),
     the bristles z of stick-slip joints unloaded (the friction then takes up the held
-    torque within the pre-sliding displacement, F_s / sigma_0)."""
+    torque within the pre-sliding displacement, F_s / sigma_0).
+
+    ``link0``, ``link_rates0`` (per joint, NaN where unknown): the link-side encoder of an
+    elastic joint. There the link side starts at link0 / link_rates0 and the motor
+    coordinate at theta0 / rates0 (the coupling twisted as measured); elsewhere, and on
+    rigid joints, the start is the one above (motor and link side together)."""
     theta0 = np.asarray(theta0, float)
+    rates0 = np.zeros(model.n_links) if rates0 is None else np.asarray(rates0, float)
+    twisted = []
+    if link0 is not None and model.elastic_joints:
+        link0 = np.asarray(link0, float)
+        link_rates0 = np.asarray(link_rates0, float)
+        twisted = [(m, i) for m, i in enumerate(model.elastic_joints)
+                   if np.isfinite(link0[i]) and np.isfinite(link_rates0[i])]
+    theta, rates = theta0, rates0
+    if twisted:
+        theta, rates = theta0.copy(), rates0.copy()
+        for _, i in twisted:
+            theta[i], rates[i] = link0[i], link_rates0[i]
     try:
-        q = static_equilibrium(model, theta0, joints="clamped").q
+        q = static_equilibrium(model, theta, joints="clamped").q
     except (StaticConvergenceError, np.linalg.LinAlgError):
-        q = static_equilibrium(model, theta0, joints="clamped", linear=True).q
-    v = model.v_from_joint_rates(np.zeros(model.n_links) if rates0 is None else rates0)
+        q = static_equilibrium(model, theta, joints="clamped", linear=True).q
+    v = model.v_from_joint_rates(rates)
+    for m, i in twisted:   # the motor coordinates (after the arm's): the motor encoder
+        q[model.nq_arm + m] = theta0[i]
+        v[model.nq_arm + m] = rates0[i]
     return np.concatenate([q, v, np.zeros(model.n_bristles)])
 
 
-def measured_start(rec, window: float = 0.05):
+#: default window of :func:`measured_start` (s)
+START_WINDOW = 0.05
+
+
+def _start_fit(rec, names, window: float):
+    n = max(3, min(len(rec.t), int(round(window / rec.dt)) + 1))
+    t = rec.t[:n] - rec.t[0]
+    A = np.column_stack([np.ones(n), t, t * t])
+    coef, *_ = np.linalg.lstsq(A, np.column_stack([rec.channels[c][:n] for c in names]),
+                               rcond=None)
+    return coef[0]
+
+
+def measured_start(rec, window: float = START_WINDOW):
     """Joint angles and rates at the first sample, from a quadratic fit over the first
-    ``window`` seconds (averages the sensor noise out of the replay's initial state)."""
+    ``window`` seconds (averages the sensor noise out of the replay's initial state; at
+    most 2 samples: the first sample itself, the fit then passing through 3 points)."""
     n = max(3, min(len(rec.t), int(round(window / rec.dt)) + 1))
     t = rec.t[:n] - rec.t[0]
     A = np.column_stack([np.ones(n), t, t * t])
@@ -188,6 +223,19 @@ def measured_start(rec, window: float = 0.05):
         coef, *_ = np.linalg.lstsq(A, rec.stack(kind)[:n], rcond=None)
         out.append(coef[0])
     return out
+
+
+def measured_link_start(rec, window: float = START_WINDOW):
+    """Link-side angles and rates (per joint, NaN without a ``ql<i>``/``vl<i>`` encoder) at
+    the first sample, fitted as :func:`measured_start`; None when the recording has none."""
+    joints = rec.link_encoders()
+    if not joints:
+        return None
+    ql = np.full(rec.n_joints, np.nan)
+    vl = np.full(rec.n_joints, np.nan)
+    ql[joints] = _start_fit(rec, [f"ql{i + 1}" for i in joints], window)
+    vl[joints] = _start_fit(rec, [f"vl{i + 1}" for i in joints], window)
+    return ql, vl
 
 
 def _delay_periods(model: FlexArmModel, period: float) -> np.ndarray:
@@ -290,6 +338,10 @@ def predict(model: FlexArmModel, x: np.ndarray, tau: np.ndarray, t: np.ndarray,
         ch[f"v{i + 1}"] = va[:, i]
         ch[f"tau{i + 1}"] = tau[:, i]
         ch[f"w{i + 1}"] = q[:, model.tip_deflection_index(i)]
+    if any(k[:2] in ("ql", "vl") for k in want):   # link side of the joints
+        ql, vl = q @ model.G.T, v @ model.G.T
+        for i in range(model.n_links):
+            ch[f"ql{i + 1}"], ch[f"vl{i + 1}"] = ql[:, i], vl[:, i]
     if "tip_x" in want or "tip_y" in want:
         tips = _tips(np.ascontiguousarray(q), model.P)
         ch["tip_x"], ch["tip_y"] = tips[:, 0], tips[:, 1]
@@ -316,7 +368,9 @@ def replay(model: FlexArmModel, controller: ControllerDescription, rec, *,
             if controller.feedforward_mode == "recorded" else None
         ff = controller.feedforward(nominal_model or model, qset, recorded)
     if x0 is None:
-        x0 = initial_state(model, *measured_start(rec))
+        window = getattr(rec, "meta", {}).get("start_window", START_WINDOW)
+        x0 = initial_state(model, *measured_start(rec, window),
+                           *(measured_link_start(rec, window) or ()))
     X, TAU = simulate_closed_loop(model, controller, x0, t_final, qset, ff,
                                   sample_period=rec.dt, dt=dt, sensor_bias=sensor_bias,
                                   sensor_delay=sensor_delay)

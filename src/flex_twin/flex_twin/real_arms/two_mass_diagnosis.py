@@ -5,10 +5,16 @@ The bench runs open loop (current multisine): the "controller" is ``law: pd`` wi
 gains and ``feedforward: recorded`` (tau_ff1 = K_t i, the measured current less its offset),
 sampled at the record's 0.4 ms. Channels: q1 = the motor angle (the actuator coordinate:
 the encoder the engine compares, ``FlexArmModel.actuator_angles``), v1 its central
-difference, tau1 = tau_ff1, qset1 = q1 (unused with zero gains). The rigid-body mode drifts
-open loop, so the diagnosis runs with ``--segment`` (restarts from the measured state).
-The load encoder has no channel in the engine's CSV (w1 is a tip deflection): only the
-motor side is seen, where the anti-resonance and resonance both show.
+difference, tau1 = tau_ff1, qset1 = q1 (unused with zero gains), and the load encoder as
+the link-side encoder ql1, vl1 (angle, central difference). The rigid-body mode drifts
+open loop, so the diagnosis runs with ``--segment`` (:data:`SEGMENT`, restarts from the
+measured state):
+a twin with an elastic coupling restarts with its load at ql1, vl1 and its motor at q1,
+v1 (twisted as measured), a rigid one as before. The restarts take the first sample
+itself (``# start_window:`` 2 samples, 0.8 ms) instead of the default 50-ms quadratic
+fit: 50 ms are 3.8 periods of the 76 Hz mode, whose swing the fit averages away, while
+the angles are 5-6 urad encoder steps and the speeds central differences, smooth enough
+to start from directly.
 """
 from __future__ import annotations
 
@@ -20,8 +26,13 @@ import yaml
 from .two_mass_data import TwoMassRecord
 from .two_mass_twin import TORQUE_CONSTANT, TwoMassParameters, arm_dict
 
-#: restart period of the open-loop replay (s): one excitation period
-SEGMENT = 1.0
+#: restart period of the open-loop replay (s): 7.6 periods of the 76 Hz mode, short enough
+#: that the rigid-body drift (bearing friction the twin lacks, the current's unexcited
+#: 1-10 Hz content) does not dominate the angle residual (with 1-s segments a large
+#: viscous friction, which damps that drift, outscored the coupling: docs/real-arms.md)
+SEGMENT = 0.1
+#: window of the restarts' state fit, in samples (the first sample itself; see above)
+START_SAMPLES = 2
 
 
 def recording_columns(rec: TwoMassRecord, duration: float | None = None) -> dict:
@@ -29,7 +40,8 @@ def recording_columns(rec: TwoMassRecord, duration: float | None = None) -> dict
     n = len(rec.t) if duration is None else int(round(duration * rec.fs)) + 1
     tau = TORQUE_CONSTANT * rec.current[:n]
     return {"t": rec.t[:n], "q1": rec.theta_m[:n], "v1": rec.omega_m[:n], "tau1": tau,
-            "qset1": rec.theta_m[:n], "tau_ff1": tau}
+            "qset1": rec.theta_m[:n], "tau_ff1": tau, "ql1": rec.theta_l[:n],
+            "vl1": rec.omega_l[:n]}
 
 
 def controller_dict(rec: TwoMassRecord) -> dict:
@@ -37,10 +49,13 @@ def controller_dict(rec: TwoMassRecord) -> dict:
                            "feedforward": "recorded"}}
 
 
-def write_csv(columns: dict, path) -> None:
+def write_csv(columns: dict, path, start_window: float | None = None) -> None:
+    """The columns as the engine's CSV, with a ``# start_window:`` line when given (s)."""
     names = list(columns)
     data = np.column_stack([columns[k] for k in names])
-    np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.9g")
+    head = "" if start_window is None else f"# start_window: {start_window!r}\n"
+    np.savetxt(path, data, delimiter=",", header=head + ",".join(names), comments="",
+               fmt="%.9g")
 
 
 def export_case(fit: TwoMassRecord, holdout: TwoMassRecord, nominal: TwoMassParameters,
@@ -50,8 +65,9 @@ def export_case(fit: TwoMassRecord, holdout: TwoMassRecord, nominal: TwoMassPara
     out.mkdir(parents=True, exist_ok=True)
     paths = {"data": out / "fit.csv", "holdout": out / "holdout.csv",
              "controller": out / "controller.yaml", "arm": out / "nominal_arm.yaml"}
-    write_csv(recording_columns(fit, duration), paths["data"])
-    write_csv(recording_columns(holdout, duration), paths["holdout"])
+    write_csv(recording_columns(fit, duration), paths["data"], START_SAMPLES * fit.dt)
+    write_csv(recording_columns(holdout, duration), paths["holdout"],
+              START_SAMPLES * holdout.dt)
     paths["controller"].write_text(yaml.safe_dump(controller_dict(fit), sort_keys=False))
     paths["arm"].write_text("# two-mass bench, rigid nominal twin (coupling rigid, J_m as a "
                             "gear rotor of ratio 1, J_l the load's root inertia)\n" +
