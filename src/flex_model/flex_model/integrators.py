@@ -502,6 +502,17 @@ def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, Lc
 
 
 @njit(cache=_CACHE)
+def galpha_parameters(rho_inf):
+    """(alpha_m, alpha_f, gamma, beta) of generalized-alpha with the spectral radius
+    ``rho_inf`` at infinite frequency (Chung-Hulbert: second order, optimal damping of
+    the high modes)."""
+    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
+    af = rho_inf / (rho_inf + 1.0)
+    gam = 0.5 + af - am
+    return am, af, gam, 0.25 * (gam + 0.5) ** 2
+
+
+@njit(cache=_CACHE)
 def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, P, E):
     """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form).
 
@@ -522,10 +533,7 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     """
     _check_state(x0, E)
     K, D = E[0], E[1]
-    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
-    af = rho_inf / (rho_inf + 1.0)
-    gam = 0.5 + af - am
-    beta = 0.25 * (gam + 0.5) ** 2
+    am, af, gam, beta = galpha_parameters(rho_inf)
     ratio = (1.0 - af) / (1.0 - am)
     bp = h * h * beta * ratio
     gp = h * gam * ratio
@@ -605,10 +613,7 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
     if x0.shape[0] > 2 * n:
         return generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
                                  P, E)
-    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
-    af = rho_inf / (rho_inf + 1.0)
-    gam = 0.5 + af - am
-    beta = 0.25 * (gam + 0.5) ** 2
+    am, af, gam, beta = galpha_parameters(rho_inf)
     ratio = (1.0 - af) / (1.0 - am)
     bp = h * h * beta * ratio
     gp = h * gam * ratio

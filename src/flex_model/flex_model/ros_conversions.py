@@ -93,7 +93,8 @@ class ShapeMarkers:
 
     def update(self, t, shapes) -> MarkerArray:
         """Stamp t and the centre lines ``shapes`` (list of (points, 2) or (points, 3)
-        arrays, m)."""
+        arrays, m); the message object, the reference of :meth:`serialized` (which the
+        node publishes)."""
         markers = self.msg.markers
         for i, line in enumerate(shapes):
             pts3 = np.column_stack([line, np.zeros(len(line))]) if line.shape[1] == 2 \

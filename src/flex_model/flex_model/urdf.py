@@ -155,10 +155,11 @@ def arm_transforms(model: FlexArmModel, q, frames: Frames) -> list[Transform]:
     return out
 
 
-def plane_to_base(gravity, points) -> np.ndarray:
-    """Plane points (N, 2) (model x, y) in base-frame coordinates (N, 3), REP 103."""
+def plane_to_base(rotation, points) -> np.ndarray:
+    """Plane points (N, 2) (model x, y) in base-frame coordinates (N, 3), REP 103;
+    ``rotation`` is :func:`plane_rotation` of the arm's gravity."""
     p = np.asarray(points, float)
-    return np.column_stack([p, np.zeros(len(p))]) @ plane_rotation(gravity).T
+    return np.column_stack([p, np.zeros(len(p))]) @ rotation.T
 
 
 def compose(transforms, child: str, root: str) -> tuple[np.ndarray, np.ndarray]:

@@ -31,7 +31,9 @@ import numpy as np
 from numba import njit
 
 from flex_model import kernels
+from flex_model import integrators
 from flex_model.dynamics import FlexArmModel
+from flex_model.integrators import galpha_parameters
 from flex_model.kernels import inverse_dynamics, link_origins, tip_jacobian
 from flex_model.statics import TipLoad, static_equilibrium
 
@@ -67,10 +69,7 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
     """
     n_s, nq = t.shape[0], St.shape[0]
     nf = Sf.shape[1]
-    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
-    af = rho_inf / (rho_inf + 1.0)
-    gam = 0.5 + af - am
-    beta = 0.25 * (gam + 0.5) ** 2
+    am, af, gam, beta = galpha_parameters(rho_inf)
     ratio = (1.0 - af) / (1.0 - am)
     Q = np.zeros((n_s, nq))
     V = np.zeros((n_s, nq))
@@ -138,7 +137,7 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
     return Q, V, A, tau, tip, worst, 0, 0
 
 
-_numba_cache.guard([_generalized_force, _integrate], [kernels.__file__])
+_numba_cache.guard([_generalized_force, _integrate], [kernels.__file__, integrators.__file__])
 
 
 @dataclass

@@ -28,6 +28,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .. import integrators, kernels
+from ..integrators import galpha_parameters
+from ..kernels import cholesky, solve_chol
 from .dynamics import SpatialArmModel
 
 _CACHE = True
@@ -761,45 +764,6 @@ def spatial_eval(Pm, q, v, qdd, want_m):
 
 
 @njit(cache=_CACHE)
-def _chol_solve(Lc, r):
-    n = r.shape[0]
-    y = np.empty(n)
-    for i in range(n):
-        s = r[i]
-        for j in range(i):
-            s -= Lc[i, j] * y[j]
-        y[i] = s / Lc[i, i]
-    x = np.empty(n)
-    for i in range(n - 1, -1, -1):
-        s = y[i]
-        for j in range(i + 1, n):
-            s -= Lc[j, i] * x[j]
-        x[i] = s / Lc[i, i]
-    return x
-
-
-@njit(cache=_CACHE)
-def _chol(A):
-    """Lower Cholesky factor of a symmetric positive definite A (small n; no LAPACK)."""
-    n = A.shape[0]
-    Lc = np.zeros((n, n))
-    for j in range(n):
-        s = A[j, j]
-        for k in range(j):
-            s -= Lc[j, k] * Lc[j, k]
-        if s <= 0.0:
-            s = np.nan
-        d = np.sqrt(s)
-        Lc[j, j] = d
-        for i in range(j + 1, n):
-            t = A[i, j]
-            for k in range(j):
-                t -= Lc[i, k] * Lc[j, k]
-            Lc[i, j] = t / d
-    return Lc
-
-
-@njit(cache=_CACHE)
 def _effects(Q0, fric, v, Q, slope):
     """Q = Q0 + friction torques on their coordinates, slope = their d/dv (effects.friction:
     -F_v w - (F_c + (F_s - F_c) exp(-(w/w_s)^2)) tanh(w/eps)); fric rows: coordinate,
@@ -856,10 +820,7 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
     nq = q0.shape[0]
     n_steps = tau.shape[0]
     nj = tau.shape[1]
-    am = (2 * rho_inf - 1) / (rho_inf + 1)
-    af = rho_inf / (rho_inf + 1)
-    gam = 0.5 + af - am
-    beta = 0.25 * (gam + 0.5) ** 2
+    am, af, gam, beta = galpha_parameters(rho_inf)
     cq = h * h * beta * (1 - af) / (1 - am)
     cv = h * gam * (1 - af) / (1 - am)
     has_d = False
@@ -893,7 +854,10 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
     for j in range(nq):
         r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
     _hold(M, r, held)
-    a = _chol_solve(_chol(M), r)
+    Lc = cholesky(M)
+    if Lc.shape[0] != nq:   # not positive definite
+        return qs[:1], vs[:1], -1
+    a = solve_chol(Lc, r)
     abar = a.copy()
     a1 = a.copy()
     iters = 0
@@ -924,10 +888,12 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
                         S[j, b_] = S0[j, b_]
                     S[j, j] -= cv * slope[j]
                 _hold(S, r, held)
-                Lc = _chol(S)
+                Lc = cholesky(S)
+                if Lc.shape[0] != nq:   # not positive definite: this step fails
+                    break
             else:
                 _hold(none, r, held)
-            da = _chol_solve(Lc, r)
+            da = solve_chol(Lc, r)
             dmax = 0.0
             amax = 1.0
             for j in range(nq):
@@ -969,3 +935,14 @@ class CompiledSpatialModel:
 
     def gravity_force(self, q):
         return self.terms(q, np.zeros(self.model.nq))[1]
+
+
+# numba re-compiles a cached function when its own file changes, not when a compiled
+# function it calls from kernels.py or integrators.py does: flush these caches then
+def _guard_caches():
+    from ..numba_cache import guard
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")
+           and obj.py_func.__module__ == __name__], [kernels.__file__, integrators.__file__])
+
+
+_guard_caches()

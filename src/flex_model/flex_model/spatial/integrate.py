@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from ..integrators import galpha_parameters
 from .dynamics import SpatialArmModel
 
 
@@ -84,10 +85,7 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
                    damping=None) -> SpatialRun:
     """Generalized-alpha with step ``h`` (s) for ``n_steps`` steps; ``damping`` an optional
     constant matrix D (force -D v), added to the model's joint dampers."""
-    am = (2 * rho_inf - 1) / (rho_inf + 1)
-    af = rho_inf / (rho_inf + 1)
-    gam = 0.5 + af - am
-    beta = 0.25 * (gam + 0.5) ** 2
+    am, af, gam, beta = galpha_parameters(rho_inf)
     D = model.D + (0.0 if damping is None else np.asarray(damping, float))
     K = model.K
     held = model.held
