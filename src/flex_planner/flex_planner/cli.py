@@ -51,6 +51,10 @@ def cmd_plan(args) -> int:
 
     from .planning import plan
 
+    from flex_model.spatial.description import is_spatial_arm
+    if is_spatial_arm(args.arm):           # issue 25: a spatial arm (flex_planner.spatial_plan)
+        from .spatial_plan import cmd_spatial_plan
+        return cmd_spatial_plan(args)
     if (args.waypoints is None) == (args.task is None):
         raise ValueError("waypoints: give a waypoint YAML file or --task "
                          f"({', '.join(TASKS)}), not both and not neither")

@@ -216,6 +216,12 @@ def _print_summary(summary: dict) -> None:
 
 
 def cmd_simulate(args) -> int:
+    from .spatial_cli import cmd_spatial_simulate, is_spatial_scenario
+    if is_spatial_scenario(args.scenario):
+        return cmd_spatial_simulate(args)
+    if getattr(args, "bag", False):
+        raise ValueError(f"--bag: only for spatial scenarios so far ({args.scenario} is "
+                         "planar; record the model node with flex-twin record)")
     _, _, summary = _simulate(args.scenario, args, "simulate")
     print(json.dumps(summary) if args.json else "", end="\n" if args.json else "")
     if not args.json:
@@ -304,13 +310,15 @@ def cmd_presets(args) -> int:
     from flex_model.scenario import scenario_names
 
     from flex_model.spatial.description import SPATIAL_PRESET_DIR, load_spatial_arm
+    from flex_model.spatial.scenario import spatial_scenario_names
 
     arms = {n: load_arm(n).description for n in preset_names()}
     spatial = {p.stem: load_spatial_arm(p).description
                for p in sorted(SPATIAL_PRESET_DIR.glob("*.yaml"))}
     if args.json:
         print(json.dumps({"arms": arms, "spatial_arms": spatial,
-                          "scenarios": scenario_names()}))
+                          "scenarios": scenario_names(),
+                          "spatial_scenarios": spatial_scenario_names()}))
         return 0
     for title, group in (("arms", arms), ("spatial arms (modes, static)", spatial)):
         print(f"{title}:")
@@ -318,6 +326,9 @@ def cmd_presets(args) -> int:
             print(f"  {n:26s} {d}")
     print("scenarios:")
     for n in scenario_names():
+        print(f"  {n}")
+    print("spatial scenarios (simulate):")
+    for n in spatial_scenario_names():
         print(f"  {n}")
     return 0
 
@@ -384,8 +395,11 @@ def build_parser() -> argparse.ArgumentParser:
         kinematics_arg(sp)
 
     sp = sub.add_parser("simulate", help="simulate a scenario file; writes CSV and PNG")
-    sp.add_argument("scenario", help="scenario preset name or YAML path")
+    sp.add_argument("scenario", help="scenario preset name or YAML path (planar, or spatial: "
+                    "its arm a spatial arm)")
     sim_args(sp)
+    sp.add_argument("--bag", action="store_true", help="spatial scenarios: also write a "
+                    "rosbag2 (MCAP) of the run to <out>/bag")
     sp.set_defaults(func=cmd_simulate)
 
     sp = sub.add_parser("demo", help="the model demo (section E scenario)")

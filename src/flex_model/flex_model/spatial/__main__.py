@@ -1,4 +1,5 @@
-"""Command line of the spatial core (until flex-twin has sub-commands for it)::
+"""Low-level command line of the spatial core (``flex-twin modes``, ``static``,
+``simulate`` and ``plan`` take spatial arms and scenarios too)::
 
     python -m flex_model.spatial modes seed000_real_arm_3d [--joints hinged] [--count 6]
     python -m flex_model.spatial static seed000_real_arm_3d [--joint-values 0.3]

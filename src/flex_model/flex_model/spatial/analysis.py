@@ -51,8 +51,11 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
         return r[free]
 
     r = residual(q)
-    scale = max(1.0, float(np.max(np.abs(r))))
+    scale = max(1.0, float(np.max(np.abs(r), initial=0.0)))
     for it in range(1, max_iter + 1):
+        if not len(free):            # a rigid arm: nothing deforms
+            it = 0
+            break
         Kt = (model.K + model.gravity_stiffness(q))[np.ix_(free, free)]
         if np.any(F) and not linear:  # load stiffness of the tip force (central diff.)
             h = 1e-7

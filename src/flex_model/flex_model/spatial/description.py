@@ -454,3 +454,17 @@ def rigid_dh_table(arm: SpatialArm) -> np.ndarray:
 #: spatial presets live apart from the planar ones (the planar loader reads every
 #: presets/*.yaml as a planar arm)
 SPATIAL_PRESET_DIR = Path(__file__).resolve().parent.parent / "presets" / "spatial"
+
+
+def is_spatial_arm(name_or_path) -> bool:
+    """True for a spatial arm file (a ``convention`` key: a DH table, or a ``urdf`` key) or
+    the name of a spatial preset that is not a planar one."""
+    from ..arm import PRESET_DIR
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.is_file():
+        if not path.is_file():
+            return False
+        data = read_yaml(path)
+        return isinstance(data, dict) and ("convention" in data or "urdf" in data)
+    return not (PRESET_DIR / f"{name_or_path}.yaml").exists() and \
+        (SPATIAL_PRESET_DIR / f"{name_or_path}.yaml").exists()

@@ -261,9 +261,12 @@ class SpatialArmModel:
         return np.array(sorted(idx), dtype=int)
 
     # ------------------------------------------------------------ kinematics
-    def _chain(self, q, with_masses: bool):
+    def _chain(self, q, with_masses: bool, link_frames: list | None = None):
         """Propagate the frames; return the end frame of every link and, with
-        ``with_masses``, the mass groups: points (m, p, Jp) and rotors (I, Jw)."""
+        ``with_masses``, the mass groups: points (m, p, Jp) and rotors (I, Jw).
+        ``link_frames``: a list that receives (root, tip) per link: the frame after the
+        joint motion where the beam starts, and the deflected tip section frame (Eq. 19;
+        None for a rigid link)."""
         if not np.iscomplexobj(q):
             q = np.asarray(q, dtype=float)
         nq = self.nq
@@ -294,8 +297,10 @@ class SpatialArmModel:
             root = F
             if with_masses and root_body is not None:
                 self._add_body(root, root_body, points, rotors)
+            tip = None
             if b is not None:
                 F = self._beam(F, q, i, b, with_masses, points, rotors)
+                tip = F
                 F = F.fixed(b.P.T, np.zeros(3))
                 if b.beam.placement == "dh_x":
                     F = F.fixed(Rdh, np.zeros(3))
@@ -306,6 +311,8 @@ class SpatialArmModel:
             if with_masses and end_body is not None:
                 self._add_body(F, end_body, points, rotors)
             ends.append(F)
+            if link_frames is not None:
+                link_frames.append((root, tip))
         return ends, points, rotors
 
     @staticmethod

@@ -80,10 +80,14 @@ class BagWriter:
         self.counts: dict[str, int] = {}
         self.closed = False
 
-    def add_topic(self, name: str, msg_type_str: str, qos=None, type_hash: str | None = None):
-        """Declare a topic; ``qos`` is a ``QoSProfile`` or a list of them (offered QoS)."""
+    def add_topic(self, name: str, msg_type_str: str, qos=None, type_hash: str | None = None,
+                  installed: bool = True):
+        """Declare a topic; ``qos`` is a ``QoSProfile`` or a list of them (offered QoS);
+        ``installed=False``: a type known to the Jazzy typestore only (tf2_msgs: not in
+        the pip wheels), written as CDR bytes."""
         from rclpy.qos import QoSProfile
-        get_message(msg_type_str)  # a standard, installed type
+        if installed:
+            get_message(msg_type_str)  # a standard, installed type
         store = jazzy_typestore()
         if msg_type_str not in store.types:
             raise BagError(f"topic {name}: type {msg_type_str} not in the Jazzy typestore")

@@ -1,0 +1,463 @@
+"""Spatial simulation scenarios (issue 25): a YAML file, validated on load, run by the
+compiled generalized-alpha loop (integrate.simulate_fixed_compiled).
+
+Example (preset ``seed000_3d_pd_step``, ``presets/spatial/scenarios/``)::
+
+    name: seed000_3d_pd_step
+    arm: seed000_real_arm_3d          # spatial preset name or path (relative to this file)
+    gravity: true                     # false: no gravity
+    duration: 2.0                     # s
+    step: 1.0e-3                      # s, fixed step (at most the sample period)
+    sample_period: 0.005              # s, output rows (default: 0.005 s or the duration)
+    rho_inf: 0.9                      # generalized-alpha spectral radius (1: no damping)
+    initial:
+      joint_values: [0.0]             # rad (revolute) or m (prismatic), SI
+      joint_rates: [0.0]              # rad/s or m/s
+      state: static                   # undeformed | static: the equilibrium under gravity
+                                      # (joints held; with a PD: the PD's equilibrium)
+    control:
+      gravity_hold: true              # constant holding torques of the initial static state
+      pd: {kp: [2.0], kd: [0.05], setpoints: [0.0]}    # N m/rad (N/m), N m s/rad, rad (m)
+      setpoint_schedule:              # set-point steps
+        - {time: 0.5, setpoints: [0.2]}
+    pulses:                           # joint torques (N m) / forces (N) on [start, end)
+      - {joint: joint1, torque: 0.05, start: 0.1, end: 0.2}   # end: .inf = to the end
+
+The PD law is thesis Eq. 95 with constant gains, tau_i = kp_i (s_i(t) - theta_a) -
+kd_i theta_a', evaluated inside the integrator: its -kp theta_a - kd theta_a' part is
+stiffness and damping on the actuator coordinate theta_a (the joint, or the motor
+coordinate behind an elastic gear: collocated), kp s(t) a joint torque. A set-point step
+of delta is the torque step kp delta (as the planar scenario). The PD torque is not
+clipped to URDF effort limits (pulses are, when no PD is on). Pulses and set-point steps
+are evaluated at mid-step, and the method restarts (consistent acceleration) where one
+switches, as the planar fixed-step mode does (simulate._run_fixed), so that a planar arm
+embedded in 3D follows the planar run.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config import ConfigError, Fields, read_yaml
+from .description import SPATIAL_PRESET_DIR, SpatialArm, load_spatial_arm
+from .dynamics import SpatialArmModel
+
+SPATIAL_SCENARIO_DIR = SPATIAL_PRESET_DIR / "scenarios"
+
+
+@dataclass(frozen=True)
+class SpatialPD:
+    """tau = kp (s - theta_a) - kd theta_a' per joint (thesis Eq. 95, constant gains)."""
+
+    kp: np.ndarray
+    kd: np.ndarray
+    setpoints: np.ndarray
+
+
+@dataclass(frozen=True)
+class SpatialPulse:
+    """A joint torque (N m) or force (N) on joint ``joint`` (index) for start <= t < end."""
+
+    joint: int
+    value: float
+    start: float
+    end: float
+
+
+@dataclass
+class SpatialScenario:
+    name: str
+    arm: SpatialArm
+    duration: float
+    step: float
+    sample_period: float
+    rho_inf: float
+    joint_values: np.ndarray
+    joint_rates: np.ndarray
+    start_static: bool = False
+    gravity_hold: bool = False
+    pd: SpatialPD | None = None
+    setpoint_schedule: tuple = ()        # (time, setpoints), increasing times
+    pulses: tuple = ()
+    tol: float = 1e-10
+    source: str = "<memory>"
+
+    # ------------------------------------------------------------ model and grid
+    def model(self) -> SpatialArmModel:
+        return SpatialArmModel(self.arm)
+
+    def grid(self):
+        """(h, steps per sample, samples): the step divides the sample period (as the
+        planar fixed mode: h = sample_period / ceil(sample_period / step))."""
+        per = max(1, int(math.ceil(self.sample_period / self.step - 1e-9)))
+        n_samples = int(round(self.duration / self.sample_period))
+        return self.sample_period / per, per, n_samples
+
+    def pd_matrices(self, model: SpatialArmModel):
+        """(K_pd, D_pd): the PD's stiffness and damping on the actuator coordinates."""
+        Kp, Dp = np.zeros((model.nq, model.nq)), np.zeros((model.nq, model.nq))
+        if self.pd is not None:
+            for i, a in enumerate(model.actuator_index):
+                if a >= 0:
+                    Kp[a, a] += self.pd.kp[i]
+                    Dp[a, a] += self.pd.kd[i]
+        return Kp, Dp
+
+    # ------------------------------------------------------------ initial state
+    def holding_torques(self, model: SpatialArmModel) -> np.ndarray:
+        """Joint torques that hold the arm at its initial joint values under gravity:
+        the joint rows of K q + dU_g/dq - Q_const at the equilibrium with the joints held
+        (analysis.static_equilibrium)."""
+        from .analysis import static_equilibrium
+        q = static_equilibrium(model, self.joint_values).q
+        r = model.K @ q + model.gravity_force(q) - model.Q_const
+        return np.where(model.actuator_index >= 0, r[model.off], 0.0)
+
+    def initial_state(self, model: SpatialArmModel):
+        """(q0, v0, u_hold): the start and the constant holding torques (zero without
+        ``gravity_hold``)."""
+        hold = self.holding_torques(model) if self.gravity_hold else np.zeros(model.n_links)
+        v0 = np.zeros(model.nq)
+        v0[model.off] = self.joint_rates
+        for i, m in enumerate(model.motor_index):
+            if m >= 0:
+                v0[m] = self.joint_rates[i]
+        if not self.start_static:
+            q0 = np.zeros(model.nq)
+            q0[model.off] = self.joint_values
+            for i, m in enumerate(model.motor_index):
+                if m >= 0:
+                    q0[m] = self.joint_values[i]
+            return q0, v0, hold
+        if self.pd is not None:
+            u = hold + self.pd.kp * self.pd.setpoints
+            return pd_static_equilibrium(model, *self.pd_matrices(model)[:1], u,
+                                         start=self.pd.setpoints), v0, hold
+        from .analysis import static_equilibrium
+        q0 = static_equilibrium(model, self.joint_values).q
+        for i, m in enumerate(model.motor_index):   # elastic gears: the spring carries
+            if m >= 0:                               # the holding torque
+                e = self.arm.effect("joint_elasticity", self.arm.links[i].joint.name)
+                q0[m] = q0[model.off[i]] + hold[i] / e["stiffness"]
+        return q0, v0, hold
+
+    # ------------------------------------------------------------ inputs
+    def open_loop(self, t, hold) -> np.ndarray:
+        """The joint torques at times t (n,) that are not the PD's feedback: holding
+        torques, pulses and kp s(t) (n, n_joints)."""
+        t = np.asarray(t, float)
+        u = np.broadcast_to(np.asarray(hold, float), (len(t), self.arm.n_links)).copy()
+        for p in self.pulses:
+            u[(p.start <= t) & (t < p.end), p.joint] += p.value
+        if self.pd is not None:
+            u += self.pd.kp * self.pd.setpoints
+            prev = self.pd.setpoints
+            for ts, sp in self.setpoint_schedule:
+                u[t >= ts] += self.pd.kp * (sp - prev)
+                prev = sp
+        return u
+
+    def switch_steps(self, h: float, n_total: int) -> list[int]:
+        """Step indices where an input switches (the method restarts there)."""
+        times = [t for p in self.pulses for t in (p.start, p.end)] + \
+            [ts for ts, _ in self.setpoint_schedule]
+        return sorted({int(round(t / h)) for t in times if 0 < round(t / h) < n_total})
+
+    # ------------------------------------------------------------ run
+    def run(self, model: SpatialArmModel | None = None, progress=None,
+            duration: float | None = None) -> "SpatialSimulation":
+        """Integrate (compiled generalized-alpha); ``duration`` overrides the scenario's
+        (e.g. a short first run that loads the numba cache)."""
+        from .integrate import simulate_fixed_compiled
+        model = model or self.model()
+        h, per, n_samples = self.grid()
+        if duration is not None:
+            n_samples = max(1, int(round(duration / self.sample_period)))
+        n_total = n_samples * per
+        q, v, hold = self.initial_state(model)
+        Kp, Dp = self.pd_matrices(model)
+        t_mid = h * (np.arange(n_total) + 0.5)
+        u = self.open_loop(t_mid, hold)
+        bounds = self.switch_steps(h, n_total) + [n_total]
+        K0 = model.K
+        qs, vs, iters, start = [q[None]], [v[None]], 0, 0
+        try:
+            model.K = K0 + Kp     # the PD's stiffness, for this run only
+            for stop in bounds:   # a restart (consistent acceleration) at every switch
+                try:
+                    run = simulate_fixed_compiled(
+                        model, q, v, h, stop - start, joint_torques=u[start:stop],
+                        rho_inf=self.rho_inf, tol=self.tol, damping=Dp,
+                        clip_to_effort=self.pd is None)
+                except RuntimeError as exc:   # the time of the segment -> of the run
+                    raise RuntimeError(f"{self.name}: Newton did not converge in the step "
+                                       f"after t = {start * h:.6g} s + ({exc}); reduce the "
+                                       "step or the input") from None
+                qs.append(run.q[1:])
+                vs.append(run.v[1:])
+                iters += run.newton_iterations
+                q, v = run.q[-1].copy(), run.v[-1].copy()
+                start = stop
+                if progress is not None:
+                    progress(stop * h, n_total * h)
+        finally:
+            model.K = K0
+        Q, V = np.concatenate(qs)[::per], np.concatenate(vs)[::per]
+        t = h * per * np.arange(len(Q))
+        a_idx = np.maximum(model.actuator_index, 0)
+        tau = self.open_loop(t, hold)
+        if self.pd is not None:
+            act = model.actuator_index >= 0
+            tau -= np.where(act, self.pd.kp * Q[:, a_idx] + self.pd.kd * V[:, a_idx], 0.0)
+        return SpatialSimulation(model=model, t=t, q=Q, v=V, tau=tau,
+                                 stats={"dt": h, "steps": n_total, "newton_iterations": iters,
+                                        "restarts": len(bounds) - 1})
+
+
+def pd_static_equilibrium(model: SpatialArmModel, K_pd, u, start=None, tol: float = 1e-13,
+                          max_iter: int = 40) -> np.ndarray:
+    """q with (K + K_pd) q + dU_g/dq - Q_const = H u (all free coordinates; the spring
+    balance of the PD, thesis Eq. 95 at rest): Newton with the exact tangent
+    K + K_pd + d^2 U_g/dq^2 from joint values ``start``."""
+    from .integrate import joint_input_matrix
+    q = np.zeros(model.nq)
+    if start is not None:
+        q[model.off] = start
+        for i, m in enumerate(model.motor_index):
+            if m >= 0:
+                q[m] = start[i]
+    free = model.free_indices
+    Kt0 = model.K + K_pd
+    f = joint_input_matrix(model) @ np.asarray(u, float) + model.Q_const
+    for _ in range(max_iter):
+        r = (f - Kt0 @ q - model.gravity_force(q))[free]
+        Kt = (Kt0 + model.gravity_stiffness(q))[np.ix_(free, free)]
+        dq = np.linalg.solve(Kt, r)
+        q[free] += dq
+        if np.max(np.abs(dq)) < tol * max(1.0, np.max(np.abs(q))):
+            return q
+    raise RuntimeError(f"no PD equilibrium after {max_iter} Newton steps")
+
+
+@dataclass
+class SpatialSimulation:
+    """Samples of a spatial run: t (n), q, v (n, nq), joint torques tau (n, n_joints)."""
+
+    model: SpatialArmModel
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    tau: np.ndarray
+    stats: dict
+
+    @property
+    def joint_values(self) -> np.ndarray:
+        return self.q[:, self.model.off]
+
+    @property
+    def joint_rates(self) -> np.ndarray:
+        return self.v[:, self.model.off]
+
+    def tip_deflections(self) -> dict:
+        """{link name: {'y', 'z', 'twist', 'y_rate', 'z_rate', 'twist_rate'}} (n,) arrays
+        at the tip of every flexible link (m, rad): v along the beam's y, w along its z,
+        the twist phi (Eq. 19)."""
+        m = self.model
+        out = {}
+        for i, (lk, b) in enumerate(zip(m.arm.links, m.beams)):
+            if b is None:
+                continue
+            s = m.flex_slice(i).start
+            iv, iw = s + b.tip_v, s + b.tip_w
+            d = {"y": self.q[:, iv], "z": self.q[:, iw],
+                 "y_rate": self.v[:, iv], "z_rate": self.v[:, iw]}
+            if b.tip_phi is not None:
+                d["twist"], d["twist_rate"] = self.q[:, s + b.tip_phi], self.v[:, s + b.tip_phi]
+            else:
+                d["twist"] = d["twist_rate"] = np.zeros(len(self.t))
+            out[lk.name] = d
+        return out
+
+    def tip_positions(self) -> np.ndarray:
+        """(n, 3) end-frame origin of the last link, base frame (m)."""
+        return np.array([self.model.tip_position(q) for q in self.q])
+
+    def table(self):
+        """CSV columns and data: t, joint values q<i>, rates v<i>, torques tau<i>, per
+        flexible link <link>_tip_deflection_y|z and <link>_tip_twist, tip_x|y|z."""
+        n = self.model.n_links
+        names = (["t"] + [f"q{i + 1}" for i in range(n)] + [f"v{i + 1}" for i in range(n)]
+                 + [f"tau{i + 1}" for i in range(n)])
+        cols = [self.t[:, None], self.joint_values, self.joint_rates, self.tau]
+        for name, d in self.tip_deflections().items():
+            names += [f"{name}_tip_deflection_y", f"{name}_tip_deflection_z",
+                      f"{name}_tip_twist"]
+            cols.append(np.column_stack([d["y"], d["z"], d["twist"]]))
+        names += ["tip_x", "tip_y", "tip_z"]
+        cols.append(self.tip_positions())
+        return names, np.column_stack(cols)
+
+    def to_csv(self, path) -> None:
+        names, data = self.table()
+        np.savetxt(path, data, delimiter=",", header=",".join(names), comments="",
+                   fmt="%.17g")
+
+
+# ---------------------------------------------------------------- loading
+
+def is_spatial_scenario(name_or_path) -> bool:
+    """True for a spatial scenario file (its arm a spatial arm) or preset name."""
+    from ..scenario import SCENARIO_DIR
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.is_file():
+        if not path.is_file():
+            return False
+        data = read_yaml(path)
+        if not isinstance(data, dict):
+            return False
+        arm = data.get("arm")
+        if isinstance(arm, dict):
+            return "convention" in arm or "urdf" in arm
+        if not isinstance(arm, str):
+            return False
+        local = path.parent / arm
+        if local.suffix in (".yaml", ".yml") and local.is_file():
+            d = read_yaml(local)
+            return isinstance(d, dict) and ("convention" in d or "urdf" in d)
+        from ..arm import PRESET_DIR
+        return not (PRESET_DIR / f"{arm}.yaml").exists() and \
+            (SPATIAL_PRESET_DIR / f"{arm}.yaml").exists()
+    return not (SCENARIO_DIR / f"{name_or_path}.yaml").exists() and \
+        (SPATIAL_SCENARIO_DIR / f"{name_or_path}.yaml").exists()
+
+
+def spatial_scenario_names() -> list[str]:
+    return sorted(p.stem for p in SPATIAL_SCENARIO_DIR.glob("*.yaml"))
+
+
+def load_spatial_scenario(name_or_path) -> SpatialScenario:
+    from ..arm import resolve_preset
+    path = resolve_preset(name_or_path, SPATIAL_SCENARIO_DIR)
+    return spatial_scenario_from_dict(read_yaml(path), str(path), Path(path).parent,
+                                      default_name=Path(path).stem)
+
+
+def _is_inf(value) -> bool:
+    if isinstance(value, str):
+        return value.strip().lower() in (".inf", "inf", "+.inf", "+inf", "infinity")
+    return isinstance(value, float) and math.isinf(value) and value > 0
+
+
+def _joint(f: Fields, key: str, arm: SpatialArm) -> int:
+    value = f.raw(key)
+    names = arm.joint_names
+    if isinstance(value, str) and value in names:
+        return names.index(value)
+    if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= len(names):
+        return value - 1
+    raise f.error(key, value, f"a joint name ({', '.join(names)}) or number 1..{len(names)}")
+
+
+def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
+                               base_dir: Path | None = None,
+                               default_name: str = "scenario") -> SpatialScenario:
+    """Validate a spatial scenario mapping; errors name ``source``, the field, the value
+    and what is allowed. ``arm``: a spatial preset name, a path (relative to
+    ``base_dir``) or an inline spatial arm mapping."""
+    from .description import spatial_arm_from_dict
+    f = Fields(data, source, "")
+    name = f.string("name", default_name)
+    raw_arm = f.raw("arm")
+    if isinstance(raw_arm, dict):
+        arm = spatial_arm_from_dict(raw_arm, f"{source}: arm")
+    else:
+        ref = f.string("arm")
+        local = Path(base_dir or Path.cwd()) / ref
+        try:
+            arm = load_spatial_arm(local if local.suffix in (".yaml", ".yml") and
+                                   local.exists() else ref)
+        except ConfigError as exc:
+            if exc.path == "<preset>":
+                raise f.error("arm", ref, "a spatial arm preset or file (" + exc.allowed
+                              + ")") from None
+            raise
+    if not f.boolean("gravity", True):
+        arm = arm.without_gravity()
+    n = arm.n_links
+    if _is_inf(f.raw("duration", 1.0)):
+        raise f.error("duration", f.raw("duration"), "a finite time > 0 s")
+    duration = f.number("duration", positive=True, unit="s")
+    step = f.number("step", 1e-3, positive=True, unit="s")
+    sample = f.number("sample_period", min(0.005, duration), positive=True, unit="s")
+    if sample > duration:
+        raise f.error("sample_period", sample, f"at most the duration ({duration} s)")
+    if step > sample:
+        raise f.error("step", step, f"a step at most the sample period ({sample} s)")
+    rho_inf = f.number("rho_inf", 0.9, min_value=0.0, max_value=1.0)
+    tol = f.number("newton_tol", 1e-10, positive=True, max_value=1e-4)
+    ini = f.mapping("initial", {})
+    q0 = np.array(ini.vector("joint_values", n, [0.0] * n, unit="rad or m"))
+    v0 = np.array(ini.vector("joint_rates", n, [0.0] * n, unit="rad/s or m/s"))
+    start_static = ini.string("state", "undeformed", choices=["undeformed", "static"]) == \
+        "static"
+    ini.done(["joint_values", "joint_rates", "state"])
+    ctl = f.mapping("control", {})
+    hold = ctl.boolean("gravity_hold", False)
+    locked = [lk.joint.name for lk in arm.links if lk.joint.motor == "locked"]
+    pd = None
+    if ctl.has("pd"):
+        p = ctl.mapping("pd")
+        kp = np.array(p.vector("kp", n, unit="N m/rad or N/m"))
+        kd = np.array(p.vector("kd", n, unit="N m s/rad or N s/m"))
+        for key, val in (("kp", kp), ("kd", kd)):
+            if np.any(val < 0):
+                raise p.error(key, val.tolist(), "gains >= 0")
+            bad = [nm for nm, x in zip(arm.joint_names, val) if nm in locked and x != 0]
+            if bad:
+                raise p.error(key, val.tolist(), f"0 on the locked joints ({', '.join(bad)}: "
+                              "a locked motor takes no torque)")
+        sp = np.array(p.vector("setpoints", n, q0.tolist(), unit="rad or m"))
+        p.done(["kp", "kd", "setpoints"])
+        pd = SpatialPD(kp, kd, sp)
+    schedule = []
+    for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
+        sf = Fields(raw, source, f"{ctl.sub('setpoint_schedule')}[{k}]")
+        if pd is None:
+            raise ctl.error("setpoint_schedule", raw, "control.pd as well (the schedule "
+                            "steps the PD's set-points)")
+        t = sf.number("time", nonnegative=True, unit="s")
+        if schedule and t <= schedule[-1][0]:
+            raise sf.error("time", t, f"a time > {schedule[-1][0]:g} s (increasing)")
+        schedule.append((t, np.array(sf.vector("setpoints", n, unit="rad or m"))))
+        sf.done(["time", "setpoints"])
+    ctl.done(["gravity_hold", "pd", "setpoint_schedule"])
+    pulses = []
+    for k, raw in enumerate(f.items("pulses", [])):
+        pf = Fields(raw, source, f"pulses[{k}]")
+        j = _joint(pf, "joint", arm)
+        if arm.links[j].joint.motor == "locked":
+            raise pf.error("joint", pf.raw("joint"), "a joint with an active motor (a "
+                           "locked motor takes no torque)")
+        key = "force" if arm.links[j].joint.type == "prismatic" else "torque"
+        other = "torque" if key == "force" else "force"
+        if pf.has(other):
+            raise pf.error(other, pf.raw(other), f"'{key}' ({arm.links[j].joint.type} joint "
+                           f"{arm.joint_names[j]})")
+        value = pf.number(key, unit="N" if key == "force" else "N m")
+        start = pf.number("start", nonnegative=True, unit="s")
+        end = math.inf if _is_inf(pf.raw("end")) else \
+            pf.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
+        if end <= start:
+            raise pf.error("end", end, f"a time after start ({start} s)")
+        pf.done(["joint", key, "start", "end"])
+        pulses.append(SpatialPulse(j, value, start, end))
+    f.done(["name", "arm", "gravity", "duration", "step", "sample_period", "rho_inf",
+            "newton_tol", "initial", "control", "pulses"])
+    return SpatialScenario(name=name, arm=arm, duration=duration, step=step,
+                           sample_period=sample, rho_inf=rho_inf, joint_values=q0,
+                           joint_rates=v0, start_static=start_static, gravity_hold=hold,
+                           pd=pd, setpoint_schedule=tuple(schedule), pulses=tuple(pulses),
+                           tol=tol, source=source)

@@ -1,0 +1,156 @@
+"""Spatial scenarios (issue 25): the PD law inside the integrator against the static spring
+balance, energy without damping, a planar arm embedded in 3D against the planar
+``simulate``, and the validation of the scenario file."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from flex_model.arm import load_arm
+from flex_model.config import ConfigError
+from flex_model.scenario import scenario_from_dict
+from flex_model.spatial.analysis import static_equilibrium
+from flex_model.spatial.description import from_planar
+from flex_model.spatial.scenario import (SpatialPD, SpatialPulse, SpatialScenario,
+                                         is_spatial_scenario, load_spatial_scenario,
+                                         pd_static_equilibrium, spatial_scenario_from_dict,
+                                         spatial_scenario_names)
+
+
+def test_presets_load_and_are_spatial():
+    assert set(spatial_scenario_names()) >= {"seed000_3d_pd_step", "seed003_like_pd_step"}
+    for name in spatial_scenario_names():
+        assert is_spatial_scenario(name)
+        sc = load_spatial_scenario(name)
+        assert sc.duration > 0 and sc.step <= sc.sample_period
+    assert not is_spatial_scenario("thesis_three_link_pd")
+
+
+def test_pd_end_state_is_the_static_spring_balance():
+    """seed003_like_arm without gravity compensation: the PD (thesis Eq. 95, on the motor
+    behind joint 1's elastic gear, on the joints 2, 3) carries the weight. After a
+    set-point step the run settles on the PD equilibrium, and that equilibrium is the
+    ``static`` analysis at its joint values with kp (s - theta_a) = holding torque."""
+    sc = dataclasses.replace(load_spatial_scenario("seed003_like_pd_step"), duration=4.0,
+                             pulses=(), gravity_hold=False, rho_inf=0.5)
+    model = sc.model()
+    res = sc.run(model)
+    sp = sc.setpoint_schedule[-1][1]
+    K_pd, _ = sc.pd_matrices(model)
+    q_eq = pd_static_equilibrium(model, K_pd, sc.pd.kp * sp, start=sp)
+    assert np.max(np.abs(res.q[-1] - q_eq)) < 1e-9
+    assert np.max(np.abs(res.v[-1])) < 1e-8
+    # the weight moves joints 2 and 3 off their set-points: a balance that could fail
+    sag = sp - q_eq[model.off]
+    assert abs(sag[1]) > 1e-3 and abs(sag[2]) > 1e-3
+    # the spring balance against the static analysis (joints held at the PD's values)
+    st = static_equilibrium(model, q_eq[model.off])
+    holding = (model.K @ st.q + model.gravity_force(st.q))[model.off]
+    pd_torque = sc.pd.kp * (sp - q_eq[model.actuator_index])
+    assert np.allclose(pd_torque, holding, rtol=1e-9, atol=1e-9 * np.max(np.abs(holding)))
+    flex = np.setdiff1d(np.arange(model.nq_arm), model.off)
+    assert np.max(np.abs(st.q[flex] - q_eq[flex])) < 1e-10
+    # the static start stays at rest before the step (the PD inside the integrator is
+    # the static one)
+    before = res.t < 0.1
+    assert np.max(np.abs(res.q[before] - res.q[0])) < 1e-12
+
+
+def test_energy_without_damping_second_order():
+    """No PD, no inputs, dampers off, rho_inf = 1 (trapezoidal): the energy error is the
+    integrator's O(h^2) (measured: 9.5e-7 of the largest kinetic energy at 1 ms, 2.4e-7
+    at 0.5 ms on the planar example 1 in 3D, moving in gravity)."""
+    arm = from_planar(load_arm("thesis_example1"))
+    errs = []
+    for h in (1e-3, 5e-4):
+        sc = SpatialScenario(name="energy", arm=arm, duration=1.0, step=h, sample_period=0.01,
+                             rho_inf=1.0, joint_values=np.array([-0.3, 0.5]),
+                             joint_rates=np.array([0.5, -0.5]))
+        model = sc.model()
+        res = sc.run(model)
+        E = np.array([model.total_energy(q, v) for q, v in zip(res.q, res.v)])
+        T = np.array([model.energy(q, v)["kinetic"] for q, v in zip(res.q, res.v)])
+        errs.append(np.max(np.abs(E - E[0])) / np.max(T))
+    assert errs[0] < 2e-6
+    assert 3.5 < errs[0] / errs[1] < 4.5
+
+
+def test_planar_arm_embedded_follows_the_planar_simulate():
+    """thesis_example1 (vertical plane, gravity) with a joint PD, a set-point step and a
+    torque pulse, fixed step 1 ms, rho_inf 0.9: the spatial run of the embedded arm equals
+    the planar one (both generalized-alpha with restarts at the switches; the Newton
+    tolerances, 1e-10, set the floor: measured 8.5e-12 rad, 1.1e-11 m)."""
+    arm = load_arm("thesis_example1")
+    sp0 = np.array([-0.3, 0.2])
+    kp, kd = [200.0, 200.0], [20.0, 20.0]
+    planar = scenario_from_dict({
+        "arm": "thesis_example1", "duration": 1.0, "sample_period": 0.01,
+        "initial": {"joint_angles_deg": np.degrees(sp0).tolist()},
+        "control": {"pd": {"kp": kp, "kd": kd, "setpoints_deg": np.degrees(sp0).tolist()},
+                    "setpoint_schedule": [{"time": 0.3,
+                                           "setpoints_deg": (np.degrees(sp0) + 5).tolist()}]},
+        "pulses": [{"joint": "joint1", "torque": 5.0, "start": 0.1, "end": 0.2}],
+        "integrator": {"method": "fixed", "step": 1e-3, "rho_inf": 0.9}}).run()
+    sc = SpatialScenario(name="embedded", arm=from_planar(arm), duration=1.0, step=1e-3,
+                         sample_period=0.01, rho_inf=0.9, joint_values=sp0,
+                         joint_rates=np.zeros(2),
+                         pd=SpatialPD(np.array(kp), np.array(kd), sp0),
+                         setpoint_schedule=((0.3, sp0 + np.radians(5)),),
+                         pulses=(SpatialPulse(0, 5.0, 0.1, 0.2),))
+    res = sc.run()
+    assert np.max(np.abs(res.joint_values - planar.joint_angles)) < 1e-10
+    assert np.max(np.abs(res.joint_rates - planar.joint_rates)) < 1e-8
+    d = res.tip_deflections()
+    y = np.column_stack([d[lk.name]["y"] for lk in arm.links])
+    assert np.max(np.abs(planar.tip_deflections)) > 0.1       # the run bends the links
+    assert np.max(np.abs(y - planar.tip_deflections)) < 1e-10
+    tip = res.tip_positions()
+    assert np.max(np.abs(tip[:, :2] - planar.tip_xy)) < 1e-9
+    assert np.max(np.abs(tip[:, 2])) == 0.0
+    assert np.max(np.abs(res.tau - planar.tau)) < 1e-6 * np.max(np.abs(planar.tau))
+
+
+def _base(**over):
+    d = {"arm": "seed003_like_arm", "duration": 0.1, "step": 1e-3}
+    d.update(over)
+    return d
+
+
+@pytest.mark.parametrize("data, field", [
+    (_base(step=0.01, sample_period=0.005), "step"),
+    (_base(duration=".inf"), "duration"),
+    (_base(arm="no_such_arm"), "arm"),
+    (_base(initial={"joint_values": [0.0]}), "initial.joint_values"),
+    (_base(control={"pd": {"kp": [1, 1, -1], "kd": [0, 0, 0]}}), "control.pd.kp"),
+    (_base(control={"setpoint_schedule": [{"time": 0.1, "setpoints": [0, 0, 0]}]}),
+     "control.setpoint_schedule"),
+    (_base(pulses=[{"joint": "joint9", "torque": 1.0, "start": 0.0, "end": 1.0}]),
+     "pulses[0].joint"),
+    (_base(pulses=[{"joint": 1, "force": 1.0, "start": 0.0, "end": 1.0}]),
+     "pulses[0].force"),
+    (_base(pulses=[{"joint": 1, "torque": 1.0, "start": 0.5, "end": 0.2}]),
+     "pulses[0].end"),
+    (_base(rho_inf=1.5), "rho_inf"),
+    (_base(integrator={"method": "variable"}), "integrator"),
+])
+def test_bad_scenarios_name_the_field(data, field):
+    with pytest.raises(ConfigError) as exc:
+        spatial_scenario_from_dict(data, "bad.yaml")
+    msg = str(exc.value)
+    assert msg.startswith("bad.yaml: ") and f": {field}: got " in msg
+
+
+def test_seed000_preset_starts_at_the_static_droop():
+    """seed000_3d_pd_step: state static = the droop under gravity in the stiff (248 N m^2)
+    plane, q L^4 / 8 EI + P L^3 / 3 EI = 11.33 um; it stays there (to 1e-12 m) until the
+    set-point step at 0.1 s."""
+    sc = load_spatial_scenario("seed000_3d_pd_step")
+    res = sc.run(duration=0.09)
+    L, EI, rhoA, P = 0.28, 248.0, 0.1289, 0.025607 * 9.81
+    droop = rhoA * 9.81 * L ** 4 / (8 * EI) + P * L ** 3 / (3 * EI)
+    w = res.tip_deflections()["link1"]["z"]
+    assert -w[0] == pytest.approx(droop, rel=1e-9)
+    assert np.max(np.abs(res.q - res.q[0])) < 1e-12
+    assert np.max(np.abs(res.tau)) == 0.0     # vertical joint axis: no holding torque

@@ -1,0 +1,94 @@
+"""Static-flexible inversion of a spatial arm (issue 25): the rigid limit against the
+closed-form inverse kinematics of an anthropomorphic arm, a flexible arm checked by
+forward statics, the minimum-norm step when redundant, the refusal when short of joints,
+and ``flex-twin plan`` dispatching a spatial arm."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from flex_model.spatial import SpatialArmModel, load_spatial_arm, spatial_arm_from_dict
+from flex_model.spatial.analysis import static_equilibrium
+from flex_planner.spatial_inverse import invert_tip_position, tip_sensitivity
+
+D1, A2, A3 = 0.35, 0.5, 0.7
+
+
+def _rrr():
+    """An anthropomorphic RRR arm (standard DH: d1 with alpha pi/2, then a2, a3), rigid."""
+    return SpatialArmModel(spatial_arm_from_dict({"name": "rrr", "links": [
+        {"joint": {"d": D1, "alpha": float(np.pi / 2)}, "end_body": {"mass": 1.0}},
+        {"joint": {"a": A2}, "end_body": {"mass": 1.0}},
+        {"joint": {"a": A3}, "end_body": {"mass": 0.5}}]}))
+
+
+@pytest.mark.parametrize("p", [(0.6, 0.5, 0.6), (-0.3, 0.8, 0.1), (0.9, -0.2, 0.9)])
+def test_rigid_limit_is_the_closed_form_inverse(p):
+    x, y, z = p
+    r, s = np.hypot(x, y), z - D1
+    t3 = -np.arccos((r**2 + s**2 - A2**2 - A3**2) / (2 * A2 * A3))   # elbow branch
+    t2 = np.arctan2(s, r) - np.arctan2(A3 * np.sin(t3), A2 + A3 * np.cos(t3))
+    exact = np.array([np.arctan2(y, x), t2, t3])
+    inv = invert_tip_position(_rrr(), p, guess=exact + [0.2, 0.2, -0.2])
+    assert np.max(np.abs(inv.joint_values - exact)) < 1e-12
+
+
+def test_flexible_arm_checked_by_forward_statics():
+    """seed003_like_arm (elastic gear, sagging two-segment forearm): the inverse's static
+    tip is the target (1e-9 m); the sag is far above that (a rigid inverse would miss)."""
+    model = SpatialArmModel(load_spatial_arm("seed003_like_arm"))
+    target = np.array([0.9, 0.3, 0.4])
+    inv = invert_tip_position(model, target, guess=[0.0, 0.3, -0.6])
+    fwd = static_equilibrium(model, inv.joint_values)
+    assert np.max(np.abs(fwd.tip_position - target)) < 1e-9
+    rigid = model.tip_position(np.where(np.isin(np.arange(model.nq), model.off),
+                                        fwd.q, 0.0))
+    assert np.linalg.norm(rigid - target) > 1e-4          # the deflection matters
+    assert inv.iterations <= 10                           # Newton, exact Jacobian
+
+
+def test_sensitivity_is_the_derivative_of_the_static_tip():
+    model = SpatialArmModel(load_spatial_arm("seed003_like_arm"))
+    th = np.array([0.2, 0.5, -0.9])
+    S = tip_sensitivity(model, static_equilibrium(model, th).q)
+    h = 1e-6
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        fd = (static_equilibrium(model, th + e).tip_position
+              - static_equilibrium(model, th - e).tip_position) / (2 * h)
+        assert np.max(np.abs(S[:, j] - fd)) < 1e-7
+
+
+def test_redundant_minimum_norm_and_refusal():
+    model = SpatialArmModel(load_spatial_arm("seed003_like_arm"))
+    # x, z with three joints: the minimum-norm steps leave joint 1 (its column is
+    # orthogonal to x, z in the arm's plane) where it is
+    inv = invert_tip_position(model, [0.9, 0.4], ("x", "z"), guess=[0.0, 0.3, -0.6])
+    fwd = static_equilibrium(model, inv.joint_values).tip_position
+    assert abs(fwd[0] - 0.9) < 1e-9 and abs(fwd[2] - 0.4) < 1e-9
+    assert abs(inv.joint_values[0]) < 1e-12
+    one = SpatialArmModel(load_spatial_arm("seed000_real_arm_3d"))
+    with pytest.raises(ValueError, match="1 actuated joint.*3 task coordinates"):
+        invert_tip_position(one, [0.2, 0.1, 0.0])
+
+
+def test_plan_command_on_a_spatial_arm(tmp_path, capsys):
+    from flex_planner.cli import main
+    wp = tmp_path / "wp.yaml"
+    wp.write_text("guess: [0.0, 0.3, -0.6]\nwaypoints:\n"
+                  "  - {t: 0.0, x: 1.1, y: 0.0, z: 0.3}\n"
+                  "  - {t: 1.0, x: 0.9, y: 0.3, z: 0.4}\n")
+    assert main(["plan", "seed003_like_arm", str(wp), "--out", str(tmp_path / "o"),
+                 "--json", "--sample-period", "0.01"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["spatial"] and len(s["waypoints"]) == 2
+    assert max(w["static_tip_error_m"] for w in s["waypoints"]) < 1e-9
+    data = np.genfromtxt(s["csv"], delimiter=",", names=True)
+    assert len(data) == 101
+    assert data["joint1_position"][-1] == pytest.approx(s["waypoints"][1]["joint_values"][0],
+                                                        abs=1e-15)
+    assert main(["plan", "seed000_real_arm_3d", str(wp), "--out", str(tmp_path / "p")]) == 2
+    assert "no static-flexible inverse" in capsys.readouterr().err
