@@ -13,9 +13,12 @@ Prints, from one run: the core loop with the law compiled into it (one compiled 
 the whole task, flex_model.control_kernel) and with the law called from Python every
 period (users' own controllers; ``compiled=False``), both as real-time factors of wall
 and of CPU time (the CPU figure is what the loop costs on a machine shared with other
-jobs); the model node in lockstep with ``controller:=eq95``; and the twin demo (nodes,
-bag recorder) with the controller in the model's loop and over topics (the controller
-node), side by side.
+jobs); the model node in lockstep with ``controller:=eq95`` publishing at 250 and 50 Hz,
+without a subscriber and with a raw subscriber of every topic in another process (as the
+bag recorder's; what it received is printed: a lockstep model waits for nobody), real-time
+factors of wall and of the process's CPU time; and the twin demo (nodes, bag recorder)
+with the controller in the model's loop and over topics (the controller node), side by
+side.
 """
 from __future__ import annotations
 
@@ -84,10 +87,18 @@ def main() -> None:
     print(f"  compiled vs Python path, largest state difference after {TIMES[-1]:g} s: "
           f"{np.abs(final[True] - final[False]).max():.2e}")
     for publish_rate in (250.0, 50.0):
-        node_rtf = run_node(traj, theta0, args.rate, publish_rate)
-        print(f"model node, lockstep, controller:=eq95 (SingleThreadedExecutor, publishing at "
-              f"{publish_rate:g} Hz, one compiled call per publication): real-time factor "
-              f"{node_rtf:.1f}")
+        for listen in (False, True):
+            r = run_node(traj, theta0, args.rate, publish_rate, listen)
+            print(f"model node, lockstep, controller:=eq95 (SingleThreadedExecutor, "
+                  f"publishing at {publish_rate:g} Hz, one compiled call per publication), "
+                  + ("a raw subscriber of every topic in another process"
+                     if listen else "no subscriber")
+                  + f": real-time factor {r['rtf']:.1f} (CPU time of the process: "
+                  f"{r['rtf_cpu']:.1f}), {1e6 * r['cpu'] / r['publications']:.0f} us CPU "
+                  f"per publication")
+            if listen:
+                print(f"  received of {r['publications']} publications: " + ", ".join(
+                    f"{k} {v}" for k, v in sorted(r["received"].items())))
     if args.demo_seconds > 0:
         run_demos(args.demo_seconds, args.rate)
 
@@ -109,16 +120,64 @@ def run_demos(seconds: float, rate: float) -> None:
         + f"; ratio {rows[0][1] / rows[1][1]:.1f}")
 
 
-def run_node(traj, theta0, rate: float, publish_rate: float) -> float:
+TOPICS = ("/joint_states", "/clock", "/flex/deflections", "/flex/tip_pose", "/flex/shape")
+
+
+def listener_main(out: str) -> None:
+    """Child process: raw subscriptions of the model node's topics (as the bag recorder's:
+    reliable, depth 100, no deserialization), counting messages until SIGINT or SIGTERM;
+    writes the counts to ``out`` (JSON)."""
+    import json
+    import signal
+
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    from visualization_msgs.msg import MarkerArray
+    stop = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.append(1))
+    rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    node = rclpy.create_node("bench_listener")
+    counts = {t: 0 for t in TOPICS}
+    types = {"/joint_states": JointState, "/clock": Clock, "/flex/deflections": JointState,
+             "/flex/tip_pose": PoseStamped, "/flex/shape": MarkerArray}
+    for topic in TOPICS:
+        def count(_raw, topic=topic):
+            counts[topic] += 1
+        node.create_subscription(types[topic], topic, count, 100, raw=True)
+    ex = SingleThreadedExecutor()
+    ex.add_node(node)
+    while not stop:
+        ex.spin_once(timeout_sec=0.05)
+    with open(out, "w") as f:
+        json.dump(counts, f)
+    rclpy.try_shutdown()
+
+
+def run_node(traj, theta0, rate: float, publish_rate: float, listen: bool = False) -> dict:
     """The same task in the model node (lockstep, in-loop eq95, publishing at
-    ``publish_rate``: one compiled call per publication), spun by its executor."""
+    ``publish_rate``: one compiled call per publication), spun by its executor; with
+    ``listen`` a raw subscriber of every topic in another process (listener_main).
+    Returns the real-time factors (wall, CPU time of this process: DDS threads
+    included), the publications and what the listener received."""
+    import json
     import os
+    import signal
+    import subprocess
+    import sys
+    import tempfile
     os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
     from flex_model.model_node import ModelNode
+    child, out = None, tempfile.mktemp(suffix=".json")
+    if listen:
+        child = subprocess.Popen([sys.executable, __file__, "--listener", out])
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -132,14 +191,42 @@ def run_node(traj, theta0, rate: float, publish_rate: float) -> float:
         node.loop.set_trajectory(traj, 0.0)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
+        pubs = (node.pub_js, node.pub_clock, node.pub_defl, node.pub_tip, node.pub_shape)
+        end = time.monotonic() + 60.0
+        while listen and not all(p.get_subscription_count() for p in pubs):
+            if time.monotonic() > end or child.poll() is not None:
+                raise RuntimeError("bench: the listener process did not subscribe")
+            ex.spin_once(timeout_sec=0.01)
+        published = [0]
+        publish = node.pub_js.publish
+
+        def counted(msg):
+            published[0] += 1
+            publish(msg)
+        node.pub_js.publish = counted
         node.paused = False
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         while node.stepper.t < TIMES[-1] - 1e-9:
             ex.spin_once(timeout_sec=0.01)
-        return node.stepper.t / (time.perf_counter() - t0)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        sim = node.stepper.t
     finally:
         rclpy.try_shutdown(context=ctx)
+    received = {}
+    if child is not None:
+        time.sleep(1.0)  # the last messages in flight
+        child.send_signal(signal.SIGINT)
+        child.wait(timeout=30)
+        with open(out) as f:
+            received = json.load(f)
+        os.unlink(out)
+    return {"rtf": sim / wall, "rtf_cpu": sim / cpu, "cpu": cpu,
+            "publications": published[0], "received": received}
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+    if len(sys.argv) == 3 and sys.argv[1] == "--listener":
+        listener_main(sys.argv[2])
+    else:
+        main()

@@ -75,8 +75,10 @@ flex/shape at shape_rate. lockstep: deterministic; each command advances the mod
 rates, so simulation time moves only as the model-controller loop completes; without a
 command for ``lockstep_timeout`` (wall) the model steps with the held one (a warning once
 the loop ran; before the first command this is the start: a controller timed by /clock
-needs that first step). Messages are built once and updated in place (the per-step cost
-is what limits the loop rate).
+needs that first step). The state messages are serialized once (CDR templates,
+flex_model.cdr_messages) and published as bytes, only their stamps and numbers written
+per publication (the same bytes a subscriber got from the message objects); flex/shape
+and flex/tip_imu, costly to compute, only while someone subscribes.
 """
 from __future__ import annotations
 
@@ -90,7 +92,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64MultiArray, Header, String
+from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 from geometry_msgs.msg import PoseStamped
 from sensor_msgs.msg import Imu, JointState
@@ -264,11 +266,21 @@ class ModelNode(Node):
         # REP 103/105 frames (flex_model.urdf): the plane's coordinates in the base frame
         self.frames = urdf.Frames.of(self.model, p["frame_prefix"], p["frame_id"])
         self.plane = urdf.plane_rotation(self.model.gravity)
-        self.msg_js = JointState(name=list(self.names))
-        self.msg_defl = JointState(name=conv.deflection_names(self.links))
-        self.msg_tip = PoseStamped(header=Header(frame_id=self.frames.plane))
+        # the messages of every publication, serialized once and refilled in place
+        # (flex_model.cdr_messages: published as bytes, the same messages)
+        self.cdr_js = conv.joint_state_cdr(self.names, n)
+        self.cdr_defl = conv.joint_state_cdr(conv.deflection_names(self.links), 2 * n,
+                                             effort=False)
+        self.cdr_tip = conv.tip_pose_cdr(self.frames.plane)
+        self.cdr_clock = conv.clock_cdr()
+        self.cdr_imu = conv.imu_cdr(self.frames.tips[-1]) if self.has_imu else None
         self.msg_shape = conv.ShapeMarkers(n, int(p["shape_points"]), self.frames.base)
-        self.msg_clock = Clock()
+        self._values = np.empty(4 * n)  # the float64 fields of one message
+        # what Stepper.deflections and FlexArmModel.tip_pose compute, with their index and
+        # selection matrices built once (the same arithmetic: test_ros_model_node_bytes.py)
+        self._tip_index = np.array([self.model.tip_deflection_index(i) for i in range(n)])
+        self._tip_rotation = self.model.tip_rotation_matrix()
+        self._last_alpha = self.model.alpha_index(n - 1)
         qos = 10
         # relative names: a namespace (__ns:=/robot1) moves the whole loop; /diagnostics
         # stays global, as ROS tools (the aggregator) expect; the clock is clock_topic
@@ -634,26 +646,37 @@ class ModelNode(Node):
         the new state also across processes); with ``full`` the other topics (/flex/shape
         only with ``shape`` too)."""
         st, t = self.stepper, self.stepper.t
-        self.pub_js.publish(conv.fill_joint_state(self.msg_js, t, *st.joint_state()))
+        values = self._values
+        n = self.model.n_links
+        position, velocity, effort = st.joint_state()
+        values[:n], values[n:2 * n], values[2 * n:3 * n] = position, velocity, effort
+        self.pub_js.publish(self.cdr_js.fill(t, values[:3 * n]))
         if self.pub_clock is not None:
-            conv.set_time(self.msg_clock.clock, t)
-            self.pub_clock.publish(self.msg_clock)
+            self.pub_clock.publish(self.cdr_clock.fill(t))
         if not full:
             return
-        self.pub_defl.publish(conv.fill_deflection_state(self.msg_defl, t, *st.deflections()))
-        x, y, phi = st.tip_pose()
-        self.pub_tip.publish(conv.fill_tip_pose(self.msg_tip, t, x, y, phi))
-        if shape:  # in the base frame, z up (REP 103)
+        # per link (deflection, rotation), then their rates (conv.fill_deflection_state)
+        q, v, r = st.q, st.v, self._tip_rotation
+        values[0:2 * n:2], values[1:2 * n:2] = q[self._tip_index], r @ q
+        values[2 * n::2], values[2 * n + 1::2] = v[self._tip_index], r @ v
+        self.pub_defl.publish(self.cdr_defl.fill(t, values))
+        x, y = self.model.link_origins(q)[-1]  # st.tip_pose()
+        phi = float(q[self._last_alpha] + r[-1] @ q)
+        self.pub_tip.publish(self.cdr_tip.fill(t, conv.tip_pose_values(x, y, phi)))
+        # the costly two only when someone listens (volatile topics: a subscriber that is
+        # not there gets nothing either way; get_subscription_count costs about 1 us)
+        if shape and self.pub_shape.get_subscription_count():  # base frame, z up (REP 103)
             shapes = [urdf.plane_to_base(self.plane, line)
                       for line in self.model.shape(st.q, int(self.p["shape_points"]))]
             # serialized in place: the same message, 0.03 instead of 0.4 ms (conversions)
             self.pub_shape.publish(self.msg_shape.serialized(t, shapes))
-        if self.pub_imu is not None:  # in the last link's tip frame
+        if self.pub_imu is not None and self.pub_imu.get_subscription_count():
+            # in the last link's tip frame
             rate = float(self.model.tip_torque_vector() @ st.v)  # tip frame rotation rate
             orientation = urdf.quaternion_from_matrix(
                 self.plane @ urdf.matrix_from_quaternion(urdf.yaw_quaternion(phi)))
-            self.pub_imu.publish(conv.imu(t, st.tip_specific_force(), rate, phi,
-                                          self.frames.tips[-1], orientation))
+            self.pub_imu.publish(self.cdr_imu.fill(t, conv.imu_values(
+                st.tip_specific_force(), rate, orientation)))
         if self.pub_tf is not None:
             self.msg_tf.transforms = self.tf_msgs.update(
                 t, urdf.arm_transforms(self.model, st.q, self.frames))

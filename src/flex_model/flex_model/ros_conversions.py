@@ -13,6 +13,7 @@ from std_msgs.msg import ColorRGBA, Header
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
+from .cdr_messages import CdrTemplate
 from .trajectory import JointTrajectoryData
 
 
@@ -89,7 +90,11 @@ class ShapeMarkers:
                 m.points = [Point() for _ in range(n)]
                 self.msg.markers.append(m)
 
-        self._raw = None  # the serialized message and where its stamps and points are
+        # the serialized message (flex_model.cdr_messages), built here: at 10,000 points
+        # per link it takes about 1 s, which a realtime tick must not wait for
+        self._raw = CdrTemplate(
+            self.msg, [f"markers[{j}].header.stamp" for j in range(len(self.msg.markers))],
+            [f"markers[{j}].points" for j in range(len(self.msg.markers))])
 
     def update(self, t, shapes) -> MarkerArray:
         """Stamp t and the centre lines ``shapes`` (list of (points, 2) or (points, 3)
@@ -108,68 +113,61 @@ class ShapeMarkers:
 
     def serialized(self, t, shapes) -> bytes:
         """The message of :meth:`update` (stamp t, centre lines ``shapes``) serialized
-        (CDR), written straight into a serialized copy of the message: byte for byte what
-        rclpy would send, without converting 4 markers of Point objects on every publication
-        (0.2-0.3 ms of the 1 ms realtime tick; Publisher.publish takes bytes)."""
-        if self._raw is None:
-            self._raw = _SerializedShape(self.msg)
-        return self._raw.fill(t, shapes)
-
-
-class _SerializedShape:
-    """A serialized MarkerArray with the byte offsets of every header stamp and point
-    coordinate, found by serializing it once with distinct marker values (the strings
-    and array lengths never change, so the layout does not)."""
-
-    def __init__(self, msg: MarkerArray):
-        from rclpy.serialization import serialize_message
-        markers = msg.markers
-        saved = [(m.header.stamp.sec, m.header.stamp.nanosec,
-                  [(p.x, p.y, p.z) for p in m.points]) for m in markers]
-        k = 0
-        for j, m in enumerate(markers):  # distinct values, none of them elsewhere
-            m.header.stamp.sec, m.header.stamp.nanosec = 0x5EC0_0000 + j, 0x5EC1_0000 + j
-            for p in m.points:
-                p.x, p.y, p.z = (1.0e9 + 1.25 * (3 * k + c) for c in range(3))
-                k += 1
-        raw = serialize_message(msg)
-
-        def find(value: bytes) -> int:
-            at = raw.find(value)
-            if at < 0 or raw.find(value, at + 1) >= 0:
-                raise RuntimeError("flex/shape: a marker value is not unique in the "
-                                   "serialized message")
-            return at
-        end = "<" if raw[1] == 1 else ">"  # CDR encapsulation: 0x0001 little-endian
-        self.sec = [find(np.array(0x5EC0_0000 + j, end + "i4").tobytes())
-                    for j in range(len(markers))]
-        self.nsec = [find(np.array(0x5EC1_0000 + j, end + "u4").tobytes())
-                     for j in range(len(markers))]
-        offsets = [find(np.array(1.0e9 + 1.25 * i, end + "f8").tobytes())
-                   for i in range(3 * k)]
-        self.f8 = np.dtype(end + "f8")
-        self.i4, self.u4 = np.dtype(end + "i4"), np.dtype(end + "u4")
-        self.byte_index = (np.asarray(offsets)[:, None] + np.arange(8)).ravel()
-        self.buf = np.frombuffer(bytearray(raw), dtype=np.uint8)
-        for m, (sec, nsec, pts) in zip(markers, saved):  # the message as it was
-            m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
-            for p, (x, y, z) in zip(m.points, pts):
-                p.x, p.y, p.z = x, y, z
-
-    def fill(self, t, shapes) -> bytes:
-        sec, nsec = divmod(int(round(t * 1e9)), 1_000_000_000)
-        sec_b = np.array([sec], self.i4).view(np.uint8)
-        nsec_b = np.array([nsec], self.u4).view(np.uint8)
-        for a, b in zip(self.sec, self.nsec):
-            self.buf[a:a + 4] = sec_b
-            self.buf[b:b + 4] = nsec_b
+        (CDR), written straight into a serialized copy of the message
+        (:class:`flex_model.cdr_messages.CdrTemplate`): what rclpy would send, without
+        converting 4 markers of Point objects on every publication (0.2-0.3 ms of the 1 ms
+        realtime tick; Publisher.publish takes bytes)."""
         values = []
         for line in shapes:  # per link: the centre line, then its chord (first, last)
             pts3 = np.zeros((len(line), 3))
             pts3[:, :line.shape[1]] = line
             values += [pts3.ravel(), pts3[0], pts3[-1]]
-        self.buf[self.byte_index] = np.concatenate(values).astype(self.f8).view(np.uint8)
-        return self.buf.tobytes()
+        return self._raw.fill(t, np.concatenate(values))
+
+
+def joint_state_cdr(names, n_values: int, effort: bool = True) -> CdrTemplate:
+    """A sensor_msgs/JointState of ``names`` as a CDR template: stamp; position, velocity
+    (``n_values`` each) and, with ``effort``, effort, in that order (the bytes of
+    :func:`fill_joint_state`)."""
+    zeros = [0.0] * n_values
+    msg = JointState(name=list(names), position=zeros, velocity=zeros,
+                     effort=zeros if effort else [])
+    return CdrTemplate(msg, ["header.stamp"],
+                       ["position", "velocity"] + (["effort"] if effort else []))
+
+
+def tip_pose_cdr(frame: str) -> CdrTemplate:
+    """The tip pose (PoseStamped in ``frame``) as a CDR template: stamp; position x, y and
+    orientation z, w, in that order (:func:`tip_pose_values`)."""
+    return CdrTemplate(PoseStamped(header=Header(frame_id=frame)), ["header.stamp"],
+                       ["pose.position.x", "pose.position.y", "pose.orientation.z",
+                        "pose.orientation.w"])
+
+
+def tip_pose_values(x, y, phi) -> list[float]:
+    """The values of :func:`tip_pose_cdr`: what :func:`fill_tip_pose` writes."""
+    return [float(x), float(y), math.sin(phi / 2), math.cos(phi / 2)]
+
+
+def clock_cdr() -> CdrTemplate:
+    """rosgraph_msgs/Clock as a CDR template (its one stamp)."""
+    from rosgraph_msgs.msg import Clock
+    return CdrTemplate(Clock(), ["clock"])
+
+
+def imu_cdr(frame: str) -> CdrTemplate:
+    """The tip accelerometer (Imu in ``frame``) as a CDR template: stamp; orientation x,
+    y, z, w, angular velocity z, linear acceleration x, y, in that order
+    (:func:`imu_values`)."""
+    return CdrTemplate(Imu(header=Header(frame_id=frame)), ["header.stamp"],
+                       ["orientation", "angular_velocity.z", "linear_acceleration.x",
+                        "linear_acceleration.y"])
+
+
+def imu_values(specific_force, angular_rate, orientation) -> list[float]:
+    """The values of :func:`imu_cdr`: what :func:`imu` writes with an orientation."""
+    fx, fy = (float(v) for v in specific_force)
+    return [*(float(v) for v in orientation), float(angular_rate), fx, fy]
 
 
 class Transforms:

@@ -8,6 +8,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
@@ -148,7 +149,8 @@ def test_realtime_ticks_integrate_whole_steps_and_catch_up(monkeypatch):
         monkeypatch.setattr("flex_model.model_node.time.monotonic", lambda: clock[0])
         node.last_wall = clock[0]
         published = []
-        node.pub_js.publish = lambda m: published.append(stamp_s(m))  # messages are reused
+        node.pub_js.publish = lambda raw: published.append(  # bytes: flex_model.cdr_messages
+            stamp_s(deserialize_message(raw, JointState)))
         for elapsed_ms, t_ms in ((1.0, 1), (3.4, 4), (0.7, 5), (0.95, 6), (0.2, 6), (0.55, 7)):
             clock[0] += 1e-3 * elapsed_ms
             node.on_tick()
