@@ -132,3 +132,31 @@ def test_hidden_stick_slip_is_diagnosed_within_tolerance(slip):
     assert c.share >= 0.95 and d.J["final_holdout"] < 1.0
     fitted = {k.label: k for k in d.rounds[0]["candidates"]}
     assert fitted["joint_friction@joint1"].J_holdout > 3 * d.J["final_holdout"]
+
+
+def test_under_a_voltage_command_the_hypothesis_frees_the_sticking_in_newton_metres():
+    """A dc_motor joint under a voltage command (the Quanser handout twin): viscous damping
+    is the motor's back-EMF n^2 K_t K_e / R, so stick-slip frees coulomb and the break-away
+    excess only; its probes are break-away torques F_s = 1, 1.5, 2 x n K_t / R x V_rms
+    at the joint (48.4 x 0.0107 / 3.29 N m/V x 0.25 V = 0.0394 N m), sliding at 0.6 F_s;
+    the torque-commanded hypothesis keeps its three levels."""
+    arm = load_arm("quanser_cuboulder_flexible")
+    ctl = controller_from_dict({"controller": {
+        "law": "state_feedback", "period": 0.001, "output": "voltage", "feedforward": "none",
+        "gains": [{"q1": 6.0}], "rate_gains": [{"q1": 0.0}]}})
+    t = np.arange(1000) * 1e-3
+    ch = {"q1": 0.1 * np.sin(t), "v1": 0.1 * np.cos(t), "qset1": 0.1 * np.sign(np.sin(t)),
+          "tau1": 0.25 * np.sqrt(2.0) * np.sin(2 * np.pi * 5 * t)}     # 0.25 V rms
+    rec = validate(t, ch, 1, "volts")
+    hyp = {h.label: h for h in library_hypotheses(arm, rec, ctl)}["stick_slip_friction@joint1"]
+    torque = 48.4 * 0.0107 / 3.29 * float(np.sqrt(np.mean(ch["tau1"] ** 2)))
+    assert torque == pytest.approx(0.0394, abs=1e-4)
+    assert hyp.names == ("coulomb", "static_excess")
+    levels = [hyp.physical(hyp.values(np.array(p)), [0.0, 0.0], arm)[1] for p in hyp.probes]
+    np.testing.assert_allclose(levels, [[0.6 * m * torque, m * torque] for m in (1, 1.5, 2)],
+                               rtol=1e-12)
+    e = hyp.apply(arm, np.array(hyp.probes[-1]))[0].effect("stick_slip_friction", "joint1")
+    assert e["viscous"] == 0.0 and e["static"] == pytest.approx(2 * torque, rel=1e-12)
+    torque_hyp = {h.label: h for h in library_hypotheses(
+        NOMINAL, _run(NOMINAL, 0.1)[0], CTL)}["stick_slip_friction@joint1"]
+    assert torque_hyp.names == ("viscous", "coulomb", "static_excess")

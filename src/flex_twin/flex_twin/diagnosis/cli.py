@@ -3,7 +3,12 @@ from __future__ import annotations
 
 import json
 import sys
+from contextlib import contextmanager
 from pathlib import Path
+
+#: default link-side encoder topic of a bag (kept equal to ros_recording.LINK_TOPIC, which
+#: needs rclpy to import)
+LINK_TOPIC = "/flex/link_encoders"
 
 
 def add_diagnose_parser(sub) -> None:
@@ -13,10 +18,21 @@ def add_diagnose_parser(sub) -> None:
         "closed loop, recalibrate within tolerance, gate, and name the missing effect(s); "
         "writes diagnosed_arm.yaml, report.md, PNGs and diagnosis.json. Several runs (paths, "
         "a folder, a glob or a manifest YAML) are diagnosed one task each into OUT/<run>/ "
-        "with a summary table (flex_twin.diagnosis.batch).")
+        "with a summary table (flex_twin.diagnosis.batch). An elastic joint's link-side "
+        "encoder (CSV columns ql<i>, vl<i>, both or neither; in a bag the JointState topic "
+        "--link-topic) makes each replay restart put the link side there and the motor at "
+        "q<i>, v<i>; a CSV line '# start_window: <s>' sets the window of the fit that gives "
+        "each restart its state (default 0.05 s; 2 samples or less: the first sample; in a bag: "
+        "start_window in the custom_data of metadata.yaml).")
     sp.add_argument("data", nargs="+", help="CSV (t, q<i>, v<i>, tau<i>, qset<i>, [w<i>, "
-                    "tip_x, tip_y]) or rosbag2 directory / .mcap; or several, a folder, a "
-                    "glob, or a manifest YAML of runs")
+                    "tip_x, tip_y, tau_ff<i>, ql<i> + vl<i>], optional '# start_window: <s>' "
+                    "line) or rosbag2 directory / .mcap (/joint_states, "
+                    "/flex_planner/trajectory, [/flex/deflections, /flex/tip_pose, "
+                    "--link-topic]); or several, a folder, a glob, or a manifest YAML of runs")
+    sp.add_argument("--link-topic", default=None, metavar="TOPIC", help="bags: the "
+                    "sensor_msgs/JointState topic of the link-side encoders (name = joints of "
+                    "/joint_states, position = ql<i>, velocity = vl<i>; default "
+                    f"{LINK_TOPIC}, read when the bag has it)")
     sp.add_argument("--arm", help="nominal arm YAML (or preset name); required unless a "
                     "manifest names each run's")
     sp.add_argument("--controller", help="controller YAML (flex_twin.diagnosis.controller); "
@@ -53,7 +69,36 @@ def _single_run(data) -> bool:
     return not any(ch in data[0] for ch in "*?[")
 
 
+@contextmanager
+def _link_topic(topic):
+    """Bags read in this process (and the local workers forked in the block) take their
+    link-side encoders from ``topic``."""
+    if not topic or topic == LINK_TOPIC:
+        yield
+        return
+    if not topic.startswith("/") or any(c.isspace() for c in topic):
+        raise ValueError(f"--link-topic: got {topic!r}; expected an absolute topic name "
+                         "such as /flex/link_encoders")
+    from . import ros_recording
+    saved = ros_recording.LINK_TOPIC
+    ros_recording.LINK_TOPIC = topic
+    try:
+        yield
+    finally:
+        ros_recording.LINK_TOPIC = saved
+
+
 def cmd_diagnose(args) -> int:
+    topic = getattr(args, "link_topic", None)
+    if topic and topic != LINK_TOPIC and getattr(args, "scheduler", None) and \
+            not _single_run(args.data):
+        raise ValueError("--link-topic with --scheduler: the cluster's workers read the "
+                         f"bags with the default {LINK_TOPIC}; publish the encoders there")
+    with _link_topic(topic):
+        return _diagnose(args)
+
+
+def _diagnose(args) -> int:
     from ..cluster import batch_executor
     from .batch import RunSpec, diagnose_many, diagnose_run, expand_runs, named_text
 

@@ -13,8 +13,8 @@ hypothesis           free parameters                           fixed
 joint_friction       viscous, coulomb, static - coulomb        Stribeck velocity 0.05 rad/s,
                                                                regularization 1e-3 rad/s
 stick_slip_friction  viscous, coulomb, static - coulomb        Stribeck velocity 0.05 rad/s,
-                                                               pre-sliding F_s / sigma_0
-                                                               1 mrad, elastic fraction 0.5,
+                     (voltage command: coulomb, static -       pre-sliding F_s / sigma_0
+                     coulomb; viscous 0, see below)            1 mrad, elastic fraction 0.5,
                                                                bristle damping
                                                                2 sqrt(sigma_0 J_j)
 gear                 rotor_inertia (ratio of the nominal, or 1)
@@ -42,6 +42,19 @@ displacement. The fit names the one that explains more. The pre-sliding displace
 fixed (a joint encoder rarely resolves it); the bristle damping is critical for the
 apparent inertia J_j of the joint (everything else free) at the recording's first pose.
 
+Under a voltage command (a ``dc_motor`` joint) the joint's viscous damping is the motor's
+back-EMF damping n^2 K_t K_e / R (the baseline recalibrates it within tolerance; the
+``dc_motor`` effect declares it equivalent to viscous friction): the stick-slip hypothesis
+then frees only the sticking, ``coulomb`` and ``static_excess`` (viscous 0; a viscous
+excess is ``joint_friction``'s), and its probes are break-away torques stated in N m at the
+joint, F_s = :data:`SLIP_BREAKAWAY` x the joint torque T = g tau_rms that the measured
+command's rms gives at stall (g = n K_t / R, :func:`command_gain`), sliding at F_c =
+:data:`SLIP_SLIDING` F_s (the Quanser SRV02's gearbox: T 0.032-0.037 N m on the CU Boulder
+runs, break-away 0.064-0.078 N m in the holds, docs/real-arms.md). In volts, the scales
+of the torque-commanded arms (0.1 x the rms command) put the probes at 0.16 N m s/rad
+of viscous friction (twice the back-EMF damping), where a fit of one step's hold
+reproduces the hold with a viscous term that does not transfer to the next step.
+
 The two delays are not screened under a continuous law (the replay cannot delay it).
 Left out: ``dc_motor`` under a torque command (its parameters act only on a voltage
 command), ``timoshenko`` (slender links: beta >> 100, no measurable effect), ``cogging``
@@ -65,6 +78,10 @@ BACKLASH_SMOOTHING = 1e-4
 #: (drift-free) share of it (Dupont's z_ba sigma_0 / F_c)
 PRESLIDING = 1e-3
 ELASTIC_FRACTION = 0.5
+#: stick-slip probes under a voltage command: break-away F_s in units of the joint torque
+#: T = g tau_rms, and the sliding level's share F_c / F_s
+SLIP_BREAKAWAY = (1.0, 1.5, 2.0)
+SLIP_SLIDING = 0.6
 
 
 @dataclass(frozen=True)
@@ -125,6 +142,9 @@ class Hypothesis:
         """(names, values, half-widths) as the updated arm states them: friction's
         break-away torque ``static`` (coulomb + excess), a link's Young's modulus ``E``."""
         v, w = list(values), list(halfwidths)
+        if self.names == ("coulomb", "static_excess"):   # sticking only: viscous 0
+            return ("coulomb", "static"), [v[0], v[0] + v[1]], \
+                [w[0], float(np.hypot(w[0], w[1]))]
         if self.kind in ("joint_friction", "stick_slip_friction"):
             return ("viscous", "coulomb", "static"), [v[0], v[1], v[1] + v[2]], \
                 [w[0], w[1], float(np.hypot(w[1], w[2]))]
@@ -159,7 +179,8 @@ class Hypothesis:
             eff = (E[k](self.target, (v[0], v[1], v[1] + v[2], STRIBECK_VELOCITY,
                                       FRICTION_EPS)),)
         elif k == "stick_slip_friction":
-            eff = (E[k](self.target, stick_slip_values(v, self.fixed[0])),)
+            levels = v if len(v) == 3 else np.concatenate([[0.0], v])   # viscous 0
+            eff = (E[k](self.target, stick_slip_values(levels, self.fixed[0])),)
         elif k == "gear":
             old = arm.effect("gear", self.target)
             ratio = old["ratio"] if old else 1.0
@@ -278,6 +299,24 @@ def stick_slip_values(v, inertia) -> tuple:
             ELASTIC_FRACTION)
 
 
+def command_gain(arm, controller, joint: str) -> float:
+    """N m at the joint per unit of command: 1 under a torque command; under a voltage
+    command into a ``dc_motor`` the stall torque per volt n K_t / R (n: the gear's ratio)."""
+    motor = arm.effect("dc_motor", joint)
+    if getattr(controller, "output", "torque") != "voltage" or motor is None:
+        return 1.0
+    gear = arm.effect("gear", joint)
+    n = gear["ratio"] if gear is not None else 1.0
+    return float(n * motor["torque_constant"] / motor["resistance"])
+
+
+def _slip_probes(torque) -> list:
+    """Sticking-only probe points (x = coulomb, static excess in units of ``torque``) at
+    the break-away levels :data:`SLIP_BREAKAWAY` x ``torque``, sliding at
+    :data:`SLIP_SLIDING` of it."""
+    return [(SLIP_SLIDING * m, (1.0 - SLIP_SLIDING) * m) for m in SLIP_BREAKAWAY]
+
+
 def joint_inertias(arm, theta) -> np.ndarray:
     """Apparent inertia of every joint at the joint angles ``theta`` with everything else
     free, 1 / (G B^-1 G^T)_jj (kg m^2): what a stiff bristle spring at the joint moves."""
@@ -325,16 +364,26 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
         rotor = arm.effect("gear", name)
         has_rotor = bool(rotor and rotor["rotor_inertia"])
         k_ref = max(trms, 1.0) / 5e-3          # 5 mrad of twist at the rms torque
+        friction_scale = (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms)
+        gain = command_gain(arm, controller, name)
+        if gain == 1.0:
+            # sticking is not linear in the levels: screened by its probes' costs
+            slip = _h("stick_slip_friction", name, ("viscous", "coulomb", "static_excess"),
+                      friction_scale, (0, 0, 0), (50, 20, 20),
+                      [(1.0, 1.0, 0.3), (0.3, 3.0, 1.0)],
+                      probes=[(1.0, 1.0, 0.3), (0.3, 3.0, 1.0)], linear=False,
+                      fixed=(float(inertia[j]),))
+        else:   # volts: the sticking levels alone, in units of the joint torque (N m)
+            t_joint = gain * trms
+            probes = _slip_probes(t_joint)
+            slip = _h("stick_slip_friction", name, ("coulomb", "static_excess"),
+                      (t_joint, t_joint), (0, 0), (20 * SLIP_SLIDING, 20),
+                      [probes[0], probes[-1]], probes=probes, linear=False,
+                      fixed=(float(inertia[j]),))
         out += [
             _h("joint_friction", name, ("viscous", "coulomb", "static_excess"),
-               (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms), (0, 0, 0), (50, 20, 20),
-               [(1.0, 1.0, 0.3)], (1.0, 1.0, 1.0)),
-            # sticking is not linear in the levels: screened by its probes' costs
-            _h("stick_slip_friction", name, ("viscous", "coulomb", "static_excess"),
-               (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms), (0, 0, 0), (50, 20, 20),
-               [(1.0, 1.0, 0.3), (0.3, 3.0, 1.0)],
-               probes=[(1.0, 1.0, 0.3), (0.3, 3.0, 1.0)], linear=False,
-               fixed=(float(inertia[j]),)),
+               friction_scale, (0, 0, 0), (50, 20, 20), [(1.0, 1.0, 0.3)], (1.0, 1.0, 1.0)),
+            slip,
             # a rotor lighter or heavier than the nominal one: probes on both sides
             _h("gear", name, ("rotor_inertia",),
                ((rotor["rotor_inertia"] if has_rotor else 0.1),),

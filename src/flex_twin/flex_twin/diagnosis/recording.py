@@ -19,7 +19,8 @@ CSV columns (header row, SI units, radians, joints and links numbered from 1):
                at q<i>, v<i> (the twist as measured)
 =============  =====================================================  ==========
 
-A comment line ``# start_window: <s>`` sets the window of the quadratic fit that gives
+A comment line ``# start_window: <s>`` (in a bag: ``start_window`` in the
+``custom_data`` of its metadata.yaml) sets the window of the quadratic fit that gives
 each replay (re)start its state (:func:`flex_twin.diagnosis.replay.measured_start`,
 default 0.05 s); a window of 2 samples or less starts from the first sample itself.
 
@@ -171,15 +172,21 @@ def _directives(rows, path) -> dict:
         if not sep or name.strip() not in DIRECTIVES:
             continue   # an ordinary comment
         name = name.strip()
-        try:
-            x = float(value)
-        except ValueError:
-            x = float("nan")
-        if not (np.isfinite(x) and x >= 0):
-            raise RecordingError(f"{path}: {name}: {value.strip()!r} is not "
-                                 f"{DIRECTIVES[name]}")
-        out[name] = x
+        out[name] = directive_value(name, value, path)
     return out
+
+
+def directive_value(name: str, value, source) -> float:
+    """A setting of :data:`DIRECTIVES` (a CSV comment line, a bag's metadata
+    ``custom_data``) as a number, checked."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = float("nan")
+    if not (np.isfinite(x) and x >= 0):
+        raise RecordingError(f"{source}: {name}: {str(value).strip()!r} is not "
+                             f"{DIRECTIVES[name]}")
+    return x
 
 
 def save_csv(rec: Recording, path) -> None:

@@ -5,7 +5,16 @@
   interpolated linearly between its points (header stamp + time_from_start); without it
   the commanded set-points are unknown and the bag is refused;
 - optional ``/flex/deflections`` (sensor_msgs/JointState, ``link<i>/tip_deflection``): w<i>;
-- optional ``/flex/tip_pose`` (geometry_msgs/PoseStamped): tip_x, tip_y.
+- optional ``/flex/tip_pose`` (geometry_msgs/PoseStamped): tip_x, tip_y;
+- optional link-side encoders of elastic joints, topic :data:`LINK_TOPIC` by default
+  (``flex-twin diagnose --link-topic``): a sensor_msgs/JointState whose ``name`` lists the
+  joints (names of ``/joint_states``) that have one, ``position`` their link-side angles and
+  ``velocity`` their rates, one entry per name: ql<i>, vl<i> as in the CSV
+  (:mod:`.recording`; the replay's restarts put the link side there).
+
+The settings a CSV states in comment lines (``start_window``, :mod:`.recording`) are read
+from the ``custom_data`` map of the bag's metadata.yaml (rosbag2's key -> string map; e.g.
+``start_window: '0.0008'``).
 
 Times are the header stamps (the log time where a stamp is zero); every channel is
 interpolated onto the /joint_states samples, which must be uniform.
@@ -16,9 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .recording import RecordingError, validate
+from .recording import DIRECTIVES, RecordingError, directive_value, validate
 
 TOPICS = ("/joint_states", "/flex_planner/trajectory", "/flex/deflections", "/flex/tip_pose")
+#: default topic of the link-side encoders (sensor_msgs/JointState); ``--link-topic``
+LINK_TOPIC = "/flex/link_encoders"
 
 
 def _stamp(msg, t_ns) -> float:
@@ -27,10 +38,12 @@ def _stamp(msg, t_ns) -> float:
     return t if t > 0 else 1e-9 * t_ns
 
 
-def load_bag(path, n_joints: int):
-    """Read the bag into a :class:`~flex_twin.diagnosis.recording.Recording`."""
+def load_bag(path, n_joints: int, link_topic: str | None = None):
+    """Read the bag into a :class:`~flex_twin.diagnosis.recording.Recording`; the link-side
+    encoders from ``link_topic`` (default :data:`LINK_TOPIC`) when the bag has it."""
     from ..bags import BagError, read_bag, topic_types
     path = Path(path)
+    link_topic = LINK_TOPIC if link_topic is None else link_topic
     try:
         types = topic_types(path)
     except (BagError, OSError, ValueError) as exc:
@@ -39,12 +52,21 @@ def load_bag(path, n_joints: int):
     if missing:
         raise RecordingError(f"{path}: missing topic(s) {', '.join(missing)} (needs "
                              "/joint_states and the reference /flex_planner/trajectory)")
-    js, traj, defl, tip = [], [], [], []
+    if link_topic in types and not types[link_topic].endswith("JointState"):
+        raise RecordingError(f"{path}: {link_topic}: type {types[link_topic]}; the link-side "
+                             "encoders need sensor_msgs/msg/JointState")
+    js, traj, defl, tip, link = [], [], [], [], []
+    names = None
+    wanted = [t for t in TOPICS if t in types] + ([link_topic] if link_topic in types else [])
     try:
-        for topic, _, t_ns, msg in read_bag(path, [t for t in TOPICS if t in types]):
+        for topic, _, t_ns, msg in read_bag(path, wanted):
             if topic == "/joint_states":
+                names = names or list(msg.name)
                 js.append((_stamp(msg, t_ns), list(msg.position), list(msg.velocity),
                            list(msg.effort)))
+            elif topic == link_topic:
+                link.append((_stamp(msg, t_ns), list(msg.name), list(msg.position),
+                             list(msg.velocity)))
             elif topic == "/flex_planner/trajectory":
                 traj.append((_stamp(msg, t_ns), msg))
             elif topic == "/flex/deflections":
@@ -88,4 +110,63 @@ def load_bag(path, n_joints: int):
         tt = np.array([p[0] for p in tip])
         ch["tip_x"] = np.interp(t, tt, [p[1] for p in tip])
         ch["tip_y"] = np.interp(t, tt, [p[2] for p in tip])
-    return validate(t, ch, n_joints, str(path))
+    if link:
+        ch.update(_link_channels(path, link_topic, link, names or [], n_joints, t))
+    rec = validate(t, ch, n_joints, str(path))
+    rec.meta.update(_settings(path))
+    return rec
+
+
+def _settings(path) -> dict:
+    """:data:`~.recording.DIRECTIVES` from the ``custom_data`` of metadata.yaml, checked."""
+    from ..bags import BagError
+    from ..bags.reader import _metadata
+    try:
+        meta = _metadata(path if path.is_dir() else path.parent) or {}
+    except BagError:
+        return {}      # read_bag has warned; the .mcap alone carries no settings
+    custom = meta.get("custom_data") or {}
+    if not isinstance(custom, dict):
+        return {}
+    return {k: directive_value(k, custom[k], f"{path}: metadata.yaml custom_data")
+            for k in DIRECTIVES if k in custom}
+
+
+def _link_channels(path, topic, msgs, joint_names, n_joints, t) -> dict:
+    """ql<i>, vl<i> from the link-side JointState messages, interpolated onto ``t``; every
+    message must give each of its named joints a position and a velocity."""
+    names = msgs[0][1]
+    if not names:
+        raise RecordingError(f"{path}: {topic}: message 0 names no joint (the link-side "
+                             f"encoders are named like /joint_states: {joint_names})")
+    index = []
+    for n in names:
+        if n not in joint_names[:n_joints]:
+            raise RecordingError(f"{path}: {topic}: joint {n!r} is not among the arm's "
+                                 f"/joint_states joints {joint_names[:n_joints]}")
+        index.append(joint_names.index(n))
+    for k, (_, nm, q, v) in enumerate(msgs):
+        if nm != names:
+            raise RecordingError(f"{path}: {topic}: message {k} names {nm}, message 0 "
+                                 f"{names} (one set of joints for the whole bag)")
+        if len(q) != len(nm) or len(v) != len(nm):
+            raise RecordingError(f"{path}: {topic}: message {k} has {len(q)} positions and "
+                                 f"{len(v)} velocities for {len(nm)} joints (a link-side "
+                                 "encoder needs both its angle and its rate)")
+    if len(msgs) < 2:
+        raise RecordingError(f"{path}: {topic}: {len(msgs)} message; need at least 2")
+    tl = np.array([m[0] for m in msgs])
+    order = np.argsort(tl, kind="stable")
+    q = np.array([m[2] for m in msgs], float)[order]
+    v = np.array([m[3] for m in msgs], float)[order]
+    tl = tl[order]
+    out = {}
+    for c, i in enumerate(index):
+        for kind, arr in (("ql", q), ("vl", v)):
+            bad = ~np.isfinite(arr[:, c])
+            if bad.any():   # np.interp would spread it; name the message instead
+                k = int(np.flatnonzero(bad)[0])
+                raise RecordingError(f"{path}: {topic}: channel {kind}{i + 1}: non-finite "
+                                     f"value at message {k} (t = {tl[k]:.6g} s)")
+            out[f"{kind}{i + 1}"] = np.interp(t, tl, arr[:, c])
+    return out

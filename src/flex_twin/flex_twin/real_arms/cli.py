@@ -245,7 +245,8 @@ def add_real_arm_parsers(sub) -> None:
                     "../shared/data/real)")
     tp.add_argument("--out", default="runs/two-mass", help="output directory")
     tp.add_argument("--engine", action="store_true", help="also run flex-twin diagnose "
-                    "(time domain, restarts every 1 s) on the rigid nominal twin (minutes)")
+                    "(time domain, restarts every 0.1 s from the motor and load encoders) on the "
+                    "rigid nominal twin (minutes; the full 20 s: ~12 CPU-min)")
     tp.add_argument("--duration", type=float, default=None, help="with --engine: only the "
                     "first seconds of each record")
     tp.add_argument("--workers", type=int, default=None, help="with --engine: processes")
