@@ -83,6 +83,7 @@ and flex/tip_imu, costly to compute, only while someone subscribes.
 from __future__ import annotations
 
 import os
+import sys
 import time
 from contextlib import ExitStack
 
@@ -683,7 +684,23 @@ class ModelNode(Node):
             self.pub_tf.publish(self.msg_tf)
 
 
+def _arm_argument(argv) -> str | None:
+    """The value of ``-p arm:=...`` among the ROS arguments (the last one wins)."""
+    arm = None
+    for a, b in zip(argv, list(argv[1:]) + [""]):
+        if a in ("-p", "--param") and b.startswith("arm:="):
+            arm = b[len("arm:="):]
+    return arm
+
+
 def main(args=None) -> None:
+    """A spatial arm (issue 25) goes to :mod:`flex_model.spatial_node`."""
+    arm = _arm_argument(sys.argv if args is None else args)
+    if arm:
+        from .spatial.description import is_spatial_arm
+        if is_spatial_arm(arm):
+            from .spatial_node import main as spatial_main
+            return spatial_main(args)
     run_node(ModelNode, args)
 
 

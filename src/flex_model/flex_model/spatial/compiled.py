@@ -807,7 +807,8 @@ def _hold(S, r, held):
 
 
 @njit(cache=_CACHE)
-def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, tol, max_iter):
+def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, tol, max_iter,
+                acc, warm):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
     integrate.simulate_fixed: Newton on the accelerations with
     M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
@@ -815,8 +816,11 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
     the residual by the O(n) inverse dynamics of spatial_eval. ``tau`` (n_steps, n_joints):
     joint torques/forces held over step n (applied at t_{n+1}), clipped to +-``effort``;
     generalized force H tau + Q0 + friction (``fric``, see _effects); ``held`` (nq, 0/1):
-    coordinates with zero acceleration. Returns (q, v) at every step (n_steps + 1, nq) and
-    the Newton iteration count (-1 - n: no convergence at step n)."""
+    coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
+    the method, read as the start when ``warm`` (a continued run; else the consistent
+    acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
+    every step (n_steps + 1, nq) and the Newton iteration count (-1 - n: no convergence
+    at step n)."""
     nq = q0.shape[0]
     n_steps = tau.shape[0]
     nj = tau.shape[1]
@@ -854,11 +858,15 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
     for j in range(nq):
         r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
     _hold(M, r, held)
-    Lc = cholesky(M)
-    if Lc.shape[0] != nq:   # not positive definite
-        return qs[:1], vs[:1], -1
-    a = solve_chol(Lc, r)
-    abar = a.copy()
+    if warm:
+        a = acc[0].copy()
+        abar = acc[1].copy()
+    else:
+        Lc = cholesky(M)
+        if Lc.shape[0] != nq:   # not positive definite
+            return qs[:1], vs[:1], -1
+        a = solve_chol(Lc, r)
+        abar = a.copy()
     a1 = a.copy()
     iters = 0
     for n in range(n_steps):
@@ -914,6 +922,9 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
             abar[j] = ab1[j]
             qs[n + 1, j] = q1[j]
             vs[n + 1, j] = v1[j]
+    for j in range(nq):
+        acc[0, j] = a[j]
+        acc[1, j] = abar[j]
     return qs, vs, iters
 
 

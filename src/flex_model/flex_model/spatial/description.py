@@ -6,7 +6,15 @@ frame i is
     A_i = Trans_z(d_i) Rot_z(theta_i) Trans_x(a_i) Rot_x(alpha_i),
 
 the joint variable q_i adds to ``theta`` (revolute) or to ``d`` (prismatic); both act
-along/about z_{i-1}. Example (seed 000's real arm, vertical joint axis)::
+along/about z_{i-1}. ``convention: modified_dh`` (Craig) reads row i as (a_{i-1},
+alpha_{i-1}, d_i, theta_i), A_i = Rot_x(alpha_{i-1}) Trans_x(a_{i-1}) Rot_z(theta_i)
+Trans_z(d_i), the joint acting along/about z_i; it is regrouped exactly into the
+standard form on load (:func:`modified_to_standard`: link i takes the next row's a,
+alpha; Rot_x(alpha_0) Trans_x(a_0) becomes a fixed origin of link 1), so a link's end
+frame (where ``end_body`` sits) is Craig's frame i carried to joint i+1, the last one
+Craig's frame n, and a ``dh_x`` beam of link i runs to joint i+1.
+
+Example (seed 000's real arm, vertical joint axis)::
 
     name: seed000_real_arm_3d
     gravity: [0.0, 0.0, -9.81]          # m/s^2, base frame
@@ -351,6 +359,46 @@ def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
                         variables=nv, torsion_variables=nt, placement=placement)
 
 
+#: DH conventions of a YAML arm file
+CONVENTIONS = ("standard_dh", "modified_dh")
+
+
+def modified_to_standard(joints: list, fields: list) -> tuple:
+    """Craig's modified DH rows -> the standard form used by the model (exact).
+
+    Modified: A_i = Rot_x(alpha_{i-1}) Trans_x(a_{i-1}) Rot_z(theta_i) Trans_z(d_i), row i
+    holding (a_{i-1}, alpha_{i-1}, d_i, theta_i). Regrouped, the product over the chain is
+    Rot_x(alpha_0) Trans_x(a_0) * prod_i [Trans_z(d_i) Rot_z(theta_i) Trans_x(a_i)
+    Rot_x(alpha_i)] with a_n = alpha_n = 0 (Rot_z and Trans_z commute, as Rot_x and
+    Trans_x do): link i takes d_i, theta_i of its row and a_i, alpha_i of the next row,
+    link 1 the fixed origin Rot_x(alpha_0) Trans_x(a_0). A ``dh_x`` beam of link i thus
+    runs along x_i to joint i+1 (length: the next row's a); the last link has none (use
+    ``placement: aux_z``). Returns (joints, origins)."""
+    out, n = [], len(joints)
+    for i, j in enumerate(joints):
+        nxt = joints[i + 1] if i + 1 < n else None
+        lf = fields[i]
+        flex = lf.raw("flexible") if lf.has("flexible") else None
+        if isinstance(flex, dict) and flex.get("placement", "dh_x") == "dh_x" and \
+                (nxt is None or nxt.a <= 0):
+            where = f"links[{i + 1}].joint.a" if nxt is not None else f"links[{i}].flexible"
+            raise ConfigError(lf.source, where, nxt.a if nxt is not None else "dh_x",
+                              "modified_dh: a dh_x beam of link i runs to joint i+1, its "
+                              "length is the next row's a > 0 (m); the last link: "
+                              "placement aux_z with a length")
+        out.append(dataclasses.replace(j, a=nxt.a if nxt else 0.0,
+                                       alpha=nxt.alpha if nxt else 0.0))
+    a0, al0 = joints[0].a, joints[0].alpha
+    origin0 = None if a0 == 0.0 and al0 == 0.0 else \
+        (tuple(map(tuple, _rot_x(al0))), (float(a0), 0.0, 0.0))
+    return out, [origin0] + [None] * (n - 1)
+
+
+def _rot_x(t: float) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
 def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     """Validate a parsed spatial arm description; errors name ``source`` and the field.
     A description with a ``urdf`` key is a URDF side file (spatial/urdf.py)."""
@@ -360,19 +408,23 @@ def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     f = Fields(data, source, "")
     name = f.string("name")
     description = f.string("description", "")
-    convention = f.string("convention", "standard_dh", choices=["standard_dh"])
+    convention = f.string("convention", "standard_dh", choices=list(CONVENTIONS))
     gravity = tuple(f.vector("gravity", 3, [0.0, 0.0, -9.81], unit="m/s^2"))
+    items = f.items("links", min_len=1)
+    fields = [Fields(raw, source, f"links[{i}]") for i, raw in enumerate(items)]
+    joints = [_joint(lf.mapping("joint", {}), i) for i, lf in enumerate(fields)]
+    origins = [None] * len(joints)
+    if convention == "modified_dh":
+        joints, origins = modified_to_standard(joints, fields)
     links = []
-    for i, raw in enumerate(f.items("links", min_len=1)):
-        lf = Fields(raw, source, f"links[{i}]")
+    for i, (lf, joint, origin) in enumerate(zip(fields, joints, origins)):
         lname = lf.string("name", f"link{i + 1}")
-        joint = _joint(lf.mapping("joint", {}), i)
         flex = _flexible(lf.mapping("flexible"), joint) if lf.has("flexible") else None
         root = _body(lf.mapping("root_body")) if lf.has("root_body") else RigidBody()
         end = _body(lf.mapping("end_body")) if lf.has("end_body") else RigidBody()
         lf.done(["name", "joint", "flexible", "root_body", "end_body"])
         links.append(SpatialLink(name=lname, joint=joint, flexible=flex, root_body=root,
-                                 end_body=end))
+                                 end_body=end, origin=origin))
     names = [lk.joint.name for lk in links]
     if len(set(names)) != len(names):
         raise f.error("links", names, "unique joint names")

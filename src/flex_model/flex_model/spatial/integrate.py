@@ -36,6 +36,9 @@ class SpatialRun:
     q: np.ndarray     # (len(t), nq)
     v: np.ndarray
     newton_iterations: int = 0
+    #: (2, nq): the method's accelerations (a, abar) after the last step (compiled loop);
+    #: hand it back as ``acceleration`` to continue the run without a restart
+    acceleration: np.ndarray | None = None
 
 
 def joint_input_matrix(model: SpatialArmModel) -> np.ndarray:
@@ -146,12 +149,15 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
 def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: int,
                             joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
                             max_iter: int = 20, damping=None,
-                            clip_to_effort: bool = True) -> SpatialRun:
+                            clip_to_effort: bool = True, acceleration=None) -> SpatialRun:
     """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the
     analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
     (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
     t_{n+1}, as simulate_fixed's ``force(t_{n+1})``); clipped to the URDF effort limits
-    when ``clip_to_effort`` (inside the compiled loop, as limits.clip_efforts does))."""
+    when ``clip_to_effort`` (inside the compiled loop, as limits.clip_efforts does)).
+    ``acceleration``: the (a, abar) of a previous run's ``acceleration`` to continue it
+    from its last state (q0, v0) without a restart: two runs chained this way equal one
+    run over both; None restarts with the consistent acceleration."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
@@ -167,11 +173,15 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     fric = np.array([[a, *f.values] for a, f in model.friction], float).reshape(-1, 6)
     held = np.zeros(model.nq, np.int64)
     held[model.held] = 1
+    warm = acceleration is not None
+    acc = np.array(acceleration, float).reshape(2, model.nq) if warm else \
+        np.zeros((2, model.nq))
     qs, vs, iters = galpha_loop(data, np.ascontiguousarray(model.K), np.ascontiguousarray(D),
                                 model.Q_const.copy(), fric, held,
                                 joint_input_matrix(model), effort,
                                 np.asarray(q0, float).copy(), np.asarray(v0, float).copy(),
-                                float(h), tau, float(rho_inf), float(tol), int(max_iter))
+                                float(h), tau, float(rho_inf), float(tol), int(max_iter),
+                                acc, warm)
     if iters < 0:
         raise RuntimeError(f"generalized-alpha: no convergence at t = {(-iters) * h:.6g} s")
-    return SpatialRun(h * np.arange(len(qs)), qs, vs, int(iters))
+    return SpatialRun(h * np.arange(len(qs)), qs, vs, int(iters), acc)
