@@ -29,6 +29,10 @@ from .basis import link_basis
 #: and no model changes it (its arrays are copied into the model's).
 _BASIS_MEMO: OrderedDict = OrderedDict()
 _BASIS_MEMO_SIZE = 64
+#: variables per link from which the fixed step of second-order kinematics solves its
+#: iteration matrix as banded plus low rank (flex_model.iteration_matrix); below, the
+#: dense factor is as cheap (section E, 16 per link: 70 us per step either way)
+STRUCTURED_MIN_VARS = 24
 
 
 def _memo_basis(lk, n_intervals):
@@ -268,14 +272,18 @@ class FlexArmModel:
             kt[g] += j_plus[i] * self.tip_rotation_scale[i]
         self.lengths = L
         mode = 1 if self.arm.kinematics == "second_order" else 0
-        zq, mu, Wq, Sq, na = self._quadrature(m_plus) if mode else self._no_quadrature
+        zq, mu, Wq, Sq, na, lo, wn, dS, Wl = (self._quadrature(m_plus) if mode
+                                              else self._no_quadrature)
         jrig = np.array([lk.J_minus for lk in self.arm.links]) + j_plus
         jplus_tip = j_plus * self.tip_rotation_scale ** 2  # J+ on the tip rotation variable
         self.P = (mode, self.off, self.nf, L, mtot, ntot, jrot, jplus_tip, Bp, ht, kt,
-                  zq, mu, Wq, Sq, jrig, self.B_const, na)
+                  zq, mu, Wq, Sq, jrig, self.B_const, na, lo, wn, dS, Wl,
+                  *self._band_structure(Bp, mode))
 
     _no_quadrature = (np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 1)),
-                      np.zeros((1, 1, 1, 1)), np.zeros((1, 1), dtype=np.int64))
+                      np.zeros((1, 1, 1, 1)), np.zeros((1, 1), dtype=np.int64),
+                      np.zeros((1, 1), dtype=np.int64), np.zeros((1, 1), dtype=np.int64),
+                      np.zeros((1, 1, 1, 1)), np.zeros((1, 1, 1)))
 
     def _quadrature(self, m_plus):
         """Run-time quadrature of the second-order kinematics (kernels.py, mode 1).
@@ -310,13 +318,90 @@ class FlexArmModel:
                 Sq[i, -1, :n, :n] = S[-1]
             nz = (Wq != 0.0) | np.any(Sq != 0.0, axis=3)          # (nl, npt, nfm)
             na = np.where(nz.any(axis=2), nfm - np.argmax(nz[:, :, ::-1], axis=2), 0)
-            self._quad_cache = (zq, mu, Wq, Sq, na.astype(np.int64))
-        zq, mu, Wq, Sq, na = self._quad_cache
+            self._quad_cache = (zq, mu, Wq, Sq, na.astype(np.int64),
+                                *self._increments(Wq, Sq))
+        zq, mu, Wq, Sq, na, lo, wn, dS, Wl = self._quad_cache
         mu = mu.copy()
         for i, lk in enumerate(self.arm.links):
             mu[i, 0] = lk.M_minus
             mu[i, -1] = m_plus[i]
-        return zq, mu, Wq, Sq, na
+        return zq, mu, Wq, Sq, na, lo, wn, dS, Wl
+
+    def _band_structure(self, Bp, mode, force=False):
+        """(flags, V, lam) of the structured iteration matrix (flex_model.iteration_matrix):
+        flags = [half bandwidth bw of the deformation inertia Bp, 1 if used]; the parts of
+        B_const, D and K outside the band as eigenvectors V (nq x r) with eigenvalues lam
+        (3 x r, one row per matrix). Used with second-order kinematics from
+        STRUCTURED_MIN_VARS variables per link (below, the dense factor is as cheap; with
+        ``force`` from any number), when the band is narrow and the rest of low rank;
+        the D and K the integrators get (E) are those of the model (else the matrix is
+        an approximation, which still converges or falls back to full Newton)."""
+        nq = self.nq
+        if mode != 1 or (int(self.nf.max()) < STRUCTURED_MIN_VARS and not force):
+            return np.zeros(2, dtype=np.int64), np.zeros((nq, 0)), np.zeros((3, 0))
+        cached = getattr(self, "_band_cache", None)
+        if cached is not None and not force:
+            return cached
+        nzr, nzc = np.nonzero(Bp)
+        bw = int(np.max(np.abs(nzr - nzc))) if len(nzr) else 0
+        cols, lams = [], []
+        far = np.abs(np.subtract.outer(np.arange(nq), np.arange(nq))) > bw
+        for kind, M in enumerate((self.B_const, self.D, self.K)):
+            R = np.where(far, M, 0.0)
+            if not np.any(R):
+                continue
+            w, vec = np.linalg.eigh(0.5 * (R + R.T))
+            keep = np.abs(w) > 1e-13 * max(np.max(np.abs(M)), 1e-300)
+            for lam_k, v_k in zip(w[keep], vec[:, keep].T):
+                lam = np.zeros(3)
+                lam[kind] = lam_k
+                cols.append(v_k)
+                lams.append(lam)
+        V = np.array(cols).T if cols else np.zeros((nq, 0))
+        lam = np.array(lams).T if lams else np.zeros((3, 0))
+        use = bw <= 8 and V.shape[1] <= 12
+        out = (np.array([bw, int(use)], dtype=np.int64), np.ascontiguousarray(V),
+               np.ascontiguousarray(lam))
+        if not force:
+            self._band_cache = out
+        return out
+
+    def _increments(self, Wq, Sq):
+        """Local increments of the shortening matrix from point to point along a link,
+        dS_k = S(z_k) - S(z_{k-1}) = int w' w'^T over [z_{k-1}, z_k] (padding points: 0),
+        and the shape values, on the window of variables [lo, lo + wn) where they do not
+        vanish (the wavelets' local support: at most 6 wide), so that the kernels
+        accumulate S(z) q_f interval by interval at a cost linear in the variables."""
+        nl, npt, nfm = Wq.shape
+        lo = np.zeros((nl, npt), dtype=np.int64)
+        wn = np.zeros((nl, npt), dtype=np.int64)
+        incs = []
+        for i in range(nl):
+            prev = np.zeros((nfm, nfm))
+            scale = max(float(np.max(np.abs(Sq[i]))), 1e-300)
+            row = []
+            for k in range(npt):
+                real = k == 0 or k == npt - 1 or np.any(Sq[i, k] != 0.0) or \
+                    np.any(Wq[i, k] != 0.0)
+                d = Sq[i, k] - prev if real else np.zeros((nfm, nfm))
+                d[np.abs(d) <= 1e-13 * scale] = 0.0  # rounding of the shared elements
+                nzv = np.any(d != 0.0, axis=0) | (Wq[i, k] != 0.0)
+                if nzv.any():
+                    idx = np.flatnonzero(nzv)
+                    lo[i, k], wn[i, k] = idx[0], idx[-1] - idx[0] + 1
+                row.append(d)
+                if real:
+                    prev = Sq[i, k]
+            incs.append(row)
+        nw = max(int(wn.max()), 1)
+        dS = np.zeros((nl, npt, nw, nw))
+        Wl = np.zeros((nl, npt, nw))
+        for i in range(nl):
+            for k in range(npt):
+                a, w = lo[i, k], wn[i, k]
+                dS[i, k, :w, :w] = incs[i][k][a:a + w, a:a + w]
+                Wl[i, k, :w] = Wq[i, k, a:a + w]
+        return lo, wn, dS, Wl
 
     def with_gravity(self, gravity) -> "FlexArmModel":
         """A view of this model with another gravity vector (m/s^2); arrays are shared."""

@@ -32,7 +32,8 @@ import numpy as np
 from numba import njit
 
 from .effects.stick_slip import bristle_rate, bristle_step
-from .kernels import (cholesky, inverse_dynamics, link_origins, mass_matrix, solve_chol,
+from .iteration_matrix import empty_factor, factor_solve, structured_factor
+from .kernels import (band_matvec, cholesky, inverse_dynamics, link_origins, mass_matrix,
                       solve_spd, tip_jacobian)
 
 _CACHE = True
@@ -43,6 +44,10 @@ SS = 19
 #: matrix for the next step (section E: 2.2 iterations per step, as with a fresh
 #: matrix every step; 2.9 when refreshed only on divergence)
 THETA_REFRESH = 0.003
+#: the same for the banded-plus-low-rank matrix (flex_model.iteration_matrix), itself an
+#: approximation (contraction about 0.002 on the hub-less arm): a fresh one would not
+#: contract faster
+THETA_REFRESH_STRUCTURED = 0.03
 
 
 @njit(cache=_CACHE)
@@ -204,7 +209,11 @@ def applied_force(t, q, v, z, zd, P, E):
     rates."""
     K, D, pt0, pt1, pF, pC, ct, Ga = E[0], E[1], E[9], E[10], E[12], E[13], E[15], E[16]
     tau = joint_torques(t, q, v, E)
-    Q = Ga.T @ tau - K @ q - D @ v + joint_passive_forces(q, v, E)
+    if P[0] == 1 and P[22][1] == 1:  # banded K, D (dynamics._band_structure): linear
+        Q = (Ga.T @ tau - band_matvec(K, q, P[22][0], P[23], P[24][2])
+             - band_matvec(D, v, P[22][0], P[23], P[24][1]) + joint_passive_forces(q, v, E))
+    else:
+        Q = Ga.T @ tau - K @ q - D @ v + joint_passive_forces(q, v, E)
     if z.shape[0] > 0:
         Q += stick_slip_forces(q, v, z, zd, E)
     fx = 0.0
@@ -453,20 +462,28 @@ def _alpha_residual_id(a1, a, abar, q, v, t, h, af, am, gam, beta, P, E):
 
 @njit(cache=_CACHE)
 def _iteration_factor(q1, v1, gp, bp, P, E):
-    """Cholesky factor of the Newton iteration matrix B + gamma' (D + C_j) + beta' (K + K_j)
-    at (q1, v1) (an empty factor when it is not positive definite)."""
+    """Factor of the Newton iteration matrix B + gamma' (D + C_j) + beta' (K + K_j) at
+    (q1, v1): banded plus low rank, linear in the variables, for second-order kinematics
+    from dynamics.STRUCTURED_MIN_VARS variables per link (flex_model.iteration_matrix),
+    else dense Cholesky (an empty factor when it is not positive definite)."""
+    if P[0] == 1 and P[22][1] == 1:
+        F = structured_factor(q1, v1, gp, bp, P, E)
+        if F[0].shape[0] > 0:
+            return F
     Kj, Cj = _joint_tangent(v1, E)
-    return cholesky(mass_matrix(q1, P) + gp * (E[1] + Cj) + bp * (E[0] + Kj))
+    Lc = cholesky(mass_matrix(q1, P) + gp * (E[1] + Cj) + bp * (E[0] + Kj))
+    z2 = np.zeros((0, 0))
+    return Lc, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, 0
 
 
 @njit(cache=_CACHE)
-def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, Lc, P, E):
-    """One generalized-alpha step by simplified Newton (Hairer-Wanner IV.8): the factor Lc
+def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, F, P, E):
+    """One generalized-alpha step by simplified Newton (Hairer-Wanner IV.8): the factor F
     of the iteration matrix is kept from earlier steps, refreshed here (at the predictor)
     when the corrections contract by less than half per iteration. The iterations stop,
     without evaluating the next residual, when the position correction ``|da| beta'`` is
     below ``tol`` (as full Newton's; the error left is theta times that, theta the
-    contraction rate). Returns (a1, Lc, theta, iterations, ok); ok False when even a
+    contraction rate). Returns (a1, F, theta, iterations, ok); ok False when even a
     fresh factor does not converge (the caller then takes full Newton)."""
     iters = 0
     theta = 0.0
@@ -475,7 +492,7 @@ def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, Lc
         res = _alpha_residual_id(x1, a, abar, q, v, t, h, af, am, gam, beta, P, E)[0]
         prev = 0.0
         for it in range(12):
-            da = solve_chol(Lc, -res)
+            da = factor_solve(F, -res)
             nd = 0.0
             for i in range(da.shape[0]):
                 x1[i] += da[i]
@@ -489,16 +506,16 @@ def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, Lc
                 if theta >= 0.5:
                     break
             if nd <= tol:
-                return x1, Lc, theta, iters, True
+                return x1, F, theta, iters, True
             prev = nd
             res = _alpha_residual_id(x1, a, abar, q, v, t, h, af, am, gam, beta, P, E)[0]
         # slow or diverging: a fresh factor at the predictor's state, once
         _, q1, v1 = _alpha_residual_id(a1, a, abar, q, v, t, h, af, am, gam, beta, P, E)
-        Lc = _iteration_factor(q1, v1, gp, bp, P, E)
+        F = _iteration_factor(q1, v1, gp, bp, P, E)
         theta = 0.0
-        if Lc.shape[0] == 0:
+        if F[0].shape[0] == 0:
             break
-    return a1, Lc, theta, iters, False
+    return a1, F, theta, iters, False
 
 
 @njit(cache=_CACHE)
@@ -628,23 +645,23 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
     t = t0
     r = 1
     iters = 0
-    Lc = np.zeros((0, 0))
+    F = empty_factor()
     for s in range(1, n_steps + 1):
         t1 = t0 + s * h
         tm = t1 - 0.5 * h
         a1 = a.copy()
         ok = False
-        if Lc.shape[0] == 0:
+        if F[0].shape[0] == 0:
             _, q1, v1 = _alpha_residual_id(a1, a, abar, q, v, tm, h, af, am, gam, beta, P, E)
-            Lc = _iteration_factor(q1, v1, gp, bp, P, E)
+            F = _iteration_factor(q1, v1, gp, bp, P, E)
         if s > 1:  # linear extrapolation of the acceleration as the predictor
             a1 = 2.0 * a - a_old
-        if Lc.shape[0] > 0:
-            a1, Lc, theta, it, ok = _simplified_step(a1, a, abar, q, v, tm, h, af, am, gam,
-                                                     beta, gp, bp, tol, Lc, P, E)
+        if F[0].shape[0] > 0:
+            a1, F, theta, it, ok = _simplified_step(a1, a, abar, q, v, tm, h, af, am, gam,
+                                                    beta, gp, bp, tol, F, P, E)
             iters += it
-            if ok and theta > THETA_REFRESH:
-                Lc = np.zeros((0, 0))  # contracting slowly: a fresh factor next step
+            if ok and theta > (THETA_REFRESH_STRUCTURED if F[6] == 1 else THETA_REFRESH):
+                F = empty_factor()  # contracting slowly: a fresh factor next step
         if ok:
             abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
             q = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
@@ -654,7 +671,7 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
             abar = abar1
             x = np.concatenate((q, v))
         else:  # full Newton for this step, a fresh factor for the next
-            Lc = np.zeros((0, 0))
+            F = empty_factor()
             _, status, _, x, a1, abar1, it = generalized_alpha(
                 t1 - h, np.concatenate((q, v)), a, abar, h, 1, 1, rho_inf, tol, limit, P, E)
             iters += it
@@ -678,11 +695,11 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
 # function it calls from kernels.py (or effects/stick_slip.py) does: flush these caches
 # when they change.
 def _guard_caches():
-    from . import kernels
+    from . import iteration_matrix, kernels
     from .numba_cache import guard
     from .effects import stick_slip
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")],
-          [kernels.__file__, stick_slip.__file__])
+          [kernels.__file__, stick_slip.__file__, iteration_matrix.__file__])
 
 
 _guard_caches()

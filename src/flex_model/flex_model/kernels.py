@@ -22,7 +22,8 @@ the exact Lagrangian of Eqs. (6)-(7), (15)-(16), with cost linear in the number 
 variables for the bias and quadratic (the interconnection coupling) for B.
 
 The model data ``P`` is the tuple built by :class:`flex_model.dynamics.FlexArmModel`:
-``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig, Bc, na)``,
+``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig, Bc, na, lo,
+wn, dS, Wl, (bw, on), V, lam)``,
 Bc a constant inertia added to B (rotor inertias of geared joints, seed 000 Eq. 35). For the
 thesis model (mode 0), per link i, with the end masses M-, M+ and inertias J-, J+
 included (thesis Eq. 8 and the tilde quantities of Eq. 18): mtot = M, ntot = N,
@@ -37,7 +38,12 @@ outboard links' inertia). The integrals are then evaluated at run time by Gauss
 quadrature at points zq (per link, padded) with mass weights mu (kg; the end masses are
 points at z = 0 and z = L), shape values Wq and matrices Sq = S(zq); jrig = J- + J+;
 na (per link and point): W and S vanish past the first na variables (the wavelets' local
-support), so the loops stop there (the sums are the same: only zeros are skipped).
+support), so the mass matrix's loops stop there. The inverse dynamics (the residual of
+the fixed step) costs linear in the variables: lo, wn, dS, Wl (P[18:22]) give, per
+point, the window of variables where the increment dS_k = S(z_k) - S(z_{k-1}) and W_k do
+not vanish (at most 6 for the wavelets), and S(z) q_f is accumulated point by point.
+P[22:25] = (bw, on), V, lam: the band structure of the iteration matrix
+(flex_model.iteration_matrix; :func:`band_matvec` for K q, D v, Bc a when on).
 The equations stay those of an exact Lagrangian (energy is conserved).
 """
 from __future__ import annotations
@@ -61,8 +67,34 @@ def inverse_dynamics(q, v, a, gx, gy, P):
     Elastic and damping forces are not included (they are K q and D v).
     """
     if P[0] == 1:
-        return _inverse_dynamics_2(q, v, a, gx, gy, P) + P[16] @ a
+        f = _inverse_dynamics_2(q, v, a, gx, gy, P)
+        if P[22][1] == 1:  # banded model (dynamics._band_structure): Bc a linear in nq
+            f += band_matvec(P[16], a, P[22][0], P[23], P[24][0])
+            return f
+        return f + P[16] @ a
     return _inverse_dynamics_1(q, v, a, gx, gy, P) + P[16] @ a
+
+
+@njit(cache=_CACHE)
+def band_matvec(M, x, bw, V, lam):
+    """M x for M = (M within bw of its diagonal) + V diag(lam) V^T (the rest of M as its
+    eigenvectors: dynamics._band_structure), at a cost linear in the size."""
+    n = x.shape[0]
+    y = np.zeros(n)
+    for i in range(n):
+        t = 0.0
+        for j in range(max(0, i - bw), min(n, i + bw + 1)):
+            t += M[i, j] * x[j]
+        y[i] = t
+    for m in range(V.shape[1]):
+        if lam[m] != 0.0:
+            t = 0.0
+            for i in range(n):
+                t += V[i, m] * x[i]
+            t *= lam[m]
+            for i in range(n):
+                y[i] += V[i, m] * t
+    return y
 
 
 @njit(cache=_CACHE)
@@ -422,74 +454,122 @@ def _point_kinematics(q, v, o, n, W, S, z, c, s, wd, sv, Jfx, Jfy):
 
 @njit(cache=_CACHE)
 def _inverse_dynamics_2(q, v, a, gx, gy, P):
-    """Mode 1 of :func:`inverse_dynamics`: d'Alembert over quadrature points."""
+    """Mode 1 of :func:`inverse_dynamics`: d'Alembert over quadrature points, with cost
+    linear in the variables. Along a link the shortening matrix is accumulated interval by
+    interval, S(z_k) = S(z_{k-1}) + dS_k (dS_k local: P[20] on the window P[18], P[19]), so
+    u = 1/2 q_f^T S q_f, its rates and q_f^T S a are running sums; the generalized force
+    of the shortening, -sum_k c_k S(z_k) q_f with c_k = mu_k e1 . p''_k (and the outboard
+    resultant at the tip), is sum_k dS_k q_f times the suffix sums of c_k."""
     off, nf, L = P[1], P[2], P[3]
     jplus = P[7]
-    zq, mu, Wq, Sq, jrig, na = P[11], P[12], P[13], P[14], P[15], P[17]
+    zq, mu, jrig = P[11], P[12], P[15]
+    lo, wn, dS, Wl = P[18], P[19], P[20], P[21]
     nl = L.shape[0]
     nq = q.shape[0]
     npt = mu.shape[1]
-    nfm = Wq.shape[2]
     f = np.zeros(nq)
     aox = -gx
     aoy = -gy
     fox = np.zeros(nl)
     foy = np.zeros(nl)
-    tipx = np.zeros((nl, nfm + 1))  # tip Jacobian columns (alpha, q_f) per link
-    tipy = np.zeros((nl, nfm + 1))
-    sv = np.zeros(nfm)
-    Jfx = np.zeros(nfm)
-    Jfy = np.zeros(nfm)
+    cpt = np.zeros((nl, npt))  # c_k = mu_k e1 . p''_k
+    tja = np.zeros((nl, 2))    # tip alpha column
     for i in range(nl):
-        o = off[i]
-        n = nf[i]
-        c = np.cos(q[o])
-        s = np.sin(q[o])
-        wd = v[o]
-        ad = a[o]
+        o = off[i] + 1  # first deformation variable
+        c = np.cos(q[o - 1])
+        s = np.sin(q[o - 1])
+        e1x, e1y, e2x, e2y = c, s, -s, c
+        wd = v[o - 1]
+        ad = a[o - 1]
         Fx = 0.0
         Fy = 0.0
         Fa = 0.0
-        nx = aox
-        ny = aoy
+        u = 0.0
+        ud = 0.0
+        vSv = 0.0
+        qSa = 0.0
         for k in range(npt):
+            b = o + lo[i, k]
+            w = wn[i, k]
+            d = 0.0
+            dd = 0.0
+            da = 0.0
+            for j in range(w):
+                Wj = Wl[i, k, j]
+                qj = q[b + j]
+                vj = v[b + j]
+                d += Wj * qj
+                dd += Wj * vj
+                da += Wj * a[b + j]
+                sq = 0.0
+                sv = 0.0
+                sa = 0.0
+                for l in range(w):
+                    m = dS[i, k, j, l]
+                    sq += m * q[b + l]
+                    sv += m * v[b + l]
+                    sa += m * a[b + l]
+                u += 0.5 * qj * sq
+                ud += vj * sq
+                vSv += vj * sv
+                qSa += qj * sa
             m = mu[i, k]
-            nk = na[i, k]
-            Jax, Jay, xix, xiy = _point_kinematics(q, v, o, nk, Wq[i, k], Sq[i, k], zq[i, k],
-                                                   c, s, wd, sv, Jfx, Jfy)
-            px = aox + Jax * ad + xix
-            py = aoy + Jay * ad + xiy
-            for j in range(nk):
-                px += Jfx[j] * a[o + 1 + j]
-                py += Jfy[j] * a[o + 1 + j]
-            if k == npt - 1:  # tip point: next origin's acceleration and Jacobian
-                nx = px
-                ny = py
-                tipx[i, 0] = Jax
-                tipy[i, 0] = Jay
-                for j in range(nk):
-                    tipx[i, 1 + j] = Jfx[j]
-                    tipy[i, 1 + j] = Jfy[j]
+            tip = k == npt - 1
+            if m == 0.0 and not tip:
+                continue
+            r = zq[i, k] - u
+            Jax = r * e2x - d * e1x
+            Jay = r * e2y - d * e1y
+            t1 = vSv + r * wd * wd + 2.0 * dd * wd + qSa
+            t2 = 2.0 * ud * wd + d * wd * wd - da
+            px = aox + Jax * ad - t1 * e1x - t2 * e2x
+            py = aoy + Jay * ad - t1 * e1y - t2 * e2y
+            if tip:  # the next origin's acceleration and the tip's alpha column
+                tja[i, 0] = Jax
+                tja[i, 1] = Jay
             if m == 0.0:
+                if tip:
+                    aox = px
+                    aoy = py
                 continue
             Fx += m * px
             Fy += m * py
             Fa += m * (Jax * px + Jay * py)
-            for j in range(nk):
-                f[o + 1 + j] += m * (Jfx[j] * px + Jfy[j] * py)
-        g = o + n
-        f[o] += Fa + jrig[i] * ad + jplus[i] * a[g]
+            e2p = m * (e2x * px + e2y * py)
+            for j in range(w):
+                f[b + j] += Wl[i, k, j] * e2p
+            cpt[i, k] = m * (e1x * px + e1y * py)
+            if tip:
+                aox = px
+                aoy = py
+        g = o - 1 + nf[i]
+        f[o - 1] += Fa + jrig[i] * ad + jplus[i] * a[g]
         f[g] += jplus[i] * (ad + a[g])
         fox[i] = Fx
         foy[i] = Fy
-        aox = nx
-        aoy = ny
     rx = 0.0
     ry = 0.0
     for i in range(nl - 1, -1, -1):
-        o = off[i]
-        for j in range(nf[i] + 1):
-            f[o + j] += tipx[i, j] * rx + tipy[i, j] * ry
+        o = off[i] + 1
+        c = np.cos(q[o - 1])
+        s = np.sin(q[o - 1])
+        # outboard resultant through the tip: alpha column, W(L) e2 - S(L) q_f e1
+        f[o - 1] += tja[i, 0] * rx + tja[i, 1] * ry
+        k = npt - 1
+        e2r = -s * rx + c * ry
+        for j in range(wn[i, k]):
+            f[o + lo[i, k] + j] += Wl[i, k, j] * e2r
+        cpt[i, k] += c * rx + s * ry
+        acc = 0.0
+        for k in range(npt - 1, -1, -1):
+            acc += cpt[i, k]
+            b = o + lo[i, k]
+            w = wn[i, k]
+            for j in range(w):
+                sq = 0.0
+                for l in range(w):
+                    sq += dS[i, k, j, l] * q[b + l]
+                f[b + j] -= acc * sq
         rx += fox[i]
         ry += foy[i]
     return f

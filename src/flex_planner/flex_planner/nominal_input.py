@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from flex_model import kernels
-from flex_model import integrators
+from flex_model import integrators, iteration_matrix
 from flex_model.dynamics import FlexArmModel
 from flex_model.integrators import galpha_parameters
 from flex_model.kernels import inverse_dynamics, link_origins, tip_jacobian
@@ -137,7 +137,8 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
     return Q, V, A, tau, tip, worst, 0, 0
 
 
-_numba_cache.guard([_generalized_force, _integrate], [kernels.__file__, integrators.__file__])
+_numba_cache.guard([_generalized_force, _integrate], [kernels.__file__, integrators.__file__,
+                                                     iteration_matrix.__file__])
 
 
 @dataclass

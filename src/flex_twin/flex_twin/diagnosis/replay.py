@@ -387,10 +387,11 @@ def residuals(rec, pred: Prediction) -> dict:
 # numba re-compiles a cached loop when this file changes, not when the integrator or the
 # kernels it calls change (flex_model.numba_cache): flush these caches then
 def _guard_caches():
-    from flex_model import integrators, kernels, numba_cache
+    from flex_model import integrators, iteration_matrix, kernels, numba_cache
     from flex_model.effects import stick_slip
     numba_cache.guard([_closed_loop, _continuous_loop, _tips],
-                      [integrators.__file__, kernels.__file__, stick_slip.__file__])
+                      [integrators.__file__, kernels.__file__, stick_slip.__file__,
+                       iteration_matrix.__file__])
 
 
 _guard_caches()
