@@ -57,6 +57,20 @@ def variable_step() -> None:
     simulate(model, z, z, t_final=1e-3, sample_period=1e-3, method="variable")
 
 
+def structured_newton() -> None:
+    """Simplified Newton on the banded-plus-low-rank iteration matrix (flex_model.
+    iteration_matrix: from dynamics.STRUCTURED_MIN_VARS variables per link) and the full
+    Newton of second order, as test_linear_cost.py runs them."""
+    from flex_model.arm import load_arm
+    from flex_model.dynamics import STRUCTURED_MIN_VARS, FlexArmModel
+    from flex_model.simulate import simulate
+    for nv, newton in ((STRUCTURED_MIN_VARS, "simplified"), (8, "full"), (8, "simplified")):
+        model = FlexArmModel(load_arm("thesis_three_link", nv).with_kinematics("second_order"))
+        z = np.zeros(model.nq)
+        simulate(model, z, z, t_final=2e-3, sample_period=1e-3, method="fixed", dt=1e-3,
+                 newton=newton)
+
+
 def spatial() -> None:
     from flex_model.spatial.description import load_spatial_arm
     from flex_model.spatial.dynamics import SpatialArmModel
@@ -68,7 +82,8 @@ def spatial() -> None:
 
 def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
-        for step in (lambda: replay_loops(Path(tmp)), in_loop_control, variable_step, spatial):
+        for step in (lambda: replay_loops(Path(tmp)), in_loop_control, variable_step,
+                     structured_newton, spatial):
             try:
                 step()
             except Exception as exc:  # noqa: BLE001 - the tests report real failures

@@ -240,11 +240,14 @@ ACCEPTANCE = (("two:sensor_bias+joint_elasticity", 1004, {}),
               ("backlash", 1007, {"max_effects": 1}),
               ("two:gear+torque_saturation", 1002, {}),
               ("contact_surface", 1005, {})) + tuple((k, s, {}) for k, s in SUBSET)
-#: the costliest mechanism diagnoses (about 310 of the subset's 710 CPU-s, 2026-12-03):
-#: out of the default run, which stays under 4 minutes on 2 cores; ACCEPTANCE_ENV=full
-#: runs them too (before a change of the engine's search: docs/diagnosis.md, speed)
+#: the costliest mechanism diagnoses (about 310 of the subset's 710 CPU-s, 2026-12-03;
+#: backlash 1007 and gear + saturation 1002 since the engine re-fits the named effects
+#: after each round and fits two screened pairs, which made the default run 6 minutes):
+#: out of the default run; ACCEPTANCE_ENV=full runs them too (before a change of the
+#: engine's search: docs/diagnosis.md, speed)
 EXTENDED = {("two:sensor_bias+joint_elasticity", 1004),
-            ("two:sensor_bias+joint_elasticity", 1005), ("two:gear+torque_saturation", 1008)}
+            ("two:sensor_bias+joint_elasticity", 1005), ("two:gear+torque_saturation", 1008),
+            ("backlash", 1007), ("two:gear+torque_saturation", 1002)}
 FULL = os.environ.get(ACCEPTANCE_ENV) == "full"
 RUN = tuple(a for a in ACCEPTANCE if FULL or (a[0], a[1]) not in EXTENDED)
 skip_acceptance = pytest.mark.skipif(
@@ -363,6 +366,7 @@ def test_acceptance_nothing_is_named_for_what_only_the_held_out_run_shows(accept
 
 
 @skip_acceptance
+@skip_extended
 def test_acceptance_a_second_effect_below_the_gate_on_the_fit_recording(acceptance):
     """Gear on joint 2 (rotor inertia x1.6) and drive saturation on joint 1 (seed 1002):
     after the saturation the fit recording's excess is 0.25, under the gate, the held-out
@@ -376,6 +380,7 @@ def test_acceptance_a_second_effect_below_the_gate_on_the_fit_recording(acceptan
 
 
 @skip_acceptance
+@skip_extended
 def test_acceptance_backlash_is_named_not_its_spring(acceptance):
     """Backlash of 6.85 mrad in joint 1's gear spring (3000 N m/rad, damping 6.9 N m s/rad;
     seed 1007). The backlash hypothesis frees the spring's damping as the joint elasticity
