@@ -12,6 +12,7 @@ Runs at import time, i.e. before any test module (or anything it imports) loads 
   these kernels (a 20 s replay 0.55 against 0.53 CPU-s, a 20 s fixed-step run 0.42 against
   0.43 CPU-s) and computes the same numbers (no fast-math: IEEE results do not depend on
   the optimization level). Subprocesses (process pools, Dask workers, nodes) inherit it.
+  Its kernels are cached apart (NUMBA_CACHE_DIR=.numba_test_cache unless set).
 
 When a session collects most of the suite, test/numba_warmup.py compiles the loops that
 later tests need in a background process (the second core; FLEX_TWIN_NUMBA_WARMUP=0: off).
@@ -28,7 +29,13 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; RANGE above is authoritative
 os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
 os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
-os.environ.setdefault("NUMBA_OPT", "1")
+if "NUMBA_OPT" not in os.environ:
+    os.environ["NUMBA_OPT"] = "1"
+    # numba's cache index does not record the optimization level: -O1 kernels in the
+    # packages' __pycache__ would be loaded by the user's runs (the in-loop core at a
+    # real-time factor of 27 instead of 44); the tests keep their own cache
+    os.environ.setdefault("NUMBA_CACHE_DIR",
+                          str(Path(__file__).resolve().parent / ".numba_test_cache"))
 
 if "rclpy" in sys.modules:  # e.g. a pytest plugin imported it before this conftest
     warnings.warn("rclpy was imported before conftest.py set the ROS environment",
