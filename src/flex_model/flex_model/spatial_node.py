@@ -1,6 +1,6 @@
 """SpatialModelNode: a spatial arm (issue 25) as a ROS 2 node, a thin adapter around the
 compiled generalized-alpha loop (spatial/integrate.simulate_fixed_compiled) and the
-message layout of flex_model.spatial_ros (the same as ``flex-twin simulate --bag``).
+message layout of flex_model.ros_spatial (the same as ``flex-twin simulate --bag``).
 
 Topic names are relative (a namespace moves them), /tf is global.
 
@@ -58,7 +58,7 @@ from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from . import spatial_ros as sr
+from . import ros_spatial as sr
 from .config import ConfigError
 from .ros_main import Param, ParameterError, ReasonLog, declare_parameters, fmt, run_node
 

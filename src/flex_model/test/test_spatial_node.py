@@ -130,7 +130,7 @@ def test_lockstep_equals_the_compiled_loop_and_bad_commands_are_dropped(harness)
                                atol=1e-15)
     assert abs(d.position[1]) > 1e-6      # the arm moves: not a zero test
     # /flex/shape: the forearm's centre line ends at its tip frame
-    from flex_model.spatial_ros import frame_poses
+    from flex_model.ros_spatial import frame_poses
     tip = [T for _, c, T in frame_poses(model, q) if c == "forearm_tip"][0]
     line = [m for m in h.shapes if round(stamp_s(m.markers[0]) * 200) == 12][-1].markers[0]
     np.testing.assert_allclose([line.points[-1].x, line.points[-1].y, line.points[-1].z],

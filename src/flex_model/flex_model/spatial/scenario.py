@@ -42,19 +42,17 @@ from pathlib import Path
 import numpy as np
 
 from ..config import ConfigError, Fields, read_yaml
+from ..inputs import JointPD
+from ..scenario import _is_inf, _joint_index
 from .description import SPATIAL_PRESET_DIR, SpatialArm, load_spatial_arm
 from .dynamics import SpatialArmModel
 
 SPATIAL_SCENARIO_DIR = SPATIAL_PRESET_DIR / "scenarios"
 
 
-@dataclass(frozen=True)
-class SpatialPD:
-    """tau = kp (s - theta_a) - kd theta_a' per joint (thesis Eq. 95, constant gains)."""
-
-    kp: np.ndarray
-    kd: np.ndarray
-    setpoints: np.ndarray
+#: tau = kp (s - theta_a) - kd theta_a' per joint (thesis Eq. 95, constant gains) on the
+#: actuator coordinate: the planar scenario's JointPD
+SpatialPD = JointPD
 
 
 @dataclass(frozen=True)
@@ -345,22 +343,6 @@ def load_spatial_scenario(name_or_path) -> SpatialScenario:
                                       default_name=Path(path).stem)
 
 
-def _is_inf(value) -> bool:
-    if isinstance(value, str):
-        return value.strip().lower() in (".inf", "inf", "+.inf", "+inf", "infinity")
-    return isinstance(value, float) and math.isinf(value) and value > 0
-
-
-def _joint(f: Fields, key: str, arm: SpatialArm) -> int:
-    value = f.raw(key)
-    names = arm.joint_names
-    if isinstance(value, str) and value in names:
-        return names.index(value)
-    if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= len(names):
-        return value - 1
-    raise f.error(key, value, f"a joint name ({', '.join(names)}) or number 1..{len(names)}")
-
-
 def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
                                base_dir: Path | None = None,
                                default_name: str = "scenario") -> SpatialScenario:
@@ -437,7 +419,7 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     pulses = []
     for k, raw in enumerate(f.items("pulses", [])):
         pf = Fields(raw, source, f"pulses[{k}]")
-        j = _joint(pf, "joint", arm)
+        j = _joint_index(pf, "joint", arm)
         if arm.links[j].joint.motor == "locked":
             raise pf.error("joint", pf.raw("joint"), "a joint with an active motor (a "
                            "locked motor takes no torque)")
