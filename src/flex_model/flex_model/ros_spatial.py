@@ -78,18 +78,25 @@ def centre_lines(model, q, points: int = 21, link_frames=None) -> list:
     return out
 
 
-def skeleton_urdf(model) -> str:
-    """URDF of the rigid skeleton: the /tf frames at q = 0, joints with axis and limits."""
+def frame_name(name: str, prefix: str = "", base: str = "base_link") -> str:
+    """The published name of a frame of :func:`frame_poses`: ``base_link`` renamed
+    ``base`` (the node's frame_id), then ``prefix`` (its frame_prefix) before it."""
+    return prefix + (base if name == "base_link" else name)
+
+
+def skeleton_urdf(model, prefix: str = "", base: str = "base_link") -> str:
+    """URDF of the rigid skeleton: the /tf frames at q = 0, joints with axis and limits;
+    link (frame) names as :func:`frame_name`, joint names unchanged (joint_states')."""
     q0 = np.zeros(model.nq)
     poses = frame_poses(model, q0)
     lf = []
     model._chain(q0, False, lf)
     robot = ET.Element("robot", name=model.arm.name)
-    ET.SubElement(robot, "link", name="base_link")
+    ET.SubElement(robot, "link", name=frame_name("base_link", prefix, base))
     rel = relative(poses)
     roots = {lk.name: root for lk, (root, _) in zip(model.arm.links, lf)}
     for (parent, child, T) in rel:
-        ET.SubElement(robot, "link", name=child)
+        ET.SubElement(robot, "link", name=frame_name(child, prefix, base))
         lk = next((x for x in model.arm.links if x.name == child), None)
         if lk is None:
             j = ET.SubElement(robot, "joint", name=f"{parent}_to_{child}", type="fixed")
@@ -112,8 +119,8 @@ def skeleton_urdf(model) -> str:
                     "upper": f"{jt.upper if np.isfinite(jt.upper) else big:.17g}",
                     "effort": f"{jt.effort if np.isfinite(jt.effort) else big:.17g}",
                     "velocity": f"{jt.velocity if np.isfinite(jt.velocity) else big:.17g}"})
-        ET.SubElement(j, "parent", link=parent)
-        ET.SubElement(j, "child", link=child)
+        ET.SubElement(j, "parent", link=frame_name(parent, prefix, base))
+        ET.SubElement(j, "child", link=frame_name(child, prefix, base))
         ET.SubElement(j, "origin", xyz=" ".join(f"{x:.17g}" for x in T[:3, 3]),
                       rpy=" ".join(f"{x:.17g}" for x in rpy_from_matrix(T[:3, :3])))
     return ET.tostring(robot, encoding="unicode")
@@ -161,17 +168,20 @@ def joint_state(JointState, names, values, rates, efforts, t: float, effort=True
     return js
 
 
-def transforms(types, model, q, t: float, link_frames=None) -> list:
+def transforms(types, model, q, t: float, link_frames=None, prefix: str = "",
+               base: str = "base_link") -> list:
     """The /tf transforms (geometry_msgs/TransformStamped, from ``types``: an object with
     TransformStamped, Transform, Vector3, Quaternion, Header, Time) at state q, time t;
-    ``link_frames`` receives the chain's (root, tip) frames (for :func:`shape_markers`)."""
+    ``link_frames`` receives the chain's (root, tip) frames (for :func:`shape_markers`);
+    frame names as :func:`frame_name`."""
     sec, nsec = stamp(t)
     out = []
     for parent, child, T in relative(frame_poses(model, q, link_frames)):
         x, y, z, qw = quaternion_from_matrix(T[:3, :3])
         out.append(types.TransformStamped(
-            header=types.Header(stamp=types.Time(sec=sec, nanosec=nsec), frame_id=parent),
-            child_frame_id=child,
+            header=types.Header(stamp=types.Time(sec=sec, nanosec=nsec),
+                                frame_id=frame_name(parent, prefix, base)),
+            child_frame_id=frame_name(child, prefix, base),
             transform=types.Transform(translation=types.Vector3(x=float(T[0, 3]),
                                                                 y=float(T[1, 3]),
                                                                 z=float(T[2, 3])),
@@ -180,9 +190,11 @@ def transforms(types, model, q, t: float, link_frames=None) -> list:
     return out
 
 
-def shape_markers(model, q, t: float, points: int = 21, link_frames=None):
+def shape_markers(model, q, t: float, points: int = 21, link_frames=None, prefix: str = "",
+                  base: str = "base_link"):
     """visualization_msgs/MarkerArray: per flexible link its deformed centre line
-    (LINE_STRIP, ``points`` samples, width 0.01 m) and chord (0.003 m), in base_link."""
+    (LINE_STRIP, ``points`` samples, width 0.01 m) and chord (0.003 m), in base_link
+    (named as :func:`frame_name`)."""
     from std_msgs.msg import ColorRGBA
     from geometry_msgs.msg import Point
     from visualization_msgs.msg import Marker, MarkerArray
@@ -197,7 +209,7 @@ def shape_markers(model, q, t: float, points: int = 21, link_frames=None):
                        action=Marker.ADD,
                        color=ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0) if j == 0 else
                        ColorRGBA(r=0.6, g=0.6, b=0.6, a=0.8))
-            m.header.frame_id = "base_link"
+            m.header.frame_id = frame_name("base_link", prefix, base)
             m.header.stamp.sec, m.header.stamp.nanosec = sec, nsec
             m.scale.x = width
             m.pose.orientation.w = 1.0

@@ -1,5 +1,6 @@
 """The spatial model node (issue 25) in-process: lockstep against the compiled loop,
 the in-loop Eq. 95 PD, bad messages dropped and counted."""
+import re
 import time
 import uuid
 
@@ -21,6 +22,8 @@ ARM = "seed003_like_arm"
 
 class Harness:
     def __init__(self, **params):
+        # lockstep: no watchdog step while a test waits for discovery (unless asked for)
+        params.setdefault("lockstep_timeout", 60.0)
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
         ns = f"/s{uuid.uuid4().hex[:8]}"
@@ -63,8 +66,16 @@ class Harness:
         rclpy.try_shutdown(context=self.ctx)
 
 
+@pytest.fixture(scope="module")
+def compiled_loop():
+    """Compile (or load) the spatial loop before any node waits for a period: a cold numba
+    cache takes longer than spin_until's timeout on a loaded machine."""
+    model = SpatialArmModel(load_spatial_arm(ARM))
+    simulate_fixed_compiled(model, np.zeros(model.nq), np.zeros(model.nq), 1e-3, 1)
+
+
 @pytest.fixture
-def harness():
+def harness(compiled_loop):
     made = []
 
     def make(**params):
@@ -180,8 +191,13 @@ def test_bad_parameters_name_the_parameter():
     try:
         for params, text in (({"arm": "no_such_arm"}, "parameter arm:"),
                              ({"kp": [1.0, 2.0]}, "parameter kp: got [1, 2]; expected 3"),
-                             ({"mode": "fast"}, "parameter mode: got 'fast'")):
-            with pytest.raises(ParameterError, match=text.replace("[", r"\[")):
+                             ({"mode": "fast"}, "parameter mode: got 'fast'"),
+                             ({"payload": [-1.0]}, "parameter payload: got [-1]; expected a "
+                              "payload vector (payload mass: got -1 kg; expected >= 0)"),
+                             ({"payload": [1.0, 2.0, 3.0]}, "parameter payload: got [1, 2, 3]"
+                              "; expected a payload vector (got 3 values; expected one of "
+                              "[mass], [mass, J_z]")):
+            with pytest.raises(ParameterError, match=re.escape(text)):
                 SpatialModelNode(context=ctx, parameter_overrides=[
                     Parameter(k, value=v) for k, v in params.items()])
     finally:
@@ -198,3 +214,222 @@ def test_model_node_entry_point_dispatches_spatial_arms():
     assert is_spatial_arm(_arm_argument(argv))
     assert not is_spatial_arm(_arm_argument(argv[:4]))
     assert _arm_argument(["flex-model-node"]) is None
+
+
+# ---------------------------------------------------------------- payload, pause, watchdog
+SEED000 = "seed000_real_arm_3d"   # one link about a vertical axis, droop w with EI_y = 248
+
+
+def call(h, srv_type, name, request):
+    """Call a service of the node from the probe (in the executor)."""
+    client = h.probe.create_client(srv_type, name)
+    h.spin_until(client.service_is_ready, f"service {name}")
+    future = client.call_async(request)
+    h.spin_until(future.done, f"the answer of {name}")
+    return future.result()
+
+
+def spin_for(h, seconds):
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        h.ex.spin_once(timeout_sec=0.005)
+
+
+def test_payload_changes_the_static_droop_to_the_closed_form_and_bad_ones_are_dropped(harness):
+    """A tip payload m at rest: the droop grows by m g L^3 / (3 EI_y) (cantilever with a
+    tip load; the arm's own droop q L^4 / (8 EI) + m_tip g L^3 / (3 EI)). From the node's
+    start_static, a payload on flex/payload makes the tip oscillate about the new static
+    droop (the mid-range of the oscillation) and the run equals the compiled loop on the
+    arm with the payload lumped into its end body (1e-12)."""
+    from geometry_msgs.msg import PoseStamped
+    from flex_model.spatial.payload import with_payload
+    L, EI, g, rhoA, m_tip, m = 0.28, 248.0, 9.81, 0.1289, 0.025607, 0.1
+    w0 = -(rhoA * g * L ** 4 / (8 * EI) + m_tip * g * L ** 3 / (3 * EI))
+    w1 = w0 - m * g * L ** 3 / (3 * EI)
+    # the initial payload (parameter) with start_static: the closed form at once
+    hp = harness(arm=SEED000, mode="lockstep", rate=1000.0, step=2.5e-4, start_static=True,
+                 payload=[m])
+    z = hp.node.model.tip_position(hp.node.q0)[2]
+    assert z == pytest.approx(w1, rel=1e-9)
+    # a payload at run time, from rest at the arm's own droop
+    h = harness(arm=SEED000, mode="lockstep", rate=1000.0, step=2.5e-4, start_static=True)
+    node = h.node
+    assert node.model.tip_position(node.q0)[2] == pytest.approx(w0, rel=1e-9)
+    tips = []
+    h.probe.create_subscription(PoseStamped, "flex/tip_pose", tips.append, 200)
+    pub = h.probe.create_publisher(Float64MultiArray, "flex/payload", 10)
+    h.spin_until(lambda: pub.get_subscription_count() > 0, "flex/payload discovery")
+    pub.publish(Float64MultiArray(data=[m]))
+    h.spin_until(lambda: node.payload[0] == m, "the payload")
+    for _ in range(100):      # 0.1 s: eight periods of the ~80 Hz vertical mode
+        h.command([0.0])
+    arm = with_payload(load_spatial_arm(SEED000), m)
+    model = SpatialArmModel(arm)
+    run = simulate_fixed_compiled(model, node.q0, node.v0, 2.5e-4, 400)
+    np.testing.assert_allclose(node.q, run.q[-1], rtol=0, atol=1e-12)
+    zs = np.array([model.tip_position(q)[2] for q in run.q])
+    assert 0.5 * (zs.min() + zs.max()) == pytest.approx(w1, rel=1e-3)
+    assert zs.min() < w1 - 0.9 * (w0 - w1)       # it swings (not a zero test)
+    h.spin_until(lambda: any(round(stamp_s(x) * 1000) == 100 for x in tips), "tip pose")
+    last = [x for x in tips if round(stamp_s(x) * 1000) == 100][-1]
+    np.testing.assert_allclose([last.pose.position.x, last.pose.position.y,
+                                last.pose.position.z], model.tip_position(node.q),
+                               rtol=0, atol=1e-12)
+    # bad payloads: logged, dropped, counted; the payload and the node keep going
+    for bad in ([0.1, 0.2, 0.3], [np.nan], [-1.0], [1e6], [0.1, 1.0, 1.0, 1.0, 5.0, 0, 0]):
+        pub.publish(Float64MultiArray(data=bad))
+    h.spin_until(lambda: node.dropped == 5, "five dropped payloads")
+    assert node.payload[0] == m
+    h.command([0.0])
+    assert node.steps == 101
+    # ~/reset: the initial state and payload (none)
+    from std_srvs.srv import Trigger
+    call(h, Trigger, "flex_model/reset", Trigger.Request())
+    assert node.payload[0] == 0.0 and node.steps == 0
+    assert node.model.tip_position(node.q)[2] == pytest.approx(w0, rel=1e-9)
+
+
+def test_a_paused_node_keeps_its_clock(harness):
+    """Lockstep: commands while paused are taken but step nothing (no /clock); resuming
+    runs one period. Realtime: paused, the simulation time stands still."""
+    from rosgraph_msgs.msg import Clock
+    from std_srvs.srv import SetBool
+    h = harness(arm=ARM, mode="lockstep", rate=200.0, start_paused=True, clock_topic="clock",
+                frame_prefix="robot1/", frame_id="world")
+    node = h.node
+    # frame_id, frame_prefix: every frame of robot_description and flex/shape, not the
+    # joints
+    import xml.etree.ElementTree as ET
+    robot = ET.fromstring(h.desc[0].data)
+    assert {x.get("name") for x in robot.findall("link")} == {
+        "robot1/" + x for x in ("world", "column", "column_end", "upper_arm",
+                                "upper_arm_end", "forearm", "forearm_tip", "forearm_end")}
+    assert {x.get("name") for x in robot.findall("joint")} >= {"joint1", "joint2", "joint3"}
+    clocks = []
+    h.probe.create_subscription(Clock, "clock", clocks.append, 100)
+    h.spin_until(lambda: node.pub_clock.get_subscription_count() > 0, "clock discovery")
+    n_clock = len(clocks)
+    for k in range(3):
+        h.cmd.publish(Float64MultiArray(data=[0.5 * k, 0.0, 0.0]))
+    h.spin_until(lambda: node.u[0] == 1.0, "the last command")
+    spin_for(h, 0.2)
+    assert node.steps == 0 and node.t == 0.0 and len(clocks) == n_clock
+    assert call(h, SetBool, "flex_model/pause", SetBool.Request(data=False)).message == \
+        "running"
+    assert node.steps == 1 and node.t == pytest.approx(0.005, abs=1e-15)
+    h.spin_until(lambda: len(clocks) > n_clock, "the clock")
+    assert clocks[-1].clock.nanosec == 5_000_000
+    h.spin_until(lambda: h.shapes, "a shape")
+    assert h.shapes[-1].markers[0].header.frame_id == "robot1/world"
+    # realtime
+    r = harness(arm=ARM, mode="realtime", rate=100.0, step=2e-3, start_paused=True)
+    spin_for(r, 0.3)
+    assert r.node.t == 0.0
+    call(r, SetBool, "flex_model/pause", SetBool.Request(data=False))
+    r.spin_until(lambda: r.node.t >= 0.05, "the realtime loop")
+    call(r, SetBool, "flex_model/pause", SetBool.Request(data=True))
+    t = r.node.t
+    spin_for(r, 0.3)
+    assert r.node.t == t
+
+
+@pytest.mark.parametrize("action", ["zero", "hold"])
+def test_the_command_timeout_in_lockstep_time(harness, action):
+    """command_timeout = 0.02 s at 200 Hz: after one command at t = 0, periods without a
+    command keep it while t - 0 <= 0.02 s (periods from 0.005 to 0.02), then zero it (or
+    hold it): the states = the compiled loop with that torque sequence (1e-12)."""
+    h = harness(arm=ARM, mode="lockstep", rate=200.0, step=1e-3, command_timeout=0.02,
+                timeout_action=action, initial_joint_values=[0.1, -0.2, 0.3])
+    node = h.node
+    u = np.array([3.0, -2.0, 1.0])
+    h.command(u)
+    for _ in range(6):        # periods without a command (as the realtime loop runs them)
+        node.advance()
+    assert node.t == pytest.approx(0.035, abs=1e-15)
+    np.testing.assert_array_equal(node.u, u if action == "hold" else 0.0)
+    model = SpatialArmModel(load_spatial_arm(ARM))
+    if action == "hold":
+        ref = simulate_fixed_compiled(model, node.q0, node.v0, 1e-3, 35, joint_torques=u)
+    else:     # 5 periods under u (one run), then a restarted run under zero
+        a = simulate_fixed_compiled(model, node.q0, node.v0, 1e-3, 25, joint_torques=u)
+        ref = simulate_fixed_compiled(model, a.q[-1], a.v[-1], 1e-3, 10)
+        other = simulate_fixed_compiled(model, node.q0, node.v0, 1e-3, 35, joint_torques=u)
+        assert np.max(np.abs(other.q[-1] - ref.q[-1])) > 1e-6
+    np.testing.assert_allclose(node.q, ref.q[-1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(node.v, ref.v[-1], rtol=0, atol=1e-12)
+
+
+def test_a_stalled_lockstep_loop_steps_with_a_zero_command(harness):
+    """lockstep_timeout (set at run time) without a command: the watchdog steps the model
+    and applies timeout_action at once (zero); a bad run-time value is refused."""
+    from rclpy.parameter import Parameter as P
+    h = harness(arm=ARM, mode="lockstep", rate=200.0, step=1e-3)
+    node = h.node
+    u = np.array([3.0, -2.0, 1.0])
+    h.command(u)
+    bad = node.set_parameters([P("lockstep_timeout", value=-1.0)])[0]
+    assert not bad.successful and "lockstep_timeout" in bad.reason
+    assert not node.set_parameters([P("rate", value=10.0)])[0].successful
+    assert node.set_parameters([P("lockstep_timeout", value=0.2)])[0].successful
+    h.spin_until(lambda: node.steps == 2, "the watchdog step")
+    np.testing.assert_array_equal(node.u, 0.0)
+    model = SpatialArmModel(load_spatial_arm(ARM))
+    a = simulate_fixed_compiled(model, node.q0, node.v0, 1e-3, 5, joint_torques=u)
+    ref = simulate_fixed_compiled(model, a.q[-1], a.v[-1], 1e-3, 5)
+    np.testing.assert_allclose(node.q, ref.q[-1], rtol=0, atol=1e-12)
+
+
+def test_a_newton_failure_stops_stepping_with_a_diagnostic_and_reset_restarts(harness,
+                                                                              monkeypatch):
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+    from std_srvs.srv import Trigger
+    import flex_model.spatial.integrate as integrate
+    h = harness(arm=ARM, mode="lockstep", rate=200.0)
+    node = h.node
+    diags = []
+    h.probe.create_subscription(DiagnosticArray, "/diagnostics", diags.append, 10)
+    h.spin_until(lambda: node.pub_diag.get_subscription_count() > 0, "diagnostics")
+    h.command([1.0, 0.0, 0.0])
+    real = integrate.simulate_fixed_compiled
+
+    def fail(*args, **kw):
+        raise RuntimeError("generalized-alpha: no convergence at t = 0.006 s")
+    monkeypatch.setattr(integrate, "simulate_fixed_compiled", fail)
+    h.cmd.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))
+    h.spin_until(lambda: node.diverged is not None, "the failure")
+    h.spin_until(lambda: diags, "the ERROR diagnostic")
+    assert diags[-1].status[0].level == DiagnosticStatus.ERROR
+    assert "t = 0.005 s" in diags[-1].status[0].message
+    assert node.t == pytest.approx(0.005) and not np.any(node.u)
+    h.cmd.publish(Float64MultiArray(data=[2.0, 0.0, 0.0]))    # answered with a reason
+    h.spin_until(lambda: node.dropped == 1, "a dropped command")
+    monkeypatch.setattr(integrate, "simulate_fixed_compiled", real)
+    call(h, Trigger, "flex_model/reset", Trigger.Request())
+    h.spin_until(lambda: diags[-1].status[0].level == DiagnosticStatus.OK, "OK")
+    h.command([1.0, 0.0, 0.0])
+    assert node.steps == 1 and node.diverged is None
+
+
+def test_urdf_effort_and_position_limits_in_the_node(harness):
+    """ur5_like_flexible_forearm_element (the flexible forearm given by a <flex:flexible>
+    element of the URDF): a 400 N m command on joint 1 (effort limit 150 N m)
+    acts and is published as 150 N m; 1000 N m is beyond the automatic plausibility limit
+    max_torque (10 x the largest gravity torque, 516 N m) and dropped; a joint started
+    beyond its position limit is reported (logged), not stopped."""
+    h = harness(arm="ur5_like_flexible_forearm_element", mode="lockstep", rate=100.0,
+                step=2.5e-3,
+                initial_joint_values=[7.0, -0.5, 1.0, 0.0, 0.0, 0.0])
+    node = h.node
+    assert node.limit("max_torque") == pytest.approx(515.58, abs=0.01)
+    h.cmd.publish(Float64MultiArray(data=[1000.0, 0.0, 0.0, 0.0, 0.0, 0.0]))
+    h.spin_until(lambda: node.dropped == 1, "a command beyond max_torque")
+    assert node.steps == 0
+    u = np.array([400.0, 0.0, 0.0, 0.0, -30.0, 0.0])
+    h.command(u)
+    clipped = np.array([150.0, 0.0, 0.0, 0.0, -28.0, 0.0])
+    np.testing.assert_array_equal(h.states[-1].effort, clipped)
+    model = SpatialArmModel(load_spatial_arm("ur5_like_flexible_forearm"))
+    ref = simulate_fixed_compiled(model, node.q0, node.v0, 2.5e-3, 4,
+                                  joint_torques=clipped, clip_to_effort=False)
+    np.testing.assert_allclose(node.q, ref.q[-1], rtol=0, atol=1e-12)
+    assert ("position", 0) in node.drops.last and ("position", 1) not in node.drops.last

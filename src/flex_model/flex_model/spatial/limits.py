@@ -3,7 +3,10 @@
 Effort limits are honoured by the compiled fixed-step loop (compiled.galpha_loop clips the
 joint torques inline; :func:`clip_efforts` is the same clip for Python callers); position
 and velocity limits are reported by :func:`limit_violations`, not enforced as stops (no
-joint contact model on spatial joints yet).
+joint contact model on spatial joints yet). The spatial model node (spatial_node.py)
+clips its commands so (joint_states' effort is the clipped torque; with its eq95 PD the
+torque is not clipped) and logs position and velocity violations after every period (at
+most once a second per joint).
 """
 from __future__ import annotations
 
@@ -35,5 +38,6 @@ def limit_violations(model, q, v=None) -> list[str]:
         if v is not None:
             vj = float(np.asarray(v, float)[model.off[i]])
             if abs(vj) > lim["velocity"][i]:
-                out.append(f"{lk.joint.name}: velocity {vj:.6g} beyond +-{lim['velocity'][i]:.6g}")
+                out.append(f"{lk.joint.name}: velocity {vj:.6g} beyond "
+                           f"+-{lim['velocity'][i]:.6g}")
     return out

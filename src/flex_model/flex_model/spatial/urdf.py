@@ -29,6 +29,27 @@ serial chain (each link has at most one child joint). Mapping:
   ``<inertial>`` of a flexible link is **ignored** (the section's rhoA gives the beam's
   mass; ``root_body`` / ``end_body`` in the side YAML add motors, flanges).
 
+- A link carrying a ``<flex:flexible>`` extension element (namespace :data:`FLEX_NS`,
+  declared on ``<robot>``: ``xmlns:flex="urn:flex-arm-twin:urdf:1"``; URDF parsers
+  ignore unknown link children) is flexible with the same data as the side YAML's
+  entry (:func:`flexible_from_element`)::
+
+    <link name="forearm_link">
+      <flex:flexible length="0.39225" variables="4" torsion_variables="4">
+        <flex:section EI_y="6090" EI_z="6090" GJ="4520" rhoA="0.814" rhoJ="4.7e-4"/>
+        <flex:root_body mass="1.2" inertia="0.0018 0.00125 0.0018"/>
+        <flex:end_body mass="0.756" offset="0 0 0" inertia="0.0008 0.0008 0.0008"/>
+      </flex:flexible>
+    </link>
+
+  ``length`` optional as in the YAML; a section value is a number or "root tip" (a
+  linear taper); several ``<flex:section length="..">`` are segments, root first;
+  ``inertia`` 3 diagonal or 9 row-major values. Errors name the URDF, the element path
+  (``robot/link[@name='forearm_link']/flex:flexible/flex:section[1]/@EI_y``), the value
+  and what is allowed. A link made flexible both by its element and by the side YAML is
+  **refused** (no silent precedence: the error names both files); a ``<flexible>``
+  child without the namespace is refused too (it would otherwise be ignored).
+
 Side YAML (a spatial preset with a ``urdf`` key; paths relative to the YAML)::
 
     name: ur5_like_flexible_forearm
@@ -44,6 +65,7 @@ Side YAML (a spatial preset with a ``urdf`` key; paths relative to the YAML)::
 """
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -54,6 +76,8 @@ from .description import (RigidBody, SpatialArm, SpatialJoint, SpatialLink, _bod
                           flexible_beam)
 from .kinematics import rpy_matrix
 
+#: XML namespace of the flexible-link extension element ``<flex:flexible>`` in a <link>
+FLEX_NS = "urn:flex-arm-twin:urdf:1"
 MOVING = ("revolute", "continuous", "prismatic")
 JOINT_KINDS = MOVING + ("fixed",)
 
@@ -161,6 +185,98 @@ def _flexible(f: Fields, default_length, link_name: str, u: _Urdf):
     return beam, root, end
 
 
+_FLEX = f"{{{FLEX_NS}}}"
+#: attributes of the extension elements (as the side YAML's keys)
+_FLEX_ATTRS = {"flexible": ("length", "variables", "torsion_variables"),
+               "section": ("length", "EI_y", "EI_z", "GJ", "rhoA", "rhoJ"),
+               "root_body": ("mass", "offset", "inertia"),
+               "end_body": ("mass", "offset", "inertia")}
+
+
+def _xml_path(base: str, path: str) -> str:
+    """A Fields path of :func:`flexible_from_element`'s mapping as the element path:
+    ``base.section[0].EI_y`` -> ``base/flex:section[1]/@EI_y`` (XPath counts from 1)."""
+    rest = path[len(base):] if path.startswith(base) else path
+    parts = [x for x in rest.split(".") if x]
+    out = []
+    for i, part in enumerate(parts):
+        m = re.fullmatch(r"(\w+)\[(\d+)\]", part)
+        if m:
+            out.append(f"flex:{m.group(1)}[{int(m.group(2)) + 1}]")
+        elif part == "section" and i < len(parts) - 1:   # the one section
+            out.append("flex:section[1]")
+        elif part in ("section", "root_body", "end_body"):
+            out.append(f"flex:{part}")
+        else:
+            out.append(f"@{part}")
+    return "/".join([base] + out)
+
+
+def flexible_from_element(u: "_Urdf", link, where: str) -> dict | None:
+    """The side-YAML mapping of a link's ``<flex:flexible>`` element (None without one):
+    attribute values as numbers (a space-separated list: a list of numbers), sections
+    under ``section`` (a mapping, or a list of segments when there are several or one
+    has a ``length``), ``root_body`` / ``end_body``."""
+    plain = link.find("flexible")
+    if plain is not None:
+        raise u.error(f"{where}/flexible", "<flexible>", f"<flex:flexible> with "
+                      f'xmlns:flex="{FLEX_NS}" declared on <robot> (an element without '
+                      "the namespace is not read)")
+    els = link.findall(_FLEX + "flexible")
+    if not els:
+        return None
+    base = f"{where}/flex:flexible"
+    if len(els) > 1:
+        raise u.error(base, len(els), "one <flex:flexible> element per link")
+    el = els[0]
+
+    def attrs(e, kind: str, path: str) -> dict:
+        unknown = sorted(set(e.attrib) - set(_FLEX_ATTRS[kind]))
+        if unknown:
+            raise u.error(f"{path}/@{unknown[0]}", e.get(unknown[0]),
+                          "one of the attributes " + ", ".join(_FLEX_ATTRS[kind]))
+        out = {}
+        for key, raw in e.attrib.items():
+            try:
+                vals = [float(x) for x in raw.split()]
+            except ValueError:
+                raise u.error(f"{path}/@{key}", raw, "a number or space-separated numbers") \
+                    from None
+            if not vals:
+                raise u.error(f"{path}/@{key}", raw, "a number or space-separated numbers")
+            if key in ("variables", "torsion_variables"):
+                if len(vals) != 1 or not vals[0].is_integer():
+                    raise u.error(f"{path}/@{key}", raw, "an integer")
+                out[key] = int(vals[0])
+            elif key in ("offset", "inertia"):
+                out[key] = vals if key == "offset" or len(vals) == 3 else \
+                    [vals[0:3], vals[3:6], vals[6:9]] if len(vals) == 9 else vals
+            else:
+                out[key] = vals[0] if len(vals) == 1 else vals
+        return out
+
+    data = attrs(el, "flexible", base)
+    sections = []
+    for child in el:
+        tag = child.tag[len(_FLEX):] if child.tag.startswith(_FLEX) else None
+        if tag not in ("section", "root_body", "end_body"):
+            shown = child.tag.replace(_FLEX, "flex:")
+            raise u.error(f"{base}/{shown}", shown, "<flex:section>, "
+                          "<flex:root_body> or <flex:end_body> children")
+        if tag == "section":
+            sections.append(attrs(child, tag, f"{base}/flex:section[{len(sections) + 1}]"))
+        elif tag in data:
+            raise u.error(f"{base}/flex:{tag}", tag, f"at most one <flex:{tag}>")
+        else:
+            data[tag] = attrs(child, tag, f"{base}/flex:{tag}")
+    if not sections:
+        raise u.error(f"{base}/flex:section", None, "a <flex:section EI_y EI_z GJ rhoA "
+                      "[rhoJ]> child (several with a length each: segments, root first)")
+    data["section"] = sections if len(sections) > 1 or "length" in sections[0] \
+        else sections[0]
+    return data
+
+
 def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
                           flexible_links: dict | None = None, name: str | None = None,
                           gravity=(0.0, 0.0, -9.81), side_source: str | None = None,
@@ -220,6 +336,19 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
         if ln not in links:
             raise ConfigError(side, f"flexible_links.{ln}", ln,
                               "the name of a <link> of the URDF: " + ", ".join(links))
+    # <flex:flexible> extension elements: the same mapping, errors named in the URDF
+    from_element = {}     # link name -> element path
+    for ln, el in links.items():
+        where = f"robot/link[@name='{ln}']"
+        data = flexible_from_element(u, el, where)
+        if data is None:
+            continue
+        if ln in flex:
+            raise ConfigError(side, f"flexible_links.{ln}", ln,
+                              f"a link not also made flexible by its <flex:flexible> "
+                              f"element in {source} (conflicts are refused: keep one)")
+        flex[ln] = data
+        from_element[ln] = f"{where}/flex:flexible"
 
     eye = (np.eye(3), np.zeros(3))
     acc = eye                 # fixed transform from the current moving link's end frame
@@ -240,7 +369,8 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
                     m, c, I = inert
                     out[-1]["bodies"].append((m, acc[0] @ c + acc[1], acc[0] @ I @ acc[0].T))
             if child in flex:
-                raise ConfigError(side, f"flexible_links.{child}", child,
+                raise ConfigError(source if child in from_element else side,
+                                  from_element.get(child, f"flexible_links.{child}"), child,
                                   "a link moved by a revolute, continuous or prismatic joint "
                                   f"(it hangs on the fixed joint '{jn}')")
             link = child
@@ -287,11 +417,19 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
         origin = d["origin"] if shift_next is None else _compose(shift_next, d["origin"])
         shift_next = None
         if d["flex"] is not None:
-            f = Fields(d["flex"], side, f"flexible_links.{d['name']}")
+            elem = from_element.get(d["name"])
+            f = Fields(d["flex"], side, f"flexible_links.{d['name']}") if elem is None \
+                else Fields(d["flex"], source, elem)
             dl = d["default_length"]
             if dl is None and end_tf is not None:
                 dl = float(end_tf[1][0])
-            beam, root, end = _flexible(f, dl, d["name"], u)
+            try:
+                beam, root, end = _flexible(f, dl, d["name"], u)
+            except ConfigError as exc:
+                if elem is None or exc.source != source:
+                    raise
+                raise ConfigError(source, _xml_path(elem, exc.path), exc.value,
+                                  exc.allowed) from None
             # the end frame of a link_x beam is its tip section frame; what the URDF places
             # in the link frame is moved by Trans_x(-L)
             shift = (np.eye(3), np.array([-beam.length, 0.0, 0.0]))
