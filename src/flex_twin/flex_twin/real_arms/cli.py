@@ -150,6 +150,21 @@ def cmd_two_mass(args) -> int:
     return 0
 
 
+def cmd_transfer(args) -> int:
+    """Replay the flexible-link runs on the handout twin and on a diagnosis's
+    diagnosed_arm.yaml (issue 22: does the named effect transfer to the other runs?)."""
+    from .quanser_twin import data_root
+    from .transfer import transfer
+    out = Path(args.out or Path(args.diagnosis) / "transfer")
+    result = transfer(args.diagnosis, data_root(args.data), _policy_factory(), out, _progress,
+                      runs=tuple(args.runs) if args.runs else None)
+    if args.json:
+        print(json.dumps(result, indent=1, default=float))
+    else:
+        print((out / "transfer.md").read_text())
+    return 0
+
+
 def cmd_diagnose(args) -> int:
     """Export a lab run (and a held-out run with the same law) as diagnosis inputs into
     ``OUT/inputs`` and run ``flex-twin diagnose`` on them (report, diagnosed_arm.yaml)."""
@@ -180,14 +195,15 @@ def cmd_diagnose(args) -> int:
     _progress(f"inputs: {p['data']}, {p['controller']}, {p['arm']}")
     ns = argparse.Namespace(data=[str(p["data"])], arm=str(p["arm"]),
                             controller=str(p["controller"]), holdout=holdout, out=args.out,
-                            gate=None, segment=None, workers=args.workers, scheduler=None,
+                            gate=None, segment=args.segment, workers=args.workers,
+                            scheduler=None,
                             no_floor=False, no_plots=args.no_plots, json=args.json)
     return engine_diagnose(ns)
 
 
 def add_real_arm_parsers(sub) -> None:
     """``replay``, ``import quanser`` and
-    ``real-arm calibrate|report|stick-slip|two-mass|diagnose``."""
+    ``real-arm calibrate|report|stick-slip|two-mass|diagnose|transfer``."""
     sp = sub.add_parser("replay", help="replay a recorded real-arm run on its twin "
                         "(closed loop with the lab's law, or open loop from the voltage)")
     sp.add_argument("run", help="a CU Boulder lab log, or the UC Merced data folder")
@@ -262,7 +278,22 @@ def add_real_arm_parsers(sub) -> None:
     dp.add_argument("--data", default=None, help="folder of the real data (default "
                     "../shared/data/real)")
     dp.add_argument("--out", default="runs/real-arm-diagnosis", help="output directory")
+    dp.add_argument("--segment", type=float, default=None, help="restart the replay every "
+                    "SEGMENT s from the measured hub angle and rate (multiple shooting)")
     dp.add_argument("--workers", type=int, default=None, help="parallel processes")
     dp.add_argument("--no-plots", action="store_true")
     dp.add_argument("--json", action="store_true")
     dp.set_defaults(func=cmd_diagnose)
+    fp = rsub.add_parser("transfer", help="replay the CU Boulder flexible-link runs on the "
+                         "handout twin and on a real-arm diagnose output's diagnosed arm "
+                         "(before/after table, overlay PNG per run)")
+    fp.add_argument("diagnosis", help="output directory of real-arm diagnose (with "
+                    "diagnosed_arm.yaml)")
+    fp.add_argument("--runs", nargs="*", default=None, help="run names (default: every "
+                    "flexible-link run with a gauge)")
+    fp.add_argument("--data", default=None, help="folder of the real data (default "
+                    "../shared/data/real)")
+    fp.add_argument("--out", default=None, help="output directory (default "
+                    "DIAGNOSIS/transfer)")
+    fp.add_argument("--json", action="store_true")
+    fp.set_defaults(func=cmd_transfer)
