@@ -263,7 +263,7 @@ def _cpu_s(executor) -> float:
     return total
 
 
-def run_case(case: Path, out: Path, executor) -> dict:
+def run_case(case: Path, out: Path, executor, progress: bool = False) -> dict:
     from flex_twin.diagnosis.batch import RunSpec, diagnose_run
     truth = yaml.safe_load((case / "truth.yaml").read_text())
     row = {"case": case.name, "hidden": truth.get("hidden") or [],
@@ -272,7 +272,8 @@ def run_case(case: Path, out: Path, executor) -> dict:
                   str(case / "controller.yaml"))
     t0, c0 = time.perf_counter(), _cpu_s(executor)
     try:
-        s = diagnose_run(run, str(out / case.name), plots=False, executor=executor)
+        s = diagnose_run(run, str(out / case.name), plots=False, executor=executor,
+                         progress=progress)
     except (ValueError, FileNotFoundError, ArithmeticError) as exc:
         row.update(error=f"{type(exc).__name__}: {exc}", wall_s=time.perf_counter() - t0,
                    cpu_s=_cpu_s(executor) - c0)
@@ -296,6 +297,8 @@ def main(argv=None) -> int:
     ap.add_argument("--runs-dir", default=str(ROOT / "runs" / "bench_independent_suite"),
                     help="where each diagnosis writes its report")
     ap.add_argument("--resume", action="store_true", help="keep the results of cases done")
+    ap.add_argument("--progress", action="store_true",
+                    help="print each diagnosis's progress (phases, timed) to stderr")
     ap.add_argument("--report-only", action="store_true",
                     help="print and write the table of results.json, diagnose nothing")
     args = ap.parse_args(argv)
@@ -326,7 +329,7 @@ def main(argv=None) -> int:
                     print(f"--max-minutes {args.max_minutes:g} reached: {k - 1} of "
                           f"{len(cases)} cases", file=sys.stderr)
                     break
-                row = run_case(suite / name, Path(args.runs_dir), ex)
+                row = run_case(suite / name, Path(args.runs_dir), ex, args.progress)
                 done[name] = row
                 what = row.get("error") or (f"{row['score']['verdict']}; "
                                             f"{', '.join(row['score']['named']) or '-'}")

@@ -15,7 +15,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E
 from flex_model import ros_conversions as conv  # noqa: E402
 from flex_twin.bags import BagWriter  # noqa: E402
 from flex_twin.cli import main  # noqa: E402
-from flex_twin.diagnosis.cli import _link_topic  # noqa: E402
+from flex_twin.diagnosis.batch import RunSpec, expand_runs  # noqa: E402
 from flex_twin.diagnosis.recording import RecordingError, load_csv  # noqa: E402
 from flex_twin.diagnosis.ros_recording import LINK_TOPIC, load_bag  # noqa: E402
 from flex_twin.diagnosis.sources import load_recording  # noqa: E402
@@ -96,9 +96,30 @@ def test_a_bag_with_the_link_side_topic_is_the_csvs_recording(tmp_path):
     assert other.link_encoders() == [1]
     assert np.max(np.abs(other.channels["vl2"] - csv.channels["vl2"])) < 1e-12
     assert load_bag(tmp_path / "bag2", 2).link_encoders() == []
-    with _link_topic("/arm/link_side"):        # flex-twin diagnose --link-topic /arm/link_side
-        assert load_recording(tmp_path / "bag2", 2).link_encoders() == [1]
+    # the topic travels with the run (RunSpec.link_topic; --link-topic, a manifest's
+    # link_topic), not as a setting of the process that reads the bag
+    assert load_recording(tmp_path / "bag2", 2, "/arm/link_side").link_encoders() == [1]
     assert load_recording(tmp_path / "bag2", 2).link_encoders() == []
+
+
+def test_the_link_topic_travels_with_the_run_spec(tmp_path):
+    """--link-topic and a manifest's per-run link_topic become RunSpec.link_topic (a run
+    sent to a cluster's worker carries it); a run without one keeps the default (None)."""
+    import pickle
+    (tmp_path / "a.csv").write_text("t\n")
+    (tmp_path / "runs.yaml").write_text(yaml.safe_dump({"runs": [
+        {"data": "a.csv", "name": "own", "link_topic": "/arm07/link"},
+        {"data": "a.csv", "name": "default"}]}))
+    own, default = expand_runs([str(tmp_path / "runs.yaml")], "arm", "c.yaml", "/cli/link")
+    assert (own.link_topic, default.link_topic) == ("/arm07/link", "/cli/link")
+    assert expand_runs([str(tmp_path / "a.csv")], "arm", "c.yaml")[0].link_topic is None
+    assert pickle.loads(pickle.dumps(own)).link_topic == "/arm07/link"
+    with pytest.raises(ValueError, match="link_topic: got 'link side'"):
+        RunSpec("r", "a.csv", "arm", "c.yaml", link_topic="link side")
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"runs": [
+        {"data": "a.csv", "link_topic": "no/slash"}]}))
+    with pytest.raises(ValueError, match="link_topic"):
+        expand_runs([str(tmp_path / "bad.yaml")], "arm", "c.yaml")
 
 
 def _refusal(tmp_path, capsys, name, link, match, extra=()):

@@ -280,3 +280,39 @@ def test_intervals_cover_the_truth_with_coloured_residuals():
     assert sandwich >= 0.88 and plain < 0.5, (sandwich, plain)
     sandwich, plain = _coverage(0.0, trials=200)
     assert sandwich >= 0.88 and plain >= 0.9, (sandwich, plain)
+
+
+def test_a_named_effect_states_the_interval_of_its_fine_fit():
+    """The reported interval of an accepted effect is the one at its fine fit (its
+    Jacobian and its x), not the screening fit's: the two-mass bench's elasticity named
+    at k 520.7 N m/rad was stated with its first fit's interval (k 763, +-569)."""
+    from types import SimpleNamespace
+
+    from flex_twin.diagnosis.engine import Candidate, _fine_halfwidths, _split
+    from flex_twin.diagnosis.fitting import FitResult, confidence_intervals
+    from flex_twin.diagnosis.localise import effective_samples
+    rec = _run(NOMINAL, 1.0)
+    h = next(h for h in library_hypotheses(NOMINAL, rec, CTL)
+             if h.kind == "joint_elasticity" and h.target == "joint1")
+    n_ch, n_t = 4, 2000
+    ctx = SimpleNamespace(rec=SimpleNamespace(residual_channels=["q1", "q2", "v1", "v2"],
+                                              dt=2e-3))
+    rng = np.random.default_rng(3)
+    x_fine = np.array([2.0, 0.7])
+    fit = FitResult(np.ones(3), [(h, x_fine)], rng.standard_normal(n_ch * n_t), 1.0,
+                    rng.standard_normal((n_ch * n_t, 2)) * [1.0, 3.0], x_fine)
+    half = _fine_halfwidths(ctx, fit, x_fine)
+    expect, _, _ = confidence_intervals(fit, n_ch, 500, effective_samples(fit.r, n_ch))
+    assert np.allclose(half, expect, rtol=1e-12)
+    pick = Candidate("e", h.kind, h.target, h.names, [0.0, 0.0], [569.0, 1.2], [1.0, 1.0],
+                     0.0, 1.0, 1.0, 0.5, -1.0, 1.0, True, 2, 0.5)
+    (c,) = _split(pick, h, x_fine, NOMINAL, half)
+    # k = scale / x: its half-width scale * half / x^2 at the fine x
+    assert c.values[0] == pytest.approx(h.scale[0] / 2.0, rel=1e-12)
+    assert c.ci[0] == pytest.approx(h.scale[0] * half[0] / 4.0, rel=1e-12)
+    assert c.ci[1] == pytest.approx(h.scale[1] * half[1], rel=1e-12)
+    # a twin that kept a fit without the effect's Jacobian keeps the screening interval
+    assert _fine_halfwidths(ctx, FitResult(np.ones(3), [(h, x_fine)], fit.r, 1.0), x_fine) \
+        is None
+    assert _fine_halfwidths(ctx, fit, np.array([1.0, 0.7])) is None
+    assert _split(pick, h, x_fine, NOMINAL)[0].ci == [569.0, 1.2]

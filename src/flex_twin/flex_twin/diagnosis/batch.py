@@ -16,10 +16,12 @@ Manifest (paths relative to the manifest)::
         holdout: arm07/holdout.csv      # optional (default: the last 40 % of data)
         arm: arm07/nominal_arm.yaml     # optional when --arm is given
         controller: arm07/controller.yaml   # optional when --controller is given
+        link_topic: /arm07/link_encoders    # optional: the bag's link-side encoder topic
 """
 from __future__ import annotations
 
 import csv
+import dataclasses
 import glob
 import json
 import time
@@ -35,13 +37,22 @@ SUMMARY_COLUMNS = ("run", "verdict", "named", "nominal_holdout_J", "final_holdou
 
 @dataclass(frozen=True)
 class RunSpec:
-    """One run to diagnose (paths as strings: a task crosses process boundaries)."""
+    """One run to diagnose (paths as strings: a task crosses process boundaries).
+    ``link_topic``: the sensor_msgs/JointState topic of a bag's link-side encoders (None:
+    ``ros_recording.LINK_TOPIC``); it travels with the run to the worker that reads it."""
 
     name: str
     data: str
     arm: str
     controller: str
     holdout: str | None = None
+    link_topic: str | None = None
+
+    def __post_init__(self):
+        t = self.link_topic
+        if t is not None and (not t.startswith("/") or any(c.isspace() for c in t)):
+            raise ValueError(f"{self.name}: link_topic: got {t!r}; expected an absolute "
+                             "topic name such as /flex/link_encoders")
 
 
 def _is_run(path: Path) -> bool:
@@ -55,20 +66,20 @@ def _unique_names(runs: list) -> list:
     for r in runs:
         k = seen.get(r.name, 0)
         seen[r.name] = k + 1
-        out.append(r if k == 0 else RunSpec(f"{r.name}_{k + 1}", r.data, r.arm, r.controller,
-                                            r.holdout))
+        out.append(r if k == 0 else dataclasses.replace(r, name=f"{r.name}_{k + 1}"))
     return out
 
 
-def expand_runs(inputs, arm: str | None, controller: str | None) -> list:
+def expand_runs(inputs, arm: str | None, controller: str | None,
+                link_topic: str | None = None) -> list:
     """RunSpecs from data paths, folders (every CSV, .mcap and rosbag2 directory in them),
-    globs, or a manifest YAML (``runs:``); ``arm`` and ``controller`` apply to every run
-    that does not name its own."""
+    globs, or a manifest YAML (``runs:``); ``arm``, ``controller`` and ``link_topic``
+    apply to every run that does not name its own."""
     runs = []
     for item in inputs:
         p = Path(item)
         if p.suffix in (".yaml", ".yml") and p.is_file():
-            runs += _manifest_runs(p, arm, controller)
+            runs += _manifest_runs(p, arm, controller, link_topic)
             continue
         if p.is_dir() and not _is_run(p):
             found = sorted(q for q in p.iterdir() if _is_run(q))
@@ -89,13 +100,14 @@ def expand_runs(inputs, arm: str | None, controller: str | None) -> list:
             if arm is None or controller is None:
                 raise ValueError(f"{q}: --arm and --controller are needed for runs given "
                                  "by path (or name them per run in a manifest)")
-            runs.append(RunSpec(q.stem if q.is_file() else q.name, str(q), arm, controller))
+            runs.append(RunSpec(q.stem if q.is_file() else q.name, str(q), arm, controller,
+                                link_topic=link_topic))
     if not runs:
         raise ValueError("no run to diagnose")
     return _unique_names(runs)
 
 
-def _manifest_runs(path: Path, arm, controller) -> list:
+def _manifest_runs(path: Path, arm, controller, link_topic=None) -> list:
     f = Fields(read_yaml(path), str(path), "")
     base = path.parent
     out = []
@@ -115,9 +127,14 @@ def _manifest_runs(path: Path, arm, controller) -> list:
             return str(base / q)
 
         data = rel("data")
-        spec = RunSpec(rf.string("name", Path(data).stem), data,
-                       rel("arm", arm or ""), rel("controller", controller or ""),
-                       rel("holdout", "") or None)
+        topic = rf.string("link_topic") if rf.has("link_topic") else link_topic
+        try:
+            spec = RunSpec(rf.string("name", Path(data).stem), data,
+                           rel("arm", arm or ""), rel("controller", controller or ""),
+                           rel("holdout", "") or None, topic)
+        except ValueError:
+            raise rf.error("link_topic", topic, "an absolute topic name such as "
+                           "/flex/link_encoders") from None
         if not spec.arm or not spec.controller:
             key = "arm" if not spec.arm else "controller"
             raise rf.error(key, None, f"a path, or --{key} for every run")
@@ -147,8 +164,9 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
         raise ValueError(f"{run.controller}: {controller.n_joints} joints in the controller, "
                          f"{arm.n_links} in the arm {arm_path}")
     check_integrable(controller, arm)
-    fit = load_recording(run.data, arm.n_links)
-    holdout = load_recording(run.holdout, arm.n_links) if run.holdout else None
+    fit = load_recording(run.data, arm.n_links, run.link_topic)
+    holdout = load_recording(run.holdout, arm.n_links, run.link_topic) if run.holdout \
+        else None
     for path, rec in ((run.data, fit), (run.holdout, holdout)):
         if rec is not None and controller.period > 0 and \
                 rec.t[-1] - rec.t[0] < controller.period:

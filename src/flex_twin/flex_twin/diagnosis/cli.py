@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 
 #: default link-side encoder topic of a bag (kept equal to ros_recording.LINK_TOPIC, which
@@ -32,7 +31,7 @@ def add_diagnose_parser(sub) -> None:
     sp.add_argument("--link-topic", default=None, metavar="TOPIC", help="bags: the "
                     "sensor_msgs/JointState topic of the link-side encoders (name = joints of "
                     "/joint_states, position = ql<i>, velocity = vl<i>; default "
-                    f"{LINK_TOPIC}, read when the bag has it)")
+                    f"{LINK_TOPIC}, read when the bag has it; a manifest run's link_topic wins)")
     sp.add_argument("--arm", help="nominal arm YAML (or preset name); required unless a "
                     "manifest names each run's")
     sp.add_argument("--controller", help="controller YAML (flex_twin.diagnosis.controller); "
@@ -69,44 +68,24 @@ def _single_run(data) -> bool:
     return not any(ch in data[0] for ch in "*?[")
 
 
-@contextmanager
-def _link_topic(topic):
-    """Bags read in this process (and the local workers forked in the block) take their
-    link-side encoders from ``topic``."""
-    if not topic or topic == LINK_TOPIC:
-        yield
-        return
-    if not topic.startswith("/") or any(c.isspace() for c in topic):
+def _check_topic(topic):
+    """``--link-topic``: None (the default topic) or an absolute topic name."""
+    if topic is not None and (not topic.startswith("/") or any(c.isspace() for c in topic)):
         raise ValueError(f"--link-topic: got {topic!r}; expected an absolute topic name "
                          "such as /flex/link_encoders")
-    from . import ros_recording
-    saved = ros_recording.LINK_TOPIC
-    ros_recording.LINK_TOPIC = topic
-    try:
-        yield
-    finally:
-        ros_recording.LINK_TOPIC = saved
+    return topic
 
 
 def cmd_diagnose(args) -> int:
-    topic = getattr(args, "link_topic", None)
-    if topic and topic != LINK_TOPIC and getattr(args, "scheduler", None) and \
-            not _single_run(args.data):
-        raise ValueError("--link-topic with --scheduler: the cluster's workers read the "
-                         f"bags with the default {LINK_TOPIC}; publish the encoders there")
-    with _link_topic(topic):
-        return _diagnose(args)
-
-
-def _diagnose(args) -> int:
     from ..cluster import batch_executor
     from .batch import RunSpec, diagnose_many, diagnose_run, expand_runs, named_text
 
+    topic = _check_topic(getattr(args, "link_topic", None))
     if _single_run(args.data):
         if not args.arm or not args.controller:
             raise ValueError("--arm and --controller are needed (or a manifest YAML of runs)")
         run = RunSpec(Path(args.data[0]).stem, args.data[0], args.arm, args.controller,
-                      args.holdout)
+                      args.holdout, topic)
         with batch_executor(args.scheduler, args.workers) as ex:
             s = diagnose_run(run, args.out, args.gate, args.segment, not args.no_plots, ex,
                              progress=True, floor=not args.no_floor)
@@ -121,7 +100,7 @@ def _diagnose(args) -> int:
     if args.holdout:
         raise ValueError("--holdout names the held-out recording of a single run; give "
                          "several runs' held-out recordings in a manifest")
-    runs = expand_runs(args.data, args.arm, args.controller)
+    runs = expand_runs(args.data, args.arm, args.controller, topic)
     with batch_executor(args.scheduler, args.workers) as ex:
         rows = diagnose_many(runs, Path(args.out), ex, args.gate, args.segment,
                              not args.no_plots, floor=not args.no_floor,

@@ -8,11 +8,12 @@ from .recording import Recording, RecordingError, load_csv
 from .ros_recording import load_bag
 
 
-def load_recording(path, n_joints: int) -> Recording:
-    """A CSV file, or a rosbag2 directory / .mcap file (needs rclpy)."""
+def load_recording(path, n_joints: int, link_topic: str | None = None) -> Recording:
+    """A CSV file, or a rosbag2 directory / .mcap file (needs rclpy) whose link-side
+    encoders are on ``link_topic`` (default ``ros_recording.LINK_TOPIC``)."""
     path = Path(path)
     if not path.exists():
         raise RecordingError(f"{path}: no such file or directory")
     if path.is_dir() or path.suffix == ".mcap":
-        return load_bag(path, n_joints)
+        return load_bag(path, n_joints, link_topic)
     return load_csv(path, n_joints)
