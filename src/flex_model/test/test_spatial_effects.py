@@ -133,7 +133,7 @@ def test_friction_dissipates_and_holds():
     (lambda d: d["links"][1]["joint"].update(motor="stuck"), "links[1].joint.motor"),
     (lambda d: d["links"][0]["joint"].update(motor="locked"), "links[0].joint.motor"),
     (lambda d: d["links"][0]["joint"].update(locked_at=0.2), "links[0].joint.locked_at"),
-    (lambda d: d["effects"].append({"type": "backlash", "joint": "j2", "half_width": 0.01}),
+    (lambda d: d["effects"].append({"type": "cogging", "joint": "j2", "amplitude": 0.01}),
      "effects[7].type"),
     (lambda d: d["effects"][3].update(motor_inertia=0.0), "effects[3].motor_inertia"),
 ])

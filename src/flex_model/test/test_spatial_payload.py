@@ -2,10 +2,13 @@
 a rigid body at the last link's end frame, M_new - M = m Jp^T Jp + Jw^T R I R^T Jw with
 the end frame's Jacobians (rigid-body kinetic energy, no fitting), its gravity m g; the
 shallow model copy the node uses equals a model built anew."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
+from flex_model.spatial.description import RigidBody
 from flex_model.spatial.integrate import simulate_fixed_compiled
 from flex_model.spatial.payload import (model_with_payload, payload_inertia, with_payload)
 
@@ -39,6 +42,14 @@ def test_the_payload_adds_a_rigid_body_at_the_end_frame(name):
     np.testing.assert_array_equal(other.mass_matrix(q),
                                   SpatialArmModel(with_payload(arm, 2.0)).mass_matrix(q))
     assert with_payload(arm, 0.0) is arm
+    # an arm file's own payload (a tool) stays under the node's payload, in both ways
+    tool = replace(arm, payload=RigidBody(mass=0.3, offset=(0.01, 0.0, 0.02),
+                                          inertia=((1e-3, 0, 0), (0, 2e-3, 0), (0, 0, 1e-3))))
+    fast = model_with_payload(SpatialArmModel(tool), tool, m, inertia)
+    full = SpatialArmModel(with_payload(tool, m, inertia))
+    np.testing.assert_allclose(fast.mass_matrix(q), full.mass_matrix(q), rtol=0,
+                               atol=1e-13 * np.max(np.abs(full.mass_matrix(q))))
+    assert np.max(np.abs(full.mass_matrix(q) - loaded.mass_matrix(q))) > 1e-3
 
 
 @pytest.mark.parametrize("values,words", [

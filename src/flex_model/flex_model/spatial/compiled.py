@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from .. import integrators, kernels
-from ..integrators import galpha_parameters
+from ..integrators import dead_zone, galpha_parameters
 from ..kernels import cholesky, solve_chol
 from .dynamics import SpatialArmModel
 
@@ -782,6 +782,75 @@ def _effects(Q0, fric, v, Q, slope):
 
 
 @njit(cache=_CACHE)
+def _motor_torques(motors, cmd, effort, v, Q, slope):
+    """DC motors (dynamics.SpatialArmModel.actuator_force; seed 003 Eq. 48, inductance
+    neglected): the command of joint j is a voltage, tau = n K_t clip((clip(V, V_max) -
+    K_e n w) / R, i_max) clipped to effort[j], added to Q and its d/dv to slope (0 where a
+    clip is active); motors rows: joint, actuator coordinate, n, R, K_t, K_e, i_max,
+    V_max."""
+    for r in range(motors.shape[0]):
+        j = int(motors[r, 0])
+        a = int(motors[r, 1])
+        n, R, kt, ke, imax, vmax = motors[r, 2], motors[r, 3], motors[r, 4], motors[r, 5], \
+            motors[r, 6], motors[r, 7]
+        cur = (min(max(cmd[j], -vmax), vmax) - ke * n * v[a]) / R
+        ds = -n * kt * ke * n / R
+        if abs(cur) > imax:
+            cur = min(max(cur, -imax), imax)
+            ds = 0.0
+        tau = n * kt * cur
+        if abs(tau) > effort[j]:
+            tau = min(max(tau, -effort[j]), effort[j])
+            ds = 0.0
+        Q[a] += tau
+        slope[a] += ds
+
+
+@njit(cache=_CACHE)
+def _backlash(blash, q, v, Q, kt, sl):
+    """Backlash corrections of gear springs (dynamics.SpatialArmModel.effect_force):
+    x = theta_m - q_i, tau = k (dz(x) - x) + b (dz'(x) - 1) x' on q_i and -tau on the
+    motor coordinate; the tangent factors of row r (SpatialArmModel.backlash_tangent):
+    kt[r] = max(k dz' + b dz'' x', 0) - k, sl[r] = dz'(x) - 1. blash rows: q_i, motor
+    coordinate (-1: locked at the last column), k_t, b_t, half width, smoothing,
+    locked_at."""
+    for r in range(blash.shape[0]):
+        qi = int(blash[r, 0])
+        m = int(blash[r, 1])
+        k, b, half, sm = blash[r, 2], blash[r, 3], blash[r, 4], blash[r, 5]
+        if m >= 0:
+            x = q[m] - q[qi]
+            xd = v[m] - v[qi]
+        else:
+            x = blash[r, 6] - q[qi]
+            xd = -v[qi]
+        dz, s = dead_zone(x, half, sm)
+        tau = k * (dz - x) + b * (s - 1.0) * xd
+        Q[qi] += tau
+        if m >= 0:
+            Q[m] -= tau
+        rp = np.sqrt((x - half) ** 2 + sm * sm)
+        rm = np.sqrt((x + half) ** 2 + sm * sm)
+        curv = 0.5 * sm * sm * (1.0 / rp ** 3 - 1.0 / rm ** 3)
+        kt[r] = max(k * s + b * curv * xd, 0.0) - k
+        sl[r] = s - 1.0
+
+
+@njit(cache=_CACHE)
+def _backlash_tangent(blash, kt, sl, cq, cv, S):
+    """S += cq kt + cv b_t sl on each gear's [[1, -1], [-1, 1]] block (see _backlash)."""
+    for r in range(blash.shape[0]):
+        qi = int(blash[r, 0])
+        m = int(blash[r, 1])
+        g = cq * kt[r] + cv * blash[r, 3] * sl[r]
+        S[qi, qi] += g
+        if m >= 0:
+            S[m, m] += g
+            S[qi, m] -= g
+            S[m, qi] -= g
+
+
+@njit(cache=_CACHE)
 def _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1):
     """The generalized-alpha predictor-corrector (Arnold-Bruels): ab1 from the iterate a1,
     then q1, v1 (explicit loops: numba array expressions compile slowly)."""
@@ -807,15 +876,19 @@ def _hold(S, r, held):
 
 
 @njit(cache=_CACHE)
-def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, tol, max_iter,
-                acc, warm):
+def galpha_loop(Pm, K, D, Q0, fric, motors, blash, held, H, effort, q0, v0, h, tau,
+                rho_inf, tol, max_iter, acc, warm):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
     integrate.simulate_fixed: Newton on the accelerations with
     M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
     friction slope d Q_f/dv from the current iterate: the steep tanh needs it),
     the residual by the O(n) inverse dynamics of spatial_eval. ``tau`` (n_steps, n_joints):
     joint torques/forces held over step n (applied at t_{n+1}), clipped to +-``effort``;
-    generalized force H tau + Q0 + friction (``fric``, see _effects); ``held`` (nq, 0/1):
+    generalized force H tau + Q0 + friction (``fric``, see _effects); on the joints of
+    ``motors`` (see _motor_torques) tau is a voltage through the DC motor model (its
+    back-EMF slope in the Newton matrix, refreshed every iteration); ``blash``: the
+    backlash corrections of gear springs (see _backlash; their tangent refreshed every
+    iteration); ``held`` (nq, 0/1):
     coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
     the method, read as the start when ``warm`` (a continued run; else the consistent
     acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
@@ -832,7 +905,11 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
         for b_ in range(nq):
             if D[a_, b_] != 0.0:
                 has_d = True
-    has_f = fric.shape[0] > 0
+    has_f = fric.shape[0] > 0 or motors.shape[0] > 0 or blash.shape[0] > 0
+    has_m = motors.shape[0] > 0
+    has_b = blash.shape[0] > 0
+    sl = np.zeros(blash.shape[0])
+    kt = np.zeros(blash.shape[0])
     S0 = np.zeros((nq, nq))
     S = np.zeros((nq, nq))
     none = np.zeros((0, 0))
@@ -852,8 +929,14 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
     vs[0] = v
     for j in range(nj):
         u[j] = min(max(tau[0, j], -effort[j]), effort[j])
+    for r_ in range(motors.shape[0]):
+        u[int(motors[r_, 0])] = 0.0     # a voltage: through the motor model
     M, c = spatial_eval(Pm, q, v, np.zeros(nq), nq > 0)
     _effects(Q0, fric, v, Qe, slope)
+    if has_m:
+        _motor_torques(motors, tau[0], effort, v, Qe, slope)
+    if has_b:
+        _backlash(blash, q, v, Qe, kt, sl)
     Hu, Kq, Dv = _matvec(H, u), _matvec(K, q), _matvec(D, v)
     for j in range(nq):
         r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
@@ -872,6 +955,8 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
     for n in range(n_steps):
         for j in range(nj):
             u[j] = min(max(tau[n, j], -effort[j]), effort[j])
+        for r_ in range(motors.shape[0]):
+            u[int(motors[r_, 0])] = 0.0
         Q = _matvec(H, u)
         a1[:] = a
         Lc = S0
@@ -881,6 +966,10 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
             # residual M a + c + K q + D v - Q - Q_e by inverse dynamics; M once a step
             M1, f1 = spatial_eval(Pm, q1, v1, a1, it == 0)
             _effects(Q0, fric, v1, Qe, slope)
+            if has_m:
+                _motor_torques(motors, tau[n], effort, v1, Qe, slope)
+            if has_b:
+                _backlash(blash, q1, v1, Qe, kt, sl)
             Kq = _matvec(K, q1)
             if has_d:
                 Dv = _matvec(D, v1)
@@ -895,6 +984,8 @@ def galpha_loop(Pm, K, D, Q0, fric, held, H, effort, q0, v0, h, tau, rho_inf, to
                     for b_ in range(nq):
                         S[j, b_] = S0[j, b_]
                     S[j, j] -= cv * slope[j]
+                if has_b:
+                    _backlash_tangent(blash, kt, sl, cq, cv, S)
                 _hold(S, r, held)
                 Lc = cholesky(S)
                 if Lc.shape[0] != nq:   # not positive definite: this step fails

@@ -44,6 +44,12 @@ Trans_z(d) Rot_z(theta), or frame i for ``aux_z``) and ``end_body`` (in the link
 end frame i) are rigid bodies: ``mass`` (kg), ``inertia`` (kg m^2 about their centre,
 3 diagonal values or a 3 x 3 matrix), ``offset`` (m, centre in that frame). A section
 value may be a ``[root, tip]`` pair (linear taper).
+
+Optional top-level keys: ``effects`` (flex_model.effects classes, SPATIAL_EFFECTS:
+joint effects and ``structural_damping`` of flexible links; see dynamics.py),
+``payload`` (a rigid body as ``end_body``, in the last link's end frame, lumped with
+it by the model) and ``sensors`` (flex_model.sensors fields, the kinds of
+spatial/sensors.py).
 """
 from __future__ import annotations
 
@@ -61,7 +67,8 @@ JOINT_TYPES = ("revolute", "prismatic")
 MOTOR_STATES = ("active", "locked")
 GEAR_TYPES = ("rigid", "elastic")
 #: effects of spatial joints (flex_model.effects classes, same YAML names and bounds)
-SPATIAL_EFFECTS = ("gear", "joint_elasticity", "joint_friction")
+SPATIAL_EFFECTS = ("gear", "joint_elasticity", "joint_friction", "dc_motor",
+                   "structural_damping", "backlash")
 PLACEMENTS = ("dh_x", "aux_z")
 #: placements of flexible links built from a URDF (not a YAML field): ``link_x`` is a beam
 #: along the x axis of the link (joint) frame from its origin; the link's end frame is the
@@ -83,6 +90,22 @@ class RigidBody:
     @property
     def is_empty(self) -> bool:
         return self.mass == 0.0 and not np.any(np.asarray(self.inertia))
+
+
+def lump_bodies(bodies) -> RigidBody:
+    """One rigid body equal to the bodies (m, c, I_c) given in one frame (parallel axes:
+    I = sum I_c + m (|d|^2 E - d d^T) about the common centre)."""
+    m = sum(b[0] for b in bodies)
+    if m <= 0.0:
+        I = sum((np.asarray(b[2], float) for b in bodies), np.zeros((3, 3)))
+        return RigidBody(inertia=tuple(map(tuple, I)))
+    c = sum(b[0] * np.asarray(b[1], float) for b in bodies) / m
+    I = np.zeros((3, 3))
+    for mb, cb, Ib in bodies:
+        d = np.asarray(cb, float) - c
+        I += np.asarray(Ib, float) + mb * (d @ d * np.eye(3) - np.outer(d, d))
+    return RigidBody(mass=float(m), offset=tuple(float(v) for v in c),
+                     inertia=tuple(map(tuple, 0.5 * (I + I.T))))
 
 
 @dataclass(frozen=True)
@@ -162,6 +185,10 @@ class SpatialArm:
     source: str = "<memory>"
     convention: str = "standard_dh"
     effects: tuple = ()
+    #: a rigid body in the last link's end frame, lumped with its end body by the model
+    payload: RigidBody = RigidBody()
+    #: flex_model.sensors.Sensor objects (spatial/sensors.py: the kinds of spatial arms)
+    sensors: tuple = ()
 
     @property
     def n_links(self) -> int:
@@ -283,11 +310,25 @@ def _joint_effects(f: Fields, links: list, source: str) -> tuple:
             raise ConfigError(source, path + ".motor", "locked",
                               f"active, or no joint_friction effect on {j.name} (a locked "
                               "motor does not move: its friction does nothing)")
+        if j.motor == "locked" and ("dc_motor", j.name) in kinds:
+            raise ConfigError(source, path + ".motor", "locked",
+                              f"active, or no dc_motor effect on {j.name} (a locked motor "
+                              "takes no voltage)")
         if j.motor == "active" and j.locked_at != 0.0:
             raise ConfigError(source, path + ".locked_at", j.locked_at,
                               "no locked_at on an active motor (motor: locked)")
         out.append(dataclasses.replace(lk, joint=dataclasses.replace(
             j, gear="elastic" if elastic else "rigid")))
+    for k, e in enumerate(effects):
+        if e.TYPE == "backlash" and not e.is_off and ("joint_elasticity", e.target) not in kinds:
+            raise ConfigError(source, f"effects[{k}].type", "backlash",
+                              f"an elastic gear on {e.target} (a joint_elasticity effect with "
+                              "a finite stiffness: backlash is a dead zone of its spring)")
+        if e.TYPE == "structural_damping" and \
+                next(lk for lk in links if lk.name == e.target).flexible is None:
+            raise ConfigError(source, f"effects[{k}].link", e.target,
+                              "a flexible link (structural_damping damps a link's "
+                              "deformation)")
     return effects, out
 
 
@@ -429,9 +470,15 @@ def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     if len(set(names)) != len(names):
         raise f.error("links", names, "unique joint names")
     effects, links = _joint_effects(f, links, source)
-    f.done(["name", "description", "convention", "gravity", "links", "effects"])
+    payload = _body(f.mapping("payload")) if f.has("payload") else RigidBody()
+    from .sensors import parse_sensors
+    sensors = parse_sensors(f.items("sensors", []), source, names,
+                            [lk.name for lk in links]) if f.has("sensors") else ()
+    f.done(["name", "description", "convention", "gravity", "links", "effects", "payload",
+            "sensors"])
     return SpatialArm(name=name, links=tuple(links), gravity=gravity, description=description,
-                      source=source, convention=convention, effects=effects)
+                      source=source, convention=convention, effects=effects, payload=payload,
+                      sensors=sensors)
 
 
 def load_spatial_arm(name_or_path) -> SpatialArm:
@@ -452,11 +499,11 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
     in-plane profile is the planar one (any section, taper or segments); the data a planar
     file lacks are chosen: EI_y = ``out_of_plane_stiffness`` x EI_z, GJ =
     ``torsion_stiffness`` (default the mean EI / 1.3) and rhoJ = ``torsion_inertia``
-    (default mean m (L/200)^2). M-, J- become the root body (J about z), M+, J+ (and the
-    payload on the last link) the end body. Gravity (g_x, g_y) -> (g_x, g_y, 0). Only
-    ``wavelet`` links with ``small_deflection`` kinematics and the effects of
-    SPATIAL_EFFECTS (gear, joint_elasticity, joint_friction: same objects) are accepted.
-    """
+    (default mean m (L/200)^2). M-, J- become the root body (J about z), M+, J+ the end
+    body, the payload (J about z) the arm's ``payload`` (lumped with the last end body).
+    Gravity (g_x, g_y) -> (g_x, g_y, 0). Only ``wavelet`` links with
+    ``small_deflection`` kinematics and the effects of SPATIAL_EFFECTS (same objects)
+    are accepted."""
     if arm.kinematics != "small_deflection":
         raise ConfigError(arm.source, "kinematics", arm.kinematics,
                           "small_deflection (second_order is not in the spatial core yet)")
@@ -478,9 +525,7 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
         segs_w = [s.scaled(stiffness=out_of_plane_stiffness) for s in prof.segments]
         gj = ei_mean / 1.3 if torsion_stiffness is None else torsion_stiffness
         rj = m_mean * (lk.length / 200.0) ** 2 if torsion_inertia is None else torsion_inertia
-        last = i == arm.n_links - 1
-        m_plus = lk.M_plus + (arm.payload_mass if last else 0.0)
-        j_plus = lk.J_plus + (arm.payload_inertia if last else 0.0)
+        m_plus, j_plus = lk.M_plus, lk.J_plus
         beam = FlexibleBeam(length=lk.length, bend_v=prof, bend_w=SectionProfile(segs_w),
                             torsion=explicit_profile(lk.length, gj, rj), variables=lk.n_vars,
                             torsion_variables=lk.n_vars, placement="dh_x")
@@ -492,9 +537,11 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
             end_body=RigidBody(mass=m_plus, inertia=tuple(map(tuple, np.diag(
                 [0.0, 0.0, j_plus]))))))
     g = tuple(arm.gravity) + (0.0,)
+    payload = RigidBody(mass=arm.payload_mass, inertia=tuple(map(tuple, np.diag(
+        [0.0, 0.0, arm.payload_inertia]))))
     return SpatialArm(name=arm.name + "_3d", links=tuple(links), gravity=g,
                       description=arm.description, source=arm.source,
-                      effects=tuple(arm.effects))
+                      effects=tuple(arm.effects), payload=payload)
 
 
 def rigid_dh_table(arm: SpatialArm) -> np.ndarray:

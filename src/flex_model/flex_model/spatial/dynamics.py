@@ -38,17 +38,87 @@ options, description.SpatialJoint):
   gyroscopic torque J_r (e . omega_r) omega_s x e).
 - ``joint_friction``: tau_f(theta_a') (viscous, Coulomb, Stribeck, tanh-regularized,
   effects.friction.JointFriction.torque) on the actuator coordinate theta_a.
+- ``dc_motor`` (R, K_t, K_e, i_max, V_max; seed 003 Eqs. 43, 48 with the armature
+  inductance neglected, as the planar model): the joint's command is a voltage V and
+  tau = n K_t clip((clip(V, V_max) - K_e n theta_a') / R, i_max), n the ratio of a
+  ``gear`` on the joint (1 without; its rotor_inertia is the armature inertia), then
+  clipped to the URDF effort limit (:meth:`SpatialArmModel.actuator_force`).
+
+- ``backlash`` (half_width b_g, smoothing; needs the joint's elastic gear): the gear
+  spring gets the planar dead zone (effects.joint_elasticity.Backlash,
+  integrators.dead_zone): tau_s = k_t dz(x) + b_t dz'(x) x', x = theta_m - q_i (theta_m
+  = locked_at for a locked motor). K and D keep the engaged (linear) spring, so statics,
+  modes, the planner and the PD equilibria see the engaged gear; the dynamics add the
+  correction k_t (dz(x) - x) + b_t (dz'(x) - 1) x' (:meth:`SpatialArmModel.effect_force`
+  with q) and its tangent in the Newton matrix (:meth:`SpatialArmModel.backlash_tangent`).
+
+Link effects:
+
+- ``structural_damping`` (thesis Eqs. 35-36 and Rayleigh, effects.structural_damping):
+  D_link += k_a S1 per bending plane (S1 = int w' w'^T dz of that plane's basis: the
+  weak form of -k_a d^3 d / dt dz^2, Eq. 35; not on the twist: k_a is a bending
+  coefficient, N s) + a M_ff + b K_ff on the link's whole deformation block (both
+  planes and the twist), M_ff the link's clamped deformation inertia: the deformation
+  block of the mass matrix of the link alone at rest (its beam and end body, joint
+  clamped; not the arm's payload), as the planar M_ff (beam + M+, J+, no payload). For a
+  single flexible link with clamped joints and no payload the modal damping ratios are
+  zeta_k = a / (2 w_k) + b w_k / 2 in every plane.
+
+Arm data: ``payload`` (a rigid body in the last link's end frame) is lumped with the last
+link's end body (parallel-axis theorem, :func:`combine_bodies`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..basis import link_basis
+from ..integrators import dead_zone
 from .description import SpatialArm
 from .kinematics import P_AUX, Frame, cross, point_jacobians, rot_x, rot_y, rot_z, skew
 
 _XI, _WXI = np.polynomial.legendre.leggauss(6)
 _H = 1e-20   # complex step
+
+
+def dead_zone_potential(x: float, half: float, smooth: float) -> float:
+    """int_0^x dz(y) dy of integrators.dead_zone (the potential of a gear spring with
+    backlash, divided by k): P(x - b) - P(-b) + P2(x + b) - P2(b) with
+    P(z) = (z^2 + z r + s^2 ln(z + r)) / 4, P2(z) = (z^2 - z r + s^2 ln(r - z)) / 4,
+    r = sqrt(z^2 + s^2); the logarithms in the form without cancellation."""
+    def log_plus(z):                       # ln(z + r), stable for z < 0
+        r = np.hypot(z, smooth)
+        return r, (np.log(z + r) if z >= 0 else np.log(smooth * smooth / (r - z)))
+
+    def p1(z):
+        r, lg = log_plus(z)
+        return 0.25 * (z * z + z * r + smooth * smooth * lg)
+
+    def p2(z):
+        r, lg = log_plus(-z)               # ln(r - z)
+        return 0.25 * (z * z - z * r + smooth * smooth * lg)
+    return float(p1(x - half) - p1(-half) + p2(x + half) - p2(half))
+
+
+def dead_zone_curvature(x: float, half: float, smooth: float) -> float:
+    """d^2 dz / dx^2 of integrators.dead_zone: s^2 / 2 (1 / r_+^3 - 1 / r_-^3)."""
+    rp = np.hypot(x - half, smooth)
+    rm = np.hypot(x + half, smooth)
+    return float(0.5 * smooth * smooth * (1.0 / rp ** 3 - 1.0 / rm ** 3))
+
+
+def combine_bodies(a, b):
+    """One rigid body (mass, centre, inertia about the centre) equal to the bodies ``a``
+    and ``b`` (each (mass, centre (3), inertia (3 x 3)) or None) fixed in one frame:
+    the parallel-axis theorem I = sum I_k + m_k (|d_k|^2 E - d_k d_k^T), d_k = c_k - c."""
+    if a is None or b is None:
+        return a if b is None else b
+    m = a[0] + b[0]
+    c = (a[0] * a[1] + b[0] * b[1]) / m if m > 0 else 0.5 * (a[1] + b[1])
+    inertia = np.zeros((3, 3))
+    for mk, ck, Ik in (a, b):
+        d = ck - c
+        inertia += Ik + mk * (d @ d * np.eye(3) - np.outer(d, d))
+    return m, c, inertia
 
 
 def friction_slope(values, w: float) -> float:
@@ -158,7 +228,12 @@ class SpatialArmModel:
                 bodies.append(None if body.is_empty else
                               (body.mass, np.asarray(body.offset, float),
                                np.asarray(body.inertia, float)))
+            pay = getattr(arm, "payload", None)
+            if lk is arm.links[-1] and pay is not None and not pay.is_empty:
+                bodies[1] = combine_bodies(bodies[1], (pay.mass, np.asarray(
+                    pay.offset, float), np.asarray(pay.inertia, float)))
             self._consts.append((pre, dh_rest, bodies))
+        self._structural_damping()
 
     # ------------------------------------------------------------ joint effects
     def _joint_effects(self):
@@ -184,6 +259,7 @@ class SpatialArmModel:
         # rotors: (J_r, n, spin coordinate or -1) per joint (J_r = 0: none)
         self.rotors = []
         self.friction = []          # (actuator coordinate, JointFriction effect)
+        self.motors = []            # (joint, actuator coordinate, gear ratio, DCMotor)
         for i, lk in enumerate(arm.links):
             g = arm.effect("gear", lk.joint.name)
             self.rotors.append((0.0, 1.0, -1) if g is None else
@@ -191,6 +267,10 @@ class SpatialArmModel:
             f = arm.effect("joint_friction", lk.joint.name)
             if f is not None and not f.is_off and self.actuator_index[i] >= 0:
                 self.friction.append((int(self.actuator_index[i]), f))
+            dc = arm.effect("dc_motor", lk.joint.name)
+            if dc is not None and self.actuator_index[i] >= 0:
+                self.motors.append((i, int(self.actuator_index[i]),
+                                    1.0 if g is None else g["ratio"], dc))
 
     def _fold_effects(self):
         """Springs and dampers of elastic gears into K and D, motor inertias into the
@@ -199,12 +279,19 @@ class SpatialArmModel:
         self.D = np.zeros((nq, nq))
         self.M_const = np.zeros((nq, nq))
         self.Q_const = np.zeros(nq)
+        #: gears with backlash: (q_i, motor coordinate or -1, k_t, b_t, half width,
+        #: smoothing, locked_at)
+        self.backlash = []
         for i, lk in enumerate(self.arm.links):
             e = self.arm.effect("joint_elasticity", lk.joint.name)
             if lk.joint.gear != "elastic" or e is None:
                 continue
             k, b, jm = e["stiffness"], e["damping"], e["motor_inertia"]
             qi, m = self.off[i], self.motor_index[i]
+            bl = self.arm.effect("backlash", lk.joint.name)
+            if bl is not None and not bl.is_off:
+                self.backlash.append((int(qi), int(m), k, b, bl["half_width"],
+                                      bl["smoothing"], lk.joint.locked_at))
             if m >= 0:
                 idx = np.array([qi, m])
                 blk = np.array([[1.0, -1.0], [-1.0, 1.0]])
@@ -216,13 +303,103 @@ class SpatialArmModel:
                 self.D[qi, qi] += b
                 self.Q_const[qi] += k * lk.joint.locked_at
 
-    def effect_force(self, v) -> np.ndarray:
+    def _structural_damping(self):
+        """``structural_damping`` effects into D (see the module docstring)."""
+        for i, lk in enumerate(self.arm.links):
+            e = self.arm.effect("structural_damping", lk.name)
+            if e is None or e.is_off or self.beams[i] is None:
+                continue
+            s = self.flex_slice(i)
+            self.D[s, s] += self.structural_damping_block(i, *e.values)
+
+    def structural_damping_block(self, i: int, k_a: float, a: float, b: float) -> np.ndarray:
+        """k_a S1 per bending plane + a M_ff + b K_ff of flexible link i (module
+        docstring; thesis Eqs. 35-36 and Rayleigh)."""
+        import dataclasses
+
+        from .description import SpatialArm
+        bd = self.beams[i]
+        nv = bd.nv
+        blk = np.zeros((bd.n, bd.n))
+        if k_a:
+            blk[:nv, :nv] += k_a * bd.bv.S1
+            blk[nv:2 * nv, nv:2 * nv] += k_a * bd.bw.S1
+        if a:       # the link alone with its end body (not the payload), joint clamped
+            lk = self.arm.links[i]
+            alone = dataclasses.replace(lk, joint=dataclasses.replace(
+                lk.joint, motor="active", gear="rigid"))
+            sub = SpatialArmModel(SpatialArm(name="alone", links=(alone,),
+                                             gravity=(0.0, 0.0, 0.0)))
+            blk += a * sub.mass_matrix(np.zeros(sub.nq))[1:, 1:]
+        if b:
+            blk += b * bd.K
+        return 0.5 * (blk + blk.T)
+
+    def actuator_force(self, u, v, effort=None):
+        """(Q, slope): the generalized force of the joint commands ``u`` (n_joints: torques
+        or forces; a voltage on a ``dc_motor`` joint, through the motor model) on the
+        actuator coordinates, clipped to ``effort`` (n_joints, default none), and
+        d Q / dv (diagonal: the motors' back-EMF, 0 where a clip is active)."""
+        u = np.asarray(u, float)
+        effort = np.full(self.n_links, np.inf) if effort is None else np.asarray(effort, float)
+        Q = np.zeros(self.nq)
+        slope = np.zeros(self.nq)
+        motor = {i: (n, e) for i, _, n, e in self.motors}
+        for i, a in enumerate(self.actuator_index):
+            if a < 0:
+                continue
+            if i not in motor:
+                Q[a] += min(max(u[i], -effort[i]), effort[i])
+                continue
+            n, e = motor[i]
+            R, kt, ke, imax, vmax = e.values
+            cur = (min(max(u[i], -vmax), vmax) - ke * n * v[a]) / R
+            ds = -n * kt * ke * n / R
+            if abs(cur) > imax:
+                cur, ds = float(np.clip(cur, -imax, imax)), 0.0
+            tau = n * kt * cur
+            if abs(tau) > effort[i]:
+                tau, ds = float(np.clip(tau, -effort[i], effort[i])), 0.0
+            Q[a] += tau
+            slope[a] += ds
+        return Q, slope
+
+    def effect_force(self, v, q=None) -> np.ndarray:
         """Generalized force of the joint effects that is not in K and D: the locked
-        motors' spring preload and the friction torques (N m or N)."""
+        motors' spring preload and the friction torques (N m or N); with ``q``, the
+        backlash correction of the gear springs (module docstring)."""
         Q = self.Q_const.copy()
         for a, f in self.friction:
             Q[a] += float(f.torque(v[a]))
+        if q is not None:
+            for qi, m, k, b, half, smooth, locked_at, x, xd in self._gaps(q, v):
+                dz, sl = dead_zone(x, half, smooth)
+                tau = k * (dz - x) + b * (sl - 1.0) * xd
+                Q[qi] += tau
+                if m >= 0:
+                    Q[m] -= tau
         return Q
+
+    def _gaps(self, q, v):
+        for qi, m, k, b, half, smooth, locked_at in self.backlash:
+            x = (q[m] if m >= 0 else locked_at) - q[qi]
+            xd = (v[m] if m >= 0 else 0.0) - v[qi]
+            yield qi, m, k, b, half, smooth, locked_at, float(x), float(xd)
+
+    def backlash_tangent(self, q, v):
+        """(K_b, D_b): the tangent of the backlash corrections for the Newton matrix,
+        on the gear's [[1, -1], [-1, 1]] block: max(k_t dz' + b_t dz'' x', 0) - k_t (the
+        tangent stiffness, kept >= 0 so the matrix stays positive definite) and
+        b_t (dz' - 1)."""
+        Kb, Db = np.zeros((self.nq, self.nq)), np.zeros((self.nq, self.nq))
+        for qi, m, k, b, half, smooth, _, x, xd in self._gaps(q, v):
+            sl = dead_zone(x, half, smooth)[1]
+            kt = max(k * sl + b * dead_zone_curvature(x, half, smooth) * xd, 0.0) - k
+            idx = [qi] if m < 0 else [qi, m]
+            blk = np.array([[1.0]]) if m < 0 else np.array([[1.0, -1.0], [-1.0, 1.0]])
+            Kb[np.ix_(idx, idx)] += kt * blk
+            Db[np.ix_(idx, idx)] += b * (sl - 1.0) * blk
+        return Kb, Db
 
     def effect_force_slope(self, v) -> np.ndarray:
         """d effect_force / dv (diagonal, <= 0): the friction slopes."""
@@ -453,7 +630,8 @@ class SpatialArmModel:
         the held joints (zero acceleration)."""
         v = np.asarray(v, float)
         M, c = self.terms(q, v)
-        rhs = -c - self.K @ np.asarray(q, float) - self.D @ v + self.effect_force(v)
+        rhs = -c - self.K @ np.asarray(q, float) - self.D @ v + \
+            self.effect_force(v, q if self.backlash else None)
         if Q is not None:
             rhs = rhs + Q
         free = self.free_indices
@@ -469,7 +647,9 @@ class SpatialArmModel:
     def energy(self, q, v) -> dict:
         q, v = np.asarray(q, float), np.asarray(v, float)
         return {"kinetic": float(0.5 * v @ self.mass_matrix(q) @ v),
-                "elastic": float(0.5 * q @ self.K @ q - self.Q_const @ q),
+                "elastic": float(0.5 * q @ self.K @ q - self.Q_const @ q + sum(
+                    k * (dead_zone_potential(x, half, smooth) - 0.5 * x * x)
+                    for _, _, k, _, half, smooth, _, x, _ in self._gaps(q, v))),
                 "gravity": self.gravity_potential(q)}
 
     def total_energy(self, q, v) -> float:

@@ -14,8 +14,11 @@
   the URDF effort limits.
 
 ``force(t, q, v)`` returns the generalized applied force Q (nq), e.g. ``H tau`` with
-``H = joint_input_matrix(model)``. The joint effects (dynamics.py) are always in: the
-springs and dampers of elastic gears (model.K, model.D), friction and the locked motors'
+``H = joint_input_matrix(model)``. ``joint_commands`` are joint torques/forces, or
+voltages on ``dc_motor`` joints, put through the motor model and the effort limits by
+``model.actuator_force`` (velocity dependent: its slope enters the Newton matrix). The
+joint effects (dynamics.py) are always in: the springs and dampers of elastic gears
+(model.K, model.D; structural damping in model.D), friction and the locked motors'
 preload (model.effect_force, its slope in the Newton matrix), held joints (zero
 acceleration: their rows and columns of the Newton matrix are the identity).
 """
@@ -58,9 +61,12 @@ def _solve_free(model, M, rhs):
 
 
 def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: float = 1e-11,
-                      atol: float = 1e-13, compiled: bool = False) -> SpatialRun:
+                      atol: float = 1e-13, compiled: bool = False,
+                      joint_commands=None) -> SpatialRun:
     """Integrate with DOP853 and report at the times ``t_out`` (s); ``compiled``: M, c
-    from the compiled kernels (compiled.py, equal to the Python reference to 1e-10)."""
+    from the compiled kernels (compiled.py, equal to the Python reference to 1e-10).
+    ``joint_commands(t)``: the joint commands (n_joints; voltages on dc_motor joints)
+    through ``model.actuator_force`` (URDF effort limits applied)."""
     nq = model.nq
     t_out = np.asarray(t_out, float)
     terms = model.terms
@@ -71,10 +77,17 @@ def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: f
     def rhs(t, x):
         q, v = x[:nq], x[nq:]
         M, c = terms(q, v)
-        Q = -model.K @ q - c - model.D @ v + model.effect_force(v)
+        Q = -model.K @ q - c - model.D @ v + \
+            model.effect_force(v, q if model.backlash else None)
         if force is not None:
             Q = Q + force(t, q, v)
+        if joint_commands is not None:
+            Q = Q + model.actuator_force(joint_commands(t), v, effort)[0]
         return np.concatenate([v, _solve_free(model, M, Q)])
+
+    if joint_commands is not None:
+        from .limits import joint_limits
+        effort = joint_limits(model.arm)["effort"]
 
     sol = solve_ivp(rhs, (t_out[0], t_out[-1]), np.concatenate([q0, v0]), method="DOP853",
                     t_eval=t_out, rtol=rtol, atol=atol)
@@ -85,26 +98,46 @@ def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: f
 
 def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force=None,
                    rho_inf: float = 0.9, tol: float = 1e-10, max_iter: int = 20,
-                   damping=None) -> SpatialRun:
+                   damping=None, joint_commands=None,
+                   clip_to_effort: bool = True) -> SpatialRun:
     """Generalized-alpha with step ``h`` (s) for ``n_steps`` steps; ``damping`` an optional
-    constant matrix D (force -D v), added to the model's joint dampers."""
+    constant matrix D (force -D v), added to the model's joint dampers.
+    ``joint_commands``: None or (n_steps, n_joints) joint commands (torques, forces;
+    voltages on dc_motor joints), row n held over step n (row 0 also at t = 0), as
+    :func:`simulate_fixed_compiled`'s ``joint_torques``, through ``model.actuator_force``
+    (clipped to the URDF effort limits when ``clip_to_effort``)."""
     am, af, gam, beta = galpha_parameters(rho_inf)
     D = model.D + (0.0 if damping is None else np.asarray(damping, float))
     K = model.K
     held = model.held
+    cmd = None
+    if joint_commands is not None:
+        from .limits import joint_limits
+        cmd = np.broadcast_to(np.asarray(joint_commands, float), (n_steps, model.n_links))
+        effort = joint_limits(model.arm)["effort"] if clip_to_effort else None
+    nonlinear = bool(model.friction) or (cmd is not None and bool(model.motors)) or \
+        bool(model.backlash)
+    gaps = bool(model.backlash)
 
-    def residual(t, q, v, a):
+    def residual(t, q, v, a, n):
         M, c = model.terms(q, v)
-        r = M @ a + c + K @ q + D @ v - model.effect_force(v)
+        r = M @ a + c + K @ q + D @ v - model.effect_force(v, q if gaps else None)
         if force is not None:
             r -= force(t, q, v)
+        slope = model.effect_force_slope(v)
+        if cmd is not None:
+            Qu, s_u = model.actuator_force(cmd[n], v, effort)
+            r -= Qu
+            slope = slope + s_u
         r[held] = 0.0
-        return r, M
+        return r, M, slope
 
     q, v = np.array(q0, float), np.array(v0, float)
     M, c = model.terms(q, v)
-    Q0 = -c - K @ q - D @ v + model.effect_force(v) + \
+    Q0 = -c - K @ q - D @ v + model.effect_force(v, q if gaps else None) + \
         (force(0.0, q, v) if force is not None else 0.0)
+    if cmd is not None:
+        Q0 = Q0 + model.actuator_force(cmd[0], v, effort)[0]
     a = _solve_free(model, M, Q0)
     abar = a.copy()
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
@@ -119,12 +152,15 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
             ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
             q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
             v1 = v + h * ((1 - gam) * abar + gam * ab1)
-            r, M1 = residual(t1, q1, v1, a1)
+            r, M1, slope = residual(t1, q1, v1, a1, n)
             if lu is None:
                 S0 = M1 + cq * K + cv * D
-            if lu is None or model.friction:  # iteration matrix, frozen for the step but
-                # for the friction slope (steep tanh: from the current iterate)
-                S = S0 - cv * np.diag(model.effect_force_slope(v1))
+            if lu is None or nonlinear:  # iteration matrix, frozen for the step but
+                # for the friction and motor slopes (steep tanh: from the current iterate)
+                S = S0 - cv * np.diag(slope)
+                if gaps:
+                    Kb, Db = model.backlash_tangent(q1, v1)
+                    S = S + cq * Kb + cv * Db
                 S[held, :] = 0.0
                 S[:, held] = 0.0
                 S[held, held] = 1.0
@@ -155,9 +191,11 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
     t_{n+1}, as simulate_fixed's ``force(t_{n+1})``); clipped to the URDF effort limits
     when ``clip_to_effort`` (inside the compiled loop, as limits.clip_efforts does)).
-    ``acceleration``: the (a, abar) of a previous run's ``acceleration`` to continue it
-    from its last state (q0, v0) without a restart: two runs chained this way equal one
-    run over both; None restarts with the consistent acceleration."""
+    On ``dc_motor`` joints the command is a voltage (the motor model of
+    ``model.actuator_force``, then the effort clip). ``acceleration``: the (a, abar) of a
+    previous run's ``acceleration`` to continue it from its last state (q0, v0) without
+    a restart: two runs chained this way equal one run over both; None restarts with
+    the consistent acceleration."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
@@ -171,13 +209,16 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     effort = joint_limits(model.arm)["effort"] if clip_to_effort else np.full(nj, np.inf)
     D = model.D + (0.0 if damping is None else np.asarray(damping, float))
     fric = np.array([[a, *f.values] for a, f in model.friction], float).reshape(-1, 6)
+    motors = np.array([[j, a, n, *e.values] for j, a, n, e in model.motors],
+                      float).reshape(-1, 8)
+    blash = np.array(model.backlash, float).reshape(-1, 7)
     held = np.zeros(model.nq, np.int64)
     held[model.held] = 1
     warm = acceleration is not None
     acc = np.array(acceleration, float).reshape(2, model.nq) if warm else \
         np.zeros((2, model.nq))
     qs, vs, iters = galpha_loop(data, np.ascontiguousarray(model.K), np.ascontiguousarray(D),
-                                model.Q_const.copy(), fric, held,
+                                model.Q_const.copy(), fric, motors, blash, held,
                                 joint_input_matrix(model), effort,
                                 np.asarray(q0, float).copy(), np.asarray(v0, float).copy(),
                                 float(h), tau, float(rho_inf), float(tol), int(max_iter),

@@ -20,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .description import RigidBody, SpatialArm
+from .description import SpatialArm, lump_bodies
 
 #: accepted lengths of a payload vector and their meaning
 LAYOUTS = {1: "[mass]", 2: "[mass, J_z]", 4: "[mass, Ixx, Iyy, Izz]",
@@ -56,26 +56,11 @@ def payload_inertia(values) -> tuple[float, np.ndarray]:
     return m, I
 
 
-def lump(bodies) -> RigidBody:
-    """One rigid body equal to bodies (m, c, I_c) given in one frame (parallel axes:
-    I = sum I_c + m (|d|^2 E - d d^T) about the common centre)."""
-    m = sum(b[0] for b in bodies)
-    if m <= 0.0:
-        I = sum((np.asarray(b[2], float) for b in bodies), np.zeros((3, 3)))
-        return RigidBody(inertia=tuple(map(tuple, I)))
-    c = sum(b[0] * np.asarray(b[1], float) for b in bodies) / m
-    I = np.zeros((3, 3))
-    for mb, cb, Ib in bodies:
-        d = np.asarray(cb, float) - c
-        I += np.asarray(Ib, float) + mb * (d @ d * np.eye(3) - np.outer(d, d))
-    return RigidBody(mass=float(m), offset=tuple(float(v) for v in c),
-                     inertia=tuple(map(tuple, 0.5 * (I + I.T))))
-
-
 def with_payload(arm: SpatialArm, mass: float, inertia=None) -> SpatialArm:
     """``arm`` with a payload (mass kg, 3 x 3 inertia about its centre, end frame) at the
-    origin of the last link's end frame, lumped into its end body. Mass 0 and no inertia
-    returns ``arm`` itself (bit-identical runs)."""
+    origin of the last link's end frame, lumped into its end body: on top of the arm
+    file's own ``payload`` (a tool, say), which the model lumps there too. Mass 0 and no
+    inertia returns ``arm`` itself (bit-identical runs)."""
     I = np.zeros((3, 3)) if inertia is None else np.asarray(inertia, float)
     if mass == 0.0 and not np.any(I):
         return arm
@@ -83,7 +68,7 @@ def with_payload(arm: SpatialArm, mass: float, inertia=None) -> SpatialArm:
     e = last.end_body
     parts = [] if e.is_empty else [(e.mass, e.offset, e.inertia)]
     parts.append((float(mass), (0.0, 0.0, 0.0), I))
-    links = arm.links[:-1] + (replace(last, end_body=lump(parts)),)
+    links = arm.links[:-1] + (replace(last, end_body=lump_bodies(parts)),)
     return replace(arm, links=links)
 
 
@@ -101,10 +86,13 @@ def model_with_payload(model, arm: SpatialArm, mass: float, inertia=None):
     if not isinstance(consts, list) or len(consts) != arm.n_links or \
             len(consts[-1]) != 3 or len(consts[-1][2]) != 2:
         return SpatialArmModel(new_arm)
-    body = new_arm.links[-1].end_body
+    from .dynamics import combine_bodies
     pre, dh_rest, (root, _) = consts[-1]
-    end = None if body.is_empty else (body.mass, np.asarray(body.offset, float),
-                                      np.asarray(body.inertia, float))
+    end = None
+    for body in (new_arm.links[-1].end_body, new_arm.payload):   # as SpatialArmModel does
+        if not body.is_empty:
+            end = combine_bodies(end, (body.mass, np.asarray(body.offset, float),
+                                       np.asarray(body.inertia, float)))
     new = copy.copy(model)
     new.arm = new_arm
     new._consts = consts[:-1] + [(pre, dh_rest, [root, end])]

@@ -136,10 +136,14 @@ class SpatialScenario:
                                          start=self.pd.setpoints), v0, hold
         from .analysis import static_equilibrium
         q0 = static_equilibrium(model, self.joint_values).q
+        gaps = {qi: (half, smooth) for qi, _, _, _, half, smooth, _ in model.backlash}
         for i, m in enumerate(model.motor_index):   # elastic gears: the spring carries
             if m >= 0:                               # the holding torque
                 e = self.arm.effect("joint_elasticity", self.arm.links[i].joint.name)
-                q0[m] = q0[model.off[i]] + hold[i] / e["stiffness"]
+                x = hold[i] / e["stiffness"]
+                if model.off[i] in gaps:             # backlash: k dz(x) = hold
+                    x = _dead_zone_inverse(x, *gaps[model.off[i]])
+                q0[m] = q0[model.off[i]] + x
         return q0, v0, hold
 
     # ------------------------------------------------------------ inputs
@@ -213,6 +217,22 @@ class SpatialScenario:
         return SpatialSimulation(model=model, t=t, q=Q, v=V, tau=tau,
                                  stats={"dt": h, "steps": n_total, "newton_iterations": iters,
                                         "restarts": len(bounds) - 1})
+
+
+def _dead_zone_inverse(y: float, half: float, smooth: float) -> float:
+    """x with integrators.dead_zone(x, half, smooth) = y (Newton from y + sign(y) half;
+    dz is increasing)."""
+    from ..integrators import dead_zone
+    if y == 0.0:
+        return 0.0
+    x = y + np.sign(y) * half
+    for _ in range(100):
+        dz, slope = dead_zone(x, half, smooth)
+        dx = (dz - y) / max(slope, 1e-300)
+        x -= dx
+        if abs(dx) <= 1e-15 * max(1.0, abs(x)):
+            break
+    return float(x)
 
 
 def pd_static_equilibrium(model: SpatialArmModel, K_pd, u, start=None, tol: float = 1e-13,
@@ -366,6 +386,11 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
                 raise f.error("arm", ref, "a spatial arm preset or file (" + exc.allowed
                               + ")") from None
             raise
+    motors = [e.target for e in arm.effects if e.TYPE == "dc_motor"]
+    if motors:
+        raise f.error("arm", arm.name, "an arm without dc_motor effects (on "
+                      f"{', '.join(motors)}): a spatial scenario drives joint torques; "
+                      "voltage commands run through integrate.simulate_fixed_compiled")
     if not f.boolean("gravity", True):
         arm = arm.without_gravity()
     n = arm.n_links

@@ -73,7 +73,7 @@ import numpy as np
 
 from ..config import ConfigError, Fields
 from .description import (RigidBody, SpatialArm, SpatialJoint, SpatialLink, _body,
-                          flexible_beam)
+                          flexible_beam, lump_bodies)
 from .kinematics import rpy_matrix
 
 #: XML namespace of the flexible-link extension element ``<flex:flexible>`` in a <link>
@@ -131,20 +131,6 @@ def _compose(A, B):
 
 def _inverse(A):
     return A[0].T, -A[0].T @ A[1]
-
-
-def _lump(bodies) -> RigidBody:
-    """One rigid body equal to point bodies (m, c, I_c) given in one frame (parallel axes)."""
-    m = sum(b[0] for b in bodies)
-    if m <= 0.0:
-        I = sum((b[2] for b in bodies), np.zeros((3, 3)))
-        return RigidBody(inertia=tuple(map(tuple, I)))
-    c = sum(b[0] * b[1] for b in bodies) / m
-    I = np.zeros((3, 3))
-    for mb, cb, Ib in bodies:
-        d = cb - c
-        I += Ib + mb * (d @ d * np.eye(3) - np.outer(d, d))
-    return RigidBody(mass=float(m), offset=tuple(c), inertia=tuple(map(tuple, 0.5 * (I + I.T))))
 
 
 def _inertial(u: _Urdf, link, where: str):
@@ -448,10 +434,10 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
             # end_body of the side file is given in the tip section frame
             parts += [(m, to_end[0] @ c + to_end[1], to_end[0] @ I @ to_end[0].T)
                       for m, c, I in d["bodies"]]
-            end = _lump(parts) if parts else RigidBody()
+            end = lump_bodies(parts) if parts else RigidBody()
         else:
             if d["bodies"]:
-                root = _lump(d["bodies"])
+                root = lump_bodies(d["bodies"])
         tf = None if end_tf is None else (tuple(map(tuple, end_tf[0])), tuple(end_tf[1]))
         result.append(SpatialLink(
             name=d["name"], joint=d["joint"], flexible=beam, root_body=root, end_body=end,
