@@ -4,7 +4,7 @@ Example (the thesis Example 1 arm)::
 
     name: thesis_example1
     gravity: [0.0, -9.81]            # m/s^2 in the base frame
-    kinematics: small_deflection     # thesis Eq. 1; or second_order (axial shortening)
+    kinematics: small_deflection     # thesis Eq. 1; second_order (axial shortening); exact
     payload: {mass: 0.0, inertia: 0.0}
     links:
       - name: link1
@@ -56,8 +56,10 @@ ONE_VARIABLE = ("lumped", "assumed_modes", "optimized_modes")
 #: discretizations whose variables come in (deflection, rotation) pairs
 PAIRED = ("wavelet", "fem")
 #: small_deflection: the thesis model (Eq. 1); second_order: with the axial shortening of
-#: bent links, u = 1/2 int d'^2 dz, which gives geometric stiffening (see kernels.py)
-KINEMATICS = ("small_deflection", "second_order")
+#: bent links, u = 1/2 int d'^2 dz, which gives geometric stiffening (see kernels.py);
+#: exact: the geometrically exact inextensible link (flex_model.exact_kinematics, its own
+#: kernels: flex_model.simulate only)
+KINEMATICS = ("small_deflection", "second_order", "exact")
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .integrators import consistent_acceleration, generalized_alpha
+from .integrators import generalized_alpha, restart_acceleration
 
 _CACHE = True
 
@@ -136,8 +136,7 @@ def run_periods(t, x, a, abar, n_periods, period, max_step, rho_inf, t_ref0, G, 
                 changed = True
         if changed:
             u[:] = un
-            a = consistent_acceleration(t, x, P, E)
-            abar = a.copy()
+            a, abar, _, _ = restart_acceleration(t, x, a, abar, h, rho_inf, P, E)
         _, status, t_end, x_end, a1, abar1, _ = generalized_alpha(
             t, x, a, abar, h, ns, ns, rho_inf, tol, limit, P, E)
         if status != 0:

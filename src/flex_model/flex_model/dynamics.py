@@ -50,7 +50,26 @@ def _memo_basis(lk, n_intervals):
 
 
 class FlexArmModel:
-    """Equations of motion, kinematics and energy of an arm description."""
+    """Equations of motion, kinematics and energy of an arm description.
+
+    With ``kinematics: exact`` the equations come from flex_model.exact_kinematics (its
+    own compiled kernels, run by flex_model.simulate): ``P``, the data of kernels.py, then
+    raises ExactKinematicsUnsupported with one line naming what to use instead.
+    """
+
+    _exact = None  # flex_model.exact_kinematics.ExactKinematics with kinematics: exact
+
+    @property
+    def P(self):
+        """The compiled kernels' model data (kernels.py); refused with exact kinematics."""
+        if self._exact is not None:
+            from .exact_kinematics import REFUSAL, ExactKinematicsUnsupported
+            raise ExactKinematicsUnsupported(f"{self.arm.source}: {REFUSAL}")
+        return self._P
+
+    @P.setter
+    def P(self, value):
+        self._P = value
 
     def __init__(self, arm: ArmDescription):
         self.arm = arm
@@ -62,9 +81,9 @@ class FlexArmModel:
         # tip rotation per tip deflection of one-variable links (1: its own variable)
         self.tip_rotation_scale = np.array([getattr(b, "tip_rotation_scale", 1.0)
                                             for b in self.bases])
-        if arm.kinematics == "second_order" and np.any(self.nf == 1):
-            raise ValueError(f"{arm.source}: kinematics: second_order needs links with at "
-                             "least two variables (a lumped link has one)")
+        if arm.kinematics in ("second_order", "exact") and np.any(self.nf == 1):
+            raise ValueError(f"{arm.source}: kinematics: {arm.kinematics} needs links "
+                             "with at least two variables (a lumped link has one)")
         # elastic joints add a motor coordinate each, after the arm's coordinates
         self.elastic_joints = [i for i, j in enumerate(arm.joint_names)
                                if (e := arm.effect("joint_elasticity", j)) and not e.is_off]
@@ -98,6 +117,9 @@ class FlexArmModel:
         self.torque_limit = np.full(self.n_links, np.inf)
         self.contact = np.zeros(7)
         self._apply_effects()
+        if arm.kinematics == "exact":
+            from .exact_kinematics import ExactKinematics
+            self._exact = ExactKinematics(self)
         self.set_payload(arm.payload_mass, arm.payload_inertia)
 
     def _link_basis(self, lk):
@@ -279,6 +301,10 @@ class FlexArmModel:
         self.P = (mode, self.off, self.nf, L, mtot, ntot, jrot, jplus_tip, Bp, ht, kt,
                   zq, mu, Wq, Sq, jrig, self.B_const, na, lo, wn, dS, Wl,
                   *self._band_structure(Bp, mode))
+        if self._exact is not None:  # a copy's payload must not change the original's
+            self._exact = copy.copy(self._exact)
+            self._exact.model = self
+            self._exact.set_ends(m_plus, j_plus)
 
     _no_quadrature = (np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 1)),
                       np.zeros((1, 1, 1, 1)), np.zeros((1, 1), dtype=np.int64),
@@ -411,16 +437,20 @@ class FlexArmModel:
 
     @property
     def total_mass(self) -> float:
-        return float(np.sum(self.P[4]))
+        return float(np.sum(self._P[4]))
 
     # ----------------------------------------------------------------- dynamics
     def mass_matrix(self, q) -> np.ndarray:
         """B(q) (thesis Eqs. 18-23), symmetric positive definite."""
+        if self._exact is not None:
+            return self._exact.mass_matrix(q)
         return kernels.mass_matrix(np.asarray(q, dtype=float), self.P)
 
     def bias(self, q, v) -> np.ndarray:
         """c(q, v): Coriolis, centrifugal and gravity generalized forces (Eqs. 27, 26)."""
         q = np.asarray(q, dtype=float)
+        if self._exact is not None:
+            return self._exact.mass_and_bias(q, v, self.gravity[0], self.gravity[1])[1]
         return kernels.inverse_dynamics(q, np.asarray(v, dtype=float), np.zeros(self.nq),
                                         self.gravity[0], self.gravity[1], self.P)
 
@@ -430,6 +460,8 @@ class FlexArmModel:
 
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """B(q) a + c(q, v) (without elastic, damping and applied forces)."""
+        if self._exact is not None:
+            return self._exact.inverse_dynamics(q, v, a, self.gravity[0], self.gravity[1])
         return kernels.inverse_dynamics(np.asarray(q, float), np.asarray(v, float),
                                         np.asarray(a, float), self.gravity[0],
                                         self.gravity[1], self.P)
@@ -453,6 +485,8 @@ class FlexArmModel:
 
     def tip_jacobian(self, q) -> np.ndarray:
         """d p_tip / d q (2 x nq): generalized force of a tip force F is J^T F (Eq. 30)."""
+        if self._exact is not None:
+            return self._exact.tip_jacobian(q)
         return kernels.tip_jacobian(np.asarray(q, float), self.P)
 
     def tip_torque_vector(self) -> np.ndarray:
@@ -557,11 +591,16 @@ class FlexArmModel:
 
     def link_origins(self, q) -> np.ndarray:
         """Origins of the links and the arm's tip, (n_links + 1, 2), base frame (m)."""
+        if self._exact is not None:
+            return self._exact.link_origins(q)
         return kernels.link_origins(np.asarray(q, float), self.P)
 
     def tip_deflections(self, q) -> np.ndarray:
-        """Tip deflection delta_n of every link (m), normal to the root tangent."""
+        """Tip deflection delta_n of every link (m), normal to the root tangent (with
+        exact kinematics the tip's exact offset, not the variable delta_n)."""
         q = np.asarray(q, float)
+        if self._exact is not None:
+            return self._exact.tip_deflections(q)
         return np.array([q[self.tip_deflection_index(i)] for i in range(self.n_links)])
 
     def tip_rotations(self, q) -> np.ndarray:
@@ -589,6 +628,8 @@ class FlexArmModel:
     def shape(self, q, points_per_link: int = 21) -> list[np.ndarray]:
         """Deflected centre line of every link: list of (points, 2) arrays, base frame."""
         q = np.asarray(q, float)
+        if self._exact is not None:
+            return self._exact.shape(q, points_per_link)
         org = self.link_origins(q)
         out = []
         for i, (z, W) in enumerate(self._shape_sampling(points_per_link)):
@@ -631,5 +672,7 @@ class FlexArmModel:
         v = np.asarray(v, float)
         return {"kinetic": 0.5 * v @ self.mass_matrix(q) @ v,
                 "elastic": 0.5 * q @ self.K @ q + self.joint_potential(q),
-                "gravity": kernels.gravity_potential(q, self.gravity[0], self.gravity[1],
-                                                     self.P)}
+                "gravity": (self._exact.gravity_potential(q, *self.gravity)
+                            if self._exact is not None else
+                            kernels.gravity_potential(q, self.gravity[0], self.gravity[1],
+                                                      self.P))}

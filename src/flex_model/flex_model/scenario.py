@@ -5,7 +5,8 @@ Example (shipped as preset ``thesis_three_link_pd``)::
     name: thesis_three_link_pd
     arm: thesis_three_link            # preset name or path (relative to this file)
     vars_per_link: 4                  # optional override
-    kinematics: second_order          # optional override (small_deflection: thesis Eq. 1)
+    kinematics: second_order          # optional override (small_deflection: thesis Eq. 1;
+                                      # exact: geometrically exact, simulate only)
     gravity: true                     # false: no gravity
     duration: 10.0                    # s
     sample_period: 0.005              # s
@@ -43,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .arm import PRESET_DIR, ArmDescription, arm_from_dict, load_arm, resolve_preset
+from .arm import KINEMATICS, PRESET_DIR, ArmDescription, arm_from_dict, load_arm, resolve_preset
 from .config import ConfigError, Fields, read_yaml
 from .dynamics import FlexArmModel
 from .simulate import JointPD, Pulse, SimulationResult, simulate
@@ -202,8 +203,7 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
             raise f.error("vars_per_link", nv, "an even integer >= 2")
         arm = arm.with_vars_per_link(nv)
     if f.has("kinematics"):
-        arm = arm.with_kinematics(f.string("kinematics", choices=["small_deflection",
-                                                                  "second_order"]))
+        arm = arm.with_kinematics(f.string("kinematics", choices=list(KINEMATICS)))
     if not f.boolean("gravity", True):
         arm = arm.without_gravity()
     nl = arm.n_links

@@ -22,6 +22,11 @@ Accuracy
   third of the cost); the default takes simplified Newton for ``second_order``
   kinematics and full Newton (results as before it existed) for the thesis kinematics.
 
+With ``kinematics: exact`` (flex_model.exact_kinematics, compiled in its own module) the
+variable mode is DOP853 (scipy) on the exact equations, ``rtol`` and ``atol`` as above, and
+the fixed mode that module's generalized-alpha (full Newton, the same parameters); the
+model's compiled data ``P`` is refused (Stepper, control loop, node, replays).
+
 Joints with ``stick_slip_friction`` add one bristle state each: the integrated state is
 ``x = [q; v; z]`` (flex_model.effects.stick_slip); ``SimulationResult.bristles`` holds z.
 """
@@ -36,7 +41,8 @@ import numpy as np
 from .dynamics import FlexArmModel
 from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: public here)
 from .integrators import (consistent_acceleration, dopri5, generalized_alpha,
-                          generalized_alpha_simplified, joint_torques)
+                          generalized_alpha_simplified, joint_torques,
+                          restart_acceleration)
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
@@ -98,6 +104,8 @@ class SimulationResult:
 
     @property
     def tip_deflections(self) -> np.ndarray:
+        if self.model.arm.kinematics == "exact":  # the tips' exact offsets
+            return np.array([self.model.tip_deflections(q) for q in self.q])
         return self.q[:, [self.model.tip_deflection_index(i)
                           for i in range(self.model.n_links)]]
 
@@ -175,6 +183,17 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
     if newton not in (None, "full", "simplified"):
         raise ValueError(f"newton: got {newton!r}; expected 'full', 'simplified' or None "
                          "(simplified for second_order kinematics)")
+    exact = model.arm.kinematics == "exact"
+    if exact:
+        if model.n_bristles:
+            from .exact_kinematics import ExactKinematicsUnsupported
+            raise ExactKinematicsUnsupported(
+                f"{model.arm.source}: kinematics: exact does not take stick_slip_friction "
+                "yet; use kinematics: second_order")
+        if newton == "simplified":
+            raise ValueError("newton: 'simplified' is not implemented for kinematics: "
+                             "exact; use 'full' or None")
+        newton = "full"
     if newton is None:
         newton = "simplified" if model.P[0] == 1 else "full"
     if not (t_final > 0 and sample_period > 0):
@@ -197,7 +216,7 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
     n_samples = int(round(t_final / sample_period)) + 1
     t_samples = np.arange(n_samples) * sample_period
     control_period = (control_period or sample_period) if policy is not None else None
-    run = _run_fixed if method == "fixed" else _run_variable
+    run = _run_fixed if method == "fixed" else _run_exact if exact else _run_variable
     changes = sorted((float(t), float(m), float(j)) for t, m, j in payload_changes)
     X, U, stats = run(model, x0, E, u, t_samples, policy, control_period, pulses,
                       rtol=rtol, atol=atol, dt=dt, rho_inf=rho_inf, progress=progress,
@@ -302,6 +321,68 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
     return X, U, stats
 
 
+def _run_exact(model, x, E, u, t_samples, policy, control_period, pulses, *, rtol, atol,
+               progress, changes, **_):
+    """DOP853 (scipy) between breakpoints (pulse edges, control instants, progress marks)
+    on the exact kinematics' equations, as _run_variable does with the compiled ones."""
+    from scipy.integrate import solve_ivp
+    nq = model.nq
+    t_final = t_samples[-1]
+    step = control_period if policy is not None else 1.0
+    instants = np.arange(0.0, t_final, step)
+    edges = {float(t) for t in instants}
+    for p in pulses:
+        edges.update(t for t in (p.start, p.end) if 0.0 < t < t_final)
+    edges.update(c[0] for c in changes if 0.0 <= c[0] < t_final)
+    edges = np.array(sorted(edges | {float(t_final)}))
+    if atol is None:
+        atol = np.concatenate([np.full(nq, 1e-3 * rtol), np.full(nq, 1e-2 * rtol)])
+    atol = np.broadcast_to(np.asarray(atol, float), (len(x),)).copy()
+    X = np.full((len(t_samples), len(x)), np.nan)
+    U = np.zeros((len(t_samples), len(u)))
+    X[0] = x
+    from .exact_kinematics import derivative
+
+    def fun(t, x):
+        return derivative(t, x, X_exact, E)
+    X_exact = model._exact.data
+    stats = {"steps": 0, "evaluations": 0}
+    t = 0.0
+    for t_end in edges:
+        if t_end <= t:
+            continue
+        for c in changes:
+            if abs(c[0] - t) < 1e-12:
+                x = _apply_payload_change(model, x, c[1], c[2])
+                X_exact = model._exact.data
+        if policy is not None and np.any(np.isclose(instants, t)):
+            u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
+            if t == 0.0:
+                U[0] = u
+        sel = (t_samples > t + 1e-12) & (t_samples <= t_end + 1e-12)
+        outs = t_samples[sel]
+        if len(outs) == 0 or not np.isclose(outs[-1], t_end):
+            outs = np.append(outs, t_end)
+        # every accepted step in sol.t (counted); the samples from the dense output
+        sol = solve_ivp(fun, (t, t_end), x, method="DOP853", rtol=rtol, atol=atol,
+                        dense_output=True)
+        stats["steps"] += len(sol.t) - 1
+        stats["evaluations"] += sol.nfev
+        if sol.status != 0:
+            raise SimulationDivergedError(f"integration stopped after t = {t:.6g} s: "
+                                          f"{sol.message} (kinematics: exact)")
+        x_end = sol.y[:, -1].copy()
+        if not np.all(np.isfinite(x_end)) or np.max(np.abs(x_end)) > DIVERGENCE_LIMIT:
+            raise _diverged(model, t_end, x_end)
+        X[sel] = sol.sol(outs[:int(sel.sum())]).T
+        U[sel] = u
+        x = x_end
+        t = t_end
+        if progress is not None:
+            progress(t, t_final)
+    return X, U, stats
+
+
 def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt, rho_inf,
                progress, changes, newton, **_):
     """Generalized-alpha on a step grid that divides the sample period."""
@@ -320,6 +401,10 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
                 if 0 < round(t / h) < n_total}
     pick = {int(round(c[0] / h)): c for c in changes if 0 <= round(c[0] / h) < n_total}
     restarts |= set(pick)
+    exact = model._exact  # kinematics: exact (flex_model.exact_kinematics)
+    if exact is not None:
+        from .exact_kinematics import derivative as exact_derivative
+        from .exact_kinematics import generalized_alpha as exact_generalized_alpha
     step = 0
     iters = 0
     while step < n_total:
@@ -332,13 +417,19 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
             if step == 0:
                 U[0] = u
-        if step == 0 or step in restarts or policy is not None:
-            a = consistent_acceleration(t, x, model.P, E)
+        P = model.P if exact is None else exact.data
+        if exact is not None and (step == 0 or step in restarts or policy is not None):
+            a = exact_derivative(t, x, P, E)[model.nq:]
             abar = a.copy()
+        elif step == 0:
+            a = consistent_acceleration(t, x, P, E)
+            abar = a.copy()
+        elif step in restarts or policy is not None:
+            a, abar, _, _ = restart_acceleration(t, x, a, abar, h, rho_inf, P, E)
         stepper = generalized_alpha_simplified if newton == "simplified" else \
-            generalized_alpha
+            generalized_alpha if exact is None else exact_generalized_alpha
         Xs, status, t_stop, x_stop, a, abar, it = stepper(
-            t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, model.P, E)
+            t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, P, E)
         iters += it
         if status == 1:
             raise _diverged(model, t_stop, x_stop)

@@ -15,7 +15,8 @@ import numpy as np
 
 from .dynamics import FlexArmModel
 from .inputs import input_data
-from .integrators import consistent_acceleration, generalized_alpha, joint_torques
+from .integrators import (consistent_acceleration, generalized_alpha, joint_torques,
+                          restart_acceleration)
 from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, _apply_payload_change, _diverged,
                        newton_failed)
 
@@ -45,7 +46,14 @@ class Stepper:
         self.u[:] = 0.0
         self._restart()
 
-    def _restart(self) -> None:
+    def _restart(self, jump: bool = False) -> None:
+        """Consistent start values of the method; after a jump of the command those of
+        integrators.restart_acceleration (filtered where the step cannot follow it)."""
+        if jump:
+            self.a, self.abar, _, _ = restart_acceleration(
+                self.t, self.x, self.a, self.abar, self.max_step, self.rho_inf, self.model.P,
+                self.E)
+            return
         self.a = consistent_acceleration(self.t, self.x, self.model.P, self.E)
         self.abar = self.a.copy()
 
@@ -56,7 +64,7 @@ class Stepper:
             raise ValueError(f"command: got {u.tolist()}; expected finite values")
         if not np.array_equal(u, self.u):
             self.u[:] = u
-            self._restart()
+            self._restart(jump=True)
 
     def set_payload(self, mass: float, inertia: float) -> None:
         """Change the tip payload now (a pick keeps B v, a place keeps v)."""

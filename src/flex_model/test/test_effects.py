@@ -244,6 +244,21 @@ def test_energy_balance_with_friction_and_an_elastic_joint():
     assert np.max(np.abs(E[0] - E - lost)) / lost[-1] < 1e-6
 
 
+def test_backlash_potential_is_the_integral_of_the_dead_zone():
+    """integrators.dead_zone_energy: its derivative is dead_zone (central differences,
+    across the gap, on both sides, at two smoothings), 0 at 0; s = 0 is the sharp gap's
+    (|x| - b)^2 / 2 outside it."""
+    from flex_model.integrators import dead_zone, dead_zone_energy
+    for b, s in ((2e-3, 1e-4), (0.05, 1e-5)):
+        assert dead_zone_energy(0.0, b, s) == 0.0
+        for x in np.linspace(-4 * b, 4 * b, 17):
+            h = 1e-7 * b
+            slope = (dead_zone_energy(x + h, b, s) - dead_zone_energy(x - h, b, s)) / (2 * h)
+            assert abs(slope - dead_zone(x, b, s)[0]) < 1e-6 * b
+    assert dead_zone_energy(0.3, 0.1, 0.0) == pytest.approx(0.5 * 0.2 ** 2, rel=1e-12)
+    assert dead_zone_energy(-0.3, 0.1, 0.0) == pytest.approx(0.5 * 0.2 ** 2, rel=1e-12)
+
+
 def test_backlash_adds_the_play_to_the_spring_deflection():
     """Motor held (stiff PD on the motor), torque C on the link: rotation b + C / k."""
     k, b, C = 200.0, 0.01, 1.0

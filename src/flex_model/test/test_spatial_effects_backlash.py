@@ -105,7 +105,7 @@ def test_compiled_loop_with_backlash_equals_the_python_loop():
 def test_energy_conserved_with_backlash_in_a_moving_arm():
     """The arm of the previous test without dampers and friction (rotors, flexible link,
     gravity, two gaps crossed): the total energy with the dead-zone potential k int dz
-    (dynamics.dead_zone_potential) is conserved by DOP853 to 2e-9 of the kinetic energy
+    (integrators.dead_zone_energy) is conserved by DOP853 to 2e-9 of the kinetic energy
     (4.9e-10 reached)."""
     data = _backlash_arm()
     data["effects"] = [dict(e, damping=0.0) if e["type"] == "joint_elasticity" else e

@@ -349,9 +349,10 @@ def build_parser() -> argparse.ArgumentParser:
         kinematics_arg(sp)
 
     def kinematics_arg(sp):
-        sp.add_argument("--kinematics", choices=["small_deflection", "second_order"],
+        sp.add_argument("--kinematics", choices=["small_deflection", "second_order", "exact"],
                         default=None, help="override the arm's kinematics (second_order: "
-                        "with the axial shortening of bent links, i.e. geometric stiffening)")
+                        "with the axial shortening of bent links, i.e. geometric stiffening; "
+                        "exact: geometrically exact, simulate only)")
 
     sp = sub.add_parser("modes", help="natural frequencies and mode shapes")
     arm_args(sp)

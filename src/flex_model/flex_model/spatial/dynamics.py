@@ -72,31 +72,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..basis import link_basis
-from ..integrators import dead_zone
+from ..integrators import dead_zone, dead_zone_energy
 from .description import SpatialArm
 from .kinematics import P_AUX, Frame, cross, point_jacobians, rot_x, rot_y, rot_z, skew
 
 _XI, _WXI = np.polynomial.legendre.leggauss(6)
 _H = 1e-20   # complex step
-
-
-def dead_zone_potential(x: float, half: float, smooth: float) -> float:
-    """int_0^x dz(y) dy of integrators.dead_zone (the potential of a gear spring with
-    backlash, divided by k): P(x - b) - P(-b) + P2(x + b) - P2(b) with
-    P(z) = (z^2 + z r + s^2 ln(z + r)) / 4, P2(z) = (z^2 - z r + s^2 ln(r - z)) / 4,
-    r = sqrt(z^2 + s^2); the logarithms in the form without cancellation."""
-    def log_plus(z):                       # ln(z + r), stable for z < 0
-        r = np.hypot(z, smooth)
-        return r, (np.log(z + r) if z >= 0 else np.log(smooth * smooth / (r - z)))
-
-    def p1(z):
-        r, lg = log_plus(z)
-        return 0.25 * (z * z + z * r + smooth * smooth * lg)
-
-    def p2(z):
-        r, lg = log_plus(-z)               # ln(r - z)
-        return 0.25 * (z * z - z * r + smooth * smooth * lg)
-    return float(p1(x - half) - p1(-half) + p2(x + half) - p2(half))
 
 
 def dead_zone_curvature(x: float, half: float, smooth: float) -> float:
@@ -648,7 +629,7 @@ class SpatialArmModel:
         q, v = np.asarray(q, float), np.asarray(v, float)
         return {"kinetic": float(0.5 * v @ self.mass_matrix(q) @ v),
                 "elastic": float(0.5 * q @ self.K @ q - self.Q_const @ q + sum(
-                    k * (dead_zone_potential(x, half, smooth) - 0.5 * x * x)
+                    k * (dead_zone_energy(x, half, smooth) - 0.5 * x * x)
                     for _, _, k, _, half, smooth, _, x, _ in self._gaps(q, v))),
                 "gravity": self.gravity_potential(q)}
 

@@ -1,0 +1,527 @@
+"""Geometrically exact kinematics of planar inextensible links (``kinematics: exact``).
+
+The wavelet variables q_f of a link keep their meaning at small deflections (thesis
+Eq. 1: d(z) = W(z) q_f, Eq. 12), but the slope d' = W' q_f is read as the rotation of the
+section, phi(s), at arc length s (the rotation-angle parametrization of an inextensible
+Euler-Bernoulli beam, the elastica). The centre line in the link's floating frame (root
+tangent along e1, alpha the link's absolute angle) is then exact:
+
+    r(s) = int_0^s [cos phi, sin phi] ds,        phi(s) = W'(s) q_f,
+    p(s) = o + r_1(s) e1(alpha) + r_2(s) e2(alpha),
+
+and the curvature is exactly phi' = W'' q_f, so the bending energy EI/2 int phi'^2 ds is
+the thesis's 1/2 q_f^T K q_f (Eq. 14) with the same constant K, and the tip rotation
+variable gamma_n = phi(L) is the tip's angle exactly (so the joint map theta = G q stays
+linear). To second order r = (s - 1/2 int d'^2, d): the ``second_order`` kinematics
+(kernels.py, mode 1), which this model equals at small deflections; the two differ from
+the fourth order of the deflection in the energy (e.g. the sag's effect on the period).
+
+Mass matrix and velocity terms follow from d'Alembert's principle over the mass points of
+the links (the Gauss points of ``LinkBasis.runtime_quadrature``, the end masses M- at the
+root and M+ at the tip, the end inertias J-, J+ on alpha and alpha + gamma_n), each with
+its exact Jacobian J and convective acceleration dJ/dt v:
+
+    B = sum m J^T J + ...,     c = sum m J^T (dJ/dt v - g)
+
+(the d/dt(B v) - 1/2 d/dq(v^T B v) of the Lagrangian, as in flex_model.spatial.dynamics).
+r(s) at each mass point is integrated by Gauss-Legendre on the pieces between the
+interval ends (``inner`` points per piece, default 8: exact to degree 15); the model is
+the Lagrangian of these discrete positions, so it conserves energy exactly. Cost per
+evaluation: one compiled sweep (:func:`terms`, ~20 us for 8 variables), linear in the
+mass points and quadratic in the variables; flex_model.simulate integrates it in both
+modes (:func:`derivative`, :func:`generalized_alpha`); the kernels of kernels.py and
+integrators.py, and so the Stepper, the control loop and the replays, do not take it.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .integrators import _joint_tangent, galpha_parameters, joint_passive_forces, joint_torques
+from .kernels import solve_spd
+
+_CACHE = True
+
+#: the one line every path that cannot take the exact kinematics raises
+REFUSAL = ("kinematics: exact runs only in flex_model.simulate (its own kernels: "
+           "flex_model.exact_kinematics); the model's compiled data P (Stepper, in-loop "
+           "control, the model node, diagnosis replay) needs kinematics: second_order "
+           "(or small_deflection)")
+
+
+class ExactKinematicsUnsupported(ValueError):
+    """A path or an arm feature the exact kinematics does not support."""
+
+
+def _link_tables(basis, inner: int):
+    """Mass points of one link and their integration rule.
+
+    Returns (s, mw, C, Wd): arc lengths of the mass points (the distributed Gauss points,
+    then the tip s = L with mass 0: the model adds M+), their masses (kg), the matrix C
+    (points x inner nodes) with r(s_k) = C[k] @ [cos phi, sin phi] at the inner nodes, and
+    the slopes W' (inner nodes x variables) there.
+    """
+    s_out, mw = basis.runtime_quadrature()
+    s_out = np.append(s_out, basis.length)
+    mw = np.append(mw, 0.0)
+    C, Wd = _rule(basis, s_out, inner)
+    return s_out, mw, C, Wd
+
+
+def _rule(basis, s_out, inner: int):
+    """(C, Wd): r(s_k) = C[k] @ [cos phi, sin phi] at the inner nodes, W' there; Gauss-
+    Legendre with ``inner`` points on every piece of [0, s_k] between interval ends."""
+    cuts = np.unique(np.concatenate([basis.nodes, basis.profile.breaks]))
+    xi, wxi = np.polynomial.legendre.leggauss(inner)
+    nodes, cols = [], []          # inner nodes; per full piece its column range
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        cols.append(len(nodes))
+        nodes.extend(a + 0.5 * (b - a) * (xi + 1.0))
+    weights_full = [0.5 * (b - a) * wxi for a, b in zip(cuts[:-1], cuts[1:])]
+    partial = []
+    tol = 1e-12 * basis.length
+    for k, s in enumerate(s_out):
+        j = int(np.searchsorted(cuts, s + tol, side="right")) - 1  # piece containing s
+        if j < len(cuts) - 1 and s > cuts[j] + tol:
+            partial.append((k, len(nodes), cuts[j], s))
+            nodes.extend(cuts[j] + 0.5 * (s - cuts[j]) * (xi + 1.0))
+    C = np.zeros((len(s_out), len(nodes)))
+    for k, s in enumerate(s_out):
+        for j in range(len(cuts) - 1):
+            if cuts[j + 1] <= s + tol:
+                C[k, cols[j]:cols[j] + inner] = weights_full[j]
+    for k, c0, a, s in partial:
+        C[k, c0:c0 + inner] = 0.5 * (s - a) * wxi
+    Wd = basis.slope_matrix(np.array(nodes))
+    return np.ascontiguousarray(C), np.ascontiguousarray(Wd)
+
+
+class ExactKinematics:
+    """Equations of motion of a FlexArmModel's arm with exact link kinematics."""
+
+    def __init__(self, model, inner: int = 8):
+        arm = model.arm
+        for lk in arm.links:
+            tim = arm.effect("timoshenko", lk.name)
+            if lk.discretization != "wavelet" or (tim is not None and not tim.is_off):
+                raise ExactKinematicsUnsupported(
+                    f"{arm.source}: kinematics: exact needs Euler-Bernoulli wavelet links "
+                    f"(discretization: wavelet, no timoshenko effect); {lk.name} has "
+                    f"discretization: {lk.discretization}"
+                    + (" and a timoshenko effect" if tim is not None and not tim.is_off
+                       else ""))
+        if arm.effect("contact_surface") is not None or model.contact[0] > 0:
+            raise ExactKinematicsUnsupported(f"{arm.source}: kinematics: exact does not "
+                                             "take a contact_surface effect yet")
+        self.model = model
+        self.inner = inner
+        self.tables = [_link_tables(b, inner) for b in model.bases]
+        nl = model.n_links
+        # the tables padded into arrays for the compiled sweep (terms)
+        npt = np.array([len(t[0]) for t in self.tables], dtype=np.int64)
+        nin = np.array([t[2].shape[1] for t in self.tables], dtype=np.int64)
+        nfm = int(model.nf.max())
+        self._C = np.zeros((nl, npt.max(), nin.max()))
+        self._Wd = np.zeros((nl, nin.max(), nfm))
+        self._mw = np.zeros((nl, npt.max()))
+        for i, (s_out, mw, C, Wd) in enumerate(self.tables):
+            self._C[i, :npt[i], :nin[i]] = C
+            self._Wd[i, :nin[i], :Wd.shape[1]] = Wd
+            self._mw[i, :npt[i]] = mw
+        self._npt, self._nin = npt, nin
+        self.m_minus = np.array([lk.M_minus for lk in arm.links])
+        self.j_minus = np.array([lk.J_minus for lk in arm.links])
+        self.m_plus = np.zeros(nl)
+        self.j_plus = np.zeros(nl)
+
+    def set_ends(self, m_plus, j_plus) -> None:
+        """Tip masses and inertias of the links (payload included), kg and kg m^2."""
+        self.m_plus = np.asarray(m_plus, float).copy()
+        self.j_plus = np.asarray(j_plus, float).copy()
+
+    # ------------------------------------------------------------------ the sweep
+    def _sweep(self, q, v, gx, gy, need_b=True, need_c=True):
+        """Forward sweep over the links: per link, the points' positions, Jacobians and
+        convective accelerations; accumulates B and c = sum m J^T (xi - g)."""
+        mdl = self.model
+        nq = mdl.nq
+        B = np.zeros((nq, nq)) if need_b else None
+        c = np.zeros(nq) if need_c else None
+        ox = oy = 0.0
+        Jox = np.zeros(nq)
+        Joy = np.zeros(nq)
+        xox = xoy = 0.0
+        origins = [(0.0, 0.0)]
+        tipJ = None
+        upot = 0.0
+        for i, (s_out, mw, C, Wd) in enumerate(self.tables):
+            o = int(mdl.off[i])
+            n = int(mdl.nf[i])
+            f = slice(o + 1, o + 1 + n)
+            qf, vf = q[f], v[f]
+            al, om = q[o], v[o]
+            ca, sa = np.cos(al), np.sin(al)
+            phi = Wd @ qf
+            cp, sp = np.cos(phi), np.sin(phi)
+            rx = C @ cp
+            ry = C @ sp
+            Jlx = C @ (-sp[:, None] * Wd)   # d r_1 / d q_f
+            Jly = C @ (cp[:, None] * Wd)    # d r_2 / d q_f
+            # root mass M- and inertia J-, tip inertia J+ (on alpha and alpha + gamma_n)
+            mm = self.m_minus[i]
+            g = o + n
+            if need_b:
+                if mm:
+                    B += mm * (np.outer(Jox, Jox) + np.outer(Joy, Joy))
+                jp = self.j_plus[i]
+                B[o, o] += self.j_minus[i] + jp
+                B[o, g] += jp
+                B[g, o] += jp
+                B[g, g] += jp
+            if need_c and mm:
+                c += mm * (Jox * (xox - gx) + Joy * (xoy - gy))
+            upot -= mm * (gx * ox + gy * oy)
+            # points: p = o + R(alpha) r
+            npt = len(s_out)
+            Jx = np.empty((npt, nq))
+            Jy = np.empty((npt, nq))
+            Jx[:] = Jox
+            Jy[:] = Joy
+            Jx[:, o] += -rx * sa - ry * ca
+            Jy[:, o] += rx * ca - ry * sa
+            Jx[:, f] += Jlx * ca - Jly * sa
+            Jy[:, f] += Jlx * sa + Jly * ca
+            px = ox + rx * ca - ry * sa
+            py = oy + rx * sa + ry * ca
+            m = mw.copy()
+            m[-1] += self.m_plus[i]
+            upot -= np.sum(m * (gx * px + gy * py))
+            if need_b:
+                B += (Jx * m[:, None]).T @ Jx + (Jy * m[:, None]).T @ Jy
+            pd = Wd @ vf
+            rdx = Jlx @ vf
+            rdy = Jly @ vf
+            kx = -(C @ (cp * pd * pd))
+            ky = -(C @ (sp * pd * pd))
+            lx = -om * om * rx - 2.0 * om * rdy + kx
+            ly = -om * om * ry + 2.0 * om * rdx + ky
+            xix = xox + lx * ca - ly * sa
+            xiy = xoy + lx * sa + ly * ca
+            if need_c:
+                c += Jx.T @ (m * (xix - gx)) + Jy.T @ (m * (xiy - gy))
+            # the tip is the next link's origin
+            ox, oy = px[-1], py[-1]
+            Jox, Joy = Jx[-1].copy(), Jy[-1].copy()
+            xox, xoy = xix[-1], xiy[-1]
+            origins.append((ox, oy))
+            tipJ = (Jx[-1], Jy[-1])
+        return B, c, np.array(origins), np.vstack(tipJ), upot
+
+    # ------------------------------------------------------------------ interface
+    @property
+    def data(self) -> tuple:
+        """The arrays of the compiled sweep :func:`terms` (end masses as set now)."""
+        m = self.model
+        return (m.off, m.nf, self._npt, self._nin, self._C, self._Wd, self._mw,
+                self.m_minus, self.j_minus, self.m_plus, self.j_plus, m.B_const)
+
+    def mass_and_bias(self, q, v, gx, gy):
+        """(B(q), c(q, v)) with gravity (gx, gy) entering c; B includes B_const
+        (compiled: :func:`terms`; :meth:`mass_and_bias_numpy` is the same in NumPy)."""
+        return terms(np.asarray(q, float), np.asarray(v, float), float(gx), float(gy),
+                     self.data)[:2]
+
+    def mass_and_bias_numpy(self, q, v, gx, gy):
+        """:meth:`mass_and_bias` by the NumPy sweep (the reference of the compiled one)."""
+        B, c, _, _, _ = self._sweep(np.asarray(q, float), np.asarray(v, float), gx, gy)
+        return B + self.model.B_const, c
+
+    def mass_matrix(self, q) -> np.ndarray:
+        q = np.asarray(q, float)
+        B = self._sweep(q, np.zeros_like(q), 0.0, 0.0, need_c=False)[0]
+        return B + self.model.B_const
+
+    def inverse_dynamics(self, q, v, a, gx, gy) -> np.ndarray:
+        """B a + c(q, v) + dU_g/dq (no elastic, damping or applied forces)."""
+        B, c = self.mass_and_bias(q, v, gx, gy)
+        return B @ np.asarray(a, float) + c
+
+    def link_origins(self, q) -> np.ndarray:
+        """Origins of the links and the arm's tip, (n_links + 1, 2), base frame (m)."""
+        q = np.asarray(q, float)
+        return self._sweep(q, np.zeros_like(q), 0.0, 0.0, need_b=False, need_c=False)[2]
+
+    def tip_jacobian(self, q) -> np.ndarray:
+        """d p_tip / d q (2 x nq), exact."""
+        q = np.asarray(q, float)
+        return self._sweep(q, np.zeros_like(q), 0.0, 0.0, need_b=False, need_c=False)[3]
+
+    def gravity_potential(self, q, gx, gy) -> float:
+        """U_g = -g . sum m p over the mass points (J)."""
+        q = np.asarray(q, float)
+        return float(self._sweep(q, np.zeros_like(q), gx, gy, need_b=False,
+                                 need_c=False)[4])
+
+    def shape(self, q, points_per_link: int = 21) -> list:
+        """Deflected centre line of every link at equally spaced arc lengths: list of
+        (points, 2) arrays, base frame (m)."""
+        q = np.asarray(q, float)
+        cache = self.__dict__.setdefault("_shape_rules", {})
+        if points_per_link not in cache:
+            cache[points_per_link] = [
+                _rule(b, np.linspace(0.0, b.length, points_per_link), self.inner)
+                for b in self.model.bases]
+        org = self.link_origins(q)
+        out = []
+        for i, (C, Wd) in enumerate(cache[points_per_link]):
+            o, n = int(self.model.off[i]), int(self.model.nf[i])
+            phi = Wd @ q[o + 1:o + 1 + n]
+            rx, ry = C @ np.cos(phi), C @ np.sin(phi)
+            ca, sa = np.cos(q[o]), np.sin(q[o])
+            out.append(np.column_stack([org[i, 0] + rx * ca - ry * sa,
+                                        org[i, 1] + rx * sa + ry * ca]))
+        return out
+
+    def tip_deflections(self, q) -> np.ndarray:
+        """Tip of every link relative to its root, normal to the root tangent (m): the
+        exact r_2(L) = int sin(W' q_f) ds (the variable delta_n is int W' q_f ds)."""
+        q = np.asarray(q, float)
+        org = self.link_origins(q)
+        out = np.empty(self.model.n_links)
+        for i in range(self.model.n_links):
+            a = q[self.model.off[i]]
+            d = org[i + 1] - org[i]
+            out[i] = -np.sin(a) * d[0] + np.cos(a) * d[1]
+        return out
+
+
+@njit(cache=_CACHE)
+def terms(q, v, gx, gy, X):
+    """(B(q), c(q, v), J_tip) of the exact kinematics, compiled: the sweep of
+    ExactKinematics._sweep over the links' mass points, X = ExactKinematics.data; J_tip
+    (2 x nq) is the Jacobian of the arm's end."""
+    off, nf, npt, nin, C, Wd, mw, m_minus, j_minus, m_plus, j_plus, Bc = X
+    nq = q.shape[0]
+    nl = off.shape[0]
+    B = Bc.copy()
+    c = np.zeros(nq)
+    Jox = np.zeros(nq)
+    Joy = np.zeros(nq)
+    xox = 0.0
+    xoy = 0.0
+    Jx = np.zeros(nq)
+    Jy = np.zeros(nq)
+    nfm = Wd.shape[2]
+    jlx = np.zeros(nfm)
+    jly = np.zeros(nfm)
+    cp = np.zeros(Wd.shape[1])
+    sp = np.zeros(Wd.shape[1])
+    p2 = np.zeros(Wd.shape[1])
+    for i in range(nl):
+        o = off[i]
+        n = nf[i]
+        ncol = o + n + 1  # columns a point of link i depends on (inboard and own)
+        ca = np.cos(q[o])
+        sa = np.sin(q[o])
+        om = v[o]
+        for j in range(nin[i]):
+            ph = 0.0
+            pv = 0.0
+            for l in range(n):
+                ph += Wd[i, j, l] * q[o + 1 + l]
+                pv += Wd[i, j, l] * v[o + 1 + l]
+            cp[j] = np.cos(ph)
+            sp[j] = np.sin(ph)
+            p2[j] = pv * pv
+        mm = m_minus[i]
+        if mm != 0.0:
+            for a in range(ncol):
+                c[a] += mm * (Jox[a] * (xox - gx) + Joy[a] * (xoy - gy))
+                for b in range(ncol):
+                    B[a, b] += mm * (Jox[a] * Jox[b] + Joy[a] * Joy[b])
+        g = o + n
+        B[o, o] += j_minus[i] + j_plus[i]
+        B[o, g] += j_plus[i]
+        B[g, o] += j_plus[i]
+        B[g, g] += j_plus[i]
+        for k in range(npt[i]):
+            rx = 0.0
+            ry = 0.0
+            kx = 0.0
+            ky = 0.0
+            for l in range(n):
+                jlx[l] = 0.0
+                jly[l] = 0.0
+            for j in range(nin[i]):
+                w = C[i, k, j]
+                if w == 0.0:
+                    continue
+                wc = w * cp[j]
+                ws = w * sp[j]
+                rx += wc
+                ry += ws
+                kx -= wc * p2[j]
+                ky -= ws * p2[j]
+                for l in range(n):
+                    jlx[l] -= ws * Wd[i, j, l]
+                    jly[l] += wc * Wd[i, j, l]
+            rdx = 0.0
+            rdy = 0.0
+            for l in range(n):
+                rdx += jlx[l] * v[o + 1 + l]
+                rdy += jly[l] * v[o + 1 + l]
+            for a in range(ncol):
+                Jx[a] = Jox[a]
+                Jy[a] = Joy[a]
+            Jx[o] += -rx * sa - ry * ca
+            Jy[o] += rx * ca - ry * sa
+            for l in range(n):
+                Jx[o + 1 + l] += jlx[l] * ca - jly[l] * sa
+                Jy[o + 1 + l] += jlx[l] * sa + jly[l] * ca
+            lx = -om * om * rx - 2.0 * om * rdy + kx
+            ly = -om * om * ry + 2.0 * om * rdx + ky
+            xix = xox + lx * ca - ly * sa
+            xiy = xoy + lx * sa + ly * ca
+            tip = k == npt[i] - 1
+            m = mw[i, k] + (m_plus[i] if tip else 0.0)
+            if m != 0.0:
+                fx = m * (xix - gx)
+                fy = m * (xiy - gy)
+                for a in range(ncol):
+                    c[a] += Jx[a] * fx + Jy[a] * fy
+                    ma = m * Jx[a]
+                    mb = m * Jy[a]
+                    for b in range(ncol):
+                        B[a, b] += ma * Jx[b] + mb * Jy[b]
+            if tip:
+                for a in range(ncol):
+                    Jox[a] = Jx[a]
+                    Joy[a] = Jy[a]
+                xox = xix
+                xoy = xiy
+    Jt = np.zeros((2, nq))
+    Jt[0] = Jox
+    Jt[1] = Joy
+    return B, c, Jt
+
+
+@njit(cache=_CACHE)
+def balance(t, q, v, X, E):
+    """B(q) and Q - c(q, v) with exact kinematics: the forces of
+    integrators.applied_force (joint torques and effects, K q, D v, tip pulses; no
+    contact, no stick-slip: refused) with the exact tip Jacobian. E: inputs.input_data."""
+    B, c, Jt = terms(q, v, E[3], E[4], X)
+    K, D, pt0, pt1, pF, pC, Ga = E[0], E[1], E[9], E[10], E[12], E[13], E[16]
+    Q = Ga.T @ joint_torques(t, q, v, E) - K @ q - D @ v + joint_passive_forces(q, v, E) - c
+    fx = 0.0
+    fy = 0.0
+    cm = 0.0
+    for p in range(pt0.shape[0]):
+        if pt0[p] <= t < pt1[p]:
+            fx += pF[p, 0]
+            fy += pF[p, 1]
+            cm += pC[p]
+    if fx != 0.0 or fy != 0.0:
+        Q += Jt[0] * fx + Jt[1] * fy
+    if cm != 0.0:
+        off, nf = X[0], X[1]
+        last = off.shape[0] - 1
+        Q[off[last]] += cm
+        Q[off[last] + nf[last]] += cm
+    return B, Q
+
+
+@njit(cache=_CACHE)
+def derivative(t, x, X, E):
+    """dx/dt = [v; B(q)^-1 (Q - c)] for x = [q; v] with exact kinematics."""
+    n = E[0].shape[0]
+    B, rhs = balance(t, x[:n], x[n:2 * n], X, E)
+    out = np.empty(2 * n)
+    out[:n] = x[n:2 * n]
+    out[n:] = solve_spd(B, rhs)
+    return out
+
+
+@njit(cache=_CACHE)
+def _residual(a1, a, abar, q, v, t, h, af, am, gam, beta, X, E):
+    abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
+    v1 = v + h * ((1.0 - gam) * abar + gam * abar1)
+    q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
+    B, rhs = balance(t, q1, v1, X, E)
+    return B @ a1 - rhs, B, v1
+
+
+@njit(cache=_CACHE)
+def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, X, E):
+    """Fixed-step generalized-alpha with exact kinematics: integrators.generalized_alpha
+    (Chung-Hulbert in the Arnold-Bruls form, the same parameters, full Newton on
+    B(q1) + gamma' (D + C_joints) + beta' (K + K_joints) with backtracking, pulses at
+    mid-step) on :func:`balance`; no bristle states. Same returns and status codes."""
+    K, D = E[0], E[1]
+    am, af, gam, beta = galpha_parameters(rho_inf)
+    ratio = (1.0 - af) / (1.0 - am)
+    bp = h * h * beta * ratio
+    gp = h * gam * ratio
+    n = K.shape[0]
+    X_out = np.full((n_steps // every + 1, 2 * n), np.nan)
+    X_out[0] = x0
+    q = x0[:n].copy()
+    v = x0[n:2 * n].copy()
+    a = a0.copy()
+    abar = abar0.copy()
+    t = t0
+    r = 1
+    iters = 0
+    for s in range(1, n_steps + 1):
+        t1 = t0 + s * h
+        tm = t1 - 0.5 * h
+        a1 = a.copy()
+        ok = False
+        res, B, v1 = _residual(a1, a, abar, q, v, tm, h, af, am, gam, beta, X, E)
+        norm = np.sqrt(np.sum(res * res))
+        for it in range(50):
+            Kj, Cj = _joint_tangent(v1, E)
+            da = solve_spd(B + gp * (D + Cj) + bp * (K + Kj), -res)
+            lam = 1.0
+            for ls in range(30):
+                a_try = a1 + lam * da
+                r_try, B_try, v_try = _residual(a_try, a, abar, q, v, tm, h, af, am, gam,
+                                                beta, X, E)
+                n_try = np.sqrt(np.sum(r_try * r_try))
+                if n_try <= (1.0 - 1e-4 * lam) * norm or n_try < 1e-300 or ls == 29:
+                    break
+                lam *= 0.5
+            a1, res, B, v1, norm = a_try, r_try, B_try, v_try, n_try
+            iters += 1
+            if np.max(np.abs(da)) * lam * bp <= tol:
+                ok = True
+                break
+        abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
+        q = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
+        v = v + h * ((1.0 - gam) * abar + gam * abar1)
+        a = a1
+        abar = abar1
+        t = t1
+        x = np.concatenate((q, v))
+        if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > limit:
+            return X_out, 1, t, x, a, abar, iters
+        if not ok:
+            return X_out, 2, t, x, a, abar, iters
+        if s % every == 0:
+            X_out[r] = x
+            r += 1
+    return X_out, 0, t, np.concatenate((q, v)), a, abar, iters
+
+
+# numba re-compiles a cached function when its own file changes, not when a compiled
+# function it calls (integrators.py, kernels.py and theirs) does: flush these caches then
+def _guard_caches():
+    from . import integrators, iteration_matrix, kernels
+    from .effects import stick_slip
+    from .numba_cache import guard
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")],
+          [integrators.__file__, kernels.__file__, stick_slip.__file__,
+           iteration_matrix.__file__])
+
+
+_guard_caches()
