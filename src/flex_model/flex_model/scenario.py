@@ -39,6 +39,7 @@ and held (exact on average; the kd term is the ramp's rate).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -123,8 +124,16 @@ class Scenario:
             q0 = model.q_from_joint_angles(self.theta0)
         return q0, model.v_from_joint_rates(self.dtheta0)
 
-    def run(self, progress=None, model: FlexArmModel | None = None) -> SimulationResult:
+    def run(self, progress=None, model: FlexArmModel | None = None,
+            advise: bool = True) -> SimulationResult:
+        """Simulate the scenario; with ``advise`` a step the arm's excited modes need finer
+        (:meth:`advice`) is a ``UserWarning`` naming the step to use (the CLI prints the
+        same line itself)."""
         model = model or self.model()
+        if advise:
+            warning = self.advice(model).warning
+            if warning:
+                warnings.warn(warning, stacklevel=2)
         q0, v0 = self.initial_state(model)
         policy = None
         if self.torque_table is not None:

@@ -252,6 +252,12 @@ class SpatialModelNode(Node):
         self.per = max(1, int(math.ceil(self.period / p["step"] - 1e-9)))
         self.h = self.period / self.per
         self.eq95 = p["controller"] == "eq95"
+        self.motor_joints = [self.names[j] for j, *_ in self.model.motors]
+        if self.eq95 and self.motor_joints:
+            raise ParameterError(
+                f"parameter controller: got eq95 on an arm with dc_motor joints "
+                f"({', '.join(self.motor_joints)}); expected none: their commands are "
+                "voltages, eq95's PD gives torques")
         self.kp, self.kd = vec["kp"], vec["kd"]
         self.setpoints0 = vec["setpoints"]
         self.act = self.model.actuator_index >= 0
@@ -311,6 +317,10 @@ class SpatialModelNode(Node):
             f"{self.limit('max_torque'):.4g} N m (N), payload "
             f"{self.limit('max_payload_mass'):.4g} kg, "
             f"{self.limit('max_payload_inertia'):.4g} kg m^2")
+        if self.motor_joints:
+            self.get_logger().info(
+                f"dc_motor joints {', '.join(self.motor_joints)}: their commands on "
+                "effort_controller/commands are voltages (V), through the motor model")
 
     # ------------------------------------------------------------- set-up
     @property

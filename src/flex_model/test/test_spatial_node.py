@@ -196,7 +196,11 @@ def test_bad_parameters_name_the_parameter():
                               "payload vector (payload mass: got -1 kg; expected >= 0)"),
                              ({"payload": [1.0, 2.0, 3.0]}, "parameter payload: got [1, 2, 3]"
                               "; expected a payload vector (got 3 values; expected one of "
-                              "[mass], [mass, J_z]")):
+                              "[mass], [mass, J_z]"),
+                             ({"arm": "quanser_cuboulder_calibrated", "from_planar": True,
+                               "controller": "eq95"}, "parameter controller: got eq95 on an "
+                              "arm with dc_motor joints (joint1); expected none: their "
+                              "commands are voltages")):
             with pytest.raises(ParameterError, match=re.escape(text)):
                 SpatialModelNode(context=ctx, parameter_overrides=[
                     Parameter(k, value=v) for k, v in params.items()])

@@ -41,3 +41,25 @@ def test_the_advice_warns_where_the_step_was_measured_off(nv, step, f_x):
 def test_the_advice_is_quiet_where_the_step_was_measured_within_1_percent(nv, step):
     adv = _advice(nv, step)
     assert adv.warning is None and adv.step_needed_s >= step
+
+
+def test_scenario_run_warns_with_the_advice_in_python():
+    """Scenario.run gives the advice as a UserWarning (users outside the CLI see it too),
+    and not when the step resolves the arm or with advise=False (the CLI prints it)."""
+    import warnings
+
+    sc = scenario_from_dict({
+        "name": "hubless", "arm": "thesis_example1", "vars_per_link": 4,
+        "kinematics": "second_order", "duration": 0.002, "sample_period": 1e-3,
+        "control": {"pd": {"kp": [625.0, 625.0], "kd": [176.8, 176.8]}},
+        "integrator": {"method": "fixed", "step": 1e-3}})
+    warning = sc.advice().warning
+    assert warning is not None
+    with pytest.warns(UserWarning) as record:
+        sc.run()
+    assert [str(w.message) for w in record] == [warning]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sc.run(advise=False)
+        sc.step = 2.5e-4
+        sc.run()

@@ -164,10 +164,11 @@ def _simulate(scenario_ref, args, label: str):
     # first, timed apart, so the CPU-s per simulated second are the integration's alone
     t0, c0 = time.perf_counter(), time.process_time()
     from dataclasses import replace
-    replace(sc, duration=min(sc.duration, 2 * sc.sample_period)).run(model=model)
+    replace(sc, duration=min(sc.duration, 2 * sc.sample_period)).run(model=model,
+                                                                   advise=False)
     load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
     t0, c0 = time.perf_counter(), time.process_time()
-    res = sc.run(progress=Progress(label, not args.json), model=model)
+    res = sc.run(progress=Progress(label, not args.json), model=model, advise=False)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     out_dir = run_dir(args.out, sc.name)
     csv = out_dir / f"{sc.name}.csv"
