@@ -47,11 +47,11 @@ def run(nv, method, dt=None, rtol=1e-7, kinematics="small_deflection"):
     short = load_scenario("thesis_three_link_pd", vars_per_link=nv)
     short.arm = sc.arm
     short.duration, short.method, short.step = 0.02, method, dt
-    short.run(model=model)  # compile / load the kernels outside the timing
+    short.run(model=model, advise=False)  # compile / load the kernels outside the timing
     best = None
     for _ in range(3):
         c0, w0 = time.process_time(), time.perf_counter()
-        res = sc.run(model=model)
+        res = sc.run(model=model, advise=False)
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         best = (cpu, wall, res) if best is None or cpu < best[0] else best
     return model, best
@@ -95,14 +95,14 @@ def step_cost(nvs=(2, 4, 8, 16, 32, 64), duration=0.3, short=0.1):
         sc.arm = sc.arm.with_kinematics("second_order")
         sc.method, sc.step, sc.duration = "fixed", 1e-3, 0.01
         model = sc.model()
-        sc.run(model=model)  # compile / load outside the timing
+        sc.run(model=model, advise=False)  # compile / load outside the timing
         per = []
         for _ in range(3):
             cost = []
             for d in (duration, short):
                 sc.duration = d
                 c0 = time.process_time()
-                res = sc.run(model=model)
+                res = sc.run(model=model, advise=False)
                 cost.append((time.process_time() - c0, res.stats["steps"],
                              res.stats["newton_iterations"]))
             (c1, s1, i1), (c2, s2, i2) = cost

@@ -237,7 +237,7 @@ def our_run(nv: int, step: float, duration: float, repeat: int = 1,
         c1 = time.process_time()
         w0 = time.perf_counter()
         try:
-            res = sc.run(model=model)
+            res = sc.run(model=model, advise=False)
         except Exception as exc:  # noqa: BLE001
             return {"nv": nv, "h": step, "ok": False, "error": str(exc)[:200]}
         c2, w1 = time.process_time(), time.perf_counter()

@@ -208,6 +208,11 @@ class FlexArmModel:
             elif e.TYPE == "torque_saturation":
                 self.torque_limit[i] = e["limit"]
             elif e.TYPE == "contact_surface":
+                if e.normal and e.normal[2] != 0.0:
+                    from .config import ConfigError
+                    raise ConfigError(self.arm.source, "effects.contact_surface.normal",
+                                      list(e.normal), "a normal in the arm's x-y plane "
+                                      "(nz = 0) for a planar arm")
                 self.contact = e.kernel_data()
         for i, b in enumerate(self.bases):  # rotary inertia of Timoshenko links (Remark 3)
             if b.rot_inertia:

@@ -1,7 +1,9 @@
 """Statics and natural modes of a spatial arm (thesis §II.6 carried to 3D).
 
 - ``static_equilibrium``: joints held at given values, K q + dU_g/dq = J^T F solved by
-  Newton with the exact tangent K + d^2 U_g / dq^2 (complex-step Hessian of gravity).
+  Newton with the exact tangent K + d^2 U_g / dq^2 (complex-step Hessian of gravity);
+  F a given tip force and the force of a ``contact_surface`` (at rest: k delta n, its
+  tangent k J^T n n^T J).
 - ``natural_modes``: K_t phi = omega^2 M phi about the unloaded configuration (gravity an
   input, as the planar ``modes``) or about the equilibrium under gravity
   (``gravity_preload``), joints ``clamped`` (the link-side joint variables removed; the
@@ -45,7 +47,7 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
     F = np.zeros(3) if tip_force is None else np.asarray(tip_force, float)
 
     def residual(q):
-        r = -model.K @ q - model.gravity_force(q)
+        r = -model.K @ q - model.gravity_force(q) + model.contact_load(q)
         if np.any(F):
             r += model.tip_jacobian(q)[:3].T @ F
         return r[free]
@@ -56,7 +58,8 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
         if not len(free):            # a rigid arm: nothing deforms
             it = 0
             break
-        Kt = (model.K + model.gravity_stiffness(q))[np.ix_(free, free)]
+        Kt = (model.K + model.gravity_stiffness(q) +
+              model.contact_tangent(q)[0])[np.ix_(free, free)]
         if np.any(F) and not linear:  # load stiffness of the tip force (central diff.)
             h = 1e-7
             for c, j in enumerate(free):

@@ -851,6 +851,103 @@ def _backlash_tangent(blash, kt, sl, cq, cv, S):
 
 
 @njit(cache=_CACHE)
+def tip_point(Pm, q):
+    """(o, Jo): the origin of the last link's end frame (base frame, m) and its
+    translational Jacobian (3 x nq): the kinematic part of spatial_eval's pass
+    (SpatialArmModel.tip_frame), without the rates."""
+    (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag) = Pm
+    R = np.eye(3)
+    o = np.zeros(3)
+    Jo = np.zeros((3, nq))
+    Jw = np.zeros((3, nq))
+    w = np.zeros(3)          # rates: not needed here (zero)
+    ao = np.zeros(3)
+    al = np.zeros(3)
+    W = np.zeros((3, 3))
+    Rb = np.zeros((3, 3))
+    e = np.zeros(3)
+    rv = np.zeros(3)
+    for i in range(jtype.shape[0]):
+        k = koff[i]
+        ncols = k + 1
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 0], ncols, W)
+        u = axis[i]
+        for a in range(3):
+            e[a] = R[a, 0] * u[0] + R[a, 1] * u[1] + R[a, 2] * u[2]
+        if jtype[i] == 0:
+            for a in range(3):
+                Jw[a, k] += e[a]
+            _rotate_axis(R, u, q[k], W)
+        else:
+            for a in range(3):
+                rv[a] = e[a] * q[k]
+            for j in range(ncols):
+                Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
+                Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
+                Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
+            for a in range(3):
+                Jo[a, k] += e[a]
+                o[a] += rv[a]
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 1], ncols, W)
+        if not flex[i]:
+            _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
+            continue
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 2], ncols, W)
+        nv, nt, s0 = nvs[i], nts[i], fstart[i]
+        s1 = s0 + 2 * nv + nt
+        for a in range(3):
+            for b in range(3):
+                Rb[a, b] = R[a, 0] * P[i, 0, b] + R[a, 1] * P[i, 1, b] + R[a, 2] * P[i, 2, b]
+        tv, tdv = q[s0 + nv - 2], q[s0 + nv - 1]
+        tw, tdw = q[s0 + 2 * nv - 2], q[s0 + 2 * nv - 1]
+        phi = q[s1 - 2] if nt else 0.0
+        L = length[i]
+        for a in range(3):
+            rv[a] = L * Rb[a, 0] + tv * Rb[a, 1] + tw * Rb[a, 2]
+        for j in range(ncols):
+            Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
+            Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
+            Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
+        Rs, aw, av, _, _ = _section(phi, tdv, tdw, 0.0, 0.0, 0.0)
+        awb = _mv(Rb, aw)
+        avb = _mv(Rb, av)
+        for a in range(3):
+            o[a] += rv[a]
+            Jo[a, s0 + nv - 2] += Rb[a, 1]
+            Jo[a, s0 + 2 * nv - 2] += Rb[a, 2]
+            Jw[a, s0 + nv - 1] += avb[a]
+            Jw[a, s0 + 2 * nv - 1] += awb[a]
+            if nt:
+                Jw[a, s1 - 2] += Rb[a, 0]
+        R[:, :] = _mm(Rb, Rs)
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], s1, W)
+    return o, Jo
+
+
+@njit(cache=_CACHE)
+def _contact(Pm, ct, q, v, Q, gc):
+    """The contact surface at the tip (dynamics.SpatialArmModel.effect_force): ct = p0 (3),
+    unit normal n (3), k, c; delta = -n . (p - p0), for delta > 0 the normal force
+    fn = max(0, k delta - c n . J v); Q += fn J^T n, gc = J^T n (for the tangent
+    (cq k + cv c) gc gc^T while fn > 0). Returns fn (0: no contact)."""
+    o, Jo = tip_point(Pm, q)
+    nq = q.shape[0]
+    delta = -(ct[3] * (o[0] - ct[0]) + ct[4] * (o[1] - ct[1]) + ct[5] * (o[2] - ct[2]))
+    if delta <= 0.0:
+        return 0.0
+    vn = 0.0
+    for j in range(nq):
+        gc[j] = ct[3] * Jo[0, j] + ct[4] * Jo[1, j] + ct[5] * Jo[2, j]
+        vn += gc[j] * v[j]
+    fn = max(0.0, ct[6] * delta - ct[7] * vn)
+    if fn > 0.0:
+        for j in range(nq):
+            Q[j] += fn * gc[j]
+    return fn
+
+
+@njit(cache=_CACHE)
 def _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1):
     """The generalized-alpha predictor-corrector (Arnold-Bruels): ab1 from the iterate a1,
     then q1, v1 (explicit loops: numba array expressions compile slowly)."""
@@ -876,8 +973,8 @@ def _hold(S, r, held):
 
 
 @njit(cache=_CACHE)
-def galpha_loop(Pm, K, D, Q0, fric, motors, blash, held, H, effort, q0, v0, h, tau,
-                rho_inf, tol, max_iter, acc, warm):
+def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0, v0, h,
+                tau, rho_inf, tol, max_iter, acc, warm):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
     integrate.simulate_fixed: Newton on the accelerations with
     M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
@@ -888,7 +985,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, held, H, effort, q0, v0, h, t
     ``motors`` (see _motor_torques) tau is a voltage through the DC motor model (its
     back-EMF slope in the Newton matrix, refreshed every iteration); ``blash``: the
     backlash corrections of gear springs (see _backlash; their tangent refreshed every
-    iteration); ``held`` (nq, 0/1):
+    iteration); ``contact``: empty or the contact surface at the tip (see _contact; its
+    tangent refreshed every iteration); ``held`` (nq, 0/1):
     coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
     the method, read as the start when ``warm`` (a continued run; else the consistent
     acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
@@ -908,6 +1006,11 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, held, H, effort, q0, v0, h, t
     has_f = fric.shape[0] > 0 or motors.shape[0] > 0 or blash.shape[0] > 0
     has_m = motors.shape[0] > 0
     has_b = blash.shape[0] > 0
+    has_c = contact.shape[0] > 0
+    if has_c:
+        has_f = True
+    gc = np.zeros(nq)
+    fn = 0.0
     sl = np.zeros(blash.shape[0])
     kt = np.zeros(blash.shape[0])
     S0 = np.zeros((nq, nq))
@@ -937,6 +1040,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, held, H, effort, q0, v0, h, t
         _motor_torques(motors, tau[0], effort, v, Qe, slope)
     if has_b:
         _backlash(blash, q, v, Qe, kt, sl)
+    if has_c:
+        _contact(Pm, contact, q, v, Qe, gc)
     Hu, Kq, Dv = _matvec(H, u), _matvec(K, q), _matvec(D, v)
     for j in range(nq):
         r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
@@ -970,6 +1075,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, held, H, effort, q0, v0, h, t
                 _motor_torques(motors, tau[n], effort, v1, Qe, slope)
             if has_b:
                 _backlash(blash, q1, v1, Qe, kt, sl)
+            if has_c:
+                fn = _contact(Pm, contact, q1, v1, Qe, gc)
             Kq = _matvec(K, q1)
             if has_d:
                 Dv = _matvec(D, v1)
@@ -986,6 +1093,11 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, held, H, effort, q0, v0, h, t
                     S[j, j] -= cv * slope[j]
                 if has_b:
                     _backlash_tangent(blash, kt, sl, cq, cv, S)
+                if has_c and fn > 0.0:     # k g g^T, c g g^T (SpatialArmModel.contact_tangent)
+                    gk = cq * contact[6] + cv * contact[7]
+                    for j in range(nq):
+                        for b_ in range(nq):
+                            S[j, b_] += gk * gc[j] * gc[b_]
                 _hold(S, r, held)
                 Lc = cholesky(S)
                 if Lc.shape[0] != nq:   # not positive definite: this step fails

@@ -46,7 +46,8 @@ end frame i) are rigid bodies: ``mass`` (kg), ``inertia`` (kg m^2 about their ce
 value may be a ``[root, tip]`` pair (linear taper).
 
 Optional top-level keys: ``effects`` (flex_model.effects classes, SPATIAL_EFFECTS:
-joint effects and ``structural_damping`` of flexible links; see dynamics.py),
+joint effects, ``structural_damping`` of flexible links and the arm's
+``contact_surface`` at the tip, a plane in 3D: effects.contact; see dynamics.py),
 ``payload`` (a rigid body as ``end_body``, in the last link's end frame, lumped with
 it by the model) and ``sensors`` (flex_model.sensors fields, the kinds of
 spatial/sensors.py).
@@ -68,7 +69,7 @@ MOTOR_STATES = ("active", "locked")
 GEAR_TYPES = ("rigid", "elastic")
 #: effects of spatial joints (flex_model.effects classes, same YAML names and bounds)
 SPATIAL_EFFECTS = ("gear", "joint_elasticity", "joint_friction", "dc_motor",
-                   "structural_damping", "backlash")
+                   "structural_damping", "backlash", "contact_surface")
 PLACEMENTS = ("dh_x", "aux_z")
 #: placements of flexible links built from a URDF (not a YAML field): ``link_x`` is a beam
 #: along the x axis of the link (joint) frame from its origin; the link's end frame is the
@@ -291,7 +292,7 @@ def _joint_effects(f: Fields, links: list, source: str) -> tuple:
                 isinstance(raw.get("type"), str):
             raise ConfigError(source, f"effects[{k}].type", raw.get("type"),
                               f"one of {', '.join(SPATIAL_EFFECTS)} (the effects of "
-                              "spatial joints so far)")
+                              "spatial arms so far)")
     effects = parse_effects(items, source, names, [lk.name for lk in links])
     kinds = {(e.TYPE, e.target) for e in effects if not e.is_off}
     out = []
@@ -501,7 +502,8 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
     ``torsion_stiffness`` (default the mean EI / 1.3) and rhoJ = ``torsion_inertia``
     (default mean m (L/200)^2). M-, J- become the root body (J about z), M+, J+ the end
     body, the payload (J about z) the arm's ``payload`` (lumped with the last end body).
-    Gravity (g_x, g_y) -> (g_x, g_y, 0). Only ``wavelet`` links with
+    Gravity (g_x, g_y) -> (g_x, g_y, 0); a ``contact_surface`` (x, y, normal_angle) is
+    the plane through (x, y, 0) containing the z direction. Only ``wavelet`` links with
     ``small_deflection`` kinematics and the effects of SPATIAL_EFFECTS (same objects)
     are accepted."""
     if arm.kinematics != "small_deflection":
@@ -510,7 +512,7 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
     bad = [e.TYPE for e in arm.effects if e.TYPE not in SPATIAL_EFFECTS]
     if bad:
         raise ConfigError(arm.source, "effects", bad,
-                          f"only {', '.join(SPATIAL_EFFECTS)} (the effects of spatial joints "
+                          f"only {', '.join(SPATIAL_EFFECTS)} (the effects of spatial arms "
                           "so far)")
     elastic = {e.target for e in arm.effects if e.TYPE == "joint_elasticity" and not e.is_off}
     links = []

@@ -64,6 +64,18 @@ Link effects:
   single flexible link with clamped joints and no payload the modal damping ratios are
   zeta_k = a / (2 w_k) + b w_k / 2 in every plane.
 
+Arm effects:
+
+- ``contact_surface`` (seed 003's environment force, effects.contact: a plane through
+  p0 with unit normal n into the free side, stiffness k, damping c): with the tip p
+  (the origin of the last link's end frame, :meth:`SpatialArmModel.tip_frame`) and its
+  translational Jacobian J, delta = -n . (p - p0) and, for delta > 0,
+  F = max(0, k delta - c n . J v) n (zero otherwise), the generalized force J^T F
+  (:meth:`SpatialArmModel.effect_force` with q; the force itself:
+  :meth:`SpatialArmModel.contact_force`). The Newton matrix takes its tangent
+  k J^T n n^T J, c J^T n n^T J while the force acts (:meth:`SpatialArmModel.contact_tangent`;
+  the dJ/dq terms are left out), the energy the potential k delta^2 / 2.
+
 Arm data: ``payload`` (a rigid body in the last link's end frame) is lumped with the last
 link's end body (parallel-axis theorem, :func:`combine_bodies`).
 """
@@ -215,6 +227,10 @@ class SpatialArmModel:
                     pay.offset, float), np.asarray(pay.inertia, float)))
             self._consts.append((pre, dh_rest, bodies))
         self._structural_damping()
+        #: (p0 (3), unit normal (3), k, c) of a contact_surface effect, or None
+        ct = next((e for e in arm.effects if e.TYPE == "contact_surface" and not e.is_off),
+                  None)
+        self.contact = None if ct is None else ct.plane()
 
     # ------------------------------------------------------------ joint effects
     def _joint_effects(self):
@@ -348,10 +364,13 @@ class SpatialArmModel:
     def effect_force(self, v, q=None) -> np.ndarray:
         """Generalized force of the joint effects that is not in K and D: the locked
         motors' spring preload and the friction torques (N m or N); with ``q``, the
-        backlash correction of the gear springs (module docstring)."""
+        backlash correction of the gear springs and the contact surface's J^T F (module
+        docstring)."""
         Q = self.Q_const.copy()
         for a, f in self.friction:
             Q[a] += float(f.torque(v[a]))
+        if q is not None and self.contact is not None:
+            Q += self.contact_load(q, v)
         if q is not None:
             for qi, m, k, b, half, smooth, locked_at, x, xd in self._gaps(q, v):
                 dz, sl = dead_zone(x, half, smooth)
@@ -360,6 +379,46 @@ class SpatialArmModel:
                 if m >= 0:
                     Q[m] -= tau
         return Q
+
+    def _contact(self, q, v=None):
+        """(J (3 x nq), delta, normal force magnitude) of the contact surface at the tip
+        (v None: at rest)."""
+        p0, n, k, c = self.contact
+        F = self.tip_frame(np.asarray(q, float))
+        J = np.real(F.Jo)
+        delta = float(-n @ (np.real(F.o) - p0))
+        if delta <= 0.0:
+            return J, delta, 0.0
+        vn = 0.0 if v is None else float(n @ (J @ np.asarray(v, float)))
+        return J, delta, max(0.0, k * delta - c * vn)
+
+    def contact_force(self, q, v=None) -> np.ndarray:
+        """Force (N, base frame, 3) of the contact surface on the tip (zero without one or
+        out of contact; v None: at rest)."""
+        if self.contact is None:
+            return np.zeros(3)
+        return self._contact(q, v)[2] * self.contact[1]
+
+    def contact_load(self, q, v=None) -> np.ndarray:
+        """J^T F (nq): the generalized force of the contact surface (zeros without one)."""
+        if self.contact is None:
+            return np.zeros(self.nq)
+        J, _, fn = self._contact(q, v)
+        return J.T @ (fn * self.contact[1])
+
+    def contact_tangent(self, q, v=None):
+        """(K_c, D_c): k g g^T and c g g^T, g = J^T n, while the contact force acts (the
+        tangent of -J^T F for the Newton matrix, without the dJ/dq terms); zeros else."""
+        Kc, Dc = np.zeros((self.nq, self.nq)), np.zeros((self.nq, self.nq))
+        if self.contact is None:
+            return Kc, Dc
+        J, _, fn = self._contact(q, v)
+        if fn > 0.0:
+            _, n, k, c = self.contact
+            g = J.T @ n
+            gg = np.outer(g, g)
+            Kc, Dc = k * gg, c * gg
+        return Kc, Dc
 
     def _gaps(self, q, v):
         for qi, m, k, b, half, smooth, locked_at in self.backlash:
@@ -611,8 +670,7 @@ class SpatialArmModel:
         the held joints (zero acceleration)."""
         v = np.asarray(v, float)
         M, c = self.terms(q, v)
-        rhs = -c - self.K @ np.asarray(q, float) - self.D @ v + \
-            self.effect_force(v, q if self.backlash else None)
+        rhs = -c - self.K @ np.asarray(q, float) - self.D @ v + self.effect_force(v, q)
         if Q is not None:
             rhs = rhs + Q
         free = self.free_indices
@@ -626,12 +684,18 @@ class SpatialArmModel:
         return float(-sum(np.sum(m * (p @ self.gravity)) for m, p, _ in points))
 
     def energy(self, q, v) -> dict:
+        """Kinetic, elastic and gravity energy (J); with a contact surface also its
+        potential k delta^2 / 2 (delta > 0) as "contact"."""
         q, v = np.asarray(q, float), np.asarray(v, float)
-        return {"kinetic": float(0.5 * v @ self.mass_matrix(q) @ v),
-                "elastic": float(0.5 * q @ self.K @ q - self.Q_const @ q + sum(
-                    k * (dead_zone_energy(x, half, smooth) - 0.5 * x * x)
-                    for _, _, k, _, half, smooth, _, x, _ in self._gaps(q, v))),
-                "gravity": self.gravity_potential(q)}
+        out = {"kinetic": float(0.5 * v @ self.mass_matrix(q) @ v),
+               "elastic": float(0.5 * q @ self.K @ q - self.Q_const @ q + sum(
+                   k * (dead_zone_energy(x, half, smooth) - 0.5 * x * x)
+                   for _, _, k, _, half, smooth, _, x, _ in self._gaps(q, v))),
+               "gravity": self.gravity_potential(q)}
+        if self.contact is not None:
+            delta = self._contact(q)[1]
+            out["contact"] = 0.5 * self.contact[2] * max(delta, 0.0) ** 2
+        return out
 
     def total_energy(self, q, v) -> float:
         return float(sum(self.energy(q, v).values()))

@@ -19,8 +19,10 @@ voltages on ``dc_motor`` joints, put through the motor model and the effort limi
 ``model.actuator_force`` (velocity dependent: its slope enters the Newton matrix). The
 joint effects (dynamics.py) are always in: the springs and dampers of elastic gears
 (model.K, model.D; structural damping in model.D), friction and the locked motors'
-preload (model.effect_force, its slope in the Newton matrix), held joints (zero
-acceleration: their rows and columns of the Newton matrix are the identity).
+preload (model.effect_force, its slope in the Newton matrix), the backlash of gears and
+the contact surface at the tip (model.effect_force with q; their tangents in the Newton
+matrix), held joints (zero acceleration: their rows and columns of the Newton matrix are
+the identity).
 """
 from __future__ import annotations
 
@@ -77,8 +79,7 @@ def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: f
     def rhs(t, x):
         q, v = x[:nq], x[nq:]
         M, c = terms(q, v)
-        Q = -model.K @ q - c - model.D @ v + \
-            model.effect_force(v, q if model.backlash else None)
+        Q = -model.K @ q - c - model.D @ v + model.effect_force(v, q)
         if force is not None:
             Q = Q + force(t, q, v)
         if joint_commands is not None:
@@ -115,9 +116,10 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
         from .limits import joint_limits
         cmd = np.broadcast_to(np.asarray(joint_commands, float), (n_steps, model.n_links))
         effort = joint_limits(model.arm)["effort"] if clip_to_effort else None
+    contact = model.contact is not None
     nonlinear = bool(model.friction) or (cmd is not None and bool(model.motors)) or \
-        bool(model.backlash)
-    gaps = bool(model.backlash)
+        bool(model.backlash) or contact
+    gaps = bool(model.backlash) or contact
 
     def residual(t, q, v, a, n):
         M, c = model.terms(q, v)
@@ -158,9 +160,12 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
             if lu is None or nonlinear:  # iteration matrix, frozen for the step but
                 # for the friction and motor slopes (steep tanh: from the current iterate)
                 S = S0 - cv * np.diag(slope)
-                if gaps:
+                if model.backlash:
                     Kb, Db = model.backlash_tangent(q1, v1)
                     S = S + cq * Kb + cv * Db
+                if contact:
+                    Kc, Dc = model.contact_tangent(q1, v1)
+                    S = S + cq * Kc + cv * Dc
                 S[held, :] = 0.0
                 S[:, held] = 0.0
                 S[held, held] = 1.0
@@ -212,13 +217,15 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     motors = np.array([[j, a, n, *e.values] for j, a, n, e in model.motors],
                       float).reshape(-1, 8)
     blash = np.array(model.backlash, float).reshape(-1, 7)
+    contact = np.zeros(0) if model.contact is None else \
+        np.concatenate([model.contact[0], model.contact[1], model.contact[2:]]).astype(float)
     held = np.zeros(model.nq, np.int64)
     held[model.held] = 1
     warm = acceleration is not None
     acc = np.array(acceleration, float).reshape(2, model.nq) if warm else \
         np.zeros((2, model.nq))
     qs, vs, iters = galpha_loop(data, np.ascontiguousarray(model.K), np.ascontiguousarray(D),
-                                model.Q_const.copy(), fric, motors, blash, held,
+                                model.Q_const.copy(), fric, motors, blash, contact, held,
                                 joint_input_matrix(model), effort,
                                 np.asarray(q0, float).copy(), np.asarray(v0, float).copy(),
                                 float(h), tau, float(rho_inf), float(tol), int(max_iter),

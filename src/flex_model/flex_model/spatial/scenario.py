@@ -111,7 +111,7 @@ class SpatialScenario:
         (analysis.static_equilibrium)."""
         from .analysis import static_equilibrium
         q = static_equilibrium(model, self.joint_values).q
-        r = model.K @ q + model.gravity_force(q) - model.Q_const
+        r = model.K @ q + model.gravity_force(q) - model.Q_const - model.contact_load(q)
         return np.where(model.actuator_index >= 0, r[model.off], 0.0)
 
     def initial_state(self, model: SpatialArmModel):
@@ -237,9 +237,10 @@ def _dead_zone_inverse(y: float, half: float, smooth: float) -> float:
 
 def pd_static_equilibrium(model: SpatialArmModel, K_pd, u, start=None, tol: float = 1e-13,
                           max_iter: int = 40) -> np.ndarray:
-    """q with (K + K_pd) q + dU_g/dq - Q_const = H u (all free coordinates; the spring
-    balance of the PD, thesis Eq. 95 at rest): Newton with the exact tangent
-    K + K_pd + d^2 U_g/dq^2 from joint values ``start``."""
+    """q with (K + K_pd) q + dU_g/dq - Q_const - J^T F_c = H u (all free coordinates; the
+    spring balance of the PD, thesis Eq. 95 at rest; F_c the force of a contact surface
+    at the tip): Newton with the tangent K + K_pd + d^2 U_g/dq^2 (+ k J^T n n^T J in
+    contact) from joint values ``start``."""
     from .integrate import joint_input_matrix
     q = np.zeros(model.nq)
     if start is not None:
@@ -251,8 +252,9 @@ def pd_static_equilibrium(model: SpatialArmModel, K_pd, u, start=None, tol: floa
     Kt0 = model.K + K_pd
     f = joint_input_matrix(model) @ np.asarray(u, float) + model.Q_const
     for _ in range(max_iter):
-        r = (f - Kt0 @ q - model.gravity_force(q))[free]
-        Kt = (Kt0 + model.gravity_stiffness(q))[np.ix_(free, free)]
+        r = (f - Kt0 @ q - model.gravity_force(q) + model.contact_load(q))[free]
+        Kt = (Kt0 + model.gravity_stiffness(q) + model.contact_tangent(q)[0])[
+            np.ix_(free, free)]
         dq = np.linalg.solve(Kt, r)
         q[free] += dq
         if np.max(np.abs(dq)) < tol * max(1.0, np.max(np.abs(q))):
@@ -303,9 +305,15 @@ class SpatialSimulation:
         """(n, 3) end-frame origin of the last link, base frame (m)."""
         return np.array([self.model.tip_position(q) for q in self.q])
 
+    def contact_forces(self) -> np.ndarray:
+        """(n, 3) force of the contact surface on the tip (N, base frame; zeros without
+        one): SpatialArmModel.contact_force at the samples."""
+        return np.array([self.model.contact_force(q, v) for q, v in zip(self.q, self.v)])
+
     def table(self):
         """CSV columns and data: t, joint values q<i>, rates v<i>, torques tau<i>, per
-        flexible link <link>_tip_deflection_y|z and <link>_tip_twist, tip_x|y|z."""
+        flexible link <link>_tip_deflection_y|z and <link>_tip_twist, tip_x|y|z, and
+        contact_fx|fy|fz with a contact surface."""
         n = self.model.n_links
         names = (["t"] + [f"q{i + 1}" for i in range(n)] + [f"v{i + 1}" for i in range(n)]
                  + [f"tau{i + 1}" for i in range(n)])
@@ -316,6 +324,9 @@ class SpatialSimulation:
             cols.append(np.column_stack([d["y"], d["z"], d["twist"]]))
         names += ["tip_x", "tip_y", "tip_z"]
         cols.append(self.tip_positions())
+        if self.model.contact is not None:
+            names += ["contact_fx", "contact_fy", "contact_fz"]
+            cols.append(self.contact_forces())
         return names, np.column_stack(cols)
 
     def to_csv(self, path) -> None:
