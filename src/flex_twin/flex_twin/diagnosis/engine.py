@@ -715,6 +715,49 @@ def _refit_named(executor, ctx, ctx_ho, current, cur_ho, lin):
     return out
 
 
+def _prune(executor, ctx, ctx_ho, current, cur_ho, lin, accepted, gate, min_share,
+           progress, t_start):
+    """Backward elimination of the named effects: a forward search can name an effect that
+    a later one makes redundant (on an Exudyn run with friction and a joint elasticity,
+    friction + structural damping won the pair round's tie, fewer parameters within
+    ``TIE`` of friction + elasticity, and the elasticity followed in the next round). Each
+    named effect, the first named first, is dropped when the baseline and the others
+    re-fitted without it (:func:`_refit_named`) leave a held-out excess under the gate or
+    it explains less than ``min_share`` of the held-out excess that remains without it
+    (the rule that named it, read backwards). Returns (fit, held-out J, linearization,
+    accepted)."""
+    if len(current.effects) < 2 or len(accepted) != len(current.effects):
+        return current, cur_ho, lin, accepted
+    i = 0
+    while len(current.effects) >= 2 and i < len(current.effects):
+        effects = current.effects[:i] + current.effects[i + 1:]
+        r = evaluate((ctx, current.scales, effects))
+        r_ho = evaluate((ctx_ho, current.scales, effects))
+        if r is None or r_ho is None:
+            i += 1
+            continue
+        trial = FitResult(current.scales, effects, r, cost(r))
+        lin_t = linearize(executor, ctx, current.scales, effects, lin.J[:, :lin.n_scales])
+        J_ho = cost(r_ho)
+        refit = _refit_named(executor, ctx, ctx_ho, trial, J_ho, lin_t)
+        if refit is not None:
+            trial, J_ho, lin_t = refit
+        share = (J_ho - cur_ho) / max(J_ho - 1.0, 1e-12)
+        label = accepted[i].label
+        if J_ho - 1.0 <= gate or share < min_share:
+            _progress(f"pruned {label}: without it J = {trial.J:.4g} (fit), {J_ho:.4g} "
+                      f"(held out), it explains {share:.3f} of that", progress, t_start)
+            current, cur_ho, lin = trial, J_ho, lin_t
+            accepted = accepted[:i] + accepted[i + 1:]
+            _restate(accepted, current.effects, twin_arm(ctx, current.scales,
+                                                         current.effects))
+        else:
+            _progress(f"kept {label}: without it {J_ho:.4g} (held out), it explains "
+                      f"{share:.3f} of that", progress, t_start)
+            i += 1
+    return current, cur_ho, lin, accepted
+
+
 def _restate(accepted, effects, twin):
     """The values of the effects accepted before, as refitted jointly with the last one
     (the linearized columns of :class:`.fitting.Linearization`)."""
@@ -912,6 +955,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                 if mf["holdout"] > fl.model_form["holdout"]:
                     fl.model_form = dict(mf)
                     gate = user_gate + mf["holdout"]   # model form is not an effect
+        current, cur_ho, lin, accepted = _prune(executor, ctx, ctx_ho, current, cur_ho, lin,
+                                                accepted, gate, min_share, progress, t_start)
         J["final_fit"], J["final_holdout"] = current.J, cur_ho
         material = J["baseline_holdout"] - 1.0 > gate
         remaining = cur_ho - 1.0 > gate
