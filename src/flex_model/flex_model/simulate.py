@@ -269,14 +269,10 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
         instants = np.arange(0.0, t_final, control_period)
     else:
         instants = np.arange(0.0, t_final, 1.0)  # progress marks
-    edges = {float(t) for t in instants}
-    for p in pulses:
-        edges.update(t for t in (p.start, p.end) if 0.0 < t < t_final)
-    edges.update(c[0] for c in changes if 0.0 <= c[0] < t_final)
-    edges = np.array(sorted(edges | {float(t_final)}))
+    edges = _breakpoints(t_final, instants, pulses, changes)
     nz = len(x) - 2 * nq
     if atol is None:
-        atol = np.concatenate([np.full(nq, 1e-3 * rtol), np.full(nq, 1e-2 * rtol)])
+        atol = _default_atol(nq, rtol)
     atol = np.asarray(atol, float)
     if atol.ndim == 0:
         atol = np.full(len(x), float(atol))
@@ -321,6 +317,22 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
     return X, U, stats
 
 
+def _breakpoints(t_final, instants, pulses, changes) -> np.ndarray:
+    """Sorted times where the variable-step modes stop and restart: the control instants
+    (or progress marks), the pulse edges, the payload changes and the end."""
+    edges = {float(t) for t in instants}
+    for p in pulses:
+        edges.update(t for t in (p.start, p.end) if 0.0 < t < t_final)
+    edges.update(c[0] for c in changes if 0.0 <= c[0] < t_final)
+    return np.array(sorted(edges | {float(t_final)}))
+
+
+def _default_atol(nq: int, rtol: float) -> np.ndarray:
+    """Absolute tolerances of the variable-step modes: 1e-3 rtol on the coordinates (rad,
+    m), 1e-2 rtol on the rates."""
+    return np.concatenate([np.full(nq, 1e-3 * rtol), np.full(nq, 1e-2 * rtol)])
+
+
 def _run_exact(model, x, E, u, t_samples, policy, control_period, pulses, *, rtol, atol,
                progress, changes, **_):
     """DOP853 (scipy) between breakpoints (pulse edges, control instants, progress marks)
@@ -330,13 +342,9 @@ def _run_exact(model, x, E, u, t_samples, policy, control_period, pulses, *, rto
     t_final = t_samples[-1]
     step = control_period if policy is not None else 1.0
     instants = np.arange(0.0, t_final, step)
-    edges = {float(t) for t in instants}
-    for p in pulses:
-        edges.update(t for t in (p.start, p.end) if 0.0 < t < t_final)
-    edges.update(c[0] for c in changes if 0.0 <= c[0] < t_final)
-    edges = np.array(sorted(edges | {float(t_final)}))
+    edges = _breakpoints(t_final, instants, pulses, changes)
     if atol is None:
-        atol = np.concatenate([np.full(nq, 1e-3 * rtol), np.full(nq, 1e-2 * rtol)])
+        atol = _default_atol(nq, rtol)
     atol = np.broadcast_to(np.asarray(atol, float), (len(x),)).copy()
     X = np.full((len(t_samples), len(x)), np.nan)
     U = np.zeros((len(t_samples), len(u)))
