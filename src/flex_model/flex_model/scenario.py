@@ -52,6 +52,8 @@ from .simulate import JointPD, Pulse, SimulationResult, simulate
 from .statics import static_equilibrium
 
 SCENARIO_DIR = PRESET_DIR / "scenarios"
+#: the step-halving check of the fixed step runs this long past the first jump (s)
+HALVING_WINDOW = 0.3
 
 
 @dataclass
@@ -155,12 +157,29 @@ class Scenario:
 
     def advice(self, model: FlexArmModel | None = None):
         """:func:`flex_model.step_advice.step_advice` for this scenario's arm, start and
-        integrator."""
-        from .step_advice import step_advice
+        integrator; in the fixed mode, where the modal rule is quiet but fewer than
+        ``PROBE_STEPS_PER_PERIOD`` steps fall in a period of the highest excited mode,
+        the scenario's first :data:`HALVING_WINDOW` s after its first jump (set-point
+        step or pulse) run at the step and at half of it (``step_halving_error``)."""
+        from . import step_advice as sa
         model = model or self.model()
-        return step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
-                           method=self.method, step=self.step,
-                           kp=None if self.pd is None else self.pd.kp)
+        adv = sa.step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
+                             method=self.method, step=self.step,
+                             kp=None if self.pd is None else self.pd.kp)
+        h = self.step or 1e-3
+        if (self.method != "fixed" or adv.warning is not None
+                or adv.highest_excited_mode_hz * h * sa.PROBE_STEPS_PER_PERIOD <= 1.0):
+            return adv
+        jumps = [p.start for p in self.pulses] + [t for t, _, _ in self.setpoint_schedule]
+        window = min(self.duration, min(jumps, default=0.0) + HALVING_WINDOW)
+        window = self.sample_period * max(1, round(window / self.sample_period))
+
+        def tips(step):
+            probe = replace(self, duration=window, step=step)
+            return probe.run(model=model, advise=False).tip_deflections
+        err = sa.step_halving_error(tips, h)
+        return replace(adv, tip_error=tuple(float(e) for e in err),
+                       warning=sa.halving_warning(h, err, window))
 
 
 def scenario_names() -> list[str]:

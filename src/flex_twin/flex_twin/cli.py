@@ -184,6 +184,7 @@ def _simulate(scenario_ref, args, label: str):
                "highest_mode_hz": advice.highest_mode_hz,
                "highest_excited_mode_hz": advice.highest_excited_mode_hz,
                "warning": advice.warning,
+               "step_halving_tip_error": advice.tip_error,
                "csv": str(csv),
                "final_joint_angles_deg": np.degrees(res.joint_angles[-1]).tolist(),
                "final_tip_m": res.tip_xy[-1].tolist(),
