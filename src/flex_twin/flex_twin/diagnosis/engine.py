@@ -585,7 +585,7 @@ def _tie_break(executor, state, new, pick, cands, fits, min_share, on_fit, need)
     as the pick was (:func:`_accept`) and the lowest held-out cost is kept; not one that
     names the same effects' classes (a stick-slip for the joint's friction) (independent
     suite, A-cont-two-sensor_bias+stiffness-s1: an encoder bias at joint 1 with the
-    stiffness shared 0.986, at joint 2 0.984; after their fine fits J_ho 0.50 and 0.17,
+    stiffness shared 0.986, at joint 2 0.984; after their fine fits J_ho 0.68 and 0.54,
     the truth being at joint 2). Returns (new, pick)."""
     def parts(label):   # (kind, target) of the effects a candidate names
         h = fits[label][0].effects[-1][0]
