@@ -48,7 +48,7 @@ import numpy as np
 from .arm import KINEMATICS, PRESET_DIR, ArmDescription, arm_from_dict, load_arm, resolve_preset
 from .config import ConfigError, Fields, read_yaml
 from .dynamics import FlexArmModel
-from .simulate import JointPD, Pulse, SimulationResult, simulate
+from .simulate import JointPD, Pulse, SimulationResult, fixed_step, simulate
 from .statics import static_equilibrium
 
 SCENARIO_DIR = PRESET_DIR / "scenarios"
@@ -163,10 +163,10 @@ class Scenario:
         step or pulse) run at the step and at half of it (``step_halving_error``)."""
         from . import step_advice as sa
         model = model or self.model()
+        h = fixed_step(self.sample_period, self.step)[0]   # the step simulate takes
         adv = sa.step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
-                             method=self.method, step=self.step,
+                             method=self.method, step=h,
                              kp=None if self.pd is None else self.pd.kp)
-        h = self.step or 1e-3
         if (self.method != "fixed" or adv.warning is not None
                 or adv.highest_excited_mode_hz * h * sa.PROBE_STEPS_PER_PERIOD <= 1.0):
             return adv

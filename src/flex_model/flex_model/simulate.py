@@ -391,12 +391,18 @@ def _run_exact(model, x, E, u, t_samples, policy, control_period, pulses, *, rto
     return X, U, stats
 
 
+def fixed_step(sample_period: float, dt: float | None = None) -> tuple[float, int]:
+    """(step, steps per sample) of the fixed mode: the largest step at most ``dt``
+    (default 1 ms) that divides the sample period."""
+    per_sample = max(1, int(np.ceil(sample_period / (dt or 1e-3) - 1e-9)))
+    return sample_period / per_sample, per_sample
+
+
 def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt, rho_inf,
                progress, changes, newton, **_):
     """Generalized-alpha on a step grid that divides the sample period."""
     sample_period = t_samples[1] - t_samples[0] if len(t_samples) > 1 else t_samples[-1]
-    per_sample = max(1, int(np.ceil(sample_period / (dt or 1e-3) - 1e-9)))
-    h = sample_period / per_sample
+    h, per_sample = fixed_step(sample_period, dt)
     n_total = (len(t_samples) - 1) * per_sample
     chunk = max(1, int(round(control_period / h))) if policy is not None else \
         max(1, int(round(1.0 / h)))
