@@ -61,9 +61,10 @@ command_timeout, timeout_action, lockstep_timeout and the plausibility limits ma
 
 Limits of a URDF arm (spatial/limits.py): joint_states' effort and the loop's torques are
 the commands clipped to the ``<limit effort>`` (inside the compiled loop; with eq95 the
-PD's torque is not clipped: the PD is stiffness and damping in the loop); the position
-and velocity limits are checked after every period and a violation is logged (at most
-once a second per joint), not enforced as a stop.
+whole actuator torque, PD and feed-forward, is clipped: simulate_fixed_compiled's
+``pd_clip``); the position and velocity limits are checked after every period and a
+violation is logged (at most once a second per joint); the arm file's ``joint_stops``
+make the position limits end stops (description.JointStops).
 
 Every period (a command in lockstep, a timer tick in realtime) is one call of the
 compiled loop, continued from the previous one (its accelerations carried over: periods
@@ -521,7 +522,8 @@ class SpatialModelNode(Node):
             return np.clip(self.u, -self.effort, self.effort)
         a = np.maximum(self.model.actuator_index, 0)
         fb = self.kp * self.q[a] + self.kd * self.v[a]
-        return self.open_loop() - np.where(self.act, fb, 0.0)
+        return np.clip(self.open_loop() - np.where(self.act, fb, 0.0), -self.effort,
+                       self.effort)
 
     def apply_command_timeout(self, stalled: bool = False) -> None:
         """After command_timeout s (simulation time) without a valid command, or at once
@@ -556,7 +558,7 @@ class SpatialModelNode(Node):
                                           joint_torques=self.open_loop(),
                                           rho_inf=self.p["rho_inf"], tol=self.p["newton_tol"],
                                           damping=self.Dp if self.eq95 else None,
-                                          clip_to_effort=not self.eq95,
+                                          pd_clip=(self.kp, self.kd) if self.eq95 else None,
                                           acceleration=self.acc)
         except RuntimeError as exc:
             self.on_divergence(exc)

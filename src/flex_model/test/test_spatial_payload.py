@@ -35,8 +35,14 @@ def test_the_payload_adds_a_rigid_body_at_the_end_frame(name):
     fast = model_with_payload(other, arm, m, inertia)
     np.testing.assert_array_equal(fast.mass_matrix(q), loaded.mass_matrix(q))
     v = rng.normal(0.0, 0.2, model.nq)
+    # a start the 1 ms loop converges from (the UR5-like tube's stiff modes: larger
+    # deflections fail in the first step, which once came out as NaN taken for converged)
+    flex = np.setdiff1d(np.arange(model.nq), model.off)
+    q[flex] *= 0.01
+    v[flex] *= 1e-4
     a = simulate_fixed_compiled(fast, q, v, 1e-3, 20, joint_torques=np.ones(arm.n_links))
     b = simulate_fixed_compiled(loaded, q, v, 1e-3, 20, joint_torques=np.ones(arm.n_links))
+    assert np.all(np.isfinite(a.q))
     np.testing.assert_array_equal(a.q, b.q)
     # the copy leaves the model it came from alone
     np.testing.assert_array_equal(other.mass_matrix(q),

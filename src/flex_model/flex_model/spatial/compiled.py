@@ -837,6 +837,59 @@ def _backlash(blash, q, v, Q, kt, sl):
 
 
 @njit(cache=_CACHE)
+def _stops(stops, q, v, Q, kt, ct):
+    """End stops at the joint limits (dynamics.SpatialArmModel.stop_load, the law of
+    description.JointStops): rows coordinate, lower, upper, k, c, transition s; the
+    torque -sigma (k g(d) + c r(d) d') added to Q, the tangent max(k r + c r' d', 0) and
+    c r into kt[r], ct[r] (0 inside the range)."""
+    for r in range(stops.shape[0]):
+        a = int(stops[r, 0])
+        lo, hi, k, c, s = stops[r, 1], stops[r, 2], stops[r, 3], stops[r, 4], stops[r, 5]
+        kt[r] = 0.0
+        ct[r] = 0.0
+        sigma = 1.0
+        d = q[a] - hi
+        if q[a] <= hi:
+            sigma = -1.0
+            d = lo - q[a]
+        if d <= 0.0:
+            continue
+        dd = sigma * v[a]
+        if d < s:
+            g = d * d / (2.0 * s)
+            rr = d / s
+            dr = 1.0 / s
+        else:
+            g = d - s / 2.0
+            rr = 1.0
+            dr = 0.0
+        Q[a] -= sigma * (k * g + c * rr * dd)
+        kt[r] = max(k * rr + c * dr * dd, 0.0)
+        ct[r] = c * rr
+
+
+@njit(cache=_CACHE)
+def _pd_clip(pdc, u, q, v, Q, act):
+    """The in-loop PD's torque clipped to the effort limit (thesis Eq. 95 with saturation):
+    rows joint, actuator coordinate, kp, kd, effort. The PD is stiffness and damping in
+    K, D and kp s(t) in the joint torque u, so the actuator torque is T = u_j - kp q_a -
+    kd q_a'; beyond +-effort the correction clip(T) - T is added to Q and act[r] = 1 (its
+    tangent cancels kp, kd in the Newton matrix)."""
+    for r in range(pdc.shape[0]):
+        j = int(pdc[r, 0])
+        a = int(pdc[r, 1])
+        e = pdc[r, 4]
+        T = u[j] - pdc[r, 2] * q[a] - pdc[r, 3] * v[a]
+        act[r] = 0.0
+        if T > e:
+            Q[a] += e - T
+            act[r] = 1.0
+        elif T < -e:
+            Q[a] += -e - T
+            act[r] = 1.0
+
+
+@njit(cache=_CACHE)
 def _backlash_tangent(blash, kt, sl, cq, cv, S):
     """S += cq kt + cv b_t sl on each gear's [[1, -1], [-1, 1]] block (see _backlash)."""
     for r in range(blash.shape[0]):
@@ -973,8 +1026,8 @@ def _hold(S, r, held):
 
 
 @njit(cache=_CACHE)
-def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0, v0, h,
-                tau, rho_inf, tol, max_iter, acc, warm):
+def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H, effort,
+                q0, v0, h, tau, rho_inf, tol, max_iter, acc, warm):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
     integrate.simulate_fixed: Newton on the accelerations with
     M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
@@ -986,7 +1039,9 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0,
     back-EMF slope in the Newton matrix, refreshed every iteration); ``blash``: the
     backlash corrections of gear springs (see _backlash; their tangent refreshed every
     iteration); ``contact``: empty or the contact surface at the tip (see _contact; its
-    tangent refreshed every iteration); ``held`` (nq, 0/1):
+    tangent refreshed every iteration); ``stops``: the end stops at the joint limits (see
+    _stops); ``pdc``: an in-loop PD's torque clipped to the effort limits (see _pd_clip;
+    those joints' ``effort`` entries are infinite); ``held`` (nq, 0/1):
     coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
     the method, read as the start when ``warm`` (a continued run; else the consistent
     acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
@@ -1007,8 +1062,13 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0,
     has_m = motors.shape[0] > 0
     has_b = blash.shape[0] > 0
     has_c = contact.shape[0] > 0
-    if has_c:
+    has_s = stops.shape[0] > 0
+    has_p = pdc.shape[0] > 0
+    if has_c or has_s or has_p:
         has_f = True
+    skt = np.zeros(stops.shape[0])
+    sct = np.zeros(stops.shape[0])
+    pact = np.zeros(pdc.shape[0])
     gc = np.zeros(nq)
     fn = 0.0
     sl = np.zeros(blash.shape[0])
@@ -1042,6 +1102,10 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0,
         _backlash(blash, q, v, Qe, kt, sl)
     if has_c:
         _contact(Pm, contact, q, v, Qe, gc)
+    if has_s:
+        _stops(stops, q, v, Qe, skt, sct)
+    if has_p:
+        _pd_clip(pdc, u, q, v, Qe, pact)
     Hu, Kq, Dv = _matvec(H, u), _matvec(K, q), _matvec(D, v)
     for j in range(nq):
         r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
@@ -1077,6 +1141,10 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0,
                 _backlash(blash, q1, v1, Qe, kt, sl)
             if has_c:
                 fn = _contact(Pm, contact, q1, v1, Qe, gc)
+            if has_s:
+                _stops(stops, q1, v1, Qe, skt, sct)
+            if has_p:
+                _pd_clip(pdc, u, q1, v1, Qe, pact)
             Kq = _matvec(K, q1)
             if has_d:
                 Dv = _matvec(D, v1)
@@ -1098,6 +1166,13 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0,
                     for j in range(nq):
                         for b_ in range(nq):
                             S[j, b_] += gk * gc[j] * gc[b_]
+                for r_ in range(stops.shape[0]):     # the stops' tangent (0: apart)
+                    a_ = int(stops[r_, 0])
+                    S[a_, a_] += cq * skt[r_] + cv * sct[r_]
+                for r_ in range(pdc.shape[0]):       # a clipped PD: no kp, kd
+                    if pact[r_] > 0.0:
+                        a_ = int(pdc[r_, 1])
+                        S[a_, a_] -= cq * pdc[r_, 2] + cv * pdc[r_, 3]
                 _hold(S, r, held)
                 Lc = cholesky(S)
                 if Lc.shape[0] != nq:   # not positive definite: this step fails
@@ -1107,11 +1182,16 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, held, H, effort, q0,
             da = solve_chol(Lc, r)
             dmax = 0.0
             amax = 1.0
+            finite = True
             for j in range(nq):
                 a1[j] -= da[j]
                 dmax = max(dmax, abs(da[j]))
                 amax = max(amax, abs(a1[j]))
+                if not np.isfinite(a1[j]):   # max() skips a NaN: not a convergence
+                    finite = False
             iters += 1
+            if not finite:
+                break
             if dmax <= tol * amax:
                 ok = True
                 break

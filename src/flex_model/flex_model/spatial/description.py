@@ -45,6 +45,11 @@ end frame i) are rigid bodies: ``mass`` (kg), ``inertia`` (kg m^2 about their ce
 3 diagonal values or a 3 x 3 matrix), ``offset`` (m, centre in that frame). A section
 value may be a ``[root, tip]`` pair (linear taper).
 
+A joint may carry the URDF limits ``lower``, ``upper`` (rad or m), ``effort`` (N m or N)
+and ``velocity``; the top-level ``joint_stops: {stiffness, damping, transition}`` makes
+the position limits end stops (:class:`JointStops`), else they are only reported
+(spatial/limits.py).
+
 Optional top-level keys: ``effects`` (flex_model.effects classes, SPATIAL_EFFECTS:
 joint effects, ``structural_damping`` of flexible links and the arm's
 ``contact_surface`` at the tip, a plane in 3D: effects.contact; see dynamics.py),
@@ -140,6 +145,30 @@ class SpatialJoint:
 
 
 @dataclass(frozen=True)
+class JointStops:
+    """End stops at the joints' position limits (``lower``, ``upper``): a spring-damper on
+    the joint variable q beyond a limit, applied smoothly through a transition region
+    (the third hard-stop model of MATLAB Simscape's Rotational Hard Stop: "stiffness and
+    damping applied smoothly through transition region, damped rebound"). With the
+    penetration d = q - upper (or lower - q) > 0, its rate d' and the width s:
+
+        tau = -(k g(d) + c r(d) d'),   g = d^2 / (2 s) for d < s, d - s / 2 beyond;
+                                       r = d / s for d < s, 1 beyond
+
+    (sign: pushing back into the range; zero inside it). g is C1, so the implicit
+    integrator's Newton iteration sees a continuous tangent k r(d) (a sharp on/off stop
+    makes it cycle between the two sides); the damper may pull while the joint leaves
+    the stop (damped rebound), with r -> 0 at the limit. Potential k (d^3 / (6 s)) for
+    d < s, k (d^2 - s d + s^2 / 3) / 2 beyond. ``stiffness`` k (N m/rad; N/m on a
+    prismatic joint), ``damping`` c (N m s/rad; N s/m), ``transition`` s (rad or m,
+    default 1 mrad or 1 mm); one set for every joint with a finite limit."""
+
+    stiffness: float
+    damping: float = 0.0
+    transition: float = 1.0e-3
+
+
+@dataclass(frozen=True)
 class FlexibleBeam:
     """The elastic part of a link: one profile per bending plane and one for torsion.
 
@@ -190,6 +219,8 @@ class SpatialArm:
     payload: RigidBody = RigidBody()
     #: flex_model.sensors.Sensor objects (spatial/sensors.py: the kinds of spatial arms)
     sensors: tuple = ()
+    #: end stops at the joints' position limits (None: the limits are only reported)
+    joint_stops: JointStops | None = None
 
     @property
     def n_links(self) -> int:
@@ -276,8 +307,34 @@ def _joint(f: Fields, index: int) -> SpatialJoint:
                      gear=f.string("gear", "", choices=list(GEAR_TYPES)) if f.has("gear")
                      else "",
                      locked_at=f.number("locked_at", 0.0, unit="rad or m"))
-    f.done(["name", "type", "a", "alpha", "d", "theta", "motor", "gear", "locked_at"])
-    return j
+    lim = {k: f.number(k, unit=u, nonnegative=k in ("effort", "velocity"))
+           for k, u in (("lower", "rad or m"), ("upper", "rad or m"),
+                        ("effort", "N m or N"), ("velocity", "rad/s or m/s")) if f.has(k)}
+    if lim.get("lower", -np.inf) > lim.get("upper", np.inf):
+        raise f.error("lower", lim["lower"], f"lower <= upper ({lim['upper']:g})")
+    f.done(["name", "type", "a", "alpha", "d", "theta", "motor", "gear", "locked_at",
+            "lower", "upper", "effort", "velocity"])
+    return dataclasses.replace(j, **lim)
+
+
+def parse_joint_stops(f: Fields, links, source: str) -> "JointStops | None":
+    """The top-level ``joint_stops`` mapping (``stiffness``, ``damping``) of a DH arm file or
+    a URDF side file; refused when no joint has a finite position limit."""
+    if not f.has("joint_stops"):
+        return None
+    g = f.mapping("joint_stops")
+    stops = JointStops(stiffness=g.number("stiffness", positive=True,
+                                          unit="N m/rad, N/m on a prismatic joint"),
+                       damping=g.number("damping", 0.0, nonnegative=True,
+                                        unit="N m s/rad, N s/m on a prismatic joint"),
+                       transition=g.number("transition", 1.0e-3, positive=True,
+                                           max_value=0.1, unit="rad or m"))
+    g.done(["stiffness", "damping", "transition"])
+    if not any(np.isfinite(lk.joint.lower) or np.isfinite(lk.joint.upper) for lk in links):
+        raise ConfigError(source, "joint_stops", "given",
+                          "a joint with a finite lower or upper limit (joint fields lower, "
+                          "upper; URDF <limit>): the stops act at those limits")
+    return stops
 
 
 def _joint_effects(f: Fields, links: list, source: str) -> tuple:
@@ -475,11 +532,12 @@ def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     from .sensors import parse_sensors
     sensors = parse_sensors(f.items("sensors", []), source, names,
                             [lk.name for lk in links]) if f.has("sensors") else ()
+    stops = parse_joint_stops(f, links, source)
     f.done(["name", "description", "convention", "gravity", "links", "effects", "payload",
-            "sensors"])
+            "sensors", "joint_stops"])
     return SpatialArm(name=name, links=tuple(links), gravity=gravity, description=description,
                       source=source, convention=convention, effects=effects, payload=payload,
-                      sensors=sensors)
+                      sensors=sensors, joint_stops=stops)
 
 
 def load_spatial_arm(name_or_path) -> SpatialArm:

@@ -75,6 +75,11 @@ Arm effects:
   :meth:`SpatialArmModel.contact_force`). The Newton matrix takes its tangent
   k J^T n n^T J, c J^T n n^T J while the force acts (:meth:`SpatialArmModel.contact_tangent`;
   the dJ/dq terms are left out), the energy the potential k delta^2 / 2.
+- ``joint_stops`` (description.JointStops, the joints' position limits as end stops): a
+  spring-damper on the joint variable beyond a limit, applied smoothly through a
+  transition region (:meth:`SpatialArmModel.stop_load`, in
+  :meth:`SpatialArmModel.effect_force` with q; its tangent on the diagonal,
+  :meth:`SpatialArmModel.stop_tangent`; its potential in the energy as "stops").
 
 Arm data: ``payload`` (a rigid body in the last link's end frame) is lumped with the last
 link's end body (parallel-axis theorem, :func:`combine_bodies`).
@@ -231,6 +236,14 @@ class SpatialArmModel:
         ct = next((e for e in arm.effects if e.TYPE == "contact_surface" and not e.is_off),
                   None)
         self.contact = None if ct is None else ct.plane()
+        #: end stops (description.JointStops): (joint coordinate, lower, upper, k, c,
+        #: transition) per joint with a finite position limit that is not held
+        js = arm.joint_stops
+        self.stops = [] if js is None else [
+            (int(self.off[i]), float(lk.joint.lower), float(lk.joint.upper), js.stiffness,
+             js.damping, js.transition) for i, lk in enumerate(arm.links)
+            if (np.isfinite(lk.joint.lower) or np.isfinite(lk.joint.upper))
+            and self.off[i] not in self.held]
 
     # ------------------------------------------------------------ joint effects
     def _joint_effects(self):
@@ -371,6 +384,8 @@ class SpatialArmModel:
             Q[a] += float(f.torque(v[a]))
         if q is not None and self.contact is not None:
             Q += self.contact_load(q, v)
+        if q is not None and self.stops:
+            Q += self.stop_load(q, v)
         if q is not None:
             for qi, m, k, b, half, smooth, locked_at, x, xd in self._gaps(q, v):
                 dz, sl = dead_zone(x, half, smooth)
@@ -419,6 +434,41 @@ class SpatialArmModel:
             gg = np.outer(g, g)
             Kc, Dc = k * gg, c * gg
         return Kc, Dc
+
+    def _stop_forces(self, q, v=None):
+        """Per end stop that acts: (coordinate, sigma, force f, tangent stiffness, tangent
+        damping, potential) with the torque -sigma f (sigma +1 at the upper, -1 at the
+        lower limit); v None: at rest (description.JointStops)."""
+        for a, lo, hi, k, c, s in self.stops:
+            x = float(q[a])
+            w = 0.0 if v is None else float(v[a])
+            sigma, d = (1.0, x - hi) if x > hi else (-1.0, lo - x)
+            if d <= 0.0:
+                continue
+            dd = sigma * w
+            if d < s:
+                g, r, dr, e = d * d / (2 * s), d / s, 1.0 / s, k * d ** 3 / (6 * s)
+            else:
+                g, r, dr, e = d - s / 2, 1.0, 0.0, k * (d * d - s * d + s * s / 3) / 2
+            yield a, sigma, k * g + c * r * dd, max(k * r + c * dr * dd, 0.0), c * r, e
+
+    def stop_load(self, q, v=None) -> np.ndarray:
+        """Generalized force of the end stops (nq; zeros inside the limits; the law of
+        description.JointStops)."""
+        Q = np.zeros(self.nq)
+        for a, sigma, f, *_ in self._stop_forces(q, v):
+            Q[a] -= sigma * f
+        return Q
+
+    def stop_tangent(self, q, v=None):
+        """(K_s, D_s): the tangent of -stop_load for the Newton matrix on the diagonal,
+        max(k r + c r' d', 0) and c r (description.JointStops; kept >= 0 so the matrix
+        stays positive definite)."""
+        Ks, Ds = np.zeros((self.nq, self.nq)), np.zeros((self.nq, self.nq))
+        for a, _, _, kt, ct, _ in self._stop_forces(q, v):
+            Ks[a, a] += kt
+            Ds[a, a] += ct
+        return Ks, Ds
 
     def _gaps(self, q, v):
         for qi, m, k, b, half, smooth, locked_at in self.backlash:
@@ -685,7 +735,8 @@ class SpatialArmModel:
 
     def energy(self, q, v) -> dict:
         """Kinetic, elastic and gravity energy (J); with a contact surface also its
-        potential k delta^2 / 2 (delta > 0) as "contact"."""
+        potential k delta^2 / 2 (delta > 0) as "contact", with end stops theirs as
+        "stops"."""
         q, v = np.asarray(q, float), np.asarray(v, float)
         out = {"kinetic": float(0.5 * v @ self.mass_matrix(q) @ v),
                "elastic": float(0.5 * q @ self.K @ q - self.Q_const @ q + sum(
@@ -695,6 +746,8 @@ class SpatialArmModel:
         if self.contact is not None:
             delta = self._contact(q)[1]
             out["contact"] = 0.5 * self.contact[2] * max(delta, 0.0) ** 2
+        if self.stops:
+            out["stops"] = sum(e for *_, e in self._stop_forces(q))
         return out
 
     def total_energy(self, q, v) -> float:

@@ -20,9 +20,9 @@ voltages on ``dc_motor`` joints, put through the motor model and the effort limi
 joint effects (dynamics.py) are always in: the springs and dampers of elastic gears
 (model.K, model.D; structural damping in model.D), friction and the locked motors'
 preload (model.effect_force, its slope in the Newton matrix), the backlash of gears and
-the contact surface at the tip (model.effect_force with q; their tangents in the Newton
-matrix), held joints (zero acceleration: their rows and columns of the Newton matrix are
-the identity).
+the contact surface at the tip and the end stops at the joint limits (model.effect_force
+with q; their tangents in the Newton matrix), held joints (zero acceleration: their rows
+and columns of the Newton matrix are the identity).
 """
 from __future__ import annotations
 
@@ -118,8 +118,8 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
         effort = joint_limits(model.arm)["effort"] if clip_to_effort else None
     contact = model.contact is not None
     nonlinear = bool(model.friction) or (cmd is not None and bool(model.motors)) or \
-        bool(model.backlash) or contact
-    gaps = bool(model.backlash) or contact
+        bool(model.backlash) or contact or bool(model.stops)
+    gaps = bool(model.backlash) or contact or bool(model.stops)
 
     def residual(t, q, v, a, n):
         M, c = model.terms(q, v)
@@ -166,6 +166,9 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
                 if contact:
                     Kc, Dc = model.contact_tangent(q1, v1)
                     S = S + cq * Kc + cv * Dc
+                if model.stops:
+                    Ks, Ds = model.stop_tangent(q1, v1)
+                    S = S + cq * Ks + cv * Ds
                 S[held, :] = 0.0
                 S[:, held] = 0.0
                 S[held, held] = 1.0
@@ -190,7 +193,8 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
 def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: int,
                             joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
                             max_iter: int = 20, damping=None,
-                            clip_to_effort: bool = True, acceleration=None) -> SpatialRun:
+                            clip_to_effort: bool = True, acceleration=None,
+                            pd_clip=None) -> SpatialRun:
     """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the
     analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
     (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
@@ -200,7 +204,11 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     ``model.actuator_force``, then the effort clip). ``acceleration``: the (a, abar) of a
     previous run's ``acceleration`` to continue it from its last state (q0, v0) without
     a restart: two runs chained this way equal one run over both; None restarts with
-    the consistent acceleration."""
+    the consistent acceleration. ``pd_clip``: None or the gains (kp, kd) (n_joints each)
+    of a PD inside the loop (thesis Eq. 95: kp, kd on the actuator coordinates already in
+    the model's K and ``damping``, kp s(t) in ``joint_torques``): the PD's whole actuator
+    torque kp (s - theta_a) - kd theta_a' + u is then clipped to the effort limits
+    (compiled._pd_clip), not only the torques."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
@@ -219,13 +227,24 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     blash = np.array(model.backlash, float).reshape(-1, 7)
     contact = np.zeros(0) if model.contact is None else \
         np.concatenate([model.contact[0], model.contact[1], model.contact[2:]]).astype(float)
+    stops = np.array(model.stops, float).reshape(-1, 6)
+    pdc = np.zeros((0, 5))
+    if pd_clip is not None:
+        lim = joint_limits(model.arm)["effort"]
+        kp, kd = (np.broadcast_to(np.asarray(g, float), (nj,)) for g in pd_clip)
+        rows = [(j, a, kp[j], kd[j], lim[j]) for j, a in enumerate(model.actuator_index)
+                if a >= 0 and np.isfinite(lim[j])]
+        pdc = np.array(rows, float).reshape(-1, 5)
+        effort = effort.copy()
+        effort[pdc[:, 0].astype(int)] = np.inf     # the whole PD torque is clipped instead
     held = np.zeros(model.nq, np.int64)
     held[model.held] = 1
     warm = acceleration is not None
     acc = np.array(acceleration, float).reshape(2, model.nq) if warm else \
         np.zeros((2, model.nq))
     qs, vs, iters = galpha_loop(data, np.ascontiguousarray(model.K), np.ascontiguousarray(D),
-                                model.Q_const.copy(), fric, motors, blash, contact, held,
+                                model.Q_const.copy(), fric, motors, blash, contact, stops,
+                                pdc, held,
                                 joint_input_matrix(model), effort,
                                 np.asarray(q0, float).copy(), np.asarray(v0, float).copy(),
                                 float(h), tau, float(rho_inf), float(tol), int(max_iter),

@@ -1,12 +1,13 @@
 """Joint limits of a spatial arm (URDF ``<limit>``): arrays, effort clipping, violations.
 
 Effort limits are honoured by the compiled fixed-step loop (compiled.galpha_loop clips the
-joint torques inline; :func:`clip_efforts` is the same clip for Python callers); position
-and velocity limits are reported by :func:`limit_violations`, not enforced as stops (no
-joint contact model on spatial joints yet). The spatial model node (spatial_node.py)
-clips its commands so (joint_states' effort is the clipped torque; with its eq95 PD the
-torque is not clipped) and logs position and velocity violations after every period (at
-most once a second per joint).
+joint torques inline, and with an in-loop PD its whole torque: integrate's ``pd_clip``;
+:func:`clip_efforts` is the same clip for Python callers); position limits become end
+stops with the arm file's ``joint_stops`` (description.JointStops), else they are, like
+the velocity limits, reported by :func:`limit_violations`. The spatial model node
+(spatial_node.py) clips so (joint_states' effort is the clipped torque, eq95 included)
+and logs position and velocity violations after every period (at most once a second per
+joint).
 """
 from __future__ import annotations
 

@@ -27,8 +27,10 @@ The PD law is thesis Eq. 95 with constant gains, tau_i = kp_i (s_i(t) - theta_a)
 kd_i theta_a', evaluated inside the integrator: its -kp theta_a - kd theta_a' part is
 stiffness and damping on the actuator coordinate theta_a (the joint, or the motor
 coordinate behind an elastic gear: collocated), kp s(t) a joint torque. A set-point step
-of delta is the torque step kp delta (as the planar scenario). The PD torque is not
-clipped to URDF effort limits (pulses are, when no PD is on). Pulses and set-point steps
+of delta is the torque step kp delta (as the planar scenario). With effort limits (URDF
+``<limit effort>`` or a DH joint's ``effort``) the whole actuator torque (PD, holding
+torques and pulses) is clipped to them inside the loop (integrate.simulate_fixed_compiled
+``pd_clip``; without a PD the torques are). Pulses and set-point steps
 are evaluated at mid-step, and the method restarts (consistent acceleration) where one
 switches, as the planar fixed-step mode does (simulate._run_fixed), so that a planar arm
 embedded in 3D follows the planar run.
@@ -46,6 +48,7 @@ from ..inputs import JointPD
 from ..scenario import _is_inf, _joint_index
 from .description import SPATIAL_PRESET_DIR, SpatialArm, load_spatial_arm
 from .dynamics import SpatialArmModel
+from .limits import joint_limits
 
 SPATIAL_SCENARIO_DIR = SPATIAL_PRESET_DIR / "scenarios"
 
@@ -193,7 +196,7 @@ class SpatialScenario:
                     run = simulate_fixed_compiled(
                         model, q, v, h, stop - start, joint_torques=u[start:stop],
                         rho_inf=self.rho_inf, tol=self.tol, damping=Dp,
-                        clip_to_effort=self.pd is None)
+                        pd_clip=None if self.pd is None else (self.pd.kp, self.pd.kd))
                 except RuntimeError as exc:   # the time of the segment -> of the run
                     raise RuntimeError(f"{self.name}: Newton did not converge in the step "
                                        f"after t = {start * h:.6g} s + ({exc}); reduce the "
@@ -214,6 +217,8 @@ class SpatialScenario:
         if self.pd is not None:
             act = model.actuator_index >= 0
             tau -= np.where(act, self.pd.kp * Q[:, a_idx] + self.pd.kd * V[:, a_idx], 0.0)
+        effort = joint_limits(model.arm)["effort"]
+        tau = np.where(model.actuator_index >= 0, np.clip(tau, -effort, effort), 0.0)
         return SpatialSimulation(model=model, t=t, q=Q, v=V, tau=tau,
                                  stats={"dt": h, "steps": n_total, "newton_iterations": iters,
                                         "restarts": len(bounds) - 1})
@@ -252,9 +257,10 @@ def pd_static_equilibrium(model: SpatialArmModel, K_pd, u, start=None, tol: floa
     Kt0 = model.K + K_pd
     f = joint_input_matrix(model) @ np.asarray(u, float) + model.Q_const
     for _ in range(max_iter):
-        r = (f - Kt0 @ q - model.gravity_force(q) + model.contact_load(q))[free]
-        Kt = (Kt0 + model.gravity_stiffness(q) + model.contact_tangent(q)[0])[
-            np.ix_(free, free)]
+        r = (f - Kt0 @ q - model.gravity_force(q) + model.contact_load(q)
+             + model.stop_load(q))[free]
+        Kt = (Kt0 + model.gravity_stiffness(q) + model.contact_tangent(q)[0]
+              + model.stop_tangent(q)[0])[np.ix_(free, free)]
         dq = np.linalg.solve(Kt, r)
         q[free] += dq
         if np.max(np.abs(dq)) < tol * max(1.0, np.max(np.abs(q))):

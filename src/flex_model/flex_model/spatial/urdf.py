@@ -9,8 +9,9 @@ serial chain (each link has at most one child joint). Mapping:
   default 1 0 0); ``<limit lower upper effort velocity>`` are kept on the joint
   (``continuous``: no position limits; absent values are infinite). Effort limits are
   honoured by the compiled fixed-step loop (it clips the joint torques; the same clip for
-  Python callers: ``limits.clip_efforts``), the others reported by ``limit_violations``; position
-  limits are *not* enforced as stops (no contact model on spatial joints yet).
+  Python callers: ``limits.clip_efforts``), the others reported by ``limit_violations``; the
+  position limits become end stops with the side YAML's ``joint_stops: {stiffness,
+  damping, transition}`` (description.JointStops), else they are only reported.
 - ``fixed`` joints are merged: their origin composes into the next moving joint's origin
   (or, after the last moving joint, into the last link's ``end_transform``, e.g. the tool
   frame), and the child link's inertial is lumped into the moving link it hangs on.
@@ -62,9 +63,11 @@ Side YAML (a spatial preset with a ``urdf`` key; paths relative to the YAML)::
         variables: 4             # per bending plane; torsion_variables as in YAML arms
         root_body: {mass: 1.0}
         end_body: {mass: 0.5}
+    joint_stops: {stiffness: 1.0e5, damping: 100.0}   # optional: the URDF limits as stops
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -73,7 +76,7 @@ import numpy as np
 
 from ..config import ConfigError, Fields
 from .description import (RigidBody, SpatialArm, SpatialJoint, SpatialLink, _body,
-                          flexible_beam, lump_bodies)
+                          flexible_beam, lump_bodies, parse_joint_stops)
 from .kinematics import rpy_matrix
 
 #: XML namespace of the flexible-link extension element ``<flex:flexible>`` in a <link>
@@ -459,14 +462,17 @@ def spatial_arm_from_side_file(data: dict, source: str) -> SpatialArm:
     flex = f.raw("flexible_links", {}) or {}
     if not isinstance(flex, dict) or not all(isinstance(v, dict) for v in flex.values()):
         raise f.error("flexible_links", flex, "a mapping: link name -> flexible data")
-    f.done(["name", "description", "urdf", "gravity", "flexible_links", "convention"])
     path = Path(rel)
     if not path.is_absolute():
         path = Path(source).resolve().parent / path
     if not path.is_file():
         raise f.error("urdf", rel, f"an existing URDF file (looked for {path})")
-    return spatial_arm_from_urdf(path.read_text(), str(path), flexible_links=flex, name=name,
-                                 gravity=gravity, side_source=source, description=description)
+    arm = spatial_arm_from_urdf(path.read_text(), str(path), flexible_links=flex, name=name,
+                                gravity=gravity, side_source=source, description=description)
+    stops = parse_joint_stops(f, arm.links, source)
+    f.done(["name", "description", "urdf", "gravity", "flexible_links", "convention",
+            "joint_stops"])
+    return arm if stops is None else dataclasses.replace(arm, joint_stops=stops)
 
 
 def load_urdf_arm(urdf_path, flexible_links: dict | None = None, **kw) -> SpatialArm:
