@@ -2,6 +2,9 @@
 
     python bench/bench_spatial_exudyn.py [--duration 1.0] [--quick]
     BENCH_T_PULSE=0.4 python bench/bench_spatial_exudyn.py --quick    # a longer pulse
+    BENCH_TAU_SCALE=0.5 ...      # half the torque pulse
+    BENCH_MODES=6 ...            # also the lowest natural frequencies of both
+    EXUDYN_EA / EXUDYN_GA / EXUDYN_BEND_INERTIA / EXUDYN_NEWTON_ABS=...   # Exudyn's section
 
 The arm (an L in the horizontal plane, both joint axes vertical, gravity -z): link 1
 (0.8 m) along x, link 2 (0.6 m) along y from its tip, each a flexible beam bending in two
@@ -17,10 +20,10 @@ then free (no controller).
   (variables per direction and step) to show it converged.
 - Exudyn (bench/.venv-peer only, never a dependency of the product): every link a chain
   of ObjectBeamGeometricallyExact elements (2-node Simo-Reissner beams, NodeRigidBodyEP;
-  axial and shear stiffness 1e6 N, so both nearly rigid; section rotary inertia rhoJ/2
-  about the bending axes, which ours has not), end bodies glued by GenericJoint,
-  ObjectJointRevoluteZ joints, body-fixed joint torques, implicit generalized-alpha
-  (rho_inf 0.9), at two element counts and steps.
+  axial and shear stiffness 1e8 N, so both nearly rigid; section rotary inertia rhoJ/20
+  about the bending axes, which ours has not: see EX_EA below), end bodies glued by
+  GenericJoint, ObjectJointRevoluteZ joints, body-fixed joint torques, implicit
+  generalized-alpha (rho_inf 0.9), at three element counts and steps.
 
 Compared every 5 ms: the joint angles (deg, the rotation of a link's root node relative
 to its parent about the joint axis) and the tip deflections v, w of each link (in the
@@ -48,10 +51,26 @@ SEC1 = {"EI_y": 600.0, "EI_z": 400.0, "GJ": 300.0, "rhoA": 0.6, "rhoJ": 6e-5}
 SEC2 = {"EI_y": 250.0, "EI_z": 200.0, "GJ": 150.0, "rhoA": 0.4, "rhoJ": 4e-5}
 END1 = {"mass": 0.5, "inertia": [4e-4, 4e-4, 4e-4]}
 END2 = {"mass": 0.3, "inertia": [2e-4, 2e-4, 2e-4]}
-TAU = (3.0, 1.0)      # N m, sin^2 pulse amplitudes
+TAU_SCALE = float(os.environ.get("BENCH_TAU_SCALE", "1"))
+TAU = (3.0 * TAU_SCALE, 1.0 * TAU_SCALE)      # N m, sin^2 pulse amplitudes
 T_PULSE = float(os.environ.get("BENCH_T_PULSE", "0.2"))   # s
 G = 9.81
+# Exudyn's section, as close to Euler-Bernoulli without axial stretch as its solvers take:
+# axial and shear stiffness 1e8 N (1e6 N left link 1's axial mode at ~160 Hz, coupled to
+# link 2's in-plane bending, plus shear flexibility: its ~65/100 Hz in-plane modes
+# 0.4-1.6 % off, 2.2 % on link 2's v), section inertia about the bending axes rhoJ / 20
+# (ours has none; rhoJ / 2 cost another 0.5 %; rhoJ / 200 breaks its integrator), Newton
+# absolute tolerance 1e-4 (1e-6 stalls on the round-off of the 1e8 N forces; 1e-4 moves
+# the 1e6 N run by < 0.01 %). The runs before 2026-12: EXUDYN_EA=1e6 EXUDYN_GA=1e6
+# EXUDYN_BEND_INERTIA=0.5 EXUDYN_NEWTON_ABS=1e-6.
+EX_EA = float(os.environ.get("EXUDYN_EA", "1e8"))          # N, axial stiffness
+EX_GA = float(os.environ.get("EXUDYN_GA", "1e8"))          # N, shear stiffness (both axes)
+EX_ROT = float(os.environ.get("EXUDYN_BEND_INERTIA", "0.05"))  # bending-axis inertia / rhoJ
+EX_ABS_TOL = float(os.environ.get("EXUDYN_NEWTON_ABS", "1e-4"))
+MODES = int(os.environ.get("BENCH_MODES", "0"))   # >0: print the lowest natural frequencies
 SAMPLE = 5e-3         # s, comparison grid
+#: viscous friction per joint in the Exudyn arm only (N m s/rad; 0: none, the bench's case)
+JOINT_VISCOUS = [0.0, 0.0]
 
 
 def arm_dict(variables: int) -> dict:
@@ -107,6 +126,29 @@ def _rot_z(a):
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def _exudyn_frequencies(exu, mbs, ss) -> list:
+    """Lowest MODES natural frequencies (Hz) at the initial state: Exudyn's mass matrix and
+    ODE2 jacobian projected on the null space of the constraint jacobian (as its
+    ComputeODE2Eigenvalues, in numpy: the peer venv has no scipy)."""
+    sol = exu.MainSolverStatic()
+    sol.InitializeSolver(mbs, ss)
+    n2 = sol.GetODE2size()
+    sol.ComputeMassMatrix(mbs)
+    M = np.array(sol.GetSystemMassMatrix())
+    sol.ComputeJacobianODE2RHS(mbs, scalarFactor_ODE2=-1, scalarFactor_ODE2_t=0,
+                               scalarFactor_ODE1=0)
+    sol.ComputeJacobianAE(mbs, scalarFactor_ODE2=1.0, scalarFactor_ODE2_t=0.0,
+                          scalarFactor_ODE1=0.0, velocityLevel=False)
+    J = np.array(sol.GetSystemJacobian())
+    sol.FinalizeSolver(mbs, ss)
+    K, C = J[:n2, :n2], J[:n2, n2:]
+    U, D, _ = np.linalg.svd(C)
+    N = U[:, int((np.abs(D) > 1e-12).sum()):]
+    w2 = np.linalg.eigvals(np.linalg.solve(N.T @ M @ N, N.T @ K @ N)).real
+    f = np.sqrt(np.abs(w2)) / (2 * np.pi)
+    return [float(x) for x in np.sort(f[f > 0.05])[:MODES]]
+
+
 def run_exudyn(n_el: int, h: float, duration: float) -> dict:
     import exudyn as exu
     from exudyn.utilities import (GenericJoint, LoadMassProportional, MarkerBodyMass,
@@ -124,9 +166,8 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
     roots, tips = [], []
     for p0, R, L, sec, end in links:
         sd = exu.BeamSection()
-        big = 1e6
-        sd.stiffnessMatrix = np.diag([big, big, big, sec["GJ"], sec["EI_y"], sec["EI_z"]])
-        sd.inertia = np.diag([sec["rhoJ"], sec["rhoJ"] / 2, sec["rhoJ"] / 2])
+        sd.stiffnessMatrix = np.diag([EX_EA, EX_GA, EX_GA, sec["GJ"], sec["EI_y"], sec["EI_z"]])
+        sd.inertia = np.diag([sec["rhoJ"], EX_ROT * sec["rhoJ"], EX_ROT * sec["rhoJ"]])
         sd.massPerLength = sec["rhoA"]
         ep = list(RotationMatrix2EulerParameters(R))
         nodes = [mbs.AddNode(NodeRigidBodyEP(referenceCoordinates=list(p0 + R[:, 0] * L * k
@@ -160,6 +201,9 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
         mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[m0, m1]))
         holds.append(mbs.AddObject(ObjectConnectorTorsionalSpringDamper(
             markerNumbers=[m0, m1], stiffness=1e6, offset=0.0 if i == 0 else np.pi / 2)))
+        if JOINT_VISCOUS[i]:   # viscous joint friction (bench/spatial_diagnosis's data)
+            mbs.AddObject(ObjectConnectorTorsionalSpringDamper(
+                markerNumbers=[m0, m1], stiffness=0.0, damping=JOINT_VISCOUS[i]))
         amp = TAU[i]
 
         def f_child(mbs, t, load, amp=amp):
@@ -191,7 +235,7 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
     ti.newton.useModifiedNewton = True
     # Newton: Exudyn's default relative tolerance 1e-8; absolute 1e-6 (the round-off
     # floor of the stiff axial/shear forces, 1e6 N, stalls a tighter one)
-    ti.newton.absoluteTolerance = 1e-6
+    ti.newton.absoluteTolerance = EX_ABS_TOL
     ti.adaptiveStep = True
     ss.solution.file.write = False
     ss.solution.sensors.writePeriod = SAMPLE
@@ -199,11 +243,16 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
     # start: the static equilibrium under gravity with the joints held (as ours)
     ss.staticSolver.numberOfLoadSteps = 4
     ss.staticSolver.verboseMode = int(os.environ.get("EXUDYN_VERBOSE", "0"))
-    ss.staticSolver.newton.absoluteTolerance = 1e-6
+    ss.staticSolver.newton.absoluteTolerance = EX_ABS_TOL
+    freqs = {}
+    if MODES:       # joints held by the stiff springs, undeformed (no preload)
+        freqs["clamped"] = _exudyn_frequencies(exu, mbs, ss)
     mbs.SolveStatic(ss, updateInitialValues=True)
     state["static"] = False
     for hd in holds:
         mbs.SetObjectParameter(hd, "activeConnector", False)
+    if MODES:       # joints free, at the static start (gravity preload)
+        freqs["hinged"] = _exudyn_frequencies(exu, mbs, ss)
     t0 = time.process_time()
     w0 = time.perf_counter()
     mbs.SolveDynamic(ss)
@@ -211,7 +260,7 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
     data = {k: mbs.GetSensorStoredData(s) for k, s in sens.items()}
     t = data["root0p"][:, 0]
     out = {"t": t.tolist(), "cpu": cpu, "wall": wall,
-           "n": int(mbs.systemData.ODE2Size())}
+           "n": int(mbs.systemData.ODE2Size()), "freqs": freqs}
     Rs = {k: v[:, 1:].reshape(-1, 3, 3) for k, v in data.items() if k.endswith("R")}
     ps = {k: v[:, 1:4] for k, v in data.items() if k.endswith("p")}
     # joint angles: rotation of the root frame relative to its parent about z, minus the
@@ -278,7 +327,8 @@ def main(argv=None) -> int:
         return _peer(args)
     ours_res = [(8, 5e-4)] if args.quick else [(4, 1e-3), (8, 5e-4), (12, 2.5e-4),
                                                (12, 1.25e-4)]
-    peer_res = [(16, 5e-4)] if args.quick else [(16, 5e-4), (32, 2.5e-4), (64, 2.5e-4)]
+    # the reference at 1.25e-4 s: at 2.5e-4 s Exudyn's own step moves link 2's v by 1.2 %
+    peer_res = [(16, 5e-4)] if args.quick else [(16, 5e-4), (32, 2.5e-4), (64, 1.25e-4)]
     ours = {r: run_ours(*r, args.duration) for r in ours_res}
     peer = {}
     for r in peer_res:
@@ -297,6 +347,19 @@ def main(argv=None) -> int:
     for r, o in peer.items():
         print(f"  Exudyn {r[0]:2d} el/link, h {r[1]:.1e}: {o['n']:4d} ODE2 coords, "
               f"{o['cpu']:.2f} s CPU ({o['wall']:.2f} s wall)")
+    if MODES:
+        from flex_model.spatial import SpatialArmModel, spatial_arm_from_dict
+        from flex_model.spatial.analysis import natural_modes
+        m = SpatialArmModel(spatial_arm_from_dict(arm_dict(ours_res[-1][0])))
+        fc = natural_modes(m, joints="clamped").frequencies_hz
+        fh = natural_modes(m, joints="hinged", gravity_preload=True).frequencies_hz
+        print(f"  frequencies (Hz), ours {ours_res[-1][0]} var.: clamped undeformed "
+              + " ".join(f"{x:.3f}" for x in fc[:MODES]) + "; hinged at the static start "
+              + " ".join(f"{x:.3f}" for x in fh[fh > 0.05][:MODES]))
+        for r, o in peer.items():
+            print(f"  frequencies (Hz), Exudyn {r[0]} el.: clamped undeformed "
+                  + " ".join(f"{x:.3f}" for x in o["freqs"]["clamped"]) + "; hinged at the "
+                  "static start " + " ".join(f"{x:.3f}" for x in o["freqs"]["hinged"]))
     ref_o, ref_p = ours[ours_res[-1]], peer[peer_res[-1]]
     rows = [(f"ours {r[0]} var., h {r[1]:.1e} vs ours finest", ours[r], ref_o)
             for r in ours_res[:-1]]

@@ -33,7 +33,10 @@ def add_diagnose_parser(sub) -> None:
                     "/joint_states, position = ql<i>, velocity = vl<i>; default "
                     f"{LINK_TOPIC}, read when the bag has it; a manifest run's link_topic wins)")
     sp.add_argument("--arm", help="nominal arm YAML (or preset name); required unless a "
-                    "manifest names each run's")
+                    "manifest names each run's. A spatial arm takes one CSV recording "
+                    "(t, q<i>, tau<i>, <link>_tip_deflection_y|z, <link>_tip_twist), "
+                    "replayed open loop, with hypotheses per joint and bending plane "
+                    "(no --controller)")
     sp.add_argument("--controller", help="controller YAML (flex_twin.diagnosis.controller); "
                     "required unless a manifest names each run's")
     sp.add_argument("--holdout", help="held-out recording of a single run (default: the last "
@@ -76,11 +79,47 @@ def _check_topic(topic):
     return topic
 
 
+def _is_spatial(arm) -> bool:
+    from flex_model.spatial.description import is_spatial_arm
+    return is_spatial_arm(arm)
+
+
+def _diagnose_spatial(args) -> int:
+    """A spatial arm: one recording, open-loop replay of its torques, hypotheses per joint
+    and bending plane (flex_twin.diagnosis.spatial)."""
+    from flex_model.spatial import SpatialArmModel, load_spatial_arm
+    from .spatial import diagnose_spatial, read_spatial_recording, write_outputs
+    given = [f"--{k.replace('_', '-')}" for k in ("controller", "holdout", "segment",
+                                                   "link_topic", "gate", "scheduler",
+                                                   "workers") if getattr(args, k, None)]
+    if given or len(args.data) != 1 or not args.data[0].endswith(".csv"):
+        raise ValueError(f"{args.arm} is a spatial arm: its diagnosis takes one recording CSV "
+                         "(t, q<i>, tau<i>, <link>_tip_deflection_y|z, <link>_tip_twist) and "
+                         "replays its torques open loop; " + (
+                             f"{', '.join(given)} do(es) not apply" if given else
+                             f"got {' '.join(args.data)}"))
+    model = SpatialArmModel(load_spatial_arm(args.arm))
+    rec = read_spatial_recording(args.data[0], model)
+    diag = diagnose_spatial(model, rec, progress=lambda m: print(m, file=sys.stderr,
+                                                                  flush=True))
+    write_outputs(diag, rec, args.out, plots=not args.no_plots)
+    if args.json:
+        print(json.dumps(diag.summary(), indent=1, default=float))
+    else:
+        print(f"verdict: {diag.verdict}; named: "
+              f"{'; '.join(n.label for n in diag.named) or '-'}; held-out cost "
+              f"{diag.cost_holdout[0]:.3g} -> {diag.cost_holdout[1]:.3g}; report "
+              f"{args.out}/report.md")
+    return 0
+
+
 def cmd_diagnose(args) -> int:
     from ..cluster import batch_executor
     from .batch import RunSpec, diagnose_many, diagnose_run, expand_runs, named_text
 
     topic = _check_topic(getattr(args, "link_topic", None))
+    if args.arm and _is_spatial(args.arm):
+        return _diagnose_spatial(args)
     if _single_run(args.data):
         if not args.arm or not args.controller:
             raise ValueError("--arm and --controller are needed (or a manifest YAML of runs)")
