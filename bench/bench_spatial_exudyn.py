@@ -4,6 +4,7 @@
     BENCH_T_PULSE=0.4 python bench/bench_spatial_exudyn.py --quick    # a longer pulse
     BENCH_TAU_SCALE=0.5 ...      # half the torque pulse
     BENCH_MODES=6 ...            # also the lowest natural frequencies of both
+    BENCH_KINEMATICS=second_order ...   # ours with the axial shortening
     EXUDYN_EA / EXUDYN_GA / EXUDYN_BEND_INERTIA / EXUDYN_NEWTON_ABS=...   # Exudyn's section
 
 The arm (an L in the horizontal plane, both joint axes vertical, gravity -z): link 1
@@ -69,6 +70,8 @@ EX_ROT = float(os.environ.get("EXUDYN_BEND_INERTIA", "0.05"))  # bending-axis in
 EX_ABS_TOL = float(os.environ.get("EXUDYN_NEWTON_ABS", "1e-4"))
 MODES = int(os.environ.get("BENCH_MODES", "0"))   # >0: print the lowest natural frequencies
 SAMPLE = 5e-3         # s, comparison grid
+#: our kinematics (small_deflection | second_order)
+KINEMATICS = os.environ.get("BENCH_KINEMATICS", "small_deflection")
 #: viscous friction per joint in the Exudyn arm only (N m s/rad; 0: none, the bench's case)
 JOINT_VISCOUS = [0.0, 0.0]
 
@@ -76,11 +79,12 @@ JOINT_VISCOUS = [0.0, 0.0]
 def arm_dict(variables: int) -> dict:
     flex = lambda sec: {"section": sec, "variables": variables,     # noqa: E731
                         "torsion_variables": variables}
-    return {"name": "exudyn_l_arm", "gravity": [0.0, 0.0, -G], "links": [
-        {"name": "link1", "joint": {"name": "joint1", "a": L1}, "flexible": flex(SEC1),
-         "end_body": END1},
-        {"name": "link2", "joint": {"name": "joint2", "a": L2, "theta": np.pi / 2},
-         "flexible": flex(SEC2), "end_body": END2}]}
+    links = [{"name": "link1", "joint": {"name": "joint1", "a": L1}, "flexible": flex(SEC1),
+              "end_body": END1},
+             {"name": "link2", "joint": {"name": "joint2", "a": L2, "theta": np.pi / 2},
+              "flexible": flex(SEC2), "end_body": END2}]
+    return {"name": "exudyn_l_arm", "gravity": [0.0, 0.0, -G], "kinematics": KINEMATICS,
+            "links": links}
 
 
 def pulse(t):

@@ -44,6 +44,7 @@ def _combine(A, B):
 def pack(model: SpatialArmModel) -> tuple:
     """The model data tuple of the compiled kernels (see the module docstring)."""
     arm = model.arm
+    so = getattr(arm, "kinematics", "small_deflection") == "second_order"
     n = model.n_links
     eye = (np.eye(3), np.zeros(3))
     jtype = np.zeros(n, np.int64)
@@ -64,6 +65,8 @@ def pack(model: SpatialArmModel) -> tuple:
     maxnv = max([b.nv for b in beams] + [1])
     maxnt = max([b.nt for b in beams] + [1])
     zs, mw, pw, Wv, dWv, Ww, dWw, Pt = [], [], [], [], [], [], [], []
+    Sv, Sw = [], []                  # second_order: S(z) per plane at the mass points
+    SL = np.zeros((n, 2, maxnv, maxnv))   # and at the tip
     count = 0
     for i, (lk, b) in enumerate(zip(arm.links, model.beams)):
         (Rpre, tpre), (Rdh, tdh), bodies = model._consts[i]
@@ -95,6 +98,13 @@ def pack(model: SpatialArmModel) -> tuple:
             a = np.zeros((npt, maxnt))
             a[:, :b.Pt.shape[1]] = b.Pt
             Pt.append(a)
+            if so:
+                for dst, src in ((Sv, b.Sv), (Sw, b.Sw)):
+                    a = np.zeros((npt, maxnv, maxnv))
+                    a[:, :b.nv, :b.nv] = src
+                    dst.append(a)
+                SL[i, 0, :b.nv, :b.nv] = b.SvL
+                SL[i, 1, :b.nv, :b.nv] = b.SwL
             count += npt
         else:
             stages[3] = (Rdh, tdh)
@@ -120,7 +130,10 @@ def pack(model: SpatialArmModel) -> tuple:
     return (jtype, koff, axis, T, P, flex, nv, nt, fstart, length, bm, bc, bI, pstart,
             cat(zs), cat(mw), cat(pw), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
             cat(dWw, maxnv), cat(Pt, maxnt), np.asarray(model.gravity, float),
-            int(model.nq), rot.reshape(n, 3), mdiag)
+            int(model.nq), rot.reshape(n, 3), mdiag,
+            np.ascontiguousarray(np.concatenate(Sv)) if Sv else np.zeros((0, maxnv, maxnv)),
+            np.ascontiguousarray(np.concatenate(Sw)) if Sw else np.zeros((0, maxnv, maxnv)),
+            SL, int(so))
 
 
 # ------------------------------------------------------------------ small vector helpers
@@ -422,7 +435,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     points and rotors of a link are lumped per frame into a spatial inertia (mass, first
     and second moments) so that M costs one J6^T I6 J6 product per frame group."""
     (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag) = Pm
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so) = Pm
     M = np.zeros((nq, nq))
     c = np.zeros(nq)
     R = np.eye(3)
@@ -531,6 +544,8 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         # inertia rhoJ ds a a^T (a the section's x axis)
         n2 = 2 * nv
         sown = np.zeros(n2 + nt)
+        sva = np.zeros(nv)
+        swa = np.zeros(nv)
         for p in range(pstart[i], pstart[i + 1]):
             yv = 0.0
             yw = 0.0
@@ -560,15 +575,35 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                 adw += dWw[p, j] * hw[j]
             mp = mw[p]
             zp = zs[p]
+            ush = 0.0           # second_order: shortening u, its rate and acceleration
+            dsh = 0.0
+            ash = 0.0
+            if so:
+                for j in range(nv):
+                    sa = 0.0
+                    sc = 0.0
+                    ga = 0.0
+                    gc = 0.0
+                    for jj in range(nv):
+                        sa += Sv[p, j, jj] * fv[jj]
+                        sc += Sw[p, j, jj] * fw[jj]
+                        ga += Sv[p, j, jj] * gv[jj]
+                        gc += Sw[p, j, jj] * gw[jj]
+                    sva[j] = sa
+                    swa[j] = sc
+                    ush += 0.5 * (sa * fv[j] + sc * fw[j])
+                    dsh += sa * gv[j] + sc * gw[j]
+                    ash += ga * gv[j] + gc * gw[j] + sa * hv[j] + sc * hw[j]
+                zp = zp - ush
             r0 = zp * bx[0] + yv * by[0] + yw * bz[0]
             r1 = zp * bx[1] + yv * by[1] + yw * bz[1]
             r2 = zp * bx[2] + yv * by[2] + yw * bz[2]
-            d0 = sv * by[0] + sw * bz[0]
-            d1 = sv * by[1] + sw * bz[1]
-            d2 = sv * by[2] + sw * bz[2]
-            ex0 = av_ * by[0] + aw_ * bz[0]
-            ex1 = av_ * by[1] + aw_ * bz[1]
-            ex2 = av_ * by[2] + aw_ * bz[2]
+            d0 = sv * by[0] + sw * bz[0] - dsh * bx[0]
+            d1 = sv * by[1] + sw * bz[1] - dsh * bx[1]
+            d2 = sv * by[2] + sw * bz[2] - dsh * bx[2]
+            ex0 = av_ * by[0] + aw_ * bz[0] - ash * bx[0]
+            ex1 = av_ * by[1] + aw_ * bz[1] - ash * bx[1]
+            ex2 = av_ * by[2] + aw_ * bz[2] - ash * bx[2]
             # w x r, w x (w x r), al x r, w x rd
             u0 = w[1] * r2 - w[2] * r1
             u1 = w[2] * r0 - w[0] * r2
@@ -591,6 +626,37 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             cz0 = r1 * bz[2] - r2 * bz[1]
             cz1 = r2 * bz[0] - r0 * bz[2]
             cz2 = r0 * bz[1] - r1 * bz[0]
+            if so:      # own columns b_y Wv_j - b_x (Sv f_v)_j, b_z Ww_j - b_x (Sw f_w)_j
+                ax = bx[0] * acc[0] + bx[1] * acc[1] + bx[2] * acc[2]
+                cx0 = r1 * bx[2] - r2 * bx[1]
+                cx1 = r2 * bx[0] - r0 * bx[2]
+                cx2 = r0 * bx[1] - r1 * bx[0]
+                for j in range(nv):
+                    c[s0 + j] -= mp * sva[j] * ax
+                    c[s0 + nv + j] -= mp * swa[j] * ax
+                    if not want_m:
+                        continue
+                    jv = s0 + j
+                    jw = s0 + nv + j
+                    mv = mp * sva[j]
+                    mwj = mp * swa[j]
+                    C6[0, jv] -= mv * bx[0]
+                    C6[1, jv] -= mv * bx[1]
+                    C6[2, jv] -= mv * bx[2]
+                    C6[3, jv] -= mv * cx0
+                    C6[4, jv] -= mv * cx1
+                    C6[5, jv] -= mv * cx2
+                    C6[0, jw] -= mwj * bx[0]
+                    C6[1, jw] -= mwj * bx[1]
+                    C6[2, jw] -= mwj * bx[2]
+                    C6[3, jw] -= mwj * cx0
+                    C6[4, jw] -= mwj * cx1
+                    C6[5, jw] -= mwj * cx2
+                    for jj in range(j, nv):
+                        M[jv, s0 + jj] += mv * sva[jj]
+                        M[jw, s0 + nv + jj] += mwj * swa[jj]
+                    for jj in range(nv):
+                        M[jv, s0 + nv + jj] += mv * swa[jj]
             for j in range(nv):
                 c[s0 + j] += mp * Wv[p, j] * ay
                 c[s0 + nv + j] += mp * Ww[p, j] * az
@@ -712,15 +778,34 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         phi = ft[nt - 2] if nt else 0.0
         sphi = gt[nt - 2] if nt else 0.0
         aphi = ht[nt - 2] if nt else 0.0
+        ush = 0.0
+        dsh = 0.0
+        ash = 0.0
+        if so:          # second_order: the tip at (L - u(L), v, w)
+            for j in range(nv):
+                sa = 0.0
+                sc = 0.0
+                ga = 0.0
+                gc = 0.0
+                for jj in range(nv):
+                    sa += SL[i, 0, j, jj] * fv[jj]
+                    sc += SL[i, 1, j, jj] * fw[jj]
+                    ga += SL[i, 0, j, jj] * gv[jj]
+                    gc += SL[i, 1, j, jj] * gw[jj]
+                sva[j] = sa
+                swa[j] = sc
+                ush += 0.5 * (sa * fv[j] + sc * fw[j])
+                dsh += sa * gv[j] + sc * gw[j]
+                ash += ga * gv[j] + gc * gw[j] + sa * hv[j] + sc * hw[j]
         for a in range(3):
-            rv[a] = L * bx[a] + tv * by[a] + tw * bz[a]
-            xv[a] = by[a] * sv + bz[a] * sw
+            rv[a] = (L - ush) * bx[a] + tv * by[a] + tw * bz[a]
+            xv[a] = by[a] * sv + bz[a] * sw - dsh * bx[a]
         _cross(al, rv, t1)
         _cross(w, rv, t2)
         _cross(w, t2, t3)
         _cross(w, xv, t4)
         for a in range(3):
-            ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a]
+            ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a] - ash * bx[a]
             o[a] += rv[a]
         for j in range(ncols):
             Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
@@ -736,6 +821,10 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             Jw[a, s0 + 2 * nv - 1] += awb[a]
             if nt:
                 Jw[a, s0 + 2 * nv + nt - 2] += bx[a]
+            if so:
+                for j in range(nv):
+                    Jo[a, s0 + j] -= sva[j] * bx[a]
+                    Jo[a, s0 + nv + j] -= swa[j] * bx[a]
         wb = _mv(Rb, wrel)
         _cross(w, wb, tmp)
         arel[0] += aphi
@@ -909,7 +998,7 @@ def tip_point(Pm, q):
     translational Jacobian (3 x nq): the kinematic part of spatial_eval's pass
     (SpatialArmModel.tip_frame), without the rates."""
     (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag) = Pm
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so) = Pm
     R = np.eye(3)
     o = np.zeros(3)
     Jo = np.zeros((3, nq))
@@ -956,6 +1045,17 @@ def tip_point(Pm, q):
         tw, tdw = q[s0 + 2 * nv - 2], q[s0 + 2 * nv - 1]
         phi = q[s1 - 2] if nt else 0.0
         L = length[i]
+        if so:          # second_order: the tip at (L - u(L), v, w)
+            for j in range(nv):
+                sa = 0.0
+                sc = 0.0
+                for jj in range(nv):
+                    sa += SL[i, 0, j, jj] * q[s0 + jj]
+                    sc += SL[i, 1, j, jj] * q[s0 + nv + jj]
+                L -= 0.5 * (sa * q[s0 + j] + sc * q[s0 + nv + j])
+                for a in range(3):
+                    Jo[a, s0 + j] -= sa * Rb[a, 0]
+                    Jo[a, s0 + nv + j] -= sc * Rb[a, 0]
         for a in range(3):
             rv[a] = L * Rb[a, 0] + tv * Rb[a, 1] + tw * Rb[a, 2]
         for j in range(ncols):

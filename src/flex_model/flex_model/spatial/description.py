@@ -50,6 +50,9 @@ and ``velocity``; the top-level ``joint_stops: {stiffness, damping, transition}`
 the position limits end stops (:class:`JointStops`), else they are only reported
 (spatial/limits.py).
 
+``kinematics: second_order`` adds the axial shortening of the bent beams (the planar
+arm's option, dynamics.py); the default ``small_deflection`` is thesis Eq. 1.
+
 Optional top-level keys: ``effects`` (flex_model.effects classes, SPATIAL_EFFECTS:
 joint effects, ``structural_damping`` of flexible links and the arm's
 ``contact_surface`` at the tip, a plane in 3D: effects.contact; see dynamics.py),
@@ -221,6 +224,9 @@ class SpatialArm:
     sensors: tuple = ()
     #: end stops at the joints' position limits (None: the limits are only reported)
     joint_stops: JointStops | None = None
+    #: small_deflection (thesis Eq. 1) or second_order (the axial shortening of the bent
+    #: beams, u(s) = 1/2 int_0^s (v'^2 + w'^2): dynamics.py)
+    kinematics: str = "small_deflection"
 
     @property
     def n_links(self) -> int:
@@ -460,6 +466,8 @@ def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
 
 #: DH conventions of a YAML arm file
 CONVENTIONS = ("standard_dh", "modified_dh")
+#: kinematics of the flexible links (the planar arm's names; no ``exact`` in 3D)
+KINEMATICS = ("small_deflection", "second_order")
 
 
 def modified_to_standard(joints: list, fields: list) -> tuple:
@@ -533,11 +541,12 @@ def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     sensors = parse_sensors(f.items("sensors", []), source, names,
                             [lk.name for lk in links]) if f.has("sensors") else ()
     stops = parse_joint_stops(f, links, source)
+    kinematics = f.string("kinematics", "small_deflection", choices=list(KINEMATICS))
     f.done(["name", "description", "convention", "gravity", "links", "effects", "payload",
-            "sensors", "joint_stops"])
+            "sensors", "joint_stops", "kinematics"])
     return SpatialArm(name=name, links=tuple(links), gravity=gravity, description=description,
                       source=source, convention=convention, effects=effects, payload=payload,
-                      sensors=sensors, joint_stops=stops)
+                      sensors=sensors, joint_stops=stops, kinematics=kinematics)
 
 
 def load_spatial_arm(name_or_path) -> SpatialArm:
@@ -561,12 +570,12 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
     (default mean m (L/200)^2). M-, J- become the root body (J about z), M+, J+ the end
     body, the payload (J about z) the arm's ``payload`` (lumped with the last end body).
     Gravity (g_x, g_y) -> (g_x, g_y, 0); a ``contact_surface`` (x, y, normal_angle) is
-    the plane through (x, y, 0) containing the z direction. Only ``wavelet`` links with
-    ``small_deflection`` kinematics and the effects of SPATIAL_EFFECTS (same objects)
-    are accepted."""
-    if arm.kinematics != "small_deflection":
+    the plane through (x, y, 0) containing the z direction; the kinematics (small_deflection
+    or second_order) carries over. Only ``wavelet`` links and the effects of
+    SPATIAL_EFFECTS (same objects) are accepted."""
+    if arm.kinematics not in KINEMATICS:
         raise ConfigError(arm.source, "kinematics", arm.kinematics,
-                          "small_deflection (second_order is not in the spatial core yet)")
+                          f"one of {', '.join(KINEMATICS)} (exact is planar only)")
     bad = [e.TYPE for e in arm.effects if e.TYPE not in SPATIAL_EFFECTS]
     if bad:
         raise ConfigError(arm.source, "effects", bad,
@@ -601,7 +610,7 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
         [0.0, 0.0, arm.payload_inertia]))))
     return SpatialArm(name=arm.name + "_3d", links=tuple(links), gravity=g,
                       description=arm.description, source=arm.source,
-                      effects=tuple(arm.effects), payload=payload)
+                      effects=tuple(arm.effects), payload=payload, kinematics=arm.kinematics)
 
 
 def rigid_dh_table(arm: SpatialArm) -> np.ndarray:

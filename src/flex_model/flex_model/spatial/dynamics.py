@@ -81,6 +81,15 @@ Arm effects:
   :meth:`SpatialArmModel.effect_force` with q; its tangent on the diagonal,
   :meth:`SpatialArmModel.stop_tangent`; its potential in the energy as "stops").
 
+Kinematics ``second_order`` (arm option, the planar model's name): a bent inextensible
+beam's points move back along its axis by the axial shortening
+u(s) = 1/2 (f_v^T S_v(s) f_v + f_w^T S_w(s) f_w), S(s) = int_0^s w' w'^T (both planes;
+basis.LinkBasis.shortening_matrix): the centre line at (s - u(s), v(s), w(s)) and the tip
+frame's origin at (L - u(L), v, w) (the section rotations stay those of Eq. 19). It enters
+M, c and gravity through the points' positions and Jacobians (the complex step gives the
+velocity terms, centrifugal stiffening included); a planar second_order arm embedded by
+from_planar has the planar model's equations.
+
 Arm data: ``payload`` (a rigid body in the last link's end frame) is lumped with the last
 link's end body (parallel-axis theorem, :func:`combine_bodies`).
 """
@@ -182,6 +191,15 @@ class BeamData:
         self.tip_w, self.tip_dw = nv + nv - 2, nv + nv - 1
         self.tip_phi = 2 * nv + nt - 2 if nt else None
         self.P = P_AUX if beam.placement == "aux_z" else np.eye(3)
+        #: second_order kinematics: S(z) = int_0^z w' w'^T ds of each plane at the mass
+        #: points and at the tip (None: small deflections)
+        self.Sv = self.Sw = self.SvL = self.SwL = None
+
+    def second_order(self):
+        """Sample the shortening matrices (basis.LinkBasis.shortening_matrix)."""
+        zl = np.concatenate([self.z, [self.length]])
+        Sv, Sw = self.bv.shortening_matrix(zl), self.bw.shortening_matrix(zl)
+        self.Sv, self.SvL, self.Sw, self.SwL = Sv[:-1], Sv[-1], Sw[:-1], Sw[-1]
 
     def split(self, f):
         nv = self.nv
@@ -195,6 +213,10 @@ class SpatialArmModel:
         self.arm = arm
         self.beams = [BeamData(lk.flexible) if lk.flexible is not None else None
                       for lk in arm.links]
+        if getattr(arm, "kinematics", "small_deflection") == "second_order":
+            for b in self.beams:
+                if b is not None:
+                    b.second_order()
         sizes = [1 + (b.n if b is not None else 0) for b in self.beams]
         self.off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
         self.nq_arm = int(np.sum(sizes))
@@ -602,10 +624,17 @@ class SpatialArmModel:
         if with_masses:
             n = len(b.z)
             v, w = b.Wv @ fv, b.Ww @ fw
-            r = np.stack([b.z + 0 * v, v, w], axis=1)
+            x = b.z + 0 * v
+            if b.Sv is not None:      # second_order: x = z - u, u = 1/2 f^T S(z) f per plane
+                Svf, Swf = b.Sv @ fv, b.Sw @ fw
+                x = x - 0.5 * (Svf @ fv + Swf @ fw)
+            r = np.stack([x, v, w], axis=1)
             p, Jp = point_jacobians(Fb, r)
             Jp[:, :, cols[:nv]] += Rb[None, :, 1, None] * b.Wv[:, None, :]
             Jp[:, :, cols[nv:2 * nv]] += Rb[None, :, 2, None] * b.Ww[:, None, :]
+            if b.Sv is not None:
+                Jp[:, :, cols[:nv]] -= Rb[None, :, 0, None] * Svf[:, None, :]
+                Jp[:, :, cols[nv:2 * nv]] -= Rb[None, :, 0, None] * Swf[:, None, :]
             points.append((b.mass_w, p, Jp))
             if b.nt:
                 phi, dv, dw = b.Pt @ ft, b.dWv @ fv, b.dWw @ fw
@@ -624,10 +653,17 @@ class SpatialArmModel:
         L = b.length
         v, w, dv, dw = fv[nv - 2], fw[nv - 2], fv[nv - 1], fw[nv - 1]
         phi = ft[-2] if b.nt else 0.0 * v
-        rl = Rb @ np.array([L + 0 * v, v, w])
+        xl = L + 0 * v
+        if b.Sv is not None:
+            Svf, Swf = b.SvL @ fv, b.SwL @ fw
+            xl = xl - 0.5 * (Svf @ fv + Swf @ fw)
+        rl = Rb @ np.array([xl, v, w])
         Jo = F.Jo - skew(rl) @ F.Jw
         Jo[:, cols[nv - 2]] += Rb[:, 1]
         Jo[:, cols[2 * nv - 2]] += Rb[:, 2]
+        if b.Sv is not None:
+            Jo[:, cols[:nv]] -= Rb[:, 0, None] * Svf[None, :]
+            Jo[:, cols[nv:2 * nv]] -= Rb[:, 0, None] * Swf[None, :]
         Rx = rot_x(phi)
         Rxy = Rx @ rot_y(-dw)
         Jw = F.Jw.copy()
