@@ -40,7 +40,9 @@ integration step, 1/rate is split into ceil((1/rate)/step) equal steps), rho_inf
 newton_tol, initial_joint_values (rad or m: one per joint or one for all), start_static
 (at rest, deflected under gravity, joints held; with eq95 the PD's equilibrium; with the
 initial payload), start_paused (until ~/pause false), payload (the initial payload, a
-vector as on flex/payload), controller (none | eq95: thesis Eq. 95 with constant gains,
+vector as on flex/payload), controller (none | eq45 | eq95: thesis Eq. 95 with constant
+gains; eq45, seed 000's cascade with kpp, kpv, is the same PD with kp = n^2 kpv kpp,
+kd = n^2 kpv, n the joint's gear ratio;
 tau = kp (s - theta_a) - kd theta_a', inside the compiled loop as spatial/scenario.py runs
 it: -kp, -kd as stiffness and damping on the actuator coordinate), kp, kd, setpoints (one
 per joint or one for all), command_timeout (s of simulation time without a valid command,
@@ -156,8 +158,12 @@ PARAMETERS = (
     Param("payload", [0.0], "initial payload at the last link's end frame origin: [m] | "
           "[m, J_z] | [m, Ixx, Iyy, Izz] | [m, Ixx, Iyy, Izz, Ixy, Ixz, Iyz] (kg, kg m^2, "
           "end frame)", check=_payload_check),
-    Param("controller", "none", "none | eq95 (in-loop PD, thesis Eq. 95, constant gains)",
-          check=_choice("none", "eq95")),
+    Param("controller", "none", "none | eq95 (in-loop PD, thesis Eq. 95, constant gains) "
+          "| eq45 (seed 000's PD-like cascade Eq. 45: the in-loop PD kp = n^2 kpv kpp, "
+          "kd = n^2 kpv, n the joint's gear ratio)", check=_choice("none", "eq95", "eq45")),
+    Param("kpp", [0.0], "eq45: K_pp (1/s), one per joint or one for all", check=_gains),
+    Param("kpv", [0.0], "eq45: K_pv (N m s/rad, motor side), one per joint or one for all",
+          check=_gains),
     Param("kp", [0.0], "eq95: N m/rad (N/m), one per joint or one for all", check=_gains),
     Param("kd", [0.0], "eq95: N m s/rad (N s/m), one per joint or one for all",
           check=_gains),
@@ -248,22 +254,26 @@ class SpatialModelNode(Node):
             self.model if self.model.arm is self.arm0 else SpatialArmModel(self.arm0))
         self.names = list(self.arm.joint_names)
         vec = {k: self._per_joint(k, p[k]) for k in ("initial_joint_values", "kp", "kd",
-                                                      "setpoints")}
+                                                      "setpoints", "kpp", "kpv")}
         self.period = 1.0 / p["rate"]
         self.per = max(1, int(math.ceil(self.period / p["step"] - 1e-9)))
         self.h = self.period / self.per
-        self.eq95 = p["controller"] == "eq95"
+        law = p["controller"]
+        self.in_loop_pd = law in ("eq95", "eq45")    # Eq. 45 is a joint PD too
         self.motor_joints = [self.names[j] for j, *_ in self.model.motors]
-        if self.eq95 and self.motor_joints:
+        if self.in_loop_pd and self.motor_joints:
             raise ParameterError(
-                f"parameter controller: got eq95 on an arm with dc_motor joints "
+                f"parameter controller: got {law} on an arm with dc_motor joints "
                 f"({', '.join(self.motor_joints)}); expected none: their commands are "
-                "voltages, eq95's PD gives torques")
+                f"voltages, {law}'s PD gives torques")
         self.kp, self.kd = vec["kp"], vec["kd"]
+        if law == "eq45":
+            from .spatial.scenario import eq45_joint_gains
+            self.kp, self.kd = eq45_joint_gains(self.arm, vec["kpp"], vec["kpv"])
         self.setpoints0 = vec["setpoints"]
         self.act = self.model.actuator_index >= 0
         self.Kp, self.Dp = np.zeros((2, self.model.nq, self.model.nq))
-        if self.eq95:
+        if self.in_loop_pd:
             for i, a in enumerate(self.model.actuator_index):
                 if a >= 0:
                     self.Kp[a, a] += self.kp[i]
@@ -352,7 +362,7 @@ class SpatialModelNode(Node):
                              sample_period=self.period, rho_inf=self.p["rho_inf"],
                              joint_values=values, joint_rates=np.zeros(len(values)),
                              start_static=static,
-                             pd=SpatialPD(self.kp, self.kd, self.setpoints0) if self.eq95
+                             pd=SpatialPD(self.kp, self.kd, self.setpoints0) if self.in_loop_pd
                              else None)
         try:
             q0, v0, _ = sc.initial_state(self.model)
@@ -443,7 +453,7 @@ class SpatialModelNode(Node):
 
     def on_setpoints(self, msg: Float64MultiArray) -> None:
         try:
-            if not self.eq95:
+            if not self.in_loop_pd:
                 raise ValueError("no set-point controller (parameter controller is none)")
             s = self._vector(msg, "set-points", "rad or m")
         except ValueError as exc:
@@ -514,11 +524,11 @@ class SpatialModelNode(Node):
     def open_loop(self) -> np.ndarray:
         """The joint torques of the period that are not the PD's feedback: the command,
         with eq95 plus kp s."""
-        return self.u + self.kp * self.setpoints if self.eq95 else self.u
+        return self.u + self.kp * self.setpoints if self.in_loop_pd else self.u
 
     def applied(self) -> np.ndarray:
         """The joint torques at the current state (joint_states' effort)."""
-        if not self.eq95:
+        if not self.in_loop_pd:
             return np.clip(self.u, -self.effort, self.effort)
         a = np.maximum(self.model.actuator_index, 0)
         fb = self.kp * self.q[a] + self.kd * self.v[a]
@@ -557,8 +567,8 @@ class SpatialModelNode(Node):
             run = simulate_fixed_compiled(self.model, self.q, self.v, self.h, self.per,
                                           joint_torques=self.open_loop(),
                                           rho_inf=self.p["rho_inf"], tol=self.p["newton_tol"],
-                                          damping=self.Dp if self.eq95 else None,
-                                          pd_clip=(self.kp, self.kd) if self.eq95 else None,
+                                          damping=self.Dp if self.in_loop_pd else None,
+                                          pd_clip=(self.kp, self.kd) if self.in_loop_pd else None,
                                           acceleration=self.acc)
         except RuntimeError as exc:
             self.on_divergence(exc)

@@ -437,3 +437,38 @@ def test_urdf_effort_and_position_limits_in_the_node(harness):
                                   joint_torques=clipped, clip_to_effort=False)
     np.testing.assert_allclose(node.q, ref.q[-1], rtol=0, atol=1e-12)
     assert ("position", 0) in node.drops.last and ("position", 1) not in node.drops.last
+
+
+def test_eq45_in_the_node_is_the_clipped_joint_pd(harness):
+    """controller eq45 (seed 000's cascade; no gear effects on this arm: n = 1, so the
+    joint PD has kp = kpv kpp, kd = kpv) on the UR5-like arm, a 1 rad set-point step on
+    the shoulder: the PD torque is clipped to the URDF efforts inside the loop (150 N m),
+    the states equal the compiled loop with pd_clip and the published effort is the
+    clipped law."""
+    kpp, kpv = [20.0] * 6, [40.0] * 6
+    h = harness(arm="ur5_like_flexible_forearm_element", mode="lockstep", rate=100.0,
+                step=2.5e-3, controller="eq45", kpp=kpp, kpv=kpv, setpoints=[0.0])
+    node = h.node
+    np.testing.assert_array_equal(node.kp, np.array(kpp) * kpv)
+    np.testing.assert_array_equal(node.kd, kpv)
+    sp = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    h.sp.publish(Float64MultiArray(data=sp))
+    h.spin_until(lambda: np.array_equal(node.setpoints, sp), "set-points")
+    for _ in range(3):
+        h.command(np.zeros(6))
+    model = SpatialArmModel(load_spatial_arm("ur5_like_flexible_forearm"))
+    kp, kd = node.kp, node.kd
+    Kp, Dp = np.zeros((2, model.nq, model.nq))
+    a = model.actuator_index
+    Kp[a, a], Dp[a, a] = kp, kd
+    model.K = model.K + Kp
+    u = kp * np.array(sp)
+    run = simulate_fixed_compiled(model, node.q0, node.v0, 2.5e-3, 12, joint_torques=u,
+                                  damping=Dp, pd_clip=(kp, kd))
+    q, v = run.q[-1], run.v[-1]
+    np.testing.assert_allclose(h.states[-1].position, q[model.off], rtol=0, atol=1e-12)
+    law = kp * (np.array(sp) - q[a]) - kd * v[a]
+    effort = np.array([150.0, 150.0, 150.0, 28.0, 28.0, 28.0])
+    np.testing.assert_allclose(h.states[-1].effort, np.clip(law, -effort, effort),
+                               rtol=1e-12, atol=1e-9)
+    assert h.states[-1].effort[0] == 150.0 and law[0] > 150.0      # saturated

@@ -571,7 +571,8 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
     body, the payload (J about z) the arm's ``payload`` (lumped with the last end body).
     Gravity (g_x, g_y) -> (g_x, g_y, 0); a ``contact_surface`` (x, y, normal_angle) is
     the plane through (x, y, 0) containing the z direction; the kinematics (small_deflection
-    or second_order) carries over. Only ``wavelet`` links and the effects of
+    or second_order) carries over, a link's ``internal_friction`` becomes (or adds to) its
+    ``structural_damping``. Only ``wavelet`` links and the effects of
     SPATIAL_EFFECTS (same objects) are accepted."""
     if arm.kinematics not in KINEMATICS:
         raise ConfigError(arm.source, "kinematics", arm.kinematics,
@@ -610,7 +611,29 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
         [0.0, 0.0, arm.payload_inertia]))))
     return SpatialArm(name=arm.name + "_3d", links=tuple(links), gravity=g,
                       description=arm.description, source=arm.source,
-                      effects=tuple(arm.effects), payload=payload, kinematics=arm.kinematics)
+                      effects=_with_internal_friction(arm), payload=payload,
+                      kinematics=arm.kinematics)
+
+
+def _with_internal_friction(arm) -> tuple:
+    """The planar arm's effects with each link's own ``internal_friction`` k_a (thesis
+    Eq. 35) added to its ``structural_damping`` effect (one made when it has none): the
+    spatial model applies k_a per bending plane, so the in-plane block is the planar one."""
+    from ..effects.structural_damping import StructuralDamping
+    effects = list(arm.effects)
+    for lk in arm.links:
+        if lk.internal_friction <= 0.0:
+            continue
+        k = next((j for j, e in enumerate(effects) if e.TYPE == "structural_damping"
+                  and e.target == lk.name), None)
+        if k is None:
+            effects.append(StructuralDamping(target=lk.name,
+                                             values=(lk.internal_friction, 0.0, 0.0)))
+        else:
+            v = effects[k].values
+            effects[k] = StructuralDamping(target=lk.name,
+                                           values=(v[0] + lk.internal_friction,) + v[1:])
+    return tuple(effects)
 
 
 def rigid_dh_table(arm: SpatialArm) -> np.ndarray:

@@ -18,12 +18,17 @@ Example (preset ``seed000_3d_pd_step``, ``presets/spatial/scenarios/``)::
     control:
       gravity_hold: true              # constant holding torques of the initial static state
       pd: {kp: [2.0], kd: [0.05], setpoints: [0.0]}    # N m/rad (N/m), N m s/rad, rad (m)
+      # or seed 000's Eq. (45): pd45: {kpp: [70.0], kpv: [50.0], setpoints: [0.0]}
       setpoint_schedule:              # set-point steps
         - {time: 0.5, setpoints: [0.2]}
     pulses:                           # joint torques (N m) / forces (N) on [start, end)
       - {joint: joint1, torque: 0.05, start: 0.1, end: 0.2}   # end: .inf = to the end
 
-The PD law is thesis Eq. 95 with constant gains, tau_i = kp_i (s_i(t) - theta_a) -
+``pd45`` is seed 000's PD-like cascade, Eq. (45), in continuous time (as the seed's runs
+and flex_control.step_response): on the motor angle n theta_a it is the joint PD
+kp = n^2 K_pv K_pp, kd = n^2 K_pv (:func:`eq45_joint_gains`, n the ratio of the joint's
+``gear`` effect), run as below. The PD law is thesis Eq. 95 with constant gains,
+tau_i = kp_i (s_i(t) - theta_a) -
 kd_i theta_a', evaluated inside the integrator: its -kp theta_a - kd theta_a' part is
 stiffness and damping on the actuator coordinate theta_a (the joint, or the motor
 coordinate behind an elastic gear: collocated), kp s(t) a joint torque. A set-point step
@@ -56,6 +61,17 @@ SPATIAL_SCENARIO_DIR = SPATIAL_PRESET_DIR / "scenarios"
 #: tau = kp (s - theta_a) - kd theta_a' per joint (thesis Eq. 95, constant gains) on the
 #: actuator coordinate: the planar scenario's JointPD
 SpatialPD = JointPD
+
+
+def eq45_joint_gains(arm: SpatialArm, kpp, kpv) -> tuple:
+    """Seed 000's PD-like cascade, Eq. (45), tau_cmd = K_pv (K_pp (p_cmd - p) - p'), on the
+    motor angle p = n theta_a with n the ratio of the joint's ``gear`` effect (1 without)
+    and the joint torque n tau_cmd: at the joint the PD kp = n^2 K_pv K_pp, kd = n^2 K_pv
+    (flex_control.laws.PDLikeCascade.joint_gains). Returns (kp, kd) per joint."""
+    n = np.array([1.0 if arm.effect("gear", nm) is None else arm.effect("gear", nm)["ratio"]
+                  for nm in arm.joint_names])
+    kpp, kpv = np.asarray(kpp, float), np.asarray(kpv, float)
+    return n * n * kpv * kpp, n * n * kpv
 
 
 @dataclass(frozen=True)
@@ -432,6 +448,23 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     hold = ctl.boolean("gravity_hold", False)
     locked = [lk.joint.name for lk in arm.links if lk.joint.motor == "locked"]
     pd = None
+    if ctl.has("pd") and ctl.has("pd45"):
+        raise ctl.error("pd45", ctl.raw("pd45"), "pd or pd45, not both (one joint law)")
+    if ctl.has("pd45"):
+        p = ctl.mapping("pd45")
+        kpp = np.array(p.vector("kpp", n, unit="1/s"))
+        kpv = np.array(p.vector("kpv", n, unit="N m s/rad, motor side"))
+        for key, val in (("kpp", kpp), ("kpv", kpv)):
+            if np.any(val < 0):
+                raise p.error(key, val.tolist(), "gains >= 0")
+        kp, kd = eq45_joint_gains(arm, kpp, kpv)
+        bad = [nm for nm, x in zip(arm.joint_names, kp + kd) if nm in locked and x != 0]
+        if bad:
+            raise p.error("kpv", kpv.tolist(), f"0 on the locked joints ({', '.join(bad)}: "
+                          "a locked motor takes no torque)")
+        sp = np.array(p.vector("setpoints", n, q0.tolist(), unit="rad or m"))
+        p.done(["kpp", "kpv", "setpoints"])
+        pd = SpatialPD(kp, kd, sp)
     if ctl.has("pd"):
         p = ctl.mapping("pd")
         kp = np.array(p.vector("kp", n, unit="N m/rad or N/m"))
@@ -450,14 +483,14 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
         sf = Fields(raw, source, f"{ctl.sub('setpoint_schedule')}[{k}]")
         if pd is None:
-            raise ctl.error("setpoint_schedule", raw, "control.pd as well (the schedule "
-                            "steps the PD's set-points)")
+            raise ctl.error("setpoint_schedule", raw, "control.pd or pd45 as well (the "
+                            "schedule steps the PD's set-points)")
         t = sf.number("time", nonnegative=True, unit="s")
         if schedule and t <= schedule[-1][0]:
             raise sf.error("time", t, f"a time > {schedule[-1][0]:g} s (increasing)")
         schedule.append((t, np.array(sf.vector("setpoints", n, unit="rad or m"))))
         sf.done(["time", "setpoints"])
-    ctl.done(["gravity_hold", "pd", "setpoint_schedule"])
+    ctl.done(["gravity_hold", "pd", "pd45", "setpoint_schedule"])
     pulses = []
     for k, raw in enumerate(f.items("pulses", [])):
         pf = Fields(raw, source, f"pulses[{k}]")
