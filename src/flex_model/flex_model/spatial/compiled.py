@@ -1141,7 +1141,11 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
     iteration); ``contact``: empty or the contact surface at the tip (see _contact; its
     tangent refreshed every iteration); ``stops``: the end stops at the joint limits (see
     _stops); ``pdc``: an in-loop PD's torque clipped to the effort limits (see _pd_clip;
-    those joints' ``effort`` entries are infinite); ``held`` (nq, 0/1):
+    those joints' ``effort`` entries are infinite); with any of these nonlinear effects a
+    Newton step that raises the largest residual is halved, up to 8 times in a row, from
+    the 20th iteration of a step on (integrate.LINE_SEARCH_HALVINGS: the steep tanh of
+    Coulomb friction otherwise makes the iteration cycle; steps that converge within 20
+    iterations are untouched); ``held`` (nq, 0/1):
     coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
     the method, read as the start when ``warm`` (a continued run; else the consistent
     acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
@@ -1220,6 +1224,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
         a = solve_chol(Lc, r)
         abar = a.copy()
     a1 = a.copy()
+    da = np.zeros(nq)
+    n_half = 8       # integrate.LINE_SEARCH_HALVINGS
     iters = 0
     for n in range(n_steps):
         for j in range(nj):
@@ -1230,6 +1236,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
         a1[:] = a
         Lc = S0
         ok = False
+        rprev = np.inf
+        back = 0
         for it in range(max_iter):
             _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1)
             # residual M a + c + K q + D v - Q - Q_e by inverse dynamics; M once a step
@@ -1250,6 +1258,20 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
                 Dv = _matvec(D, v1)
             for j in range(nq):
                 r[j] = f1[j] + Kq[j] - Q[j] - Qe[j] + Dv[j]
+            if has_f:     # a step that raised the largest residual is halved (line search)
+                rn = 0.0
+                for j in range(nq):
+                    if not held[j]:
+                        rn = max(rn, abs(r[j]))
+                if it >= 20 and rn > rprev and back < n_half:
+                    for j in range(nq):
+                        da[j] *= 0.5
+                        a1[j] += da[j]
+                    back += 1
+                    iters += 1
+                    continue
+                rprev = rn
+                back = 0
             if it == 0:
                 for j in range(nq):
                     for b_ in range(nq):
@@ -1258,7 +1280,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
                 for j in range(nq):
                     for b_ in range(nq):
                         S[j, b_] = S0[j, b_]
-                    S[j, j] -= cv * slope[j]
+                    S[j, j] -= cv * min(slope[j], 0.0)   # Stribeck: no negative damping
                 if has_b:
                     _backlash_tangent(blash, kt, sl, cq, cv, S)
                 if has_c and fn > 0.0:     # k g g^T, c g g^T (SpatialArmModel.contact_tangent)

@@ -97,11 +97,21 @@ def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: f
     return SpatialRun(sol.t, sol.y[:nq].T.copy(), sol.y[nq:].T.copy())
 
 
+#: Newton with the nonlinear joint effects (friction, motors, backlash, contact, stops): from
+#: iteration LINE_SEARCH_FROM of a step on, a step that raises the largest residual is
+#: halved, up to LINE_SEARCH_HALVINGS times in a row (the steep tanh of Coulomb friction
+#: otherwise makes the iteration cycle; steps that converge earlier are untouched)
+LINE_SEARCH_FROM = 20
+LINE_SEARCH_HALVINGS = 8
+
+
 def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force=None,
-                   rho_inf: float = 0.9, tol: float = 1e-10, max_iter: int = 20,
+                   rho_inf: float = 0.9, tol: float = 1e-10, max_iter: int = 50,
                    damping=None, joint_commands=None,
                    clip_to_effort: bool = True) -> SpatialRun:
-    """Generalized-alpha with step ``h`` (s) for ``n_steps`` steps; ``damping`` an optional
+    """Generalized-alpha with step ``h`` (s) for ``n_steps`` steps (at most ``max_iter``
+    Newton iterations a step: 50, since a Coulomb joint starting to slide under gravity
+    takes ~25 in its first step with a 1 mrad/s regularization); ``damping`` an optional
     constant matrix D (force -D v), added to the model's joint dampers.
     ``joint_commands``: None or (n_steps, n_joints) joint commands (torques, forces;
     voltages on dc_motor joints), row n held over step n (row 0 also at t = 0), as
@@ -150,16 +160,26 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
         t1 = (n + 1) * h
         a1 = a.copy()
         lu = None
-        for _ in range(max_iter):
+        rprev, back = np.inf, 0
+        for it in range(max_iter):
             ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
             q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
             v1 = v + h * ((1 - gam) * abar + gam * ab1)
             r, M1, slope = residual(t1, q1, v1, a1, n)
+            rn = np.max(np.abs(r))
+            if nonlinear and it >= LINE_SEARCH_FROM and rn > rprev and \
+                    back < LINE_SEARCH_HALVINGS:
+                da *= 0.5       # the step raised the residual: take half of it back
+                a1 -= da
+                back += 1
+                iters += 1
+                continue
+            rprev, back = rn, 0
             if lu is None:
                 S0 = M1 + cq * K + cv * D
             if lu is None or nonlinear:  # iteration matrix, frozen for the step but
                 # for the friction and motor slopes (steep tanh: from the current iterate)
-                S = S0 - cv * np.diag(slope)
+                S = S0 - cv * np.diag(np.minimum(slope, 0.0))   # Stribeck: kept definite
                 if model.backlash:
                     Kb, Db = model.backlash_tangent(q1, v1)
                     S = S + cq * Kb + cv * Db
@@ -192,7 +212,7 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
 
 def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: int,
                             joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
-                            max_iter: int = 20, damping=None,
+                            max_iter: int = 50, damping=None,
                             clip_to_effort: bool = True, acceleration=None,
                             pd_clip=None) -> SpatialRun:
     """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the

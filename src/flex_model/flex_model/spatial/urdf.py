@@ -64,6 +64,11 @@ Side YAML (a spatial preset with a ``urdf`` key; paths relative to the YAML)::
         root_body: {mass: 1.0}
         end_body: {mass: 0.5}
     joint_stops: {stiffness: 1.0e5, damping: 100.0}   # optional: the URDF limits as stops
+    effects: [{type: gear, joint: shoulder_pan_joint, ratio: 100, rotor_inertia: 1e-4}]
+    payload: {mass: 1.0}          # optional, as in a DH arm file; sensors: [...] too
+
+``effects``, ``payload`` and ``sensors`` are the DH arm file's (description.py: the same
+fields, checks and models; an elastic gear is a ``joint_elasticity`` effect on the joint).
 """
 from __future__ import annotations
 
@@ -76,7 +81,7 @@ import numpy as np
 
 from ..config import ConfigError, Fields
 from .description import (RigidBody, SpatialArm, SpatialJoint, SpatialLink, _body,
-                          flexible_beam, lump_bodies, parse_joint_stops)
+                          _joint_effects, flexible_beam, lump_bodies, parse_joint_stops)
 from .kinematics import rpy_matrix
 
 #: XML namespace of the flexible-link extension element ``<flex:flexible>`` in a <link>
@@ -470,9 +475,19 @@ def spatial_arm_from_side_file(data: dict, source: str) -> SpatialArm:
     arm = spatial_arm_from_urdf(path.read_text(), str(path), flexible_links=flex, name=name,
                                 gravity=gravity, side_source=source, description=description)
     stops = parse_joint_stops(f, arm.links, source)
+    # the DH file's effects, payload and sensors (its fields and checks); a URDF joint has
+    # no gear option: an elastic gear is a joint_elasticity effect on it
+    links = [dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, gear=""))
+             for lk in arm.links]
+    effects, links = _joint_effects(f, links, source)
+    payload = _body(f.mapping("payload")) if f.has("payload") else RigidBody()
+    from .sensors import parse_sensors
+    sensors = parse_sensors(f.items("sensors", []), source, arm.joint_names,
+                            [lk.name for lk in links]) if f.has("sensors") else ()
     f.done(["name", "description", "urdf", "gravity", "flexible_links", "convention",
-            "joint_stops"])
-    return arm if stops is None else dataclasses.replace(arm, joint_stops=stops)
+            "joint_stops", "effects", "payload", "sensors"])
+    return dataclasses.replace(arm, links=tuple(links), effects=effects, payload=payload,
+                               sensors=sensors, joint_stops=stops)
 
 
 def load_urdf_arm(urdf_path, flexible_links: dict | None = None, **kw) -> SpatialArm:
