@@ -160,7 +160,7 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
         t1 = (n + 1) * h
         a1 = a.copy()
         lu = None
-        rprev, back = np.inf, 0
+        rprev, back, da = np.inf, 0, np.zeros(model.nq)
         for it in range(max_iter):
             ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
             q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
