@@ -113,6 +113,38 @@ def test_planar_arm_embedded_follows_the_planar_simulate():
     assert np.max(np.abs(res.tau - planar.tau)) < 1e-6 * np.max(np.abs(planar.tau))
 
 
+def test_setpoint_ramps_follow_the_planar_simulate():
+    """The same embedded arm with a set-point step and then a ramp (0.4 s) in the schedule:
+    ramps as the planar scenario's (kp (s - s0) + kd s' averaged over each sample period
+    and held, a restart at every sample instant), the spatial run = the planar run."""
+    arm = load_arm("thesis_example1")
+    sp0 = np.array([-0.3, 0.2])
+    kp, kd = [200.0, 200.0], [20.0, 20.0]
+    sp1, sp2 = sp0 + np.radians(3), sp0 + np.radians([10.0, -6.0])
+    planar = scenario_from_dict({
+        "arm": "thesis_example1", "duration": 1.0, "sample_period": 0.01,
+        "initial": {"joint_angles_deg": np.degrees(sp0).tolist()},
+        "control": {"pd": {"kp": kp, "kd": kd, "setpoints_deg": np.degrees(sp0).tolist()},
+                    "setpoint_schedule": [
+                        {"time": 0.1, "setpoints_deg": np.degrees(sp1).tolist()},
+                        {"time": 0.3, "setpoints_deg": np.degrees(sp2).tolist(),
+                         "ramp": 0.4}]},
+        "integrator": {"method": "fixed", "step": 1e-3, "rho_inf": 0.9}}).run(advise=False)
+    sc = SpatialScenario(name="embedded_ramp", arm=from_planar(arm), duration=1.0,
+                         step=1e-3, sample_period=0.01, rho_inf=0.9, joint_values=sp0,
+                         joint_rates=np.zeros(2),
+                         pd=SpatialPD(np.array(kp), np.array(kd), sp0),
+                         setpoint_schedule=((0.1, sp1, 0.0), (0.3, sp2, 0.4)))
+    assert sc.has_ramps
+    res = sc.run()
+    assert np.max(np.abs(res.joint_values - planar.joint_angles)) < 1e-10
+    assert np.max(np.abs(res.joint_values[-1] - sp2)) < 0.05      # it follows the ramp
+    # reported torques: the planar run gives the law at the sample instant, the spatial
+    # one the input held over the next sample period (the ramp averaged over it)
+    out = (res.t < 0.3) | (res.t > 0.71)
+    assert np.max(np.abs(res.tau - planar.tau)[out]) < 1e-6 * np.max(np.abs(planar.tau))
+
+
 def _base(**over):
     d = {"arm": "seed003_like_arm", "duration": 0.1, "step": 1e-3}
     d.update(over)

@@ -19,8 +19,9 @@ Example (preset ``seed000_3d_pd_step``, ``presets/spatial/scenarios/``)::
       gravity_hold: true              # constant holding torques of the initial static state
       pd: {kp: [2.0], kd: [0.05], setpoints: [0.0]}    # N m/rad (N/m), N m s/rad, rad (m)
       # or seed 000's Eq. (45): pd45: {kpp: [70.0], kpv: [50.0], setpoints: [0.0]}
-      setpoint_schedule:              # set-point steps
-        - {time: 0.5, setpoints: [0.2]}
+      setpoint_schedule:              # set-point steps and ramps
+        - {time: 0.5, setpoints: [0.2]}               # a step at 0.5 s
+        - {time: 1.0, setpoints: [0.4], ramp: 0.5}    # a ramp over 1-1.5 s
     pulses:                           # joint torques (N m) / forces (N) on [start, end)
       - {joint: joint1, torque: 0.05, start: 0.1, end: 0.2}   # end: .inf = to the end
 
@@ -166,26 +167,49 @@ class SpatialScenario:
         return q0, v0, hold
 
     # ------------------------------------------------------------ inputs
-    def open_loop(self, t, hold) -> np.ndarray:
+    def open_loop(self, t, hold, t_sample=None) -> np.ndarray:
         """The joint torques at times t (n,) that are not the PD's feedback: holding
-        torques, pulses and kp s(t) (n, n_joints)."""
+        torques, pulses and kp s(t) (n, n_joints); a ramp of the set-point schedule is
+        kp (s - s0) + kd s' averaged over the sample period that starts at ``t_sample``
+        (default t) and held over it, as the planar scenario's ramps
+        (flex_model.scenario.Scenario.setpoint_inputs)."""
         t = np.asarray(t, float)
+        tk = t if t_sample is None else np.asarray(t_sample, float)
         u = np.broadcast_to(np.asarray(hold, float), (len(t), self.arm.n_links)).copy()
         for p in self.pulses:
             u[(p.start <= t) & (t < p.end), p.joint] += p.value
         if self.pd is not None:
             u += self.pd.kp * self.pd.setpoints
             prev = self.pd.setpoints
-            for ts, sp in self.setpoint_schedule:
-                u[t >= ts] += self.pd.kp * (sp - prev)
-                prev = sp
+            T = self.sample_period
+            for entry in self.setpoint_schedule:
+                ts, sp = entry[0], entry[1]
+                ramp = entry[2] if len(entry) > 2 else 0.0
+                delta = np.asarray(sp, float) - prev
+                prev = np.asarray(sp, float)
+                if ramp <= 0.0:
+                    u[t >= ts] += self.pd.kp * delta
+                    continue
+                (y0, a0), (y1, a1) = _ramp(tk, ts, ramp), _ramp(tk + T, ts, ramp)
+                u += np.outer((a1 - a0) / T, self.pd.kp * delta) + \
+                    np.outer((y1 - y0) / T, self.pd.kd * delta)
         return u
 
+    @property
+    def has_ramps(self) -> bool:
+        return any(len(e) > 2 and e[2] > 0.0 for e in self.setpoint_schedule)
+
     def switch_steps(self, h: float, n_total: int) -> list[int]:
-        """Step indices where an input switches (the method restarts there)."""
+        """Step indices where an input switches (the method restarts there): pulse edges,
+        set-point steps and, with ramps, every sample instant (as the planar fixed mode
+        restarts at its policy instants)."""
         times = [t for p in self.pulses for t in (p.start, p.end)] + \
-            [ts for ts, _ in self.setpoint_schedule]
-        return sorted({int(round(t / h)) for t in times if 0 < round(t / h) < n_total})
+            [e[0] for e in self.setpoint_schedule]
+        steps = {int(round(t / h)) for t in times if 0 < round(t / h) < n_total}
+        if self.has_ramps:
+            per = max(1, int(round(self.sample_period / h)))
+            steps |= set(range(per, n_total, per))
+        return sorted(steps)
 
     # ------------------------------------------------------------ run
     def run(self, model: SpatialArmModel | None = None, progress=None,
@@ -201,7 +225,7 @@ class SpatialScenario:
         q, v, hold = self.initial_state(model)
         Kp, Dp = self.pd_matrices(model)
         t_mid = h * (np.arange(n_total) + 0.5)
-        u = self.open_loop(t_mid, hold)
+        u = self.open_loop(t_mid, hold, t_sample=h * per * (np.arange(n_total) // per))
         bounds = self.switch_steps(h, n_total) + [n_total]
         K0 = model.K
         qs, vs, iters, start = [q[None]], [v[None]], 0, 0
@@ -238,6 +262,16 @@ class SpatialScenario:
         return SpatialSimulation(model=model, t=t, q=Q, v=V, tau=tau,
                                  stats={"dt": h, "steps": n_total, "newton_iterations": iters,
                                         "restarts": len(bounds) - 1})
+
+
+def _ramp(t, t0: float, r: float):
+    """(y, area): a ramp's fraction y(t) = clip((t - t0) / r, 0, 1) and its integral from t0
+    (arrays of t)."""
+    t = np.asarray(t, float)
+    y = np.clip((t - t0) / r, 0.0, 1.0)
+    area = np.where(t <= t0, 0.0, np.where(t <= t0 + r, (t - t0) ** 2 / (2 * r),
+                                           r / 2 + (t - t0 - r)))
+    return y, area
 
 
 def _dead_zone_inverse(y: float, half: float, smooth: float) -> float:
@@ -486,10 +520,12 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
             raise ctl.error("setpoint_schedule", raw, "control.pd or pd45 as well (the "
                             "schedule steps the PD's set-points)")
         t = sf.number("time", nonnegative=True, unit="s")
-        if schedule and t <= schedule[-1][0]:
-            raise sf.error("time", t, f"a time > {schedule[-1][0]:g} s (increasing)")
-        schedule.append((t, np.array(sf.vector("setpoints", n, unit="rad or m"))))
-        sf.done(["time", "setpoints"])
+        if schedule and t <= schedule[-1][0] + schedule[-1][2]:
+            raise sf.error("time", t, f"a time > {schedule[-1][0] + schedule[-1][2]:g} s "
+                           "(increasing, after the previous step or ramp)")
+        ramp = sf.number("ramp", 0.0, nonnegative=True, unit="s")
+        schedule.append((t, np.array(sf.vector("setpoints", n, unit="rad or m")), ramp))
+        sf.done(["time", "setpoints", "ramp"])
     ctl.done(["gravity_hold", "pd", "pd45", "setpoint_schedule"])
     pulses = []
     for k, raw in enumerate(f.items("pulses", [])):
