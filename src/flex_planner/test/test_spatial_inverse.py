@@ -92,3 +92,24 @@ def test_plan_command_on_a_spatial_arm(tmp_path, capsys):
                                                         abs=1e-15)
     assert main(["plan", "seed000_real_arm_3d", str(wp), "--out", str(tmp_path / "p")]) == 2
     assert "no static-flexible inverse" in capsys.readouterr().err
+
+
+def test_section_F_waypoints_embedded_equal_the_planar_static_inverse():
+    """VALIDATION.md section F: the static-flexible inverse of thesis example 1 (vertical
+    plane, gravity) at the tip waypoints P1..P4 by the planar planner (thesis Ch. IV) and
+    by the spatial one on the arm embedded in 3D (x, y targets, the planar solution's
+    branch as the guess): the same joint angles (1e-10 rad) and deflected tips."""
+    from flex_model.arm import load_arm
+    from flex_model.dynamics import FlexArmModel
+    from flex_model.spatial import SpatialArmModel, from_planar
+    from flex_planner import SECTION_F_WAYPOINTS, invert_waypoints
+    from flex_planner.spatial_inverse import invert_tip_position
+    arm = load_arm("thesis_example1")
+    planar = invert_waypoints(FlexArmModel(arm), SECTION_F_WAYPOINTS)
+    spatial = SpatialArmModel(from_planar(arm))
+    for p, inv in zip(SECTION_F_WAYPOINTS, planar):
+        theta = np.asarray(inv.joint_angles, float)
+        res = invert_tip_position(spatial, p, coordinates=("x", "y"),
+                                  guess=theta + 0.05)
+        np.testing.assert_allclose(res.joint_values, theta, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res.tip_position[:2], p, rtol=0, atol=1e-11)
