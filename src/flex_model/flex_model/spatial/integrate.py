@@ -214,7 +214,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
                             joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
                             max_iter: int = 50, damping=None,
                             clip_to_effort: bool = True, acceleration=None,
-                            pd_clip=None) -> SpatialRun:
+                            pd_clip=None, substeps: int = 4) -> SpatialRun:
     """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the
     analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
     (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
@@ -228,7 +228,10 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     of a PD inside the loop (thesis Eq. 95: kp, kd on the actuator coordinates already in
     the model's K and ``damping``, kp s(t) in ``joint_torques``): the PD's whole actuator
     torque kp (s - theta_a) - kd theta_a' + u is then clipped to the effort limits
-    (compiled._pd_clip), not only the torques."""
+    (compiled._pd_clip), not only the torques. A step whose Newton iteration fails is
+    integrated again as ``substeps`` steps of h / substeps from a restart (a consistent
+    acceleration), and the run goes on with a restart after it (0: raise instead; the
+    planar replay's SUBSTEPS); the Newton count then leaves out the failed attempts."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
@@ -262,13 +265,44 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     warm = acceleration is not None
     acc = np.array(acceleration, float).reshape(2, model.nq) if warm else \
         np.zeros((2, model.nq))
-    qs, vs, iters = galpha_loop(data, np.ascontiguousarray(model.K), np.ascontiguousarray(D),
-                                model.Q_const.copy(), fric, motors, blash, contact, stops,
-                                pdc, held,
-                                joint_input_matrix(model), effort,
-                                np.asarray(q0, float).copy(), np.asarray(v0, float).copy(),
-                                float(h), tau, float(rho_inf), float(tol), int(max_iter),
-                                acc, warm)
-    if iters < 0:
-        raise RuntimeError(f"generalized-alpha: no convergence at t = {(-iters) * h:.6g} s")
-    return SpatialRun(h * np.arange(len(qs)), qs, vs, int(iters), acc)
+    K, H = np.ascontiguousarray(model.K), joint_input_matrix(model)
+
+    def loop(q, v, hh, rows, acc, warm):
+        return galpha_loop(data, K, np.ascontiguousarray(D), model.Q_const.copy(), fric,
+                           motors, blash, contact, stops, pdc, held, H, effort,
+                           np.asarray(q, float).copy(), np.asarray(v, float).copy(),
+                           float(hh), rows, float(rho_inf), float(tol), int(max_iter), acc,
+                           warm)
+
+    qs, vs, iters = loop(q0, v0, h, tau, acc, warm)
+    if iters >= 0:
+        return SpatialRun(h * np.arange(len(qs)), qs, vs, int(iters), acc)
+    # a step whose Newton iteration failed: again as `substeps` steps from a restart
+    # (consistent acceleration), then on with a restart (runs that never fail: unchanged)
+    out_q, out_v, pos, total = [qs[:1]], [vs[:1]], 0, 0
+    while True:
+        k = -1 - iters if iters < 0 else len(qs) - 1     # steps done by this call
+        out_q.append(qs[1:k + 1])
+        out_v.append(vs[1:k + 1])
+        pos += k
+        if iters >= 0:
+            total += iters
+            break
+        if not substeps:
+            raise RuntimeError(f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s")
+        sub = np.array(np.repeat(tau[pos:pos + 1], substeps, axis=0), order="C")
+        acc = np.zeros((2, model.nq))
+        qs2, vs2, it2 = loop(qs[k], vs[k], h / substeps, sub, acc, False)
+        if it2 < 0:
+            raise RuntimeError(f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} "
+                               f"s, nor in {substeps} substeps")
+        out_q.append(qs2[-1:])
+        out_v.append(vs2[-1:])
+        total += it2
+        pos += 1
+        if pos == n_steps:
+            break
+        acc = np.zeros((2, model.nq))
+        qs, vs, iters = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"), acc, False)
+    qs, vs = np.vstack(out_q), np.vstack(out_v)
+    return SpatialRun(h * np.arange(len(qs)), qs, vs, int(total), acc)
