@@ -1145,7 +1145,9 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
     Newton step that raises the largest residual is halved, up to 8 times in a row, from
     the 20th iteration of a step on (integrate.LINE_SEARCH_HALVINGS: the steep tanh of
     Coulomb friction otherwise makes the iteration cycle; steps that converge within 20
-    iterations are untouched); ``held`` (nq, 0/1):
+    iterations are untouched), and from the 20th iteration on a step whose correction
+    stagnates (no longer halves) within 1e3 x tol is accepted (integrate.STAGNATION: the
+    round-off floor of the accelerations); ``held`` (nq, 0/1):
     coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
     the method, read as the start when ``warm`` (a continued run; else the consistent
     acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
@@ -1238,6 +1240,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
         ok = False
         rprev = np.inf
         back = 0
+        dprev = np.inf
         for it in range(max_iter):
             _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1)
             # residual M a + c + K q + D v - Q - Q_e by inverse dynamics; M once a step
@@ -1314,6 +1317,10 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
             iters += 1
             if not finite:
                 break
+            if it >= 20 and dmax <= 1e3 * tol * amax and dmax >= 0.5 * dprev:
+                ok = True        # stagnated at the round-off floor (integrate.STAGNATION)
+                break
+            dprev = dmax
             if dmax <= tol * amax:
                 ok = True
                 break
