@@ -71,8 +71,8 @@ def test_nonlinear_arm_goes_through_the_waypoints(task):
 def test_the_task_in_3d_equals_the_planar_run(task):
     """The same tracking run (h = 25, a = 5, the planner's nominal torque as feed-forward,
     held every 5 ms) on example 1 embedded in 3D (flex_control.spatial_tracking): the
-    joint angles equal the planar run's over the 15 s (3.4e-8 rad, largest in the first
-    seconds; 4e-13 at the end) and the tip passes P1-P4 within 2 mm."""
+    joint angles equal the planar run's over the 15 s (1.2e-12 rad; from the planar
+    nominal start, rates included) and the tip passes P1-P4 within 2 mm."""
     from flex_control.spatial_tracking import simulate_tracking_spatial
     from flex_model.spatial import SpatialArmModel, from_planar
     model, plan, _ = task
@@ -83,11 +83,14 @@ def test_the_task_in_3d_equals_the_planar_run(task):
     q0[spatial.off] = theta0
     flex = np.setdiff1d(spatial.plane_indices("v"), spatial.off)
     q0[flex] = run.q[0][model.flex_indices]
-    res = simulate_tracking_spatial(spatial, plan, h=25.0, a=5.0, q0=q0)
+    v0 = np.zeros(spatial.nq)
+    v0[spatial.off] = model.G @ run.v[0]
+    v0[flex] = run.v[0][model.flex_indices]
+    res = simulate_tracking_spatial(spatial, plan, h=25.0, a=5.0, q0=q0, v0=v0)
     n = min(len(res.t), len(run.t))
     np.testing.assert_allclose(res.t[:n], run.t[:n], rtol=0, atol=1e-9)
     theta = res.q[:n][:, spatial.off]
-    assert np.max(np.abs(theta - run.joint_angles[:n])) < 1e-7   # measured 3.4e-8 rad
+    assert np.max(np.abs(theta - run.joint_angles[:n])) < 1e-10  # measured 1.2e-12 rad
     tips = np.array([spatial.tip_position(q)[:2] for q in res.q[:n]])
     for t, p in zip(flex_planner.SECTION_F_TIMES, flex_planner.SECTION_F_WAYPOINTS):
         k = int(np.argmin(np.abs(res.t[:n] - t)))
