@@ -23,6 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 COORDINATES = ("x", "y", "z")
+#: the tip frame's orientation as URDF fixed-axis roll, pitch, yaw (R = Rz Ry Rx), rad
+ORIENTATION = ("roll", "pitch", "yaw")
 MAX_STEP = 0.5
 
 
@@ -46,10 +48,14 @@ def _coords(coordinates) -> list[int]:
     return idx
 
 
-def check_joint_count(model, coordinates=COORDINATES) -> np.ndarray:
-    """The actuated joints (indices); ValueError when fewer than the task coordinates."""
+def check_joint_count(model, coordinates=COORDINATES, orientation: bool = False
+                      ) -> np.ndarray:
+    """The actuated joints (indices); ValueError when fewer than the task coordinates
+    (with ``orientation`` the three of the tip frame's orientation count too)."""
     active = np.flatnonzero(model.actuator_index >= 0)
-    n_task = len(_coords(coordinates))
+    n_task = len(_coords(coordinates)) + (3 if orientation else 0)
+    if orientation:
+        coordinates = tuple(coordinates) + ORIENTATION
     if len(active) < n_task:
         raise ValueError(
             f"{model.arm.name}: {len(active)} actuated joint(s) for {n_task} task "
@@ -58,12 +64,13 @@ def check_joint_count(model, coordinates=COORDINATES) -> np.ndarray:
     return active
 
 
-def tip_sensitivity(model, q) -> np.ndarray:
-    """d p_tip / d theta (3 x n_joints) of the static arm at its equilibrium q (joints
-    held): the tip Jacobian with the deformation's response through the static tangent."""
+def tip_sensitivity(model, q, rows: int = 3) -> np.ndarray:
+    """d p_tip / d theta (3 x n_joints; ``rows=6``: with the tip frame's angular
+    velocity per joint rate below) of the static arm at its equilibrium q (joints held):
+    the tip Jacobian with the deformation's response through the static tangent."""
     free = np.setdiff1d(np.arange(model.nq), model.off)
     Kt = model.K + model.gravity_stiffness(q)
-    J = model.tip_jacobian(q)[:3]
+    J = model.tip_jacobian(q)[:rows]
     if not len(free):                # a rigid arm
         return J[:, model.off]
     dqf = -np.linalg.solve(Kt[np.ix_(free, free)], Kt[np.ix_(free, model.off)])
@@ -97,3 +104,55 @@ def invert_tip_position(model, target, coordinates=COORDINATES, guess=None, *,
     raise RuntimeError(f"{model.arm.name}: no static-flexible inverse of "
                        f"{target.tolist()} m after {max_iter} Newton steps (largest tip "
                        f"error {np.max(np.abs(e)):.3e} m): out of reach or a singular pose")
+
+
+@dataclass
+class SpatialPoseInverse(SpatialInverse):
+    tip_rpy: np.ndarray = None        # rad, the static tip frame's roll, pitch, yaw
+    error_rad: float = 0.0            # |rotation vector of R R*^T| at the solution
+
+
+def _rpy(R) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_matrix(R).as_euler("xyz")      # fixed axes x, y, z = URDF rpy
+
+
+def invert_tip_pose(model, position, rpy, coordinates=COORDINATES, guess=None, *,
+                    tol: float = 1e-12, max_iter: int = 50) -> SpatialPoseInverse:
+    """Joint values whose static deflected tip frame (the last link's end frame) is at
+    ``position`` (the listed coordinates, m) with the orientation ``rpy`` (URDF roll,
+    pitch, yaw, rad: R* = Rz(yaw) Ry(pitch) Rx(roll)): Newton on theta with the error
+    [p - p*; the rotation vector of R R*^T] (base frame) and the 6-row sensitivity of
+    :func:`tip_sensitivity` (the orientation rows: the tip's angular velocity per joint
+    rate, exact at the solution); minimum-norm with more joints than the task's
+    len(coordinates) + 3, a refusal with fewer."""
+    from scipy.spatial.transform import Rotation
+
+    from flex_model.spatial.analysis import static_equilibrium
+    from flex_model.spatial.kinematics import rpy_matrix
+    idx = _coords(coordinates)
+    active = check_joint_count(model, coordinates, orientation=True)
+    target = np.asarray(position, float).reshape(len(idx))
+    Rt = rpy_matrix(np.asarray(rpy, float).reshape(3))
+    rows = idx + [3, 4, 5]
+    theta = np.zeros(model.n_links) if guess is None else np.array(guess, float)
+    for it in range(1, max_iter + 1):
+        st = static_equilibrium(model, theta)
+        F = model.tip_frame(st.q)
+        ew = Rotation.from_matrix(np.real(F.R) @ Rt.T).as_rotvec()
+        e = np.concatenate([st.tip_position[idx] - target, ew])
+        if np.max(np.abs(e)) < tol:
+            return SpatialPoseInverse(theta, st.q, st.tip_position, it - 1,
+                                      float(np.linalg.norm(e[:len(idx)])),
+                                      tip_rpy=_rpy(np.real(F.R)),
+                                      error_rad=float(np.linalg.norm(ew)))
+        J = tip_sensitivity(model, st.q, rows=6)[np.ix_(rows, active)]
+        d = -np.linalg.solve(J, e) if len(active) == len(rows) else -np.linalg.pinv(J) @ e
+        big = np.max(np.abs(d))
+        if big > MAX_STEP:
+            d *= MAX_STEP / big
+        theta[active] += d
+    raise RuntimeError(f"{model.arm.name}: no static-flexible inverse of the pose "
+                       f"{target.tolist()} m, rpy {np.asarray(rpy, float).tolist()} rad after "
+                       f"{max_iter} Newton steps (largest error {np.max(np.abs(e)):.3e}): out "
+                       "of reach or a singular pose")

@@ -2,7 +2,9 @@
 waypoint (:mod:`flex_planner.spatial_inverse`) and a rest-to-rest joint trajectory through
 them. The waypoint file (YAML)::
 
-    coordinates: [x, y, z]          # optional: the task coordinates (default all three)
+    coordinates: [x, y, z]          # optional: the task coordinates (default all three);
+                                    # with roll, pitch, yaw (all three, rad, URDF fixed
+                                    # axes) the tip frame's orientation too
     guess: [0.0, 0.3, -0.6]         # optional: joint values (rad or m) to start from
     waypoints:                      # tip positions (m, base frame) and times (s)
       - {t: 0.0, x: 0.9, y: 0.0, z: 0.4}
@@ -24,7 +26,8 @@ import numpy as np
 
 from flex_model.config import Fields, read_yaml
 
-from .spatial_inverse import COORDINATES, check_joint_count, invert_tip_position
+from .spatial_inverse import (COORDINATES, ORIENTATION, check_joint_count, invert_tip_pose,
+                              invert_tip_position)
 
 
 def load_spatial_waypoints(path, n_joints: int):
@@ -33,9 +36,13 @@ def load_spatial_waypoints(path, n_joints: int):
     source = str(path)
     f = Fields(read_yaml(path), source, "")
     coords = f.raw("coordinates", list(COORDINATES))
+    allowed = "a list of distinct x, y, z (at least one) and optionally roll, pitch, yaw " \
+        "(all three)"
     if not isinstance(coords, list) or not coords or len(set(coords)) != len(coords) or \
-            any(c not in COORDINATES for c in coords):
-        raise f.error("coordinates", coords, "a list of distinct x, y, z")
+            any(c not in COORDINATES + ORIENTATION for c in coords) or \
+            not any(c in COORDINATES for c in coords) or \
+            sum(c in ORIENTATION for c in coords) not in (0, 3):
+        raise f.error("coordinates", coords, allowed)
     guess = np.array(f.vector("guess", n_joints, unit="rad or m")) if f.has("guess") else None
     rows = f.items("waypoints", min_len=1)
     f.done(["coordinates", "guess", "waypoints"])
@@ -46,7 +53,8 @@ def load_spatial_waypoints(path, n_joints: int):
         if times and t <= times[-1]:
             raise wf.error("t", t, f"a time > {times[-1]:g} s (increasing)")
         times.append(t)
-        targets.append([wf.number(c, unit="m") for c in coords])
+        targets.append([wf.number(c, unit="rad" if c in ORIENTATION else "m")
+                        for c in coords])
         wf.done(["t"] + list(coords))
     return tuple(coords), guess, np.array(times), np.array(targets)
 
@@ -82,23 +90,34 @@ def cmd_spatial_plan(args) -> int:
         raise ValueError("waypoints: a spatial arm needs a waypoint YAML file (x, y, z)")
     model = SpatialArmModel(load_spatial_arm(args.arm))
     raw = read_yaml(Path(args.waypoints)).get("coordinates", list(COORDINATES))
-    if isinstance(raw, list) and raw and all(c in COORDINATES for c in raw):
-        check_joint_count(model, raw)      # the refusal first: fewer joints than coordinates
+    if isinstance(raw, list) and raw and all(c in COORDINATES + ORIENTATION for c in raw):
+        check_joint_count(model, [c for c in raw if c in COORDINATES] or ["x"],
+                          orientation=any(c in ORIENTATION for c in raw))  # refusal first
     coords, guess, times, targets = load_spatial_waypoints(Path(args.waypoints),
                                                            model.n_links)
+    pos = [k for k, c in enumerate(coords) if c in COORDINATES]
+    rot = [coords.index(c) for c in ORIENTATION if c in coords]
+    coords_p = tuple(coords[k] for k in pos)
     t0 = time.perf_counter()
     sols, checks = [], []
     theta = guess
-    idx = [COORDINATES.index(c) for c in coords]
+    idx = [COORDINATES.index(c) for c in coords_p]
     for k, (tk, p) in enumerate(zip(times, targets)):
-        inv = invert_tip_position(model, p, coords, theta)
+        if rot:
+            inv = invert_tip_pose(model, p[pos], p[rot], coords_p, theta)
+        else:
+            inv = invert_tip_position(model, p, coords, theta)
         theta = inv.joint_values
         fwd = static_equilibrium(model, theta).tip_position
         sols.append(theta.copy())
-        checks.append({"index": k, "t_s": float(tk), "target_m": p.tolist(),
+        checks.append({"index": k, "t_s": float(tk), "target_m": p[pos].tolist(),
                        "joint_values": theta.tolist(), "newton_iterations": inv.iterations,
                        "static_tip_m": fwd.tolist(),
-                       "static_tip_error_m": float(np.linalg.norm(fwd[idx] - p))})
+                       "static_tip_error_m": float(np.linalg.norm(fwd[idx] - p[pos]))})
+        if rot:
+            checks[-1]["target_rpy_rad"] = p[rot].tolist()
+            checks[-1]["static_tip_rpy_rad"] = inv.tip_rpy.tolist()
+            checks[-1]["static_orientation_error_rad"] = inv.error_rad
     wall = time.perf_counter() - t0
     t, pos, vel, acc = quintic_path(times, np.array(sols), args.sample_period)
     from .cli import _out_dir

@@ -113,3 +113,71 @@ def test_section_F_waypoints_embedded_equal_the_planar_static_inverse():
                                   guess=theta + 0.05)
         np.testing.assert_allclose(res.joint_values, theta, rtol=0, atol=1e-10)
         np.testing.assert_allclose(res.tip_position[:2], p, rtol=0, atol=1e-11)
+
+
+def test_pose_inverse_of_the_six_joint_arm():
+    """UR5-like arm with the flexible forearm under gravity (6 joints, position + roll,
+    pitch, yaw of the tool frame): the static pose at theta0 inverted from a guess 0.05
+    rad off returns theta0 (1e-9 rad) and the pose (1e-12 m, rad); the rigid arm's
+    inverse (the same URDF, no flexible link) is a different joint set (the forearm's
+    static deflection, ~0.1 mm at the wrist, is compensated); 3 joints for a pose:
+    refused."""
+    from flex_model.spatial import SpatialArmModel, load_spatial_arm
+    from flex_model.spatial.analysis import static_equilibrium
+    from flex_model.spatial.description import SPATIAL_PRESET_DIR
+    from flex_model.spatial.urdf import load_urdf_arm
+    from flex_planner.spatial_inverse import invert_tip_pose
+    from scipy.spatial.transform import Rotation
+    model = SpatialArmModel(load_spatial_arm("ur5_like_flexible_forearm"))
+    theta0 = np.array([0.3, -1.2, 1.4, -0.8, 1.1, 0.4])
+    st = static_equilibrium(model, theta0)
+    F = model.tip_frame(st.q)
+    rpy = Rotation.from_matrix(np.real(F.R)).as_euler("xyz")
+    inv = invert_tip_pose(model, st.tip_position, rpy, guess=theta0 + 0.05)
+    np.testing.assert_allclose(inv.joint_values, theta0, rtol=0, atol=1e-9)
+    assert inv.error_m < 1e-12 and inv.error_rad < 1e-12
+    np.testing.assert_allclose(inv.tip_rpy, rpy, rtol=0, atol=1e-12)
+    rigid = SpatialArmModel(load_urdf_arm(SPATIAL_PRESET_DIR / "ur5_like_arm.urdf"))
+    inv_r = invert_tip_pose(rigid, st.tip_position, rpy, guess=theta0 + 0.05)
+    assert np.max(np.abs(inv_r.joint_values - theta0)) > 1e-5
+    with pytest.raises(ValueError, match="3 actuated joint"):
+        invert_tip_pose(SpatialArmModel(load_spatial_arm("seed003_like_arm")),
+                        [0.5, 0.0, 0.5], [0.0, 0.0, 0.0])
+
+
+def test_plan_command_with_orientation_waypoints(tmp_path, capsys):
+    """``flex-twin plan`` on the 6-joint arm with x, y, z, roll, pitch, yaw waypoints:
+    every waypoint's static pose is met (1e-9 m, rad); a file with only two of the three
+    angles is refused naming the field."""
+    import yaml
+
+    from flex_twin.cli import main
+    from flex_model.spatial import SpatialArmModel, load_spatial_arm
+    from flex_model.spatial.analysis import static_equilibrium
+    from scipy.spatial.transform import Rotation
+    model = SpatialArmModel(load_spatial_arm("ur5_like_flexible_forearm"))
+    pts = []
+    for t, th in ((0.0, [0.3, -1.2, 1.4, -0.8, 1.1, 0.4]),
+                  (1.5, [0.5, -1.0, 1.2, -0.9, 1.0, 0.2])):
+        st = static_equilibrium(model, np.array(th))
+        rpy = Rotation.from_matrix(np.real(model.tip_frame(st.q).R)).as_euler("xyz")
+        x, y, z = st.tip_position
+        pts.append({"t": t, "x": float(x), "y": float(y), "z": float(z), "roll": float(rpy[0]),
+                    "pitch": float(rpy[1]), "yaw": float(rpy[2])})
+    wp = tmp_path / "pose.yaml"
+    wp.write_text(yaml.safe_dump({"coordinates": ["x", "y", "z", "roll", "pitch", "yaw"],
+                                  "guess": [0.35, -1.15, 1.35, -0.75, 1.05, 0.35],
+                                  "waypoints": pts}))
+    assert main(["plan", "ur5_like_flexible_forearm", str(wp), "--out", str(tmp_path / "o"),
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for w, p in zip(out["waypoints"], pts):
+        assert w["static_tip_error_m"] < 1e-9 and w["static_orientation_error_rad"] < 1e-9
+        np.testing.assert_allclose(w["static_tip_rpy_rad"], [p["roll"], p["pitch"], p["yaw"]],
+                                   atol=1e-9)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({"coordinates": ["x", "y", "z", "roll", "pitch"],
+                                   "waypoints": pts}))
+    assert main(["plan", "ur5_like_flexible_forearm", str(bad), "--out",
+                 str(tmp_path / "b")]) == 2
+    assert "coordinates" in capsys.readouterr().err
