@@ -13,8 +13,9 @@ them. The waypoint file (YAML)::
 Each waypoint's inversion starts from the previous solution (the first from ``guess``).
 Between waypoints each joint follows the quintic rest-to-rest polynomial
 10 s^3 - 15 s^4 + 6 s^5 (zero rate and acceleration at the waypoints). Output: plan.csv
-(t, <joint>_position, _velocity, _acceleration) and a JSON/text summary with the static
-tip error of every waypoint (forward statics at the inverse).
+(t, <joint>_position, _velocity, _acceleration and, on arms with rigid driven joints, the
+nominal torque _effort along the path: flex_planner.spatial_nominal) and a JSON/text
+summary with the static tip error of every waypoint (forward statics at the inverse).
 """
 from __future__ import annotations
 
@@ -118,17 +119,29 @@ def cmd_spatial_plan(args) -> int:
             checks[-1]["target_rpy_rad"] = p[rot].tolist()
             checks[-1]["static_tip_rpy_rad"] = inv.tip_rpy.tolist()
             checks[-1]["static_orientation_error_rad"] = inv.error_rad
-    wall = time.perf_counter() - t0
     t, pos, vel, acc = quintic_path(times, np.array(sols), args.sample_period)
+    # the nominal joint torques along the path (thesis Ch. V.1 in 3D: the links' deformation
+    # under the prescribed motion, flex_planner.spatial_nominal); rigid, driven joints only
+    from .spatial_nominal import spatial_nominal_input
+    from .trajectories import SampledTrajectory
+    try:
+        nominal = spatial_nominal_input(model, SampledTrajectory(t, pos, vel, acc))
+        effort, note = nominal.tau, None
+    except ValueError as exc:
+        effort, note = None, str(exc)
+    wall = time.perf_counter() - t0
     from .cli import _out_dir
     out = _out_dir(args.out, Path(args.waypoints).stem)
     csv = out / "plan.csv"
-    names = ["t"] + [f"{j}_{f}" for f in ("position", "velocity", "acceleration")
-                     for j in model.arm.joint_names]
-    np.savetxt(csv, np.column_stack([t, pos, vel, acc]), delimiter=",",
-               header=",".join(names), comments="", fmt="%.17g")
+    fields = ("position", "velocity", "acceleration") + (("effort",) if note is None else ())
+    names = ["t"] + [f"{j}_{f}" for f in fields for j in model.arm.joint_names]
+    cols = [t, pos, vel, acc] + ([effort] if note is None else [])
+    np.savetxt(csv, np.column_stack(cols), delimiter=",", header=",".join(names),
+               comments="", fmt="%.17g")
     summary = {"arm": model.arm.name, "spatial": True, "coordinates": list(coords),
-               "samples": len(t), "wall_s": wall, "waypoints": checks, "csv": str(csv)}
+               "samples": len(t), "wall_s": wall, "waypoints": checks, "csv": str(csv),
+               "nominal_torque": "in plan.csv (<joint>_effort)" if note is None else
+               f"none: {note}"}
     if args.json:
         print(json.dumps(summary))
         return 0
@@ -138,5 +151,6 @@ def cmd_spatial_plan(args) -> int:
         print(f"  waypoint {c['index']} at t = {c['t_s']:g} s: joint values "
               + ", ".join(f"{a:.6f}" for a in c["joint_values"])
               + f", static tip error {c['static_tip_error_m']:.2e} m")
+    print(f"  nominal torques: {summary['nominal_torque']}")
     print(f"  wrote {csv}")
     return 0

@@ -86,6 +86,7 @@ def test_plan_command_on_a_spatial_arm(tmp_path, capsys):
     s = json.loads(capsys.readouterr().out)
     assert s["spatial"] and len(s["waypoints"]) == 2
     assert max(w["static_tip_error_m"] for w in s["waypoints"]) < 1e-9
+    assert s["nominal_torque"].startswith("none") and "elastic gear" in s["nominal_torque"]
     data = np.genfromtxt(s["csv"], delimiter=",", names=True)
     assert len(data) == 101
     assert data["joint1_position"][-1] == pytest.approx(s["waypoints"][1]["joint_values"][0],
@@ -181,3 +182,32 @@ def test_plan_command_with_orientation_waypoints(tmp_path, capsys):
     assert main(["plan", "ur5_like_flexible_forearm", str(bad), "--out",
                  str(tmp_path / "b")]) == 2
     assert "coordinates" in capsys.readouterr().err
+
+
+def test_plan_writes_the_nominal_torques_of_a_rigid_joint_arm(tmp_path, capsys):
+    """The UR5-like plan's CSV carries the nominal torques along the path: at the first
+    sample (at rest) they are the static holding torques of the deflected arm (the joint
+    rows of K q + dU_g/dq at the static equilibrium), 1e-8 N m; seed003_like_arm (an
+    elastic gear) plans without them and says why."""
+    import yaml
+
+    from flex_twin.cli import main
+    from flex_model.spatial import SpatialArmModel, load_spatial_arm
+    from flex_model.spatial.analysis import static_equilibrium
+    model = SpatialArmModel(load_spatial_arm("ur5_like_flexible_forearm"))
+    wp = tmp_path / "w.yaml"
+    wp.write_text(yaml.safe_dump({"guess": [0.3, -1.2, 1.4, -0.8, 1.1, 0.4], "waypoints": [
+        {"t": 0.0, "x": 0.45, "y": 0.15, "z": 0.45},
+        {"t": 1.0, "x": 0.4, "y": 0.25, "z": 0.5}]}))
+    assert main(["plan", "ur5_like_flexible_forearm", str(wp), "--out", str(tmp_path / "o"),
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["nominal_torque"].startswith("in plan.csv")
+    data = np.genfromtxt(out["csv"], delimiter=",", names=True)
+    names = model.arm.joint_names
+    tau0 = np.array([data[f"{j}_effort"][0] for j in names])
+    theta0 = np.array([data[f"{j}_position"][0] for j in names])
+    q = static_equilibrium(model, theta0).q
+    hold = (model.K @ q + model.gravity_force(q) - model.effect_force(np.zeros(model.nq), q))
+    np.testing.assert_allclose(tau0, hold[model.off], rtol=0, atol=1e-8)
+    assert np.max(np.abs(tau0)) > 1.0
