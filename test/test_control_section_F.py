@@ -95,3 +95,25 @@ def test_the_task_in_3d_equals_the_planar_run(task):
     for t, p in zip(flex_planner.SECTION_F_TIMES, flex_planner.SECTION_F_WAYPOINTS):
         k = int(np.argmin(np.abs(res.t[:n] - t)))
         assert np.hypot(*(tips[k] - p)) < 2e-3
+
+
+def test_the_nominal_torque_in_3d_equals_the_planners():
+    """Section F's admissible nominal torque (thesis Ch. V.1: the spline through the
+    inverted waypoints, the links' deformation under the prescribed motion at 1 ms):
+    flex_planner.spatial_nominal on example 1 embedded in 3D gives the planar planner's
+    torques along the 15 s (measured 2.2e-11 N m of 12.6 N m; tip 7.6e-14 m)."""
+    from flex_model.arm import load_arm as _load
+    from flex_model.dynamics import FlexArmModel as _Model
+    from flex_model.spatial import SpatialArmModel, from_planar
+    from flex_planner.spatial_nominal import spatial_nominal_input
+    from flex_planner.trajectories import SampledTrajectory
+    model = _Model(_load("thesis_example1"))
+    full = flex_planner.plan(model, flex_planner.SECTION_F_WAYPOINTS,
+                             flex_planner.SECTION_F_TIMES, sample_period=0.01)
+    n = full.nominal
+    fine = SampledTrajectory(n.t, n.theta, n.theta_dot, n.theta_ddot)
+    nom = spatial_nominal_input(SpatialArmModel(from_planar(model.arm)), fine)
+    scale = np.max(np.abs(n.tau))
+    assert scale > 10.0
+    np.testing.assert_allclose(nom.tau, n.tau, rtol=0, atol=1e-8 * scale)
+    np.testing.assert_allclose(nom.tip[:, :2], n.tip, rtol=0, atol=1e-10)
