@@ -582,15 +582,16 @@ class SpatialModelNode(Node):
         self.check_limits()
 
     def check_limits(self) -> None:
-        """Log the URDF position and velocity limit violations (not enforced: no joint
-        stops on spatial joints), at most once a second per joint and kind."""
+        """Log the URDF position and velocity limit violations (positions: pushed back by
+        the arm file's joint_stops where it has them, else only reported), at most once a
+        second per joint and kind."""
         qj, vj = self.q[self.model.off], self.v[self.model.off]
         lim = self.limits
+        how = "in the end stop (joint_stops)" if self.model.stops else             "reported, not enforced: the arm file has no joint_stops"
         for i in np.flatnonzero((qj < lim["lower"]) | (qj > lim["upper"])):
             self.drops.warning(f"joint {self.names[i]} at {fmt(qj[i])} outside its URDF "
                                f"limits [{fmt(lim['lower'][i])}, {fmt(lim['upper'][i])}] "
-                               "(reported, not enforced: no joint stops on spatial joints)",
-                               key=("position", i))
+                               f"({how})", key=("position", i))
         for i in np.flatnonzero(np.abs(vj) > lim["velocity"]):
             self.drops.warning(f"joint {self.names[i]} rate {fmt(vj[i])} beyond its URDF "
                                f"velocity limit {fmt(lim['velocity'][i])} (reported, not "
