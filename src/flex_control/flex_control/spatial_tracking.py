@@ -83,7 +83,10 @@ def simulate_tracking_spatial(model, trajectory: JointTrajectoryData, *, h, a, q
         model.K = K0
     Q, V = np.concatenate(Q)[::per_out], np.concatenate(V)[::per_out]
     U = np.concatenate([U[0][:1]] + U)[::per_out]
+    from flex_model.spatial.limits import joint_limits
     a_idx = np.maximum(act, 0)
-    tau = np.where(act >= 0, U - kp * Q[:, a_idx] - kd * V[:, a_idx], 0.0)
+    effort = joint_limits(model.arm)["effort"]          # the loop clips the PD torque
+    tau = np.where(act >= 0, np.clip(U - kp * Q[:, a_idx] - kd * V[:, a_idx], -effort,
+                                     effort), 0.0)
     return SpatialTrackingRun(t=t0 + dt * per_out * np.arange(len(Q)), q=Q, v=V, tau=tau,
                               newton_iterations=iters)

@@ -164,6 +164,8 @@ def test_urdf_side_file_makes_the_urdf_limits_stops():
     (lambda d: d["links"][0]["joint"].update(effort=-1.0), "links[0].joint.effort", ">= 0"),
     (lambda d: [d["links"][0]["joint"].pop(k) for k in ("lower", "upper")], "joint_stops",
      "finite lower or upper"),
+    (lambda d: d["links"][0]["joint"].update(motor="locked"), "joint_stops",
+     "a locked rigid joint does not move"),
 ])
 def test_bad_stop_files_name_the_field(mutate, field, text):
     data = _arm()
@@ -172,3 +174,16 @@ def test_bad_stop_files_name_the_field(mutate, field, text):
         spatial_arm_from_dict(data, "bad.yaml")
     msg = str(err.value)
     assert "bad.yaml" in msg and field in msg and text in msg, msg
+
+
+def test_a_pd_start_beyond_the_effort_limit_is_refused():
+    """The PD's static start under gravity needs m g L = 4.9 N m at the joint; with an
+    effort limit of 1 N m the loop clips the PD, so that start would not be at rest: the
+    scenario says so, naming the joint and both torques."""
+    model = _model(effort=1.0, lower=-1.0, upper=1.0, gravity=(0.0, -9.81, 0.0))
+    sc = SpatialScenario(name="held_pd", arm=model.arm, duration=0.1, step=1e-3,
+                         sample_period=5e-3, rho_inf=0.9, joint_values=np.zeros(1),
+                         joint_rates=np.zeros(1), start_static=True,
+                         pd=SpatialPD(np.array([1e3]), np.array([10.0]), np.zeros(1)))
+    with pytest.raises(ValueError, match="joint1, beyond its effort limit 1"):
+        sc.run(model)

@@ -87,6 +87,9 @@ def test_a_failed_newton_step_is_retried_in_substeps():
     assert run.q.shape == (21, model.nq) and np.all(np.isfinite(run.q))
     before = simulate_fixed_compiled(model, q0, z, 1e-3, 6, joint_torques=tau[:6])
     np.testing.assert_array_equal(run.q[:7], before.q)
+    # the count has the steps before the failure, the failed attempt, the 4 substeps and
+    # the 13 steps after
+    assert run.newton_iterations > before.newton_iterations + 4 + 13
     retried = simulate_fixed_compiled(model, run.q[6], run.v[6], 2.5e-4, 4,
                                       joint_torques=np.repeat(tau[6:7], 4, axis=0))
     np.testing.assert_array_equal(run.q[7], retried.q[-1])

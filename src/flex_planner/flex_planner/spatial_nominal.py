@@ -33,6 +33,10 @@ from .nominal_input import REFRESH_EVERY, STEP_TOLERANCE
 from .trajectories import SampledTrajectory
 
 
+class NotDrivenError(ValueError):
+    """An arm whose joints the nominal input cannot prescribe (elastic gear, locked)."""
+
+
 @dataclass
 class SpatialNominalInput:
     """Samples: t (n,), the full states q, v, a (n, nq), joint torques tau (n, n_joints),
@@ -51,8 +55,9 @@ def _check_rigid_joints(model) -> None:
     bad = [lk.joint.name for i, lk in enumerate(model.arm.links)
            if model.motor_index[i] >= 0 or lk.joint.motor == "locked"]
     if bad:
-        raise ValueError(f"{model.arm.name}: joints {', '.join(bad)} have an elastic gear or a "
-                         "locked motor; the nominal input prescribes rigid, driven joints")
+        raise NotDrivenError(f"{model.arm.name}: joints {', '.join(bad)} have an elastic gear "
+                             "or a locked motor; the nominal input prescribes rigid, driven "
+                             "joints")
 
 
 def spatial_nominal_input(model, traj: SampledTrajectory, flex0=None, flex_rate0=None, *,

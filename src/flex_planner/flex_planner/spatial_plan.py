@@ -119,23 +119,25 @@ def cmd_spatial_plan(args) -> int:
             checks[-1]["target_rpy_rad"] = p[rot].tolist()
             checks[-1]["static_tip_rpy_rad"] = inv.tip_rpy.tolist()
             checks[-1]["static_orientation_error_rad"] = inv.error_rad
-    t, pos, vel, acc = quintic_path(times, np.array(sols), args.sample_period)
+    t, jpos, vel, acc = quintic_path(times, np.array(sols), args.sample_period)
     # the nominal joint torques along the path (thesis Ch. V.1 in 3D: the links' deformation
     # under the prescribed motion, flex_planner.spatial_nominal); rigid, driven joints only
-    from .spatial_nominal import spatial_nominal_input
+    from .spatial_nominal import NotDrivenError, spatial_nominal_input
     from .trajectories import SampledTrajectory
     try:
-        nominal = spatial_nominal_input(model, SampledTrajectory(t, pos, vel, acc))
+        nominal = spatial_nominal_input(model, SampledTrajectory(t, jpos, vel, acc))
         effort, note = nominal.tau, None
-    except ValueError as exc:
+    except NotDrivenError as exc:
         effort, note = None, str(exc)
+    except (RuntimeError, np.linalg.LinAlgError) as exc:     # the path is still written
+        effort, note = None, f"failed: {exc}"
     wall = time.perf_counter() - t0
     from .cli import _out_dir
     out = _out_dir(args.out, Path(args.waypoints).stem)
     csv = out / "plan.csv"
     fields = ("position", "velocity", "acceleration") + (("effort",) if note is None else ())
     names = ["t"] + [f"{j}_{f}" for f in fields for j in model.arm.joint_names]
-    cols = [t, pos, vel, acc] + ([effort] if note is None else [])
+    cols = [t, jpos, vel, acc] + ([effort] if note is None else [])
     np.savetxt(csv, np.column_stack(cols), delimiter=",", header=",".join(names),
                comments="", fmt="%.17g")
     summary = {"arm": model.arm.name, "spatial": True, "coordinates": list(coords),

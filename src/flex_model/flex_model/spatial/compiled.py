@@ -1152,7 +1152,9 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
     the method, read as the start when ``warm`` (a continued run; else the consistent
     acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
     every step (n_steps + 1, nq) and the Newton iteration count (-1 - n: no convergence
-    at step n)."""
+    at step n; acc[0, 0] then holds the iterations done). A Newton matrix made indefinite
+    by a friction slope > 0 (a Stribeck peak's negative damping) is rebuilt without those
+    slopes."""
     nq = q0.shape[0]
     n_steps = tau.shape[0]
     nj = tau.shape[1]
@@ -1283,7 +1285,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
                 for j in range(nq):
                     for b_ in range(nq):
                         S[j, b_] = S0[j, b_]
-                    S[j, j] -= cv * min(slope[j], 0.0)   # Stribeck: no negative damping
+                    S[j, j] -= cv * slope[j]
                 if has_b:
                     _backlash_tangent(blash, kt, sl, cq, cv, S)
                 if has_c and fn > 0.0:     # k g g^T, c g g^T (SpatialArmModel.contact_tangent)
@@ -1300,6 +1302,11 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
                         S[a_, a_] -= cq * pdc[r_, 2] + cv * pdc[r_, 3]
                 _hold(S, r, held)
                 Lc = cholesky(S)
+                if Lc.shape[0] != nq:   # a Stribeck slope's negative damping: drop it
+                    for j in range(nq):
+                        if slope[j] > 0.0 and not held[j]:
+                            S[j, j] += cv * slope[j]
+                    Lc = cholesky(S)
                 if Lc.shape[0] != nq:   # not positive definite: this step fails
                     break
             else:
@@ -1325,6 +1332,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
                 ok = True
                 break
         if not ok:
+            acc[0, 0] = iters     # the iterations so far (for the caller's count)
             return qs[:n + 1], vs[:n + 1], -1 - n
         _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1)
         for j in range(nq):

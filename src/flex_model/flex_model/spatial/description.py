@@ -336,10 +336,12 @@ def parse_joint_stops(f: Fields, links, source: str) -> "JointStops | None":
                        transition=g.number("transition", 1.0e-3, positive=True,
                                            max_value=0.1, unit="rad or m"))
     g.done(["stiffness", "damping", "transition"])
-    if not any(np.isfinite(lk.joint.lower) or np.isfinite(lk.joint.upper) for lk in links):
+    if not any((np.isfinite(lk.joint.lower) or np.isfinite(lk.joint.upper)) and
+               not (lk.joint.motor == "locked" and lk.joint.gear == "rigid") for lk in links):
         raise ConfigError(source, "joint_stops", "given",
-                          "a joint with a finite lower or upper limit (joint fields lower, "
-                          "upper; URDF <limit>): the stops act at those limits")
+                          "a moving joint with a finite lower or upper limit (joint fields "
+                          "lower, upper; URDF <limit>; a locked rigid joint does not move): "
+                          "the stops act at those limits")
     return stops
 
 

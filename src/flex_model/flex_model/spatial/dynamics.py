@@ -514,7 +514,8 @@ class SpatialArmModel:
         return Kb, Db
 
     def effect_force_slope(self, v) -> np.ndarray:
-        """d effect_force / dv (diagonal, <= 0): the friction slopes."""
+        """d effect_force / dv (diagonal): the friction slopes (<= 0, but > 0 on the
+        falling side of a Stribeck peak)."""
         d = np.zeros(self.nq)
         for a, f in self.friction:
             d[a] += friction_slope(f.values, float(v[a]))

@@ -132,8 +132,8 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
         cmd = np.broadcast_to(np.asarray(joint_commands, float), (n_steps, model.n_links))
         effort = joint_limits(model.arm)["effort"] if clip_to_effort else None
     contact = model.contact is not None
-    nonlinear = bool(model.friction) or (cmd is not None and bool(model.motors)) or \
-        bool(model.backlash) or contact or bool(model.stops)
+    nonlinear = bool(model.friction) or bool(model.motors) or \
+        bool(model.backlash) or contact or bool(model.stops)     # as the compiled loop
     gaps = bool(model.backlash) or contact or bool(model.stops)
 
     def residual(t, q, v, a, n):
@@ -184,7 +184,7 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
                 S0 = M1 + cq * K + cv * D
             if lu is None or nonlinear:  # iteration matrix, frozen for the step but
                 # for the friction and motor slopes (steep tanh: from the current iterate)
-                S = S0 - cv * np.diag(np.minimum(slope, 0.0))   # Stribeck: kept definite
+                S = S0 - cv * np.diag(slope)
                 if model.backlash:
                     Kb, Db = model.backlash_tangent(q1, v1)
                     S = S + cq * Kb + cv * Db
@@ -197,7 +197,12 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
                 S[held, :] = 0.0
                 S[:, held] = 0.0
                 S[held, held] = 1.0
-                lu = np.linalg.cholesky(S)
+                try:
+                    lu = np.linalg.cholesky(S)
+                except np.linalg.LinAlgError:     # a Stribeck slope's negative damping
+                    pos = np.maximum(slope, 0.0)
+                    pos[held] = 0.0
+                    lu = np.linalg.cholesky(S + cv * np.diag(pos))
             da = -np.linalg.solve(lu.T, np.linalg.solve(lu, r))
             a1 += da
             iters += 1
@@ -241,7 +246,10 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     (compiled._pd_clip), not only the torques. A step whose Newton iteration fails is
     integrated again as ``substeps`` steps of h / substeps from a restart (a consistent
     acceleration), and the run goes on with a restart after it (0: raise instead; the
-    planar replay's SUBSTEPS); the Newton count then leaves out the failed attempts."""
+    planar replay's SUBSTEPS); the Newton count includes the failed attempts' iterations
+    and ``acceleration`` is None when the run ends with such a step (a continuation then
+    restarts). The PD clip leaves ``dc_motor`` joints to the motor model's own clip and is
+    off with ``clip_to_effort=False``."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
@@ -262,11 +270,12 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
         np.concatenate([model.contact[0], model.contact[1], model.contact[2:]]).astype(float)
     stops = np.array(model.stops, float).reshape(-1, 6)
     pdc = np.zeros((0, 5))
-    if pd_clip is not None:
+    if pd_clip is not None and clip_to_effort:
         lim = joint_limits(model.arm)["effort"]
         kp, kd = (np.broadcast_to(np.asarray(g, float), (nj,)) for g in pd_clip)
+        volts = {j for j, *_ in model.motors}        # dc_motor joints: their own clip
         rows = [(j, a, kp[j], kd[j], lim[j]) for j, a in enumerate(model.actuator_index)
-                if a >= 0 and np.isfinite(lim[j])]
+                if a >= 0 and np.isfinite(lim[j]) and j not in volts]
         pdc = np.array(rows, float).reshape(-1, 5)
         effort = effort.copy()
         effort[pdc[:, 0].astype(int)] = np.inf     # the whole PD torque is clipped instead
@@ -295,8 +304,8 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
         out_q.append(qs[1:k + 1])
         out_v.append(vs[1:k + 1])
         pos += k
+        total += iters if iters >= 0 else int(acc[0, 0])  # the loop's count so far
         if iters >= 0:
-            total += iters
             break
         if not substeps:
             raise RuntimeError(f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s")
@@ -310,7 +319,8 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
         out_v.append(vs2[-1:])
         total += it2
         pos += 1
-        if pos == n_steps:
+        if pos == n_steps:        # (a, abar) of h / substeps: a continuation restarts
+            acc = None
             break
         acc = np.zeros((2, model.nq))
         qs, vs, iters = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"), acc, False)

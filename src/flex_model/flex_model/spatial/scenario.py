@@ -152,8 +152,19 @@ class SpatialScenario:
             return q0, v0, hold
         if self.pd is not None:
             u = hold + self.pd.kp * self.pd.setpoints
-            return pd_static_equilibrium(model, *self.pd_matrices(model)[:1], u,
-                                         start=self.pd.setpoints), v0, hold
+            q0 = pd_static_equilibrium(model, *self.pd_matrices(model)[:1], u,
+                                       start=self.pd.setpoints)
+            act = model.actuator_index
+            need = np.where(act >= 0, u - self.pd.kp * q0[np.maximum(act, 0)], 0.0)
+            effort = joint_limits(model.arm)["effort"]
+            over = np.flatnonzero(np.abs(need) > effort)
+            if len(over):       # the loop clips the PD: that start would not be at rest
+                j = int(over[0])
+                raise ValueError(
+                    f"{self.name}: the PD's static start needs {need[j]:.6g} N m (or N) on "
+                    f"{self.arm.joint_names[j]}, beyond its effort limit {effort[j]:.6g}; "
+                    "start undeformed, or change the set-points or the gains")
+            return q0, v0, hold
         from .analysis import static_equilibrium
         q0 = static_equilibrium(model, self.joint_values).q
         gaps = {qi: (half, smooth) for qi, _, _, _, half, smooth, _ in model.backlash}

@@ -91,7 +91,10 @@ def _diagnose_spatial(args) -> int:
     from .spatial import diagnose_spatial, read_spatial_recording, write_outputs
     given = [f"--{k.replace('_', '-')}" for k in ("controller", "holdout", "segment",
                                                    "link_topic", "gate", "scheduler",
-                                                   "workers") if getattr(args, k, None)]
+                                                   "workers")
+             if getattr(args, k, None) is not None]
+    if getattr(args, "no_floor", False):
+        given.append("--no-floor")
     if given or len(args.data) != 1 or not args.data[0].endswith(".csv"):
         raise ValueError(f"{args.arm} is a spatial arm: its diagnosis takes one recording CSV "
                          "(t, q<i>, tau<i>, <link>_tip_deflection_y|z, <link>_tip_twist) and "
