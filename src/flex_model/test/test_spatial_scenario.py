@@ -12,7 +12,7 @@ from flex_model.arm import load_arm
 from flex_model.config import ConfigError
 from flex_model.scenario import scenario_from_dict
 from flex_model.spatial.analysis import static_equilibrium
-from flex_model.spatial.description import from_planar
+from flex_model.spatial.description import from_planar, spatial_arm_from_dict
 from flex_model.spatial.scenario import (SpatialPD, SpatialPulse, SpatialScenario,
                                          is_spatial_scenario, load_spatial_scenario,
                                          pd_static_equilibrium, spatial_scenario_from_dict,
@@ -187,3 +187,31 @@ def test_seed000_preset_starts_at_the_static_droop():
     assert -w[0] == pytest.approx(droop, rel=1e-9)
     assert np.max(np.abs(res.q - res.q[0])) < 1e-12
     assert np.max(np.abs(res.tau)) == 0.0     # vertical joint axis: no holding torque
+
+
+def test_a_payload_change_moves_the_pd_equilibrium_to_the_closed_form():
+    """Pick and place: a rigid link (1 kg at 0.5 m) in the vertical plane held by a PD at
+    0 rad; at 0.2 s a 0.5 kg payload is picked at its end frame. Before the change the
+    link rests where kp (0 - q) = M g L cos q, after it (damped, 4 s) where kp (0 - q) =
+    (M + m) g L cos q (measured 2.7e-14 and 4.8e-13 rad); a file's bad payload field is
+    named."""
+    from scipy.optimize import brentq
+    g, L, M, m, kp = 9.81, 0.5, 1.0, 0.5, 200.0
+    arm = spatial_arm_from_dict({"name": "pick", "gravity": [0.0, -g, 0.0], "links": [
+        {"joint": {"name": "joint1", "a": L}, "end_body": {"mass": M}}]}, "pick.yaml")
+    sc = SpatialScenario(name="pick", arm=arm, duration=4.0, step=1e-3, sample_period=0.01,
+                         rho_inf=0.9, joint_values=np.zeros(1), joint_rates=np.zeros(1),
+                         start_static=True,
+                         pd=SpatialPD(np.array([kp]), np.array([20.0]), np.zeros(1)),
+                         payload_changes=((0.2, m, np.zeros((3, 3))),))
+    res = sc.run()
+    q_before = brentq(lambda q: -kp * q - M * g * L * np.cos(q), -1.0, 0.0)
+    q_after = brentq(lambda q: -kp * q - (M + m) * g * L * np.cos(q), -1.0, 0.0)
+    assert abs(res.joint_values[15, 0] - q_before) < 1e-9          # t = 0.15 s
+    assert abs(res.joint_values[-1, 0] - q_after) < 1e-6
+    assert np.min(res.joint_values[:, 0]) < q_after                  # it swung past
+    with pytest.raises(ConfigError) as err:
+        spatial_scenario_from_dict({"name": "p", "arm": "seed003_like_arm", "duration": 1.0,
+                                    "payload_changes": [{"time": 0.1, "mass": -1.0}]},
+                                   "p.yaml")
+    assert "p.yaml" in str(err.value) and "payload_changes[0].mass" in str(err.value)

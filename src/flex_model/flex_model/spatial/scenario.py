@@ -24,6 +24,8 @@ Example (preset ``seed000_3d_pd_step``, ``presets/spatial/scenarios/``)::
         - {time: 1.0, setpoints: [0.4], ramp: 0.5}    # a ramp over 1-1.5 s
     pulses:                           # joint torques (N m) / forces (N) on [start, end)
       - {joint: joint1, torque: 0.05, start: 0.1, end: 0.2}   # end: .inf = to the end
+    payload_changes:                  # pick and place: the payload at the end frame
+      - {time: 0.5, mass: 0.2, inertia: [1.0e-4, 1.0e-4, 1.0e-4]}   # from 0.5 s on
 
 ``pd45`` is seed 000's PD-like cascade, Eq. (45), in continuous time (as the seed's runs
 and flex_control.step_response): on the motor angle n theta_a it is the joint PD
@@ -102,6 +104,10 @@ class SpatialScenario:
     pulses: tuple = ()
     tol: float = 1e-10
     source: str = "<memory>"
+    #: (time, mass kg, 3 x 3 inertia kg m^2 about the end frame origin): from that time the
+    #: payload at the last link's end frame (replacing the previous change's; the arm
+    #: file's own payload stays), spatial/payload.py
+    payload_changes: tuple = ()
 
     # ------------------------------------------------------------ model and grid
     def model(self) -> SpatialArmModel:
@@ -215,7 +221,7 @@ class SpatialScenario:
         set-point steps and, with ramps, every sample instant (as the planar fixed mode
         restarts at its policy instants)."""
         times = [t for p in self.pulses for t in (p.start, p.end)] + \
-            [e[0] for e in self.setpoint_schedule]
+            [e[0] for e in self.setpoint_schedule] + [c[0] for c in self.payload_changes]
         steps = {int(round(t / h)) for t in times if 0 < round(t / h) < n_total}
         if self.has_ramps:
             per = max(1, int(round(self.sample_period / h)))
@@ -238,14 +244,24 @@ class SpatialScenario:
         t_mid = h * (np.arange(n_total) + 0.5)
         u = self.open_loop(t_mid, hold, t_sample=h * per * (np.arange(n_total) // per))
         bounds = self.switch_steps(h, n_total) + [n_total]
+        from .payload import model_with_payload
+        # the model of each payload change (a shallow copy with the end body replaced)
+        changes = [(int(round(tc / h)), model_with_payload(model, self.arm, m, inertia))
+                   for tc, m, inertia in self.payload_changes]
         K0 = model.K
         qs, vs, iters, start = [q[None]], [v[None]], 0, 0
         try:
             model.K = K0 + Kp     # the PD's stiffness, for this run only
+            for _, m in changes:
+                m.K = model.K
             for stop in bounds:   # a restart (consistent acceleration) at every switch
+                cur = model
+                for step_c, m in changes:
+                    if step_c <= start:
+                        cur = m
                 try:
                     run = simulate_fixed_compiled(
-                        model, q, v, h, stop - start, joint_torques=u[start:stop],
+                        cur, q, v, h, stop - start, joint_torques=u[start:stop],
                         rho_inf=self.rho_inf, tol=self.tol, damping=Dp,
                         pd_clip=None if self.pd is None else (self.pd.kp, self.pd.kd))
                 except RuntimeError as exc:   # the time of the segment -> of the run
@@ -558,10 +574,27 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
             raise pf.error("end", end, f"a time after start ({start} s)")
         pf.done(["joint", key, "start", "end"])
         pulses.append(SpatialPulse(j, value, start, end))
+    changes = []
+    for k, raw in enumerate(f.items("payload_changes", [])):
+        if not isinstance(raw, dict):
+            raise f.error("payload_changes", raw, "a list of {time, mass, inertia} mappings")
+        cf = Fields(raw, source, f"payload_changes[{k}]")
+        tc = cf.number("time", nonnegative=True, unit="s")
+        if tc >= duration or (changes and tc <= changes[-1][0]):
+            raise cf.error("time", tc, f"a time in [0, {duration:g}) s, increasing")
+        body = Fields({key: val for key, val in raw.items() if key != "time"}, source,
+                      f"payload_changes[{k}]")
+        from .description import _body
+        rb = _body(body)
+        if any(rb.offset):
+            raise body.error("offset", list(rb.offset), "no offset (the payload sits at the "
+                             "last link's end frame origin; move the frame or use the arm "
+                             "file's payload)")
+        changes.append((tc, rb.mass, np.asarray(rb.inertia, float)))
     f.done(["name", "arm", "gravity", "duration", "step", "sample_period", "rho_inf",
-            "newton_tol", "initial", "control", "pulses"])
+            "newton_tol", "initial", "control", "pulses", "payload_changes"])
     return SpatialScenario(name=name, arm=arm, duration=duration, step=step,
                            sample_period=sample, rho_inf=rho_inf, joint_values=q0,
                            joint_rates=v0, start_static=start_static, gravity_hold=hold,
                            pd=pd, setpoint_schedule=tuple(schedule), pulses=tuple(pulses),
-                           tol=tol, source=source)
+                           tol=tol, source=source, payload_changes=tuple(changes))
