@@ -1079,6 +1079,17 @@ def tip_point(Pm, q):
 
 
 @njit(cache=_CACHE)
+def _tip_force(Pm, F, q, Q):
+    """Q += J_tip^T F: a force (N, base frame) at the origin of the last link's end frame
+    (tip_point)."""
+    if F[0] == 0.0 and F[1] == 0.0 and F[2] == 0.0:
+        return
+    _, Jo = tip_point(Pm, q)
+    for j in range(Q.shape[0]):
+        Q[j] += Jo[0, j] * F[0] + Jo[1, j] * F[1] + Jo[2, j] * F[2]
+
+
+@njit(cache=_CACHE)
 def _contact(Pm, ct, q, v, Q, gc):
     """The contact surface at the tip (dynamics.SpatialArmModel.effect_force): ct = p0 (3),
     unit normal n (3), k, c; delta = -n . (p - p0), for delta > 0 the normal force
@@ -1126,8 +1137,8 @@ def _hold(S, r, held):
 
 
 @njit(cache=_CACHE)
-def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H, effort,
-                q0, v0, h, tau, rho_inf, tol, max_iter, acc, warm):
+def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, held, H,
+                effort, q0, v0, h, tau, rho_inf, tol, max_iter, acc, warm):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
     integrate.simulate_fixed: Newton on the accelerations with
     M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
@@ -1141,7 +1152,10 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
     iteration); ``contact``: empty or the contact surface at the tip (see _contact; its
     tangent refreshed every iteration); ``stops``: the end stops at the joint limits (see
     _stops); ``pdc``: an in-loop PD's torque clipped to the effort limits (see _pd_clip;
-    those joints' ``effort`` entries are infinite); with any of these nonlinear effects a
+    those joints' ``effort`` entries are infinite); ``tipf``: empty or (n_steps, 3) forces
+    (N, base frame) at the tip (the origin of the last link's end frame), row n over step
+    n: J_tip^T F at the current iterate (its dJ/dq F tangent left out, as the contact's);
+    with any of these nonlinear effects a
     Newton step that raises the largest residual is halved, up to 8 times in a row, from
     the 20th iteration of a step on (integrate.LINE_SEARCH_HALVINGS: the steep tanh of
     Coulomb friction otherwise makes the iteration cycle; steps that converge within 20
@@ -1170,6 +1184,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
     has_m = motors.shape[0] > 0
     has_b = blash.shape[0] > 0
     has_c = contact.shape[0] > 0
+    has_t = tipf.shape[0] > 0
     has_s = stops.shape[0] > 0
     has_p = pdc.shape[0] > 0
     if has_c or has_s or has_p:
@@ -1210,6 +1225,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
         _backlash(blash, q, v, Qe, kt, sl)
     if has_c:
         _contact(Pm, contact, q, v, Qe, gc)
+    if has_t:
+        _tip_force(Pm, tipf[0], q, Qe)
     if has_s:
         _stops(stops, q, v, Qe, skt, sct)
     if has_p:
@@ -1254,6 +1271,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, held, H,
                 _backlash(blash, q1, v1, Qe, kt, sl)
             if has_c:
                 fn = _contact(Pm, contact, q1, v1, Qe, gc)
+            if has_t:
+                _tip_force(Pm, tipf[n], q1, Qe)
             if has_s:
                 _stops(stops, q1, v1, Qe, skt, sct)
             if has_p:

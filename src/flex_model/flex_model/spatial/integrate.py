@@ -229,7 +229,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
                             joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
                             max_iter: int = 50, damping=None,
                             clip_to_effort: bool = True, acceleration=None,
-                            pd_clip=None, substeps: int = 4) -> SpatialRun:
+                            pd_clip=None, substeps: int = 4, tip_force=None) -> SpatialRun:
     """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the
     analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
     (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
@@ -249,7 +249,10 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     planar replay's SUBSTEPS); the Newton count includes the failed attempts' iterations
     and ``acceleration`` is None when the run ends with such a step (a continuation then
     restarts). The PD clip leaves ``dc_motor`` joints to the motor model's own clip and is
-    off with ``clip_to_effort=False``."""
+    off with ``clip_to_effort=False``. ``tip_force``: None, a constant (3) or an
+    (n_steps, 3) array of forces (N, base frame) at the tip (the origin of the last
+    link's end frame), row n over step n, as J_tip^T F (``simulate_fixed``'s ``force``
+    does the same with a callback)."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
@@ -285,15 +288,21 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     acc = np.array(acceleration, float).reshape(2, model.nq) if warm else \
         np.zeros((2, model.nq))
     K, H = np.ascontiguousarray(model.K), joint_input_matrix(model)
+    tipf = np.zeros((0, 3)) if tip_force is None else np.array(np.broadcast_to(
+        np.asarray(tip_force, float), (n_steps, 3)), order="C")
 
-    def loop(q, v, hh, rows, acc, warm):
+    def loop(q, v, hh, rows, acc, warm, forces):
         return galpha_loop(data, K, np.ascontiguousarray(D), model.Q_const.copy(), fric,
-                           motors, blash, contact, stops, pdc, held, H, effort,
+                           motors, blash, contact, stops, pdc, forces, held, H, effort,
                            np.asarray(q, float).copy(), np.asarray(v, float).copy(),
                            float(hh), rows, float(rho_inf), float(tol), int(max_iter), acc,
                            warm)
 
-    qs, vs, iters = loop(q0, v0, h, tau, acc, warm)
+    def forces(a, b, repeat=1):
+        return tipf if not len(tipf) else np.array(np.repeat(tipf[a:b], repeat, axis=0),
+                                                   order="C")
+
+    qs, vs, iters = loop(q0, v0, h, tau, acc, warm, tipf)
     if iters >= 0:
         return SpatialRun(h * np.arange(len(qs)), qs, vs, int(iters), acc)
     # a step whose Newton iteration failed: again as `substeps` steps from a restart
@@ -311,7 +320,8 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
             raise RuntimeError(f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s")
         sub = np.array(np.repeat(tau[pos:pos + 1], substeps, axis=0), order="C")
         acc = np.zeros((2, model.nq))
-        qs2, vs2, it2 = loop(qs[k], vs[k], h / substeps, sub, acc, False)
+        qs2, vs2, it2 = loop(qs[k], vs[k], h / substeps, sub, acc, False,
+                             forces(pos, pos + 1, substeps))
         if it2 < 0:
             raise RuntimeError(f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} "
                                f"s, nor in {substeps} substeps")
@@ -323,6 +333,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
             acc = None
             break
         acc = np.zeros((2, model.nq))
-        qs, vs, iters = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"), acc, False)
+        qs, vs, iters = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"), acc, False,
+                             forces(pos, n_steps))
     qs, vs = np.vstack(out_q), np.vstack(out_v)
     return SpatialRun(h * np.arange(len(qs)), qs, vs, int(total), acc)

@@ -24,6 +24,8 @@ Example (preset ``seed000_3d_pd_step``, ``presets/spatial/scenarios/``)::
         - {time: 1.0, setpoints: [0.4], ramp: 0.5}    # a ramp over 1-1.5 s
     pulses:                           # joint torques (N m) / forces (N) on [start, end)
       - {joint: joint1, torque: 0.05, start: 0.1, end: 0.2}   # end: .inf = to the end
+    tip_loads:                        # a force (N, base frame) at the tip on [start, end)
+      - {force: [0.0, 0.0, -5.0], start: 0.2, end: 0.4}
     payload_changes:                  # pick and place: the payload at the end frame
       - {time: 0.5, mass: 0.2, inertia: [1.0e-4, 1.0e-4, 1.0e-4]}   # from 0.5 s on
 
@@ -108,6 +110,10 @@ class SpatialScenario:
     #: payload at the last link's end frame (replacing the previous change's; the arm
     #: file's own payload stays), spatial/payload.py
     payload_changes: tuple = ()
+    #: (force (3), start, end): a force (N, base frame) at the tip (the origin of the last
+    #: link's end frame) on [start, end), as the pulses: evaluated at mid-step, a restart
+    #: at its edges
+    tip_loads: tuple = ()
 
     # ------------------------------------------------------------ model and grid
     def model(self) -> SpatialArmModel:
@@ -221,8 +227,10 @@ class SpatialScenario:
         set-point steps and, with ramps, every sample instant (as the planar fixed mode
         restarts at its policy instants)."""
         times = [t for p in self.pulses for t in (p.start, p.end)] + \
+            [t for _, a, b in self.tip_loads for t in (a, b)] + \
             [e[0] for e in self.setpoint_schedule] + [c[0] for c in self.payload_changes]
-        steps = {int(round(t / h)) for t in times if 0 < round(t / h) < n_total}
+        steps = {int(round(t / h)) for t in times if math.isfinite(t) and
+                 0 < round(t / h) < n_total}
         if self.has_ramps:
             per = max(1, int(round(self.sample_period / h)))
             steps |= set(range(per, n_total, per))
@@ -243,6 +251,11 @@ class SpatialScenario:
         Kp, Dp = self.pd_matrices(model)
         t_mid = h * (np.arange(n_total) + 0.5)
         u = self.open_loop(t_mid, hold, t_sample=h * per * (np.arange(n_total) // per))
+        tipf = None
+        if self.tip_loads:
+            tipf = np.zeros((n_total, 3))
+            for force, a, b in self.tip_loads:
+                tipf[(a <= t_mid) & (t_mid < b)] += force
         bounds = self.switch_steps(h, n_total) + [n_total]
         from .payload import model_with_payload
         # the model of each payload change (a shallow copy with the end body replaced)
@@ -263,7 +276,8 @@ class SpatialScenario:
                     run = simulate_fixed_compiled(
                         cur, q, v, h, stop - start, joint_torques=u[start:stop],
                         rho_inf=self.rho_inf, tol=self.tol, damping=Dp,
-                        pd_clip=None if self.pd is None else (self.pd.kp, self.pd.kd))
+                        pd_clip=None if self.pd is None else (self.pd.kp, self.pd.kd),
+                        tip_force=None if tipf is None else tipf[start:stop])
                 except RuntimeError as exc:   # the time of the segment -> of the run
                     raise RuntimeError(f"{self.name}: Newton did not converge in the step "
                                        f"after t = {start * h:.6g} s + ({exc}); reduce the "
@@ -574,6 +588,17 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
             raise pf.error("end", end, f"a time after start ({start} s)")
         pf.done(["joint", key, "start", "end"])
         pulses.append(SpatialPulse(j, value, start, end))
+    loads = []
+    for k, raw in enumerate(f.items("tip_loads", [])):
+        lf = Fields(raw, source, f"tip_loads[{k}]")
+        force = np.array(lf.vector("force", 3, unit="N, base frame"))
+        a = lf.number("start", nonnegative=True, unit="s")
+        b = math.inf if _is_inf(lf.raw("end")) else \
+            lf.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
+        if b <= a:
+            raise lf.error("end", b, f"a time after start ({a} s)")
+        lf.done(["force", "start", "end"])
+        loads.append((force, a, b))
     changes = []
     for k, raw in enumerate(f.items("payload_changes", [])):
         if not isinstance(raw, dict):
@@ -592,9 +617,10 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
                              "file's payload)")
         changes.append((tc, rb.mass, np.asarray(rb.inertia, float)))
     f.done(["name", "arm", "gravity", "duration", "step", "sample_period", "rho_inf",
-            "newton_tol", "initial", "control", "pulses", "payload_changes"])
+            "newton_tol", "initial", "control", "pulses", "payload_changes", "tip_loads"])
     return SpatialScenario(name=name, arm=arm, duration=duration, step=step,
                            sample_period=sample, rho_inf=rho_inf, joint_values=q0,
                            joint_rates=v0, start_static=start_static, gravity_hold=hold,
                            pd=pd, setpoint_schedule=tuple(schedule), pulses=tuple(pulses),
-                           tol=tol, source=source, payload_changes=tuple(changes))
+                           tol=tol, source=source, payload_changes=tuple(changes),
+                           tip_loads=tuple(loads))
