@@ -33,11 +33,14 @@ BENCH = os.path.dirname(HERE)
 PEER_PY = os.path.join(BENCH, ".venv-peer", "bin", "python")
 #: case -> (link, section field, scale) of the Exudyn arm (None: healthy)
 CASES = {
-    "healthy": None,
-    "link1-EI_y-0.8": ("link1", "EI_y", 0.8),       # link 1 softer out of plane (w)
-    "link2-EI_z-0.75": ("link2", "EI_z", 0.75),     # link 2 softer in plane (v)
-    "link1-GJ-0.7": ("link1", "GJ", 0.7),           # link 1 softer in torsion
-    "joint2-viscous-0.05": ("joint2", "viscous", 0.05),   # N m s/rad in joint 2
+    "healthy": [],
+    "link1-EI_y-0.8": [("link1", "EI_y", 0.8)],       # link 1 softer out of plane (w)
+    "link2-EI_z-0.75": [("link2", "EI_z", 0.75)],     # link 2 softer in plane (v)
+    "link1-GJ-0.7": [("link1", "GJ", 0.7)],           # link 1 softer in torsion
+    "joint2-viscous-0.05": [("joint2", "viscous", 0.05)],   # N m s/rad in joint 2
+    # two at once: link 2 softer in plane and joint 1 with viscous friction
+    "two-link2-EI_z-0.8+joint1-viscous-0.1": [("link2", "EI_z", 0.8),
+                                               ("joint1", "viscous", 0.1)],
 }
 N_EL, H, DURATION = 16, 5e-4, 1.0
 
@@ -46,9 +49,7 @@ def _peer(case: str) -> int:
     sys.path.insert(0, BENCH)
     import bench_spatial_exudyn as b
     arm = json.loads(json.dumps(b.arm_dict(4)))   # the nominal arm, before the change
-    hidden = CASES[case]
-    if hidden is not None:
-        link, field, value = hidden         # (link or joint, field, scale or value)
+    for link, field, value in CASES[case]:   # (link or joint, field, scale or value)
         sec = b.SEC1 if link == "link1" else b.SEC2
         if field == "viscous":
             b.JOINT_VISCOUS[int(link[-1]) - 1] = value
@@ -80,10 +81,9 @@ def _write(out_dir: str, case: str, res: dict) -> None:
     data = np.column_stack(list(cols.values()))
     np.savetxt(os.path.join(d, "recording.csv"), data, delimiter=",", fmt="%.10e",
                header=",".join(cols), comments="")
-    hidden = CASES[case]
     truth = {"case": case, "simulator": f"Exudyn ObjectBeamGeometricallyExact, {N_EL} "
-             f"elements per link, h {H} s", "hidden": [] if hidden is None else [
-                 {"target": hidden[0], "field": hidden[1], "value": hidden[2]}]}
+             f"elements per link, h {H} s", "hidden": [
+                 {"target": t, "field": fld, "value": v} for t, fld, v in CASES[case]]}
     with open(os.path.join(d, "truth.yaml"), "w") as f:
         yaml.safe_dump(truth, f, sort_keys=False)
     arm_path = os.path.join(out_dir, "arm.yaml")
