@@ -1,60 +1,21 @@
 """The ``second_order`` kinematics of spatial arms (issue 25): the axial shortening of the
-bent beams in both planes. A planar second_order arm embedded in 3D has the planar model's
-equations of motion; out-of-plane bending shortens the beam exactly as in-plane bending
-does; the velocity terms are those of the kinetic energy (Christoffel form); energy is
-conserved; and a rotating beam stiffens (centrifugal)."""
+bent beams in both planes. (That a planar second_order arm embedded in 3D has the planar
+model's equations of motion: test_spatial_closed_forms.test_planar_dynamics_embedded_in_3d.)
+Out-of-plane bending shortens the beam exactly as in-plane bending does; the velocity
+terms are those of the kinetic energy (Christoffel form); energy is conserved; and a
+rotating beam stiffens (centrifugal)."""
 import dataclasses
 
 import numpy as np
 import pytest
 
 from flex_model.arm import load_arm
-from flex_model.dynamics import FlexArmModel
 from flex_model.spatial import SpatialArmModel, from_planar, spatial_arm_from_dict
-from flex_model.spatial.integrate import joint_input_matrix, simulate_variable
+from flex_model.spatial.integrate import simulate_variable
 
 
 def _second_order(name):
     return dataclasses.replace(load_arm(name), kinematics="second_order")
-
-
-@pytest.mark.parametrize("name", ["thesis_example1", "thesis_three_link"])
-def test_planar_second_order_arm_embedded_has_the_planar_equations(name):
-    """At random planar states with torques and gravity, the spatial second_order model's
-    accelerations and energies equal the planar second_order model's (1e-10, 1e-12)."""
-    arm = _second_order(name)
-    planar = FlexArmModel(arm)
-    spatial = SpatialArmModel(from_planar(arm))
-    assert spatial.arm.kinematics == "second_order"
-    vidx = spatial.plane_indices("v")
-    flex_s = np.setdiff1d(vidx, spatial.off)
-    H = joint_input_matrix(spatial)
-    rng = np.random.default_rng(3)
-    for _ in range(3):
-        theta, rates = rng.uniform(-1, 1, arm.n_links), rng.uniform(-2, 2, arm.n_links)
-        flex = rng.normal(scale=0.02, size=len(flex_s))
-        dflex = rng.normal(scale=0.2, size=len(flex_s))
-        tau = rng.normal(scale=20.0, size=arm.n_links)
-        qp = planar.q_from_joint_angles(theta, flex)
-        z = np.zeros(planar.nq)
-        z[planar.off] = rates
-        z[planar.flex_indices] = dflex
-        vp = planar.joint_coordinate_matrix() @ z
-        ap = planar.acceleration(qp, vp, planar.input_matrix() @ tau)
-        qs, vs = np.zeros(spatial.nq), np.zeros(spatial.nq)
-        qs[spatial.off], qs[flex_s] = theta, flex
-        vs[spatial.off], vs[flex_s] = rates, dflex
-        as_ = spatial.acceleration(qs, vs, H @ tau)
-        scale = np.max(np.abs(ap))
-        np.testing.assert_allclose(as_[spatial.off], planar.G @ ap, rtol=0, atol=1e-10 * scale)
-        np.testing.assert_allclose(as_[flex_s], ap[planar.flex_indices], rtol=0,
-                                   atol=1e-10 * scale)
-        e_p, e_s = planar.energy(qp, vp), spatial.energy(qs, vs)
-        for k in ("kinetic", "elastic", "gravity"):
-            assert e_s[k] == pytest.approx(e_p[k], rel=1e-12, abs=1e-12)
-        # and the small-deflection embedding differs (the check can fail)
-        small = SpatialArmModel(from_planar(load_arm(name)))
-        assert np.max(np.abs(small.acceleration(qs, vs, H @ tau) - as_)) > 1e-6 * scale
 
 
 def _strip(kin, EI_y=2.0, EI_z=2.0, twist=4):

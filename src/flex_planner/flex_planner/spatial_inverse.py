@@ -81,19 +81,29 @@ def invert_tip_position(model, target, coordinates=COORDINATES, guess=None, *,
                         tol: float = 1e-12, max_iter: int = 50) -> SpatialInverse:
     """Joint values whose static deflected tip is at ``target`` (the listed coordinates,
     m); ``guess``: start joint values (default zero)."""
-    from flex_model.spatial.analysis import static_equilibrium
     idx = _coords(coordinates)
     active = check_joint_count(model, coordinates)
     target = np.asarray(target, float).reshape(len(idx))
+    theta, st, e, it = _newton(model, active, guess, idx, lambda st: (
+        st.tip_position[idx] - target), f"{target.tolist()} m", tol, max_iter)
+    return SpatialInverse(theta, st.q, st.tip_position, it, float(np.linalg.norm(e)))
+
+
+def _newton(model, active, guess, rows, error, what, tol, max_iter):
+    """Newton on the actuated joints' values with the static sensitivity's ``rows``
+    (0-2 tip position, 3-5 the tip frame's angular velocity) and the error ``error(static
+    state)``; the minimum-norm step with more joints than rows, steps limited to
+    MAX_STEP. Returns (theta, static state, error, Newton steps taken)."""
+    from flex_model.spatial.analysis import static_equilibrium
     theta = np.zeros(model.n_links) if guess is None else np.array(guess, float)
     for it in range(1, max_iter + 1):
         st = static_equilibrium(model, theta)
-        e = st.tip_position[idx] - target
+        e = error(st)
         if np.max(np.abs(e)) < tol:
-            return SpatialInverse(theta, st.q, st.tip_position, it - 1,
-                                  float(np.linalg.norm(e)))
-        J = tip_sensitivity(model, st.q)[np.ix_(idx, active)]
-        if len(active) == len(idx):
+            return theta, st, e, it - 1
+        J = tip_sensitivity(model, st.q, rows=6 if max(rows) > 2 else 3)[
+            np.ix_(rows, active)]
+        if len(active) == len(rows):
             d = -np.linalg.solve(J, e)
         else:                              # redundant: the minimum-norm step
             d = -np.linalg.pinv(J) @ e
@@ -101,9 +111,9 @@ def invert_tip_position(model, target, coordinates=COORDINATES, guess=None, *,
         if big > MAX_STEP:
             d *= MAX_STEP / big
         theta[active] += d
-    raise RuntimeError(f"{model.arm.name}: no static-flexible inverse of "
-                       f"{target.tolist()} m after {max_iter} Newton steps (largest tip "
-                       f"error {np.max(np.abs(e)):.3e} m): out of reach or a singular pose")
+    raise RuntimeError(f"{model.arm.name}: no static-flexible inverse of {what} after "
+                       f"{max_iter} Newton steps (largest error {np.max(np.abs(e)):.3e}): "
+                       "out of reach or a singular pose")
 
 
 @dataclass
@@ -128,31 +138,20 @@ def invert_tip_pose(model, position, rpy, coordinates=COORDINATES, guess=None, *
     len(coordinates) + 3, a refusal with fewer."""
     from scipy.spatial.transform import Rotation
 
-    from flex_model.spatial.analysis import static_equilibrium
     from flex_model.spatial.kinematics import rpy_matrix
     idx = _coords(coordinates)
     active = check_joint_count(model, coordinates, orientation=True)
     target = np.asarray(position, float).reshape(len(idx))
     Rt = rpy_matrix(np.asarray(rpy, float).reshape(3))
-    rows = idx + [3, 4, 5]
-    theta = np.zeros(model.n_links) if guess is None else np.array(guess, float)
-    for it in range(1, max_iter + 1):
-        st = static_equilibrium(model, theta)
-        F = model.tip_frame(st.q)
-        ew = Rotation.from_matrix(np.real(F.R) @ Rt.T).as_rotvec()
-        e = np.concatenate([st.tip_position[idx] - target, ew])
-        if np.max(np.abs(e)) < tol:
-            return SpatialPoseInverse(theta, st.q, st.tip_position, it - 1,
-                                      float(np.linalg.norm(e[:len(idx)])),
-                                      tip_rpy=_rpy(np.real(F.R)),
-                                      error_rad=float(np.linalg.norm(ew)))
-        J = tip_sensitivity(model, st.q, rows=6)[np.ix_(rows, active)]
-        d = -np.linalg.solve(J, e) if len(active) == len(rows) else -np.linalg.pinv(J) @ e
-        big = np.max(np.abs(d))
-        if big > MAX_STEP:
-            d *= MAX_STEP / big
-        theta[active] += d
-    raise RuntimeError(f"{model.arm.name}: no static-flexible inverse of the pose "
-                       f"{target.tolist()} m, rpy {np.asarray(rpy, float).tolist()} rad after "
-                       f"{max_iter} Newton steps (largest error {np.max(np.abs(e)):.3e}): out "
-                       "of reach or a singular pose")
+
+    def error(st):
+        ew = Rotation.from_matrix(np.real(model.tip_frame(st.q).R) @ Rt.T).as_rotvec()
+        return np.concatenate([st.tip_position[idx] - target, ew])
+
+    theta, st, e, it = _newton(model, active, guess, idx + [3, 4, 5], error,
+                               f"the pose {target.tolist()} m, rpy "
+                               f"{np.asarray(rpy, float).tolist()} rad", tol, max_iter)
+    return SpatialPoseInverse(theta, st.q, st.tip_position, it,
+                              float(np.linalg.norm(e[:len(idx)])),
+                              tip_rpy=_rpy(np.real(model.tip_frame(st.q).R)),
+                              error_rad=float(np.linalg.norm(e[len(idx):])))

@@ -21,9 +21,10 @@ from flex_model.spatial import SpatialArmModel, from_planar
 from flex_model.spatial.description import RigidBody
 from flex_model.spatial.integrate import simulate_fixed_compiled
 from flex_model.spatial.scenario import pd_static_equilibrium
-from flex_planner.residual_vibration import (SECTION_H_JOINT_STIFFNESS,
-                                             SECTION_H_MOTOR_INERTIA, SPRING_INPUT_PERIOD,
-                                             _result, residual_vibration, section_h_motion)
+from flex_planner.residual_vibration import (SECTION_H_JOINT_STIFFNESS, SPRING_INPUT_PERIOD,
+                                             _result, payload_sweep, section_h_motion)
+
+MASSES = (0.0, 2.0)     # kg: no payload and the paper's largest
 
 
 def spatial_run(planar, motion, t_f, mass):
@@ -58,14 +59,8 @@ def test_flexible_joint_runs_in_3d_equal_the_planar_and_grow_with_payload(path):
     planar = FlexArmModel(load_arm("seed002_two_link"))
     motion, t_f = section_h_motion(planar, path)
     radii = []
-    for mass in (0.0, 2.0):
-        planar.set_payload(mass, 0.0)
-        try:
-            ref = residual_vibration(planar, motion, t_f,
-                                     joint_stiffness=SECTION_H_JOINT_STIFFNESS,
-                                     motor_inertia=SECTION_H_MOTOR_INERTIA)
-        finally:
-            planar.set_payload(0.0, 0.0)
+    refs = payload_sweep(planar, MASSES, path, joint_stiffness=SECTION_H_JOINT_STIFFNESS)
+    for mass, ref in zip(MASSES, refs):
         res = spatial_run(planar, motion, t_f, mass)
         n = min(len(res.t), len(ref.t))
         assert np.max(np.abs(res.tip[:n] - ref.tip[:n])) < 1e-9
@@ -87,12 +82,7 @@ def test_rigid_joint_runs_in_3d_equal_the_planar_nominal_input(path):
     planar = FlexArmModel(load_arm("seed002_two_link"))
     motion, t_f = section_h_motion(planar, path)
     radii = []
-    for mass in (0.0, 2.0):
-        planar.set_payload(mass, 0.0)
-        try:
-            ref = residual_vibration(planar, motion, t_f)
-        finally:
-            planar.set_payload(0.0, 0.0)
+    for mass, ref in zip(MASSES, payload_sweep(planar, MASSES, path)):
         arm = dataclasses.replace(from_planar(planar.arm), payload=RigidBody(mass=mass))
         nom = spatial_nominal_input(SpatialArmModel(arm), motion)
         res = _result(planar, motion, t_f, nom.t, nom.tip[:, :2], nom.tau)

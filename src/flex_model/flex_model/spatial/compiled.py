@@ -419,6 +419,33 @@ def _rotor(jr, ratio, spin, e, w, al, Jw, ncols, v, qdd, M, c, a6, want_m):
                 M[a, b] += jr * a6[a] * a6[b]
 
 
+@njit(cache=_CACHE)
+def _shortening(Sa, Sb, fv, fw, gv, gw, hv, hw, sa_out, sb_out):
+    """second_order: the axial shortening u = 1/2 (f_v^T Sa f_v + f_w^T Sb f_w) of a point
+    (Sa, Sb: S(z) of the v and w planes there; dynamics.BeamData.second_order), its rate
+    and its acceleration (f' = g, f'' = h); Sa f_v and Sb f_w (the own columns' axial
+    parts) into sa_out, sb_out."""
+    u = 0.0
+    du = 0.0
+    ddu = 0.0
+    for j in range(sa_out.shape[0]):
+        sa = 0.0
+        sc = 0.0
+        ga = 0.0
+        gc = 0.0
+        for jj in range(sa_out.shape[0]):
+            sa += Sa[j, jj] * fv[jj]
+            sc += Sb[j, jj] * fw[jj]
+            ga += Sa[j, jj] * gv[jj]
+            gc += Sb[j, jj] * gw[jj]
+        sa_out[j] = sa
+        sb_out[j] = sc
+        u += 0.5 * (sa * fv[j] + sc * fw[j])
+        du += sa * gv[j] + sc * gw[j]
+        ddu += ga * gv[j] + gc * gw[j] + sa * hv[j] + sc * hw[j]
+    return u, du, ddu
+
+
 def spatial_terms(Pm, q, v):
     """(M(q), c(q, v)) of the spatial arm ``Pm`` = :func:`pack` (model): c holds the
     velocity terms (analytic Newton-Euler bias accelerations) and gravity. (Plain Python:
@@ -579,21 +606,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             dsh = 0.0
             ash = 0.0
             if so:
-                for j in range(nv):
-                    sa = 0.0
-                    sc = 0.0
-                    ga = 0.0
-                    gc = 0.0
-                    for jj in range(nv):
-                        sa += Sv[p, j, jj] * fv[jj]
-                        sc += Sw[p, j, jj] * fw[jj]
-                        ga += Sv[p, j, jj] * gv[jj]
-                        gc += Sw[p, j, jj] * gw[jj]
-                    sva[j] = sa
-                    swa[j] = sc
-                    ush += 0.5 * (sa * fv[j] + sc * fw[j])
-                    dsh += sa * gv[j] + sc * gw[j]
-                    ash += ga * gv[j] + gc * gw[j] + sa * hv[j] + sc * hw[j]
+                ush, dsh, ash = _shortening(Sv[p], Sw[p], fv, fw, gv, gw, hv, hw, sva, swa)
                 zp = zp - ush
             r0 = zp * bx[0] + yv * by[0] + yw * bz[0]
             r1 = zp * bx[1] + yv * by[1] + yw * bz[1]
@@ -782,21 +795,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         dsh = 0.0
         ash = 0.0
         if so:          # second_order: the tip at (L - u(L), v, w)
-            for j in range(nv):
-                sa = 0.0
-                sc = 0.0
-                ga = 0.0
-                gc = 0.0
-                for jj in range(nv):
-                    sa += SL[i, 0, j, jj] * fv[jj]
-                    sc += SL[i, 1, j, jj] * fw[jj]
-                    ga += SL[i, 0, j, jj] * gv[jj]
-                    gc += SL[i, 1, j, jj] * gw[jj]
-                sva[j] = sa
-                swa[j] = sc
-                ush += 0.5 * (sa * fv[j] + sc * fw[j])
-                dsh += sa * gv[j] + sc * gw[j]
-                ash += ga * gv[j] + gc * gw[j] + sa * hv[j] + sc * hw[j]
+            ush, dsh, ash = _shortening(SL[i, 0], SL[i, 1], fv, fw, gv, gw, hv, hw, sva, swa)
         for a in range(3):
             rv[a] = (L - ush) * bx[a] + tv * by[a] + tw * bz[a]
             xv[a] = by[a] * sv + bz[a] * sw - dsh * bx[a]
@@ -1046,16 +1045,13 @@ def tip_point(Pm, q):
         phi = q[s1 - 2] if nt else 0.0
         L = length[i]
         if so:          # second_order: the tip at (L - u(L), v, w)
+            fv, fw = q[s0:s0 + nv], q[s0 + nv:s0 + 2 * nv]
+            sva, swa = np.zeros(nv), np.zeros(nv)
+            L -= _shortening(SL[i, 0], SL[i, 1], fv, fw, fv, fw, fv, fw, sva, swa)[0]
             for j in range(nv):
-                sa = 0.0
-                sc = 0.0
-                for jj in range(nv):
-                    sa += SL[i, 0, j, jj] * q[s0 + jj]
-                    sc += SL[i, 1, j, jj] * q[s0 + nv + jj]
-                L -= 0.5 * (sa * q[s0 + j] + sc * q[s0 + nv + j])
                 for a in range(3):
-                    Jo[a, s0 + j] -= sa * Rb[a, 0]
-                    Jo[a, s0 + nv + j] -= sc * Rb[a, 0]
+                    Jo[a, s0 + j] -= sva[j] * Rb[a, 0]
+                    Jo[a, s0 + nv + j] -= swa[j] * Rb[a, 0]
         for a in range(3):
             rv[a] = L * Rb[a, 0] + tv * Rb[a, 1] + tw * Rb[a, 2]
         for j in range(ncols):

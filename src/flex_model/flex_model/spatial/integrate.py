@@ -274,11 +274,10 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     stops = np.array(model.stops, float).reshape(-1, 6)
     pdc = np.zeros((0, 5))
     if pd_clip is not None and clip_to_effort:
-        lim = joint_limits(model.arm)["effort"]
         kp, kd = (np.broadcast_to(np.asarray(g, float), (nj,)) for g in pd_clip)
         volts = {j for j, *_ in model.motors}        # dc_motor joints: their own clip
-        rows = [(j, a, kp[j], kd[j], lim[j]) for j, a in enumerate(model.actuator_index)
-                if a >= 0 and np.isfinite(lim[j]) and j not in volts]
+        rows = [(j, a, kp[j], kd[j], effort[j]) for j, a in enumerate(model.actuator_index)
+                if a >= 0 and np.isfinite(effort[j]) and j not in volts]
         pdc = np.array(rows, float).reshape(-1, 5)
         effort = effort.copy()
         effort[pdc[:, 0].astype(int)] = np.inf     # the whole PD torque is clipped instead

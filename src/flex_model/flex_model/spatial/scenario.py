@@ -471,6 +471,16 @@ def load_spatial_scenario(name_or_path) -> SpatialScenario:
                                       default_name=Path(path).stem)
 
 
+def _interval(f: Fields) -> tuple:
+    """(start, end) of a pulse or a tip load: end after start, ``.inf`` to the run's end."""
+    start = f.number("start", nonnegative=True, unit="s")
+    end = math.inf if _is_inf(f.raw("end")) else \
+        f.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
+    if end <= start:
+        raise f.error("end", end, f"a time after start ({start} s)")
+    return start, end
+
+
 def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
                                base_dir: Path | None = None,
                                default_name: str = "scenario") -> SpatialScenario:
@@ -525,34 +535,23 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     pd = None
     if ctl.has("pd") and ctl.has("pd45"):
         raise ctl.error("pd45", ctl.raw("pd45"), "pd or pd45, not both (one joint law)")
-    if ctl.has("pd45"):
-        p = ctl.mapping("pd45")
-        kpp = np.array(p.vector("kpp", n, unit="1/s"))
-        kpv = np.array(p.vector("kpv", n, unit="N m s/rad, motor side"))
-        for key, val in (("kpp", kpp), ("kpv", kpv)):
+    law = "pd45" if ctl.has("pd45") else "pd" if ctl.has("pd") else None
+    if law is not None:     # Eq. 95's kp, kd or Eq. 45's kpp, kpv (eq45_joint_gains)
+        p = ctl.mapping(law)
+        keys, units = (("kpp", "kpv"), ("1/s", "N m s/rad, motor side")) if law == "pd45" \
+            else (("kp", "kd"), ("N m/rad or N/m", "N m s/rad or N s/m"))
+        given = [np.array(p.vector(key, n, unit=u)) for key, u in zip(keys, units)]
+        for key, val in zip(keys, given):
             if np.any(val < 0):
                 raise p.error(key, val.tolist(), "gains >= 0")
-        kp, kd = eq45_joint_gains(arm, kpp, kpv)
-        bad = [nm for nm, x in zip(arm.joint_names, kp + kd) if nm in locked and x != 0]
-        if bad:
-            raise p.error("kpv", kpv.tolist(), f"0 on the locked joints ({', '.join(bad)}: "
-                          "a locked motor takes no torque)")
-        sp = np.array(p.vector("setpoints", n, q0.tolist(), unit="rad or m"))
-        p.done(["kpp", "kpv", "setpoints"])
-        pd = SpatialPD(kp, kd, sp)
-    if ctl.has("pd"):
-        p = ctl.mapping("pd")
-        kp = np.array(p.vector("kp", n, unit="N m/rad or N/m"))
-        kd = np.array(p.vector("kd", n, unit="N m s/rad or N s/m"))
-        for key, val in (("kp", kp), ("kd", kd)):
-            if np.any(val < 0):
-                raise p.error(key, val.tolist(), "gains >= 0")
-            bad = [nm for nm, x in zip(arm.joint_names, val) if nm in locked and x != 0]
+        kp, kd = eq45_joint_gains(arm, *given) if law == "pd45" else given
+        for key, val, gain in zip(keys, given, (kp, kd)):
+            bad = [nm for nm, x in zip(arm.joint_names, gain) if nm in locked and x != 0]
             if bad:
                 raise p.error(key, val.tolist(), f"0 on the locked joints ({', '.join(bad)}: "
                               "a locked motor takes no torque)")
         sp = np.array(p.vector("setpoints", n, q0.tolist(), unit="rad or m"))
-        p.done(["kp", "kd", "setpoints"])
+        p.done(list(keys) + ["setpoints"])
         pd = SpatialPD(kp, kd, sp)
     schedule = []
     for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
@@ -581,22 +580,14 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
             raise pf.error(other, pf.raw(other), f"'{key}' ({arm.links[j].joint.type} joint "
                            f"{arm.joint_names[j]})")
         value = pf.number(key, unit="N" if key == "force" else "N m")
-        start = pf.number("start", nonnegative=True, unit="s")
-        end = math.inf if _is_inf(pf.raw("end")) else \
-            pf.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
-        if end <= start:
-            raise pf.error("end", end, f"a time after start ({start} s)")
+        start, end = _interval(pf)
         pf.done(["joint", key, "start", "end"])
         pulses.append(SpatialPulse(j, value, start, end))
     loads = []
     for k, raw in enumerate(f.items("tip_loads", [])):
         lf = Fields(raw, source, f"tip_loads[{k}]")
         force = np.array(lf.vector("force", 3, unit="N, base frame"))
-        a = lf.number("start", nonnegative=True, unit="s")
-        b = math.inf if _is_inf(lf.raw("end")) else \
-            lf.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
-        if b <= a:
-            raise lf.error("end", b, f"a time after start ({a} s)")
+        a, b = _interval(lf)
         lf.done(["force", "start", "end"])
         loads.append((force, a, b))
     changes = []
