@@ -115,30 +115,60 @@ class LabRun:
         return float(np.mean(np.concatenate(segs))) if segs else 0.0
 
 
-def repeatability(run: LabRun) -> dict:
-    """The lab's own step-to-step scatter: for every pair of identical steps (same levels)
-    of a run, the RMS of half the difference of the responses over the shortest step
-    window, i.e. the RMS error of the best deterministic prediction of both (their mean).
-    A twin cannot beat it on average. ``{}`` if no step repeats."""
-    steps = run.step_indices()
-    if len(steps) < 3:
-        return {}
-    n = int(np.min(np.diff(np.append(steps, len(run.t)))))
-    levels = [(round(run.reference[k - 1], 6), round(run.reference[k], 6)) for k in steps]
-    hub, tip = [], []
-    for a in range(len(steps)):
-        for b in range(a + 1, len(steps)):
-            if levels[a] != levels[b]:
+def _steps(run: LabRun) -> list:
+    """(levels, first sample, window length) of every reference step of a run."""
+    k = run.step_indices()
+    ends = np.append(k[1:], len(run.t))
+    return [((round(float(run.reference[i - 1]), 6), round(float(run.reference[i]), 6)), i,
+             e - i) for i, e in zip(k, ends)]
+
+
+def _same_setup(a: LabRun, b: LabRun) -> bool:
+    """Same unit and session folder, kind, gains and reference levels: runs that should
+    repeat each other step for step."""
+    return (Path(a.source).parent == Path(b.source).parent and a.kind == b.kind
+            and np.allclose(a.gains, b.gains, atol=1e-6)
+            and np.array_equal(np.unique(np.round(a.reference, 6)),
+                               np.unique(np.round(b.reference, 6))))
+
+
+def repeatability(run: LabRun, companions=()) -> dict:
+    """The lab's own scatter: for every pair of identical steps (same levels), both of
+    ``run`` or one of ``run`` and one of a companion run of the same setup (same folder,
+    gains and reference levels; the CU Boulder K1K2K3 and Covington sessions repeat their
+    runs), the RMS of half the difference of the responses over the shorter step window
+    (tip deflections sign- and bias-corrected as the twin's are). Half the difference is
+    the error of the best deterministic prediction of both (their mean): by the triangle
+    inequality a twin's RMS error on the two is at least this on one of them.
+    ``{}`` if no step repeats. Keys: hub_rms_rad, tip_rms_m (when both have a gauge),
+    pairs, runs (the companions used)."""
+    others = [c for c in companions if c is not run and c.name != run.name
+              and _same_setup(run, c)]
+
+    def corrected(r):
+        return r.gauge_sign() * (r.deflection - r.gauge_bias()) if r.has_gauge else None
+
+    mine = _steps(run)
+    d0 = corrected(run)
+    hub, tip, used = [], [], set()
+    for j, (lev, i, n) in enumerate(mine):
+        cands = [(run, d0, s) for s in mine[j + 1:]]
+        cands += [(c, corrected(c), s) for c in others for s in _steps(c)]
+        for other, d1, (lev1, i1, n1) in cands:
+            if lev1 != lev:
                 continue
-            sa, sb = slice(steps[a], steps[a] + n), slice(steps[b], steps[b] + n)
-            hub.append(0.5 * (run.theta[sa] - run.theta[sb]))
-            if run.has_gauge:
-                tip.append(0.5 * (run.deflection[sa] - run.deflection[sb]))
+            m = min(n, n1)
+            hub.append(0.5 * (run.theta[i:i + m] - other.theta[i1:i1 + m]))
+            if d0 is not None and d1 is not None:
+                tip.append(0.5 * (d0[i:i + m] - d1[i1:i1 + m]))
+            if other is not run:
+                used.add(other.name)
     if not hub:
         return {}
-    out = {"hub_rms_rad": float(np.sqrt(np.mean(np.square(hub)))), "pairs": len(hub)}
+    out = {"hub_rms_rad": float(np.sqrt(np.mean(np.square(np.concatenate(hub))))),
+           "pairs": len(hub), "runs": sorted(used)}
     if tip:
-        out["tip_rms_m"] = float(np.sqrt(np.mean(np.square(tip))))
+        out["tip_rms_m"] = float(np.sqrt(np.mean(np.square(np.concatenate(tip)))))
     return out
 
 
