@@ -216,8 +216,12 @@ def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
     out = {**nominal, "name": name,
            "description": f"{nominal.get('description', name)}; calibrated (issue 9)"}
     effects = []
+    replaced = {"joint_friction"} if "coulomb" in values else set()
+    replaced |= {"structural_damping"} if "rayleigh_mass" in values else set()
     for e in nominal.get("effects", []):
         e = dict(e)
+        if e["type"] in replaced:   # a calibrated description refitted: the new values
+            continue
         if e["type"] == "gear" and "rotor_inertia" in values:
             e["rotor_inertia"] = float(f"{values['rotor_inertia']:.5g}")
         if e["type"] == "dc_motor" and "torque_constant" in values:

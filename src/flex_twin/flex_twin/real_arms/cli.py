@@ -121,6 +121,20 @@ def cmd_stick_slip(args) -> int:
     return 0
 
 
+def cmd_units(args) -> int:
+    from .quanser_data import CUBOULDER, read_cuboulder
+    from .quanser_twin import data_root
+    from .unit_calibration import study
+    out = Path(args.out)
+    report = study(read_cuboulder(data_root(args.data) / CUBOULDER), _policy_factory(), out,
+                   fit=args.fit, progress=_progress, max_nfev=args.max_evaluations)
+    if args.json:
+        print(json.dumps(report, indent=1, default=float))
+    else:
+        print((out / "units.md").read_text())
+    return 0
+
+
 def cmd_two_mass(args) -> int:
     """The two-mass motor bench (issue 22): replay of records A and B on the
     ``two_mass_bench`` twin, FRF and time overlays, the frequency-domain diagnosis of the
@@ -203,7 +217,7 @@ def cmd_diagnose(args) -> int:
 
 def add_real_arm_parsers(sub) -> None:
     """``replay``, ``import quanser`` and
-    ``real-arm calibrate|report|stick-slip|two-mass|diagnose|transfer``."""
+    ``real-arm calibrate|report|stick-slip|units|two-mass|diagnose|transfer``."""
     sp = sub.add_parser("replay", help="replay a recorded real-arm run on its twin "
                         "(closed loop with the lab's law, or open loop from the voltage)")
     sp.add_argument("run", help="a CU Boulder lab log, or the UC Merced data folder")
@@ -254,6 +268,17 @@ def add_real_arm_parsers(sub) -> None:
     sp2.add_argument("--out", default="runs/quanser-stick-slip", help="output directory")
     sp2.add_argument("--json", action="store_true")
     sp2.set_defaults(func=cmd_stick_slip)
+    up = rsub.add_parser("units", help="the twin per hardware unit: each unit's own link "
+                         "stage against the shared calibrated twin on its held-out runs "
+                         "(markdown, PNG, JSON; --fit refits the links first, minutes)")
+    up.add_argument("--data", default=None, help="folder of the real data (default "
+                    "../shared/data/real)")
+    up.add_argument("--out", default="runs/quanser-units", help="output directory")
+    up.add_argument("--fit", action="store_true", help="refit every unit's link stage and "
+                    "write its preset into --out (~5 CPU-min per unit)")
+    up.add_argument("--max-evaluations", type=int, default=12)
+    up.add_argument("--json", action="store_true")
+    up.set_defaults(func=cmd_units)
     tp = rsub.add_parser("two-mass", help="the FdiTools two-mass motor bench: twin replay "
                          "of records A (fit) and B (held out), FRF and time overlays, the "
                          "diagnosis of the rigid nominal twin (markdown, PNG, JSON)")

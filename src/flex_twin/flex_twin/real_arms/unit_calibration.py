@@ -1,0 +1,178 @@
+"""One link twin per hardware unit (issue 22): the CU Boulder runs come from several SRV02 +
+flexible-link units (PROVENANCE: two student groups; Hagenau's folder also holds the runs
+of groups 37 and "Unit7"), and the shared calibrated twin fits one link to all of them.
+
+A unit with a run to fit and runs to hold out gets its own link stage
+(:func:`calibration.link_parameters`: EI, Rayleigh damping, tip mass, hub friction),
+started from the shared calibrated twin (its servo kept): Hagenau's own flexible runs
+(fit: the split's two Hagenau link-fit runs) and Covington's (fit: flexibleArm_test_3,
+which test_4 repeats; test_2 runs other gains). Groups 37 and Unit7 log one flexible run
+each and keep the shared twin. :func:`compare` replays the held-out runs on both.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from flex_model.arm import load_arm
+from flex_model.dynamics import FlexArmModel
+from .calibration import calibrate, calibrated_dict, link_parameters
+from .quanser_twin import calibrated_arm_for
+from .replay import plot_replay, replay
+
+#: per unit: its preset, the link-fit runs and the held-out runs (of that unit only)
+UNITS = {
+    "hagenau": {"preset": "quanser_cuboulder_hagenau_calibrated",
+                "fit": ("flexarm_K1_6", "flexarm_K1K2K3k4_6_-3_213_4"),
+                "holdout": ("flexarm_k1k2_6_-3", "flexarm_K1K2_6_-5",
+                            "flexarm_K1K2K3_6_-3_213", "flexarm_K1K2K3_6_-5_213",
+                            "flexarm_K1K2K3k4_6_-3_213_2")},
+    "covington": {"preset": "quanser_cuboulder_covington_calibrated",
+                  "fit": ("flexibleArm_test_3",),
+                  "holdout": ("flexibleArm_test_2", "flexibleArm_test_4",
+                              "flexibleArm_test_1")},
+}
+#: the shared twin's runs of no unit above: one flexible run per unit, nothing to hold out
+SINGLE_RUN_UNITS = ("4PM_Group37_FlexArm_Unit6", "Unit7_Flex_trial1.csv")
+
+
+def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: int = 12,
+                   progress: Callable | None = None):
+    """The link stage on the unit's fit runs, from the shared calibrated flexible twin."""
+    shared = calibrated_arm_for("cuboulder", "flexible")
+    if shared is None:
+        raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
+    spec = UNITS[unit]
+    return calibrate(shared, [runs[n] for n in spec["fit"]], link_parameters(shared),
+                     make_policy, stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
+
+
+def write_unit_preset(unit: str, result, out_dir) -> Path:
+    """``<preset>.yaml``: the shared calibrated twin with the unit's link values."""
+    import yaml
+
+    from flex_model.arm import arm_from_dict, resolve_preset
+    from flex_model.config import read_yaml
+    name = UNITS[unit]["preset"]
+    shared = read_yaml(resolve_preset("quanser_cuboulder_calibrated"))
+    fr = next(e for e in shared["effects"] if e["type"] == "joint_friction")
+    data = calibrated_dict(shared, {"viscous": fr["viscous"], **result.values}, name)
+    data["description"] = (f"Quanser SRV02 + flexible link, {unit}'s unit: the shared "
+                           "calibrated twin with its own link stage (issue 22)")
+    path = Path(out_dir) / f"{name}.yaml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(f"# {name}: quanser_cuboulder_calibrated with the link refitted by "
+                    f"flex-twin real-arm units --fit (issue 22)\n# fit runs: "
+                    f"{', '.join(result.runs)}; scaled RMS residual "
+                    f"{result.cost_nominal:.3f} -> {result.cost_fitted:.3f}\n"
+                    + yaml.safe_dump(data, sort_keys=False))
+    arm_from_dict(read_yaml(path), str(path))  # validated as any preset
+    return path
+
+
+def _row(res) -> dict:
+    m = res.metrics
+    return {k: m.get(k) for k in ("hub_rms_rad", "tip_rms_m", "ring_freq_measured_hz",
+                                  "ring_freq_twin_hz", "ring_freq_error_pct",
+                                  "ring_damping_measured", "ring_damping_twin")}
+
+
+def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = None,
+            progress: Callable = print) -> dict:
+    """Every unit's fit and held-out runs on the shared twin and on the unit's own;
+    ``presets`` maps a unit to an arm (name, path or ArmDescription; default its
+    preset). Overlay PNGs when ``out`` is given."""
+    shared = FlexArmModel(calibrated_arm_for("cuboulder", "flexible"))
+    rows = []
+    for unit, spec in UNITS.items():
+        arm = (presets or {}).get(unit, spec["preset"])
+        own = FlexArmModel(load_arm(arm) if isinstance(arm, (str, Path)) else arm)
+        for name in spec["fit"] + spec["holdout"]:
+            a, b = replay(shared, runs[name], make_policy), replay(own, runs[name],
+                                                                   make_policy)
+            a.arm_name, b.arm_name = "shared calibrated", f"{unit}'s unit"
+            rows.append({"unit": unit, "run": name,
+                         "role": "fit" if name in spec["fit"] else "held out",
+                         "shared": _row(a), "unit_twin": _row(b)})
+            if out is not None:
+                plot_replay([a, b], Path(out) / f"unit_{name.replace('.', '_')}.png")
+            progress(f"{unit} {name}: hub {a.metrics['hub_rms_rad']:.4f} -> "
+                     f"{b.metrics['hub_rms_rad']:.4f} rad")
+    return {"rows": rows, "summary": summarize(rows)}
+
+
+def summarize(rows) -> dict:
+    """Medians over the held-out runs (with a gauge for tip and ring-down)."""
+    held = [r for r in rows if r["role"] == "held out"]
+
+    def med(which, key, absolute=False):
+        v = [r[which][key] for r in held if r[which].get(key) is not None]
+        v = np.abs(v) if absolute else np.asarray(v)
+        return float(np.median(v)) if len(v) else None
+    return {f"{k}_{w}": med(w, k, k == "ring_freq_error_pct")
+            for w in ("shared", "unit_twin")
+            for k in ("hub_rms_rad", "tip_rms_m", "ring_freq_error_pct")} | {
+        "held_out_runs": len(held),
+        "tip_runs": sum(r["shared"].get("tip_rms_m") is not None for r in held)}
+
+
+def _fmt(x, scale=1.0, digits=4):
+    return "-" if x is None else f"{scale * x:.{digits}g}"
+
+
+def write_markdown(report: dict, path) -> None:
+    """The comparison as a table and the held-out medians."""
+    lines = ["# The Quanser twin per hardware unit (issue 22)", "",
+             "Shared calibrated twin (one link fitted to three units' runs) against each "
+             "unit's own link stage (fitted on that unit's fit runs only); closed-loop "
+             "replays with the lab's law.", "",
+             "| unit | run | role | hub RMS shared / unit (rad) | tip RMS shared / unit (mm) |"
+             " ring-down lab / shared / unit (Hz) |", "|---|---|---|---|---|---|"]
+    for r in report["rows"]:
+        a, b = r["shared"], r["unit_twin"]
+        lines.append(f"| {r['unit']} | {r['run']} | {r['role']} | {_fmt(a['hub_rms_rad'])} /"
+                     f" {_fmt(b['hub_rms_rad'])} | {_fmt(a['tip_rms_m'], 1e3, 3)} / "
+                     f"{_fmt(b['tip_rms_m'], 1e3, 3)} | "
+                     f"{_fmt(a['ring_freq_measured_hz'], 1, 3)} / "
+                     f"{_fmt(a['ring_freq_twin_hz'], 1, 3)} / "
+                     f"{_fmt(b['ring_freq_twin_hz'], 1, 3)} |")
+    s = report["summary"]
+    lines += ["", f"Held out ({s['held_out_runs']} runs, {s['tip_runs']} with a gauge), "
+              f"medians shared -> per unit: hub {_fmt(s['hub_rms_rad_shared'])} -> "
+              f"{_fmt(s['hub_rms_rad_unit_twin'])} rad, tip "
+              f"{_fmt(s['tip_rms_m_shared'], 1e3, 3)} -> "
+              f"{_fmt(s['tip_rms_m_unit_twin'], 1e3, 3)} mm, ring-down frequency error "
+              f"{_fmt(s['ring_freq_error_pct_shared'], 1, 2)} -> "
+              f"{_fmt(s['ring_freq_error_pct_unit_twin'], 1, 2)} %."]
+    if report.get("fits"):
+        lines += ["", "Fitted link values:", ""]
+        lines += [f"- {u}: " + ", ".join(f"{k} {v:.4g}" for k, v in f["values"].items())
+                  + f" (runs {', '.join(f['runs'])}; scaled residual "
+                  f"{f['rms_scaled_residual_start']:.3f} -> "
+                  f"{f['rms_scaled_residual_fitted']:.3f})"
+                  for u, f in report["fits"].items()]
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def study(runs: dict, make_policy: Callable, out, fit: bool = False,
+          progress: Callable = print, max_nfev: int = 12) -> dict:
+    """``fit``: refit every unit's link stage first (minutes) and write its preset into
+    ``out``; then :func:`compare` and write units.md, units.json and the PNGs."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    presets, fits = {}, {}
+    if fit:
+        for unit in UNITS:
+            res = calibrate_unit(unit, runs, make_policy, max_nfev=max_nfev)
+            presets[unit] = write_unit_preset(unit, res, out)
+            fits[unit] = res.as_dict()
+            progress(f"{unit}: fitted {res.values}")
+    report = compare(runs, make_policy, out, presets, progress)
+    report["fits"] = fits
+    (out / "units.json").write_text(json.dumps(report, indent=1, default=float))
+    write_markdown(report, out / "units.md")
+    return report
+
