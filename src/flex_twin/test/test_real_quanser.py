@@ -173,3 +173,19 @@ def test_ring_down_fit_recovers_a_quantised_damped_cosine():
     r = ring_down(t, d, 0.5, 3.0)
     assert r.frequency_hz == pytest.approx(1.65, rel=5e-3)
     assert r.damping_ratio == pytest.approx(0.03, abs=5e-3)
+
+
+def test_hold_ringing_of_quantised_sines():
+    """Holds of 4, 1.5 and 2.5 s ringing 3 mm at 1.39 / 1.85 / 1.97 Hz, logged at 1 mm:
+    the frequency within 0.5 %; a ringing under 2.5 gauge steps peak to peak, or a hold
+    under 1 s after its settling second, gives None."""
+    from flex_twin.real_arms.replay import GAUGE_RESOLUTION, hold_ringing
+    t = np.arange(0.0, 10.0, 1e-3)
+    steps = np.array([0, 5000, 7500])
+    for f0 in (1.39, 1.85, 1.97):
+        d = 0.003 * np.exp(-0.05 * t) * np.sin(2 * np.pi * f0 * t + 0.3)
+        d = np.round(d / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
+        assert hold_ringing(t, d, steps) == pytest.approx([f0] * 3, rel=5e-3)
+    small = np.round(0.0009 * np.sin(2 * np.pi * 1.8 * t) / GAUGE_RESOLUTION) * 1e-3
+    assert hold_ringing(t, small, steps) == [None] * 3
+    assert hold_ringing(t, 3 * small, np.array([0, 1500]))[0] is None

@@ -1,5 +1,6 @@
 """Replay a recorded lab run on a twin: closed loop (the lab's law) or open loop (the
-recorded voltage), with RMS/peak errors and the ring-down of the tip after every step.
+recorded voltage), with RMS/peak errors, the ring-down of the tip after every step and its
+ringing during the holds.
 
 The closed loop takes a ``make_policy(run, model) -> policy(t, x) -> [V]`` callable (for
 the Quanser arms: ``flex_control.state_feedback.lab_policy_factory``), built by the caller,
@@ -25,6 +26,8 @@ GAUGE_RESOLUTION = 1e-3
 RING_WINDOW = 1.6
 #: shortest usable window (s): UC Merced steps every 0.76 s, its last one 0.25 s before the end
 RING_MIN = 0.4
+#: a hold's ringing is measured from this long after its step (s)
+HOLD_SETTLE = 1.0
 
 
 @dataclass
@@ -77,6 +80,26 @@ def ring_downs(t, d, steps) -> list:
     """Ring-downs after every step index in ``steps`` (None where none is found)."""
     ends = list(t[steps[1:]]) + [t[-1]]
     return [ring_down(t, d, t[k], e) for k, e in zip(steps, ends)]
+
+
+def hold_ringing(t, d, steps, settle: float = HOLD_SETTLE) -> list:
+    """Frequency (Hz) of the tip's ringing during every hold: from ``settle`` s after a
+    step to the next step (at least 1 s), the peak of a zero-padded Hann-windowed FFT in
+    0.5-5 Hz; None for a shorter hold or a ringing under 2.5 gauge steps peak to peak. With
+    the hub stuck this is the link's clamped-hub mode, not the ring-down after the step."""
+    ends = list(t[steps[1:]]) + [t[-1]]
+    out = []
+    for k, e in zip(steps, ends):
+        sel = (t >= t[k] + settle) & (t < e)
+        x = d[sel] - np.mean(d[sel]) if sel.any() else d[sel]
+        if len(x) < 2 or t[sel][-1] - t[sel][0] < 1.0 or np.ptp(x) < 2.5 * GAUGE_RESOLUTION:
+            out.append(None)
+            continue
+        spec = np.abs(np.fft.rfft(x * np.hanning(len(x)), n=2 ** 17))
+        f = np.fft.rfftfreq(2 ** 17, t[1] - t[0])
+        band = (f > 0.5) & (f < 5.0)
+        out.append(float(f[band][np.argmax(spec[band])]))
+    return out
 
 
 @dataclass
@@ -187,6 +210,14 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
                                                                    for a, _ in pairs]))
             out.metrics["ring_damping_twin"] = float(np.mean([b.damping_ratio
                                                                for _, b in pairs]))
+        holds = [(a, b) for a, b in zip(hold_ringing(t, run.deflection[:n], steps),
+                                        hold_ringing(t, defl, steps))
+                 if a is not None and b is not None]
+        if holds:
+            out.metrics["hold_freq_measured_hz"] = float(np.mean([a for a, _ in holds]))
+            out.metrics["hold_freq_twin_hz"] = float(np.mean([b for _, b in holds]))
+            out.metrics["hold_freq_error_pct"] = float(np.mean([100 * (b / a - 1)
+                                                                for a, b in holds]))
     return out
 
 

@@ -22,6 +22,7 @@ from flex_model.dynamics import FlexArmModel
 from .calibration import calibrate, calibrated_dict, link_parameters
 from .quanser_twin import calibrated_arm_for
 from .replay import plot_replay, replay
+from .report import _fmt
 
 #: per unit: its preset, the link-fit runs and the held-out runs (of that unit only)
 UNITS = {
@@ -77,7 +78,9 @@ def _row(res) -> dict:
     m = res.metrics
     return {k: m.get(k) for k in ("hub_rms_rad", "tip_rms_m", "ring_freq_measured_hz",
                                   "ring_freq_twin_hz", "ring_freq_error_pct",
-                                  "ring_damping_measured", "ring_damping_twin")}
+                                  "ring_damping_measured", "ring_damping_twin",
+                                  "hold_freq_measured_hz", "hold_freq_twin_hz",
+                                  "hold_freq_error_pct")}
 
 
 def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = None,
@@ -112,15 +115,12 @@ def summarize(rows) -> dict:
         v = [r[which][key] for r in held if r[which].get(key) is not None]
         v = np.abs(v) if absolute else np.asarray(v)
         return float(np.median(v)) if len(v) else None
-    return {f"{k}_{w}": med(w, k, k == "ring_freq_error_pct")
+    return {f"{k}_{w}": med(w, k, k.endswith("error_pct"))
             for w in ("shared", "unit_twin")
-            for k in ("hub_rms_rad", "tip_rms_m", "ring_freq_error_pct")} | {
+            for k in ("hub_rms_rad", "tip_rms_m", "ring_freq_error_pct",
+                      "hold_freq_error_pct")} | {
         "held_out_runs": len(held),
         "tip_runs": sum(r["shared"].get("tip_rms_m") is not None for r in held)}
-
-
-def _fmt(x, scale=1.0, digits=4):
-    return "-" if x is None else f"{scale * x:.{digits}g}"
 
 
 def write_markdown(report: dict, path) -> None:
@@ -130,7 +130,8 @@ def write_markdown(report: dict, path) -> None:
              "unit's own link stage (fitted on that unit's fit runs only); closed-loop "
              "replays with the lab's law.", "",
              "| unit | run | role | hub RMS shared / unit (rad) | tip RMS shared / unit (mm) |"
-             " ring-down lab / shared / unit (Hz) |", "|---|---|---|---|---|---|"]
+             " ring-down lab / shared / unit (Hz) | hold ringing lab / shared / unit (Hz) |",
+             "|---|---|---|---|---|---|---|"]
     for r in report["rows"]:
         a, b = r["shared"], r["unit_twin"]
         lines.append(f"| {r['unit']} | {r['run']} | {r['role']} | {_fmt(a['hub_rms_rad'])} /"
@@ -138,7 +139,10 @@ def write_markdown(report: dict, path) -> None:
                      f"{_fmt(b['tip_rms_m'], 1e3, 3)} | "
                      f"{_fmt(a['ring_freq_measured_hz'], 1, 3)} / "
                      f"{_fmt(a['ring_freq_twin_hz'], 1, 3)} / "
-                     f"{_fmt(b['ring_freq_twin_hz'], 1, 3)} |")
+                     f"{_fmt(b['ring_freq_twin_hz'], 1, 3)} | "
+                     f"{_fmt(a['hold_freq_measured_hz'], 1, 3)} / "
+                     f"{_fmt(a['hold_freq_twin_hz'], 1, 3)} / "
+                     f"{_fmt(b['hold_freq_twin_hz'], 1, 3)} |")
     s = report["summary"]
     lines += ["", f"Held out ({s['held_out_runs']} runs, {s['tip_runs']} with a gauge), "
               f"medians shared -> per unit: hub {_fmt(s['hub_rms_rad_shared'])} -> "
@@ -146,7 +150,9 @@ def write_markdown(report: dict, path) -> None:
               f"{_fmt(s['tip_rms_m_shared'], 1e3, 3)} -> "
               f"{_fmt(s['tip_rms_m_unit_twin'], 1e3, 3)} mm, ring-down frequency error "
               f"{_fmt(s['ring_freq_error_pct_shared'], 1, 2)} -> "
-              f"{_fmt(s['ring_freq_error_pct_unit_twin'], 1, 2)} %."]
+              f"{_fmt(s['ring_freq_error_pct_unit_twin'], 1, 2)} %, hold ringing "
+              f"frequency error {_fmt(s['hold_freq_error_pct_shared'], 1, 2)} -> "
+              f"{_fmt(s['hold_freq_error_pct_unit_twin'], 1, 2)} %."]
     if report.get("fits"):
         lines += ["", "Fitted link values:", ""]
         lines += [f"- {u}: " + ", ".join(f"{k} {v:.4g}" for k, v in f["values"].items())
