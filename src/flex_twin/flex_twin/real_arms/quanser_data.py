@@ -150,10 +150,10 @@ def repeatability(run: LabRun, companions=()) -> dict:
 
     mine = _steps(run)
     d0 = corrected(run)
+    theirs = [(c, corrected(c), s) for c in others for s in _steps(c)]
     hub, tip, used = [], [], set()
     for j, (lev, i, n) in enumerate(mine):
-        cands = [(run, d0, s) for s in mine[j + 1:]]
-        cands += [(c, corrected(c), s) for c in others for s in _steps(c)]
+        cands = [(run, d0, s) for s in mine[j + 1:]] + theirs
         for other, d1, (lev1, i1, n1) in cands:
             if lev1 != lev:
                 continue

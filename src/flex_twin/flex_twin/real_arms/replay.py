@@ -91,8 +91,8 @@ def hold_ringing(t, d, steps, settle: float = HOLD_SETTLE) -> list:
     out = []
     for k, e in zip(steps, ends):
         sel = (t >= t[k] + settle) & (t < e)
-        x = d[sel] - np.mean(d[sel]) if sel.any() else d[sel]
-        if len(x) < 2 or t[sel][-1] - t[sel][0] < 1.0 or np.ptp(x) < 2.5 * GAUGE_RESOLUTION:
+        x = d[sel] - np.mean(d[sel]) if sel.sum() > 1 else None
+        if x is None or np.ptp(t[sel]) < 1.0 or np.ptp(x) < 2.5 * GAUGE_RESOLUTION:
             out.append(None)
             continue
         spec = np.abs(np.fft.rfft(x * np.hanning(len(x)), n=2 ** 17))
