@@ -185,8 +185,8 @@ def cmd_diagnose(args) -> int:
     import argparse
 
     from ..diagnosis.cli import cmd_diagnose as engine_diagnose
-    from .quanser_diagnosis import DEFAULT_RUN, controller_dict, export_run, run_path, \
-        same_law
+    from .quanser_diagnosis import DEFAULT_RUN, SEGMENT, controller_dict, export_run, \
+        run_path, same_law
     from .quanser_twin import data_root
     given = [r for r in (args.run, args.holdout) if r]
     root = None if given and all(Path(r).is_file() for r in given) and not args.data \
@@ -209,7 +209,9 @@ def cmd_diagnose(args) -> int:
     _progress(f"inputs: {p['data']}, {p['controller']}, {p['arm']}")
     ns = argparse.Namespace(data=[str(p["data"])], arm=str(p["arm"]),
                             controller=str(p["controller"]), holdout=holdout, out=args.out,
-                            gate=None, segment=args.segment, workers=args.workers,
+                            gate=None, segment=(SEGMENT if args.segment is None else
+                                                args.segment or None),
+                            workers=args.workers,
                             scheduler=None,
                             no_floor=False, no_plots=args.no_plots, json=args.json)
     return engine_diagnose(ns)
@@ -304,7 +306,8 @@ def add_real_arm_parsers(sub) -> None:
                     "../shared/data/real)")
     dp.add_argument("--out", default="runs/real-arm-diagnosis", help="output directory")
     dp.add_argument("--segment", type=float, default=None, help="restart the replay every "
-                    "SEGMENT s from the measured hub angle and rate (multiple shooting)")
+                    "SEGMENT s from the measured hub angle and rate (multiple shooting; "
+                    "default 0.5, 0: the whole run in one replay)")
     dp.add_argument("--workers", type=int, default=None, help="parallel processes")
     dp.add_argument("--no-plots", action="store_true")
     dp.add_argument("--json", action="store_true")

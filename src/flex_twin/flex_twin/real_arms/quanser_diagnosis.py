@@ -33,6 +33,13 @@ from .quanser_twin import NOMINAL_PRESETS, diagnosis_case
 #: recordings with one controller, so the default held-out data are the last 40 % of the
 #: fit run (the engine's own default)
 DEFAULT_RUN = "flexarm_K1_6"
+#: restarts of the replay (s) from the measured hub angle and rate (multiple shooting,
+#: ``flex-twin diagnose --segment``): every segment of a hold starts where the lab hub
+#: stuck, so a twin without sticking slides back within 0.5 s and the sticking's signature
+#: is in every segment; a whole-run replay of a symmetric friction stops short on both
+#: sides where the lab stuck on one (flexarm_K1_6). With it the stick-slip friction is
+#: named on the K1, K1K2 and K1K2K3 runs (issue 22; docs/real-arms.md)
+SEGMENT = 0.5
 
 
 def recording_columns(case: dict) -> dict:
