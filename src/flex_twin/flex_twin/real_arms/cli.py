@@ -188,6 +188,8 @@ def cmd_diagnose(args) -> int:
     from .quanser_diagnosis import DEFAULT_RUN, SEGMENT, controller_dict, export_run, \
         run_path, same_law
     from .quanser_twin import data_root
+    if args.segment is not None and args.segment < 0:
+        raise ValueError(f"--segment: got {args.segment}; expected >= 0 s (0: the whole run)")
     given = [r for r in (args.run, args.holdout) if r]
     root = None if given and all(Path(r).is_file() for r in given) and not args.data \
         else data_root(args.data)
@@ -277,7 +279,7 @@ def add_real_arm_parsers(sub) -> None:
                     "../shared/data/real)")
     up.add_argument("--out", default="runs/quanser-units", help="output directory")
     up.add_argument("--fit", action="store_true", help="refit every unit's link stage and "
-                    "write its preset into --out (~5 CPU-min per unit)")
+                    "write its preset into --out (~2 CPU-min per unit)")
     up.add_argument("--max-evaluations", type=int, default=12)
     up.add_argument("--json", action="store_true")
     up.set_defaults(func=cmd_units)

@@ -124,9 +124,10 @@ def _steps(run: LabRun) -> list:
 
 
 def _same_setup(a: LabRun, b: LabRun) -> bool:
-    """Same unit and session folder, kind, gains and reference levels: runs that should
-    repeat each other step for step."""
-    return (Path(a.source).parent == Path(b.source).parent and a.kind == b.kind
+    """Same folder, kind, gauge (a run without one fed no tip back), gains and reference
+    levels: runs that should repeat each other step for step."""
+    return (bool(a.source) and Path(a.source).parent == Path(b.source).parent
+            and a.kind == b.kind and a.has_gauge == b.has_gauge
             and np.allclose(a.gains, b.gains, atol=1e-6)
             and np.array_equal(np.unique(np.round(a.reference, 6)),
                                np.unique(np.round(b.reference, 6))))
@@ -135,12 +136,12 @@ def _same_setup(a: LabRun, b: LabRun) -> bool:
 def repeatability(run: LabRun, companions=()) -> dict:
     """The lab's own scatter: for every pair of identical steps (same levels), both of
     ``run`` or one of ``run`` and one of a companion run of the same setup (same folder,
-    gains and reference levels; the CU Boulder K1K2K3 and Covington sessions repeat their
-    runs), the RMS of half the difference of the responses over the shorter step window
-    (tip deflections sign- and bias-corrected as the twin's are). Half the difference is
-    the error of the best deterministic prediction of both (their mean): by the triangle
-    inequality a twin's RMS error on the two is at least this on one of them.
-    ``{}`` if no step repeats. Keys: hub_rms_rad, tip_rms_m (when both have a gauge),
+    gauge, gains and reference levels: Covington's test_3 and test_4), the RMS of half the
+    difference of the responses over the shorter step window (tip deflections sign- and
+    bias-corrected as the twin's are): the lab's scatter. A prediction that is the same
+    for both steps (their mean is the best one) errs by at least this on one of them; a
+    closed-loop twin enters each step from its own state, so this is a scale of the lab's
+    scatter, not a strict bound. ``{}`` if no step repeats. Keys: hub_rms_rad, tip_rms_m (when both have a gauge),
     pairs, runs (the companions used)."""
     others = [c for c in companions if c is not run and c.name != run.name
               and _same_setup(run, c)]
@@ -194,8 +195,17 @@ def read_cuboulder_file(path) -> LabRun:
                  source=str(path))
     if run.kind == "flexible" and not run.has_gauge:
         run.notes.append("tip deflection identically 0 (gauge not connected): hub only")
-    if np.ptp(d[:, 7:11], axis=0).max() > 0:
-        run.notes.append("gains change within the file; the first row's are used")
+    change = np.flatnonzero(np.any(np.diff(d[:, 7:11], axis=0) != 0, axis=1))
+    if len(change):
+        # three flexible runs start with the previous run's gains and switch to their own
+        # (the file name's) 0.3-0.9 s in, before the first step: the last row's are used
+        run.gains = d[-1, 7:11].copy()
+        steps = run.step_indices()
+        t_change = float(t[change[-1] + 1])
+        run.notes.append(f"gains change at t = {t_change:.3f} s from {gains.tolist()}; "
+                         f"the last ones {run.gains.tolist()} are used"
+                         + (" (after a step!)" if len(steps) and t_change > t[steps[0]]
+                            else ""))
     return run
 
 

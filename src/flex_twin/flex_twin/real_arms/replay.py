@@ -210,12 +210,13 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
                                                                    for a, _ in pairs]))
             out.metrics["ring_damping_twin"] = float(np.mean([b.damping_ratio
                                                                for _, b in pairs]))
-        holds = [(a, b) for a, b in zip(hold_ringing(t, run.deflection[:n], steps),
-                                        hold_ringing(t, defl, steps))
-                 if a is not None and b is not None]
+        lab, twin = (hold_ringing(t, run.deflection[:n], steps),
+                     hold_ringing(t, defl, steps))
+        for key, f in (("hold_freq_measured_hz", lab), ("hold_freq_twin_hz", twin)):
+            if any(x is not None for x in f):
+                out.metrics[key] = float(np.mean([x for x in f if x is not None]))
+        holds = [(a, b) for a, b in zip(lab, twin) if a is not None and b is not None]
         if holds:
-            out.metrics["hold_freq_measured_hz"] = float(np.mean([a for a, _ in holds]))
-            out.metrics["hold_freq_twin_hz"] = float(np.mean([b for _, b in holds]))
             out.metrics["hold_freq_error_pct"] = float(np.mean([100 * (b / a - 1)
                                                                 for a, b in holds]))
     return out

@@ -11,6 +11,7 @@ each and keep the shared twin. :func:`compare` replays the held-out runs on both
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 from typing import Callable
@@ -22,7 +23,7 @@ from flex_model.dynamics import FlexArmModel
 from .calibration import calibrate, calibrated_dict, link_parameters
 from .quanser_twin import calibrated_arm_for
 from .replay import plot_replay, replay
-from .report import _fmt
+from .report import _row, fmt
 
 #: per unit: its preset, the link-fit runs and the held-out runs (of that unit only)
 UNITS = {
@@ -42,13 +43,19 @@ SINGLE_RUN_UNITS = ("4PM_Group37_FlexArm_Unit6", "Unit7_Flex_trial1.csv")
 
 def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: int = 12,
                    progress: Callable | None = None):
-    """The link stage on the unit's fit runs, from the shared calibrated flexible twin."""
+    """The link stage on the unit's fit runs, started from the shared calibrated flexible
+    twin's values (EI, tip mass, damping, friction)."""
     shared = calibrated_arm_for("cuboulder", "flexible")
     if shared is None:
         raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
     spec = UNITS[unit]
-    return calibrate(shared, [runs[n] for n in spec["fit"]], link_parameters(shared),
-                     make_policy, stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
+    fr = shared.effect("joint_friction", shared.joint_names[0])
+    start = {"rayleigh_mass": shared.effect("structural_damping", shared.links[0].name)[
+        "rayleigh_mass"], "coulomb": fr["coulomb"], "static_excess": fr["static"] - fr["coulomb"]}
+    params = [dataclasses.replace(p, start=start.get(p.name, p.start))
+              for p in link_parameters(shared)]
+    return calibrate(shared, [runs[n] for n in spec["fit"]], params, make_policy,
+                     stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
 
 
 def write_unit_preset(unit: str, result, out_dir) -> Path:
@@ -74,21 +81,15 @@ def write_unit_preset(unit: str, result, out_dir) -> Path:
     return path
 
 
-def _row(res) -> dict:
-    m = res.metrics
-    return {k: m.get(k) for k in ("hub_rms_rad", "tip_rms_m", "ring_freq_measured_hz",
-                                  "ring_freq_twin_hz", "ring_freq_error_pct",
-                                  "ring_damping_measured", "ring_damping_twin",
-                                  "hold_freq_measured_hz", "hold_freq_twin_hz",
-                                  "hold_freq_error_pct")}
-
-
 def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = None,
             progress: Callable = print) -> dict:
     """Every unit's fit and held-out runs on the shared twin and on the unit's own;
     ``presets`` maps a unit to an arm (name, path or ArmDescription; default its
     preset). Overlay PNGs when ``out`` is given."""
-    shared = FlexArmModel(calibrated_arm_for("cuboulder", "flexible"))
+    shared_arm = calibrated_arm_for("cuboulder", "flexible")
+    if shared_arm is None:
+        raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
+    shared = FlexArmModel(shared_arm)
     rows = []
     for unit, spec in UNITS.items():
         arm = (presets or {}).get(unit, spec["preset"])
@@ -134,25 +135,25 @@ def write_markdown(report: dict, path) -> None:
              "|---|---|---|---|---|---|---|"]
     for r in report["rows"]:
         a, b = r["shared"], r["unit_twin"]
-        lines.append(f"| {r['unit']} | {r['run']} | {r['role']} | {_fmt(a['hub_rms_rad'])} /"
-                     f" {_fmt(b['hub_rms_rad'])} | {_fmt(a['tip_rms_m'], 1e3, 3)} / "
-                     f"{_fmt(b['tip_rms_m'], 1e3, 3)} | "
-                     f"{_fmt(a['ring_freq_measured_hz'], 1, 3)} / "
-                     f"{_fmt(a['ring_freq_twin_hz'], 1, 3)} / "
-                     f"{_fmt(b['ring_freq_twin_hz'], 1, 3)} | "
-                     f"{_fmt(a['hold_freq_measured_hz'], 1, 3)} / "
-                     f"{_fmt(a['hold_freq_twin_hz'], 1, 3)} / "
-                     f"{_fmt(b['hold_freq_twin_hz'], 1, 3)} |")
+        lines.append(f"| {r['unit']} | {r['run']} | {r['role']} | {fmt(a['hub_rms_rad'])} /"
+                     f" {fmt(b['hub_rms_rad'])} | {fmt(a['tip_rms_m'], 1e3, 3)} / "
+                     f"{fmt(b['tip_rms_m'], 1e3, 3)} | "
+                     f"{fmt(a['ring_freq_measured_hz'], 1, 3)} / "
+                     f"{fmt(a['ring_freq_twin_hz'], 1, 3)} / "
+                     f"{fmt(b['ring_freq_twin_hz'], 1, 3)} | "
+                     f"{fmt(a['hold_freq_measured_hz'], 1, 3)} / "
+                     f"{fmt(a['hold_freq_twin_hz'], 1, 3)} / "
+                     f"{fmt(b['hold_freq_twin_hz'], 1, 3)} |")
     s = report["summary"]
     lines += ["", f"Held out ({s['held_out_runs']} runs, {s['tip_runs']} with a gauge), "
-              f"medians shared -> per unit: hub {_fmt(s['hub_rms_rad_shared'])} -> "
-              f"{_fmt(s['hub_rms_rad_unit_twin'])} rad, tip "
-              f"{_fmt(s['tip_rms_m_shared'], 1e3, 3)} -> "
-              f"{_fmt(s['tip_rms_m_unit_twin'], 1e3, 3)} mm, ring-down frequency error "
-              f"{_fmt(s['ring_freq_error_pct_shared'], 1, 2)} -> "
-              f"{_fmt(s['ring_freq_error_pct_unit_twin'], 1, 2)} %, hold ringing "
-              f"frequency error {_fmt(s['hold_freq_error_pct_shared'], 1, 2)} -> "
-              f"{_fmt(s['hold_freq_error_pct_unit_twin'], 1, 2)} %."]
+              f"medians shared -> per unit: hub {fmt(s['hub_rms_rad_shared'])} -> "
+              f"{fmt(s['hub_rms_rad_unit_twin'])} rad, tip "
+              f"{fmt(s['tip_rms_m_shared'], 1e3, 3)} -> "
+              f"{fmt(s['tip_rms_m_unit_twin'], 1e3, 3)} mm, ring-down frequency error "
+              f"{fmt(s['ring_freq_error_pct_shared'], 1, 2)} -> "
+              f"{fmt(s['ring_freq_error_pct_unit_twin'], 1, 2)} %, hold ringing "
+              f"frequency error {fmt(s['hold_freq_error_pct_shared'], 1, 2)} -> "
+              f"{fmt(s['hold_freq_error_pct_unit_twin'], 1, 2)} %."]
     if report.get("fits"):
         lines += ["", "Fitted link values:", ""]
         lines += [f"- {u}: " + ", ".join(f"{k} {v:.4g}" for k, v in f["values"].items())
