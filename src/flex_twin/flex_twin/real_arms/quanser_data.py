@@ -141,8 +141,8 @@ def repeatability(run: LabRun, companions=()) -> dict:
     bias-corrected as the twin's are): the lab's scatter. A prediction that is the same
     for both steps (their mean is the best one) errs by at least this on one of them; a
     closed-loop twin enters each step from its own state, so this is a scale of the lab's
-    scatter, not a strict bound. ``{}`` if no step repeats. Keys: hub_rms_rad, tip_rms_m (when both have a gauge),
-    pairs, runs (the companions used)."""
+    scatter, not a strict bound. ``{}`` if no step repeats. Keys: hub_rms_rad, tip_rms_m
+    (when both have a gauge), pairs, runs (the companions used)."""
     others = [c for c in companions if c is not run and c.name != run.name
               and _same_setup(run, c)]
 
