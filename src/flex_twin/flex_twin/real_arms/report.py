@@ -95,7 +95,8 @@ def twin_parameters() -> dict:
     return out
 
 
-def _row(r) -> dict:
+def metrics_row(r) -> dict:
+    """The errors and ring-down figures of a ReplayResult (None where not measured)."""
     m = r.metrics
     return {k: m.get(k) for k in ("hub_rms_rad", "hub_peak_rad", "tip_rms_m", "tip_peak_m",
                                   "ring_freq_measured_hz", "ring_freq_twin_hz",
@@ -124,12 +125,12 @@ def held_out_comparison(data, make_policy: Callable, out: Path,
             row = {"run": name, "kind": kind, "role": "fit" if name in CUBOULDER_SPLIT[
                 "servo_fit"] + CUBOULDER_SPLIT["link_fit"] else "held out",
                 "gains": [float(k) for k in run.gains], "gauge_sign": run.gauge_sign(),
-                "repeatability": repeatability(run, runs.values()), "nominal": _row(a)}
+                "repeatability": repeatability(run, runs.values()), "nominal": metrics_row(a)}
             if calibrated is not None:
                 b = replay(calibrated, run, make_policy)
                 b.arm_name = "calibrated"
                 res.append(b)
-                row["calibrated"] = _row(b)
+                row["calibrated"] = metrics_row(b)
             plot_replay(res, out / f"replay_{name.replace('.', '_')}.png")
             rows.append(row)
             progress(f"{name}: hub RMS nominal {a.metrics['hub_rms_rad']:.4f} rad" + (
@@ -145,7 +146,7 @@ def ucmerced_validation(data, make_policy: Callable, out: Path) -> dict:
     r.arm_name = "quanser_ucmerced"
     plot_replay([r], out / "replay_ucmerced.png")
     return {"run": run.name, "gains_identified": [float(k) for k in run.gains],
-            "notes": run.notes, **_row(r)}
+            "notes": run.notes, **metrics_row(r)}
 
 
 def fmt(x, scale=1.0, digits=4):

@@ -23,7 +23,7 @@ from flex_model.dynamics import FlexArmModel
 from .calibration import calibrate, calibrated_dict, link_parameters
 from .quanser_twin import calibrated_arm_for
 from .replay import plot_replay, replay
-from .report import _row, fmt
+from .report import fmt, metrics_row
 
 #: per unit: its preset, the link-fit runs and the held-out runs (of that unit only)
 UNITS = {
@@ -100,7 +100,7 @@ def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = 
             a.arm_name, b.arm_name = "shared calibrated", f"{unit}'s unit"
             rows.append({"unit": unit, "run": name,
                          "role": "fit" if name in spec["fit"] else "held out",
-                         "shared": _row(a), "unit_twin": _row(b)})
+                         "shared": metrics_row(a), "unit_twin": metrics_row(b)})
             if out is not None:
                 plot_replay([a, b], Path(out) / f"unit_{name.replace('.', '_')}.png")
             progress(f"{unit} {name}: hub {a.metrics['hub_rms_rad']:.4f} -> "
