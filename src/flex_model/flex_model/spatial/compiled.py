@@ -240,6 +240,18 @@ def _fixed(R, o, Jo, Jw, w, ao, al, Tc, ncols, W):
 
 
 @njit(cache=_CACHE)
+def _add_column(C6, col, w, b, c0, c1, c2):
+    """C6[:, col] += w [b; c], the force and moment columns of a point mass's coordinate
+    (b its direction, c = r x b)."""
+    C6[0, col] += w * b[0]
+    C6[1, col] += w * b[1]
+    C6[2, col] += w * b[2]
+    C6[3, col] += w * c0
+    C6[4, col] += w * c1
+    C6[5, col] += w * c2
+
+
+@njit(cache=_CACHE)
 def _rotate_axis(R, u, t, W):
     """R <- R Rot(u, t) in place (Rodrigues)."""
     c, s = np.cos(t), np.sin(t)
@@ -653,18 +665,8 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                     jw = s0 + nv + j
                     mv = mp * sva[j]
                     mwj = mp * swa[j]
-                    C6[0, jv] -= mv * bx[0]
-                    C6[1, jv] -= mv * bx[1]
-                    C6[2, jv] -= mv * bx[2]
-                    C6[3, jv] -= mv * cx0
-                    C6[4, jv] -= mv * cx1
-                    C6[5, jv] -= mv * cx2
-                    C6[0, jw] -= mwj * bx[0]
-                    C6[1, jw] -= mwj * bx[1]
-                    C6[2, jw] -= mwj * bx[2]
-                    C6[3, jw] -= mwj * cx0
-                    C6[4, jw] -= mwj * cx1
-                    C6[5, jw] -= mwj * cx2
+                    _add_column(C6, jv, -mv, bx, cx0, cx1, cx2)
+                    _add_column(C6, jw, -mwj, bx, cx0, cx1, cx2)
                     for jj in range(j, nv):
                         M[jv, s0 + jj] += mv * sva[jj]
                         M[jw, s0 + nv + jj] += mwj * swa[jj]
@@ -679,18 +681,8 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                 ww = mp * Ww[p, j]
                 jv = s0 + j
                 jw = s0 + nv + j
-                C6[0, jv] += wv * by[0]
-                C6[1, jv] += wv * by[1]
-                C6[2, jv] += wv * by[2]
-                C6[3, jv] += wv * cy0
-                C6[4, jv] += wv * cy1
-                C6[5, jv] += wv * cy2
-                C6[0, jw] += ww * bz[0]
-                C6[1, jw] += ww * bz[1]
-                C6[2, jw] += ww * bz[2]
-                C6[3, jw] += ww * cz0
-                C6[4, jw] += ww * cz1
-                C6[5, jw] += ww * cz2
+                _add_column(C6, jv, wv, by, cy0, cy1, cy2)
+                _add_column(C6, jw, ww, bz, cz0, cz1, cz2)
                 for jj in range(j, nv):
                     M[jv, s0 + jj] += wv * Wv[p, jj]
                     M[jw, s0 + nv + jj] += ww * Ww[p, jj]
