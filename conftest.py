@@ -59,6 +59,15 @@ def shared_dir() -> Path:
     return path
 
 
+@pytest.fixture(scope="session")
+def cuboulder_root(shared_dir) -> Path:
+    """The CU Boulder Quanser lab logs in ../shared/data/real (skips when they are absent)."""
+    path = shared_dir / "data" / "real" / "quanser_rotary_flexible_link_cuboulder"
+    if not path.is_dir():
+        pytest.skip(f"no {path}")
+    return path
+
+
 #: a session with at least this many tests is "most of the suite" (the warm-up pays off)
 WARMUP_MIN_TESTS = 300
 

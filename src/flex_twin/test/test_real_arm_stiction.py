@@ -12,11 +12,8 @@ from flex_twin.real_arms.stiction_evidence import (STUCK_WINDOW, TORQUE_PER_VOLT
 
 
 @pytest.fixture(scope="module")
-def cub(shared_dir):
-    root = shared_dir / "data" / "real" / qd.CUBOULDER
-    if not root.is_dir():
-        pytest.skip(f"no {root}")
-    return {p.name: p for p in qd.cuboulder_files(root)}
+def cub(cuboulder_root):
+    return {p.name: p for p in qd.cuboulder_files(cuboulder_root)}
 
 
 def _holds(cub, name):

@@ -18,14 +18,6 @@ from flex_twin.real_arms.replay import replay
 state_feedback = pytest.importorskip("flex_control.state_feedback")
 
 
-@pytest.fixture(scope="module")
-def cub(shared_dir):
-    root = shared_dir / "data" / "real" / qd.CUBOULDER
-    if not root.is_dir():
-        pytest.skip(f"no {root}")
-    return root
-
-
 def _run(root, name):
     return qd.read_cuboulder_file(next(p for p in qd.cuboulder_files(root) if p.name == name))
 
@@ -38,10 +30,10 @@ def test_handout_stiffness_gives_the_handout_frequency():
     assert stiffness_for_frequency(arm, 1.8) == pytest.approx(0.24956, rel=1e-3)
 
 
-def test_reader_and_law_reproduce_the_logged_voltage(cub):
+def test_reader_and_law_reproduce_the_logged_voltage(cuboulder_root):
     """The lab's law with the logged gains and signals gives the logged voltage (to the
     rounding of the 3-decimal log and the lab's velocity filter): RMS < 0.07 V of 0.54 V."""
-    run = _run(cub, "rigidarm_K1_8")
+    run = _run(cuboulder_root, "rigidarm_K1_8")
     assert run.t.shape == (10000,) and run.dt == pytest.approx(1e-3)
     law = state_feedback.lab_controller(run)
     v = [law.voltage(t, th, w, d, dd) for t, th, w, d, dd in
@@ -49,13 +41,13 @@ def test_reader_and_law_reproduce_the_logged_voltage(cub):
     assert np.sqrt(np.mean((np.array(v) - run.voltage) ** 2)) < 0.07
 
 
-def test_gauge_sign_is_found_from_the_step_physics(cub):
+def test_gauge_sign_is_found_from_the_step_physics(cuboulder_root):
     """The two groups' gauges have opposite signs (tip lags the hub after a step)."""
-    assert _run(cub, "flexarm_K1K2K3k4_6_-3_213_4").gauge_sign() == 1.0
-    assert _run(cub, "4PM_Group37_FlexArm_Unit6").gauge_sign() == -1.0
+    assert _run(cuboulder_root, "flexarm_K1K2K3k4_6_-3_213_4").gauge_sign() == 1.0
+    assert _run(cuboulder_root, "4PM_Group37_FlexArm_Unit6").gauge_sign() == -1.0
 
 
-def test_calibrated_twin_beats_the_nominal_on_held_out_runs(cub):
+def test_calibrated_twin_beats_the_nominal_on_held_out_runs(cuboulder_root):
     """Held-out runs (never fitted): the calibrated servo cuts the rigid-bar hub RMS error
     of rigidarm_K1_8 at least in half (measured 0.052 -> 0.014 rad); the calibrated
     flexible twin cuts the hub error of flexarm_K1K2K3_6_-5_213 by >= 30 % (0.0164 ->
@@ -64,7 +56,7 @@ def test_calibrated_twin_beats_the_nominal_on_held_out_runs(cub):
     for name, kind, ratio in (("rigidarm_K1_8", "rigid", 0.5),
                               ("flexarm_K1K2K3_6_-5_213", "flexible", 0.7)):
         assert name in CUBOULDER_SPLIT["servo_holdout"] + CUBOULDER_SPLIT["link_holdout"]
-        run = _run(cub, name)
+        run = _run(cuboulder_root, name)
         cal = calibrated_arm_for("cuboulder", kind)
         assert cal is not None, f"calibrated {kind} preset missing"
         nom = replay(FlexArmModel(nominal_arm_for("cuboulder", kind)), run, f).metrics
@@ -108,13 +100,13 @@ def test_repeatability_between_runs_of_one_session():
     assert qd.repeatability(a, [e])["tip_rms_m"] == pytest.approx(0.004 / np.sqrt(2), rel=2e-2)
 
 
-def test_the_lab_repeats_itself_below_both_aims(cub):
+def test_the_lab_repeats_itself_below_both_aims(cuboulder_root):
     """Half the difference of the lab's responses to identical steps: Covington's test_3 and
     test_4 (same gains, both with a gauge) 1.2 mrad / 0.48 mm; test_1 has no gauge (its law
     fed no tip back) and is no repeat of test_2; within the 4-step runs 1.6-7.3 mrad. On
     the 10 held-out runs with a repeat every level is below the hub aim (0.01 rad) and
     every tip level below 1 mm: the lab's scatter does not rule out the aims."""
-    runs = qd.read_cuboulder(cub)
+    runs = qd.read_cuboulder(cuboulder_root)
     rep = {n: qd.repeatability(r, runs.values()) for n, r in runs.items()}
     c = rep["flexibleArm_test_4"]
     assert c["runs"] == ["flexibleArm_test_3"]
@@ -128,10 +120,10 @@ def test_the_lab_repeats_itself_below_both_aims(cub):
     assert len(tips) == 4 and max(tips) < 0.85e-3
 
 
-def test_import_round_trip_is_exact(cub, tmp_path):
+def test_import_round_trip_is_exact(cuboulder_root, tmp_path):
     """The bag gives back the logged hub angle, rate, voltage and reference exactly."""
     from flex_twin.real_arms.ros_quanser_import import import_run, read_imported
-    run = _run(cub, "flexibleArm_test_3").head(1.0)
+    run = _run(cuboulder_root, "flexibleArm_test_3").head(1.0)
     model = FlexArmModel(load_arm("quanser_cuboulder_flexible"))
     counts = import_run(run, model, tmp_path / "bag")
     assert counts["/joint_states"] == len(run.t) == 1001
@@ -197,7 +189,7 @@ def test_hold_ringing_of_quantised_sines():
     assert hold_ringing(t, 3 * small, np.array([0, 1500]))[0] is None
 
 
-def test_three_runs_switch_to_their_own_gains_before_the_first_step(cub):
+def test_three_runs_switch_to_their_own_gains_before_the_first_step(cuboulder_root):
     """Three K1K2K3 files start with the previous run's gains and switch 0.3-0.9 s in, before
     the first step, to the gains of their file name; the reader keeps the later ones. With
     K1, K3 as logged, least squares of the logged voltage on d and d_dot after the switch
@@ -207,7 +199,7 @@ def test_three_runs_switch_to_their_own_gains_before_the_first_step(cub):
               "flexarm_K1K2K3k4_6_-3_213_4": (-3.0, 0.4),
               "flexarm_K1K2K3_6_-3_213": (-3.0, 0.0)}
     for name, (k2, k4) in expect.items():
-        run = _run(cub, name)
+        run = _run(cuboulder_root, name)
         assert run.gains.tolist() == [6.0, k2, 0.213, k4]
         assert any("gains change" in n for n in run.notes) == (name != "flexarm_K1K2K3_6_-3_213")
         k = run.t > 1.0

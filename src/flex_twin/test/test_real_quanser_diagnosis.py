@@ -15,7 +15,6 @@ from flex_twin.diagnosis.controller import load_controller
 from flex_twin.diagnosis.sources import load_recording
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
-from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.cli import add_real_arm_parsers
 from flex_twin.real_arms.quanser_diagnosis import export_run, run_path
 
@@ -23,11 +22,8 @@ state_feedback = pytest.importorskip("flex_control.state_feedback")
 
 
 @pytest.fixture(scope="module")
-def real(shared_dir):
-    root = shared_dir / "data" / "real"
-    if not (root / qd.CUBOULDER).is_dir():
-        pytest.skip(f"no {root / qd.CUBOULDER}")
-    return root
+def real(cuboulder_root):
+    return cuboulder_root.parent
 
 
 def _engine_law(exported):

@@ -12,25 +12,17 @@ from flex_twin.real_arms.quanser_twin import diagnosis_case
 from flex_twin.real_arms.stick_slip_study import hold_evidence, hold_stick_spread
 
 
-@pytest.fixture(scope="module")
-def cub(shared_dir):
-    root = shared_dir / "data" / "real" / qd.CUBOULDER
-    if not root.is_dir():
-        pytest.skip(f"no {root}")
-    return root
-
-
 def _path(root, name):
     return next(p for p in qd.cuboulder_files(root) if p.name == name)
 
 
 @pytest.mark.parametrize("name", ["flexarm_k1k2_6_-3", "flexibleArm_test_3", "rigidarm_K1_8"])
-def test_the_noise_of_3_decimal_channels_is_the_quantisation_floor(cub, name):
+def test_the_noise_of_3_decimal_channels_is_the_quantisation_floor(cuboulder_root, name):
     """Hub angle, tip deflection and voltage are logged to 3 decimals: their second
     difference is 0 at most samples (its MAD estimate is 0) and the noise level is the
     step 1e-3 / sqrt(12) = 2.89e-4 (times the channel's healthy ratio), never 0; the
     logged rate (noisier than a step) keeps its own estimate."""
-    cols = recording_columns(diagnosis_case(_path(cub, name)))
+    cols = recording_columns(diagnosis_case(_path(cuboulder_root, name)))
     ch = {k: v for k, v in cols.items() if k != "t"}
     rec = validate(cols["t"], ch, 1, name)
     sig = noise_levels(rec)
@@ -43,7 +35,7 @@ def test_the_noise_of_3_decimal_channels_is_the_quantisation_floor(cub, name):
     assert sig["v1"] / healthy_ratio("v1") > 2 * 1e-3 / np.sqrt(12)
 
 
-def test_the_hub_holds_a_torque_at_rest_stiction_not_backlash(cub):
+def test_the_hub_holds_a_torque_at_rest_stiction_not_backlash(cuboulder_root):
     """A gearbox play transmits no torque at rest (the motor turns freely inside it), so a
     PD that settles with a play holds ~0 V; the rigid-bar holds (K1 only: V = K1 (r -
     theta) at rest) keep 0.15-0.41 V while the hub moves at most 3 encoder steps of the
@@ -51,7 +43,7 @@ def test_the_hub_holds_a_torque_at_rest_stiction_not_backlash(cub):
     largest. Stiction, not backlash, is what the data support."""
     held = []
     for name in ("rigidarm_K1_6", "rigidarm_K1_7", "rigidarm_K1_8"):
-        run = qd.read_cuboulder_file(_path(cub, name))
+        run = qd.read_cuboulder_file(_path(cuboulder_root, name))
         held += [h for h in hold_evidence(run) if h["travel_rad"] <= 3.5e-3]
     tau = np.abs([h["torque_Nm"] for h in held])
     assert len(held) >= 10
@@ -60,13 +52,13 @@ def test_the_hub_holds_a_torque_at_rest_stiction_not_backlash(cub):
     assert all(abs(h["voltage_V"]) > 0.1 for h in held)
 
 
-def test_the_lab_sticks_short_by_a_different_amount_each_direction(cub):
+def test_the_lab_sticks_short_by_a_different_amount_each_direction(cuboulder_root):
     """flexarm_K1K2_6_-5 (K1 6, K2 -5): the hub stops 59 and 65 mrad short after the two
     up-steps, 15 and 28 mrad after the down-steps. Per direction the lab repeats itself
     (spread 2.7 mrad RMS over the run), but the two directions differ by an offset of 32
     mrad common to both: a twin of symmetric friction sticks at +-a and leaves at least
     15 mrad RMS over the run, above the 0.01 rad aim on its own."""
-    run = qd.read_cuboulder_file(_path(cub, "flexarm_K1K2_6_-5"))
+    run = qd.read_cuboulder_file(_path(cuboulder_root, "flexarm_K1K2_6_-5"))
     s = hold_stick_spread(run)
     np.testing.assert_allclose(s["offsets_rad"], [0.0587, -0.0151, 0.0650, -0.0281],
                                atol=5e-4)
