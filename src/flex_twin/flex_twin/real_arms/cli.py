@@ -219,6 +219,11 @@ def cmd_diagnose(args) -> int:
     return engine_diagnose(ns)
 
 
+def _data_option(parser) -> None:
+    parser.add_argument("--data", default=None, help="folder of the real data (default "
+                        "../shared/data/real)")
+
+
 def add_real_arm_parsers(sub) -> None:
     """``replay``, ``import quanser`` and
     ``real-arm calibrate|report|stick-slip|units|two-mass|diagnose|transfer``."""
@@ -249,15 +254,13 @@ def add_real_arm_parsers(sub) -> None:
     rsub = sp.add_subparsers(dest="action", required=True)
     cp = rsub.add_parser("calibrate", help="fit servo (rigid runs) and link (flexible "
                          "subset); writes calibrated arm YAMLs (minutes)")
-    cp.add_argument("--data", default=None, help="folder of the real data (default "
-                    "../shared/data/real)")
+    _data_option(cp)
     cp.add_argument("--out", default="runs/quanser-calibrated", help="output directory")
     cp.add_argument("--max-evaluations", type=int, default=10)
     cp.set_defaults(func=cmd_calibrate)
     rp = rsub.add_parser("report", help="nominal vs calibrated twin on held-out runs, the "
                          "second lab and the third lab's FRFs (markdown, PNG, JSON)")
-    rp.add_argument("--data", default=None, help="folder of the real data (default "
-                    "../shared/data/real)")
+    _data_option(rp)
     rp.add_argument("--out", default=None, help="output directory (default "
                     "runs/real-arm-report)")
     rp.add_argument("--diagnosis", nargs="*", default=None, metavar="DIR", help="output "
@@ -267,16 +270,14 @@ def add_real_arm_parsers(sub) -> None:
     sp2 = rsub.add_parser("stick-slip", help="the calibrated twins with stick-slip friction "
                           "(levels refitted on the fit runs) on every CU Boulder run, and "
                           "the holds' evidence for stiction against backlash (minutes)")
-    sp2.add_argument("--data", default=None, help="folder of the real data (default "
-                     "../shared/data/real)")
+    _data_option(sp2)
     sp2.add_argument("--out", default="runs/quanser-stick-slip", help="output directory")
     sp2.add_argument("--json", action="store_true")
     sp2.set_defaults(func=cmd_stick_slip)
     up = rsub.add_parser("units", help="the twin per hardware unit: each unit's own link "
                          "stage against the shared calibrated twin on its held-out runs "
                          "(markdown, PNG, JSON; --fit refits the links first, minutes)")
-    up.add_argument("--data", default=None, help="folder of the real data (default "
-                    "../shared/data/real)")
+    _data_option(up)
     up.add_argument("--out", default="runs/quanser-units", help="output directory")
     up.add_argument("--fit", action="store_true", help="refit every unit's link stage and "
                     "write its preset into --out (~2 CPU-min per unit)")
@@ -286,8 +287,7 @@ def add_real_arm_parsers(sub) -> None:
     tp = rsub.add_parser("two-mass", help="the FdiTools two-mass motor bench: twin replay "
                          "of records A (fit) and B (held out), FRF and time overlays, the "
                          "diagnosis of the rigid nominal twin (markdown, PNG, JSON)")
-    tp.add_argument("--data", default=None, help="folder of the real data (default "
-                    "../shared/data/real)")
+    _data_option(tp)
     tp.add_argument("--out", default="runs/two-mass", help="output directory")
     tp.add_argument("--engine", action="store_true", help="also run flex-twin diagnose "
                     "(time domain, restarts every 0.1 s from the motor and load encoders) on the "
@@ -304,8 +304,7 @@ def add_real_arm_parsers(sub) -> None:
                     "(default flexarm_K1_6, a link-fit run of CUBOULDER_SPLIT)")
     dp.add_argument("--holdout", default=None, help="held-out run with the same law (default:"
                     " the last 40 %% of RUN)")
-    dp.add_argument("--data", default=None, help="folder of the real data (default "
-                    "../shared/data/real)")
+    _data_option(dp)
     dp.add_argument("--out", default="runs/real-arm-diagnosis", help="output directory")
     dp.add_argument("--segment", type=float, default=None, help="restart the replay every "
                     "SEGMENT s from the measured hub angle and rate (multiple shooting; "
@@ -321,8 +320,7 @@ def add_real_arm_parsers(sub) -> None:
                     "diagnosed_arm.yaml)")
     fp.add_argument("--runs", nargs="*", default=None, help="run names (default: every "
                     "flexible-link run with a gauge)")
-    fp.add_argument("--data", default=None, help="folder of the real data (default "
-                    "../shared/data/real)")
+    _data_option(fp)
     fp.add_argument("--out", default=None, help="output directory (default "
                     "DIAGNOSIS/transfer)")
     fp.add_argument("--json", action="store_true")
