@@ -249,25 +249,33 @@ def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
     return out
 
 
+def write_preset(data: dict, path, origin: str, result: CalibrationResult) -> Path:
+    """A calibrated arm description as YAML, headed by where it comes from (``origin``) and
+    its fit (runs, scaled residual before and after), validated as any preset."""
+    import yaml
+
+    from flex_model.arm import arm_from_dict
+    from flex_model.config import read_yaml
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(f"# {data['name']}: {origin}\n# fit runs: {', '.join(result.runs)}; "
+                    f"scaled RMS residual {result.cost_nominal:.3f} -> "
+                    f"{result.cost_fitted:.3f}\n" + yaml.safe_dump(data, sort_keys=False))
+    arm_from_dict(read_yaml(path), str(path))
+    return path
+
+
 def write_calibrated_presets(servo: CalibrationResult, link: CalibrationResult,
                              out_dir) -> list:
     """quanser_cuboulder_rigid_calibrated.yaml and quanser_cuboulder_calibrated.yaml."""
-    import yaml
-
-    from flex_model.arm import arm_from_dict, resolve_preset
+    from flex_model.arm import resolve_preset
     from flex_model.config import read_yaml
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
     for nominal, name, res in (("quanser_cuboulder_rigid", "quanser_cuboulder_rigid_calibrated",
                                 servo), ("quanser_cuboulder_flexible",
                                          "quanser_cuboulder_calibrated", link)):
         data = calibrated_dict(read_yaml(resolve_preset(nominal)), res.values, name)
-        path = out_dir / f"{name}.yaml"
-        head = (f"# {name}: {nominal} calibrated by flex-twin real-arm calibrate (issue 9)\n"
-                f"# fit runs: {', '.join(res.runs)}; scaled RMS residual "
-                f"{res.cost_nominal:.3f} -> {res.cost_fitted:.3f}\n")
-        path.write_text(head + yaml.safe_dump(data, sort_keys=False))
-        arm_from_dict(read_yaml(path), str(path))  # validated as any preset
-        paths.append(path)
+        paths.append(write_preset(data, Path(out_dir) / f"{name}.yaml",
+                                  f"{nominal} calibrated by flex-twin real-arm calibrate "
+                                  "(issue 9)", res))
     return paths

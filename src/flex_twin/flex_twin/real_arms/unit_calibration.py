@@ -20,7 +20,7 @@ import numpy as np
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from .calibration import calibrate, calibrated_dict, link_parameters
+from .calibration import calibrate, calibrated_dict, link_parameters, write_preset
 from .quanser_twin import calibrated_arm_for
 from .replay import plot_replay, replay
 from .report import fmt, metrics_row
@@ -60,9 +60,7 @@ def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: in
 
 def write_unit_preset(unit: str, result, out_dir) -> Path:
     """``<preset>.yaml``: the shared calibrated twin with the unit's link values."""
-    import yaml
-
-    from flex_model.arm import arm_from_dict, resolve_preset
+    from flex_model.arm import resolve_preset
     from flex_model.config import read_yaml
     name = UNITS[unit]["preset"]
     shared = read_yaml(resolve_preset("quanser_cuboulder_calibrated"))
@@ -70,15 +68,9 @@ def write_unit_preset(unit: str, result, out_dir) -> Path:
     data = calibrated_dict(shared, {"viscous": fr["viscous"], **result.values}, name)
     data["description"] = (f"Quanser SRV02 + flexible link, {unit}'s unit: the shared "
                            "calibrated twin with its own link stage (issue 22)")
-    path = Path(out_dir) / f"{name}.yaml"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(f"# {name}: quanser_cuboulder_calibrated with the link refitted by "
-                    f"flex-twin real-arm units --fit (issue 22)\n# fit runs: "
-                    f"{', '.join(result.runs)}; scaled RMS residual "
-                    f"{result.cost_nominal:.3f} -> {result.cost_fitted:.3f}\n"
-                    + yaml.safe_dump(data, sort_keys=False))
-    arm_from_dict(read_yaml(path), str(path))  # validated as any preset
-    return path
+    return write_preset(data, Path(out_dir) / f"{name}.yaml", "quanser_cuboulder_calibrated "
+                        "with the link refitted by flex-twin real-arm units --fit (issue 22)",
+                        result)
 
 
 def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = None,
