@@ -64,3 +64,27 @@ def test_the_lab_sticks_short_by_a_different_amount_each_direction(cuboulder_roo
                                atol=5e-4)
     assert s["spread_rms_rad"] < 0.004 and s["asymmetry_rad"] == pytest.approx(0.032, abs=1e-3)
     assert s["symmetric_rms_rad"] == pytest.approx(0.0152, abs=5e-4)
+
+
+def test_the_level_search_grows_past_an_edge_and_stops_where_the_cost_is_flat(monkeypatch):
+    """refit_levels on a known cost (no replay): the minimum at F_c 0.025, F_s 0.055 lies
+    below the start grid's corner (0.05-0.07 x 0.10-0.12); the search must walk there and
+    end within the half step. On a cost flat in F_s (1e-3 relative) it must not walk in
+    F_s: a level the runs do not resolve stays near where it started."""
+    from flex_twin.real_arms import stick_slip_study as ss
+
+    def bowl(arm, runs, policy, fc, fs):
+        return 1.0 + ((fc - 0.025) / 0.01) ** 2 + ((fs - 0.055) / 0.02) ** 2
+    monkeypatch.setattr(ss, "level_cost", bowl)
+    (fc, fs), table = ss.refit_levels(None, [], None, (0.05, 0.06, 0.07), (0.1, 0.12),
+                                      progress=lambda s: None)
+    assert (fc, fs) == (0.025, 0.055)
+    assert all(r["static"] >= r["coulomb"] for r in table) and len(table) <= 40
+
+    def flat_in_static(arm, runs, policy, fc, fs):
+        return 1.0 + ((fc - 0.03) / 0.01) ** 2 + 1e-3 * (0.2 - fs)
+    monkeypatch.setattr(ss, "level_cost", flat_in_static)
+    (fc, fs), table = ss.refit_levels(None, [], None, (0.04, 0.05), (0.08, 0.1),
+                                      progress=lambda s: None)
+    # F_s moves with F_c's diagonal step at most, not down the flat slope to the bound
+    assert fc == 0.03 and fs <= 0.115 and max(r["static"] for r in table) <= 0.12 + 1e-9

@@ -93,24 +93,50 @@ def replay_metrics(arm, run, make_policy) -> dict:
         "ring_freq_error_pct", "ring_damping_measured", "ring_damping_twin")}
 
 
-def refit_levels(arm, runs, make_policy, grid, progress=print) -> tuple:
-    """The (coulomb, static) of ``grid`` with the least mean hub/tip replay cost (hub /
-    10 mrad, tip / 2 mm, as :mod:`.calibration`) on ``runs``: a grid, since where the hub
-    sticks jumps with the levels (the cost is rough). Returns (best, table)."""
-    table = []
-    for fc, fs in grid:
-        a = with_stick_slip(arm, coulomb=fc, static=fs)
-        cost = []
-        for run in runs:
-            _, m = replay_metrics(a, run, make_policy)
-            c = (m["hub_rms_rad"] / 0.01) ** 2
-            if m["tip_rms_m"] is not None:
-                c += (m["tip_rms_m"] / 0.002) ** 2
-            cost.append(c)
-        table.append({"coulomb": fc, "static": fs, "cost": float(np.mean(cost))})
-        progress(f"  F_c {fc:.3f} F_s {fs:.3f} N m: cost {np.mean(cost):.3f}")
-    best = min(table, key=lambda r: r["cost"])
-    return (best["coulomb"], best["static"]), table
+def level_cost(arm, runs, make_policy, coulomb: float, static: float) -> float:
+    """Mean replay cost of the arm with stick-slip levels (F_c, F_s) on ``runs``: hub /
+    10 mrad and tip / 2 mm squared, as :mod:`.calibration`."""
+    a = with_stick_slip(arm, coulomb=coulomb, static=static)
+    cost = []
+    for run in runs:
+        _, m = replay_metrics(a, run, make_policy)
+        c = (m["hub_rms_rad"] / 0.01) ** 2
+        if m["tip_rms_m"] is not None:
+            c += (m["tip_rms_m"] / 0.002) ** 2
+        cost.append(c)
+    return float(np.mean(cost))
+
+
+def refit_levels(arm, runs, make_policy, coulomb, static, step: float = 0.01,
+                 flat: float = 0.01, progress=print, max_points: int = 80) -> tuple:
+    """The (F_c, F_s) of least :func:`level_cost` on ``runs``, searched on a lattice
+    (where the hub sticks jumps with the levels: the cost is rough): from the best of the
+    ``coulomb`` x ``static`` grid it moves to the best of the 8 neighbours ``step`` away
+    (F_c >= step, F_s >= F_c) while that lowers the cost by more than ``flat`` (relative:
+    a smaller change does not resolve the level), then looks once at half the step.
+    Returns ((F_c, F_s), table of every point evaluated)."""
+    seen = {}
+
+    def cost(p):
+        key = (round(p[0], 6), round(p[1], 6))
+        if key not in seen and key[1] >= key[0] >= step - 1e-9 and len(seen) < max_points:
+            seen[key] = level_cost(arm, runs, make_policy, *key)
+            progress(f"  F_c {key[0]:.4f} F_s {key[1]:.4f} N m: cost {seen[key]:.3f}")
+        return seen.get(key, np.inf)
+
+    def around(p, h):
+        return [(p[0] + i * h, p[1] + k * h) for i in (-1, 0, 1) for k in (-1, 0, 1)
+                if i or k]
+
+    best = min(((fc, fs) for fc in coulomb for fs in static), key=cost)
+    while True:
+        nxt = min(around(best, step), key=cost)
+        if not cost(nxt) < cost(best) * (1.0 - flat):
+            break
+        best = nxt
+    best = min([best] + around(best, step / 2), key=cost)
+    table = [{"coulomb": fc, "static": fs, "cost": c} for (fc, fs), c in seen.items()]
+    return (round(best[0], 6), round(best[1], 6)), table
 
 
 def hold_stick_spread(run, settle: float = 1.0) -> dict:
@@ -159,8 +185,9 @@ def study(data, make_policy, out, progress=print) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     runs = read_cuboulder(Path(data) / CUBOULDER)
     report = {"levels": {}, "grid": {}, "runs": []}
-    grids = {"rigid": [(fc, fs) for fc in (0.04, 0.05, 0.06) for fs in (0.08, 0.1)],
-             "flexible": [(fc, fs) for fc in (0.05, 0.06, 0.07) for fs in (0.1, 0.12)]}
+    # where the search starts: the grids of the first study (2026-11), grown past edges
+    grids = {"rigid": ((0.04, 0.05, 0.06), (0.08, 0.1)),
+             "flexible": ((0.05, 0.06, 0.07), (0.1, 0.12))}
     fit_runs = {"rigid": CUBOULDER_SPLIT["servo_fit"], "flexible": CUBOULDER_SPLIT["link_fit"]}
     held = {"rigid": CUBOULDER_SPLIT["servo_holdout"],
             "flexible": CUBOULDER_SPLIT["link_holdout"] + ("flexibleArm_test_1",)}
@@ -168,7 +195,7 @@ def study(data, make_policy, out, progress=print) -> dict:
         cal = calibrated_arm_for("cuboulder", kind)
         progress(f"{kind}: grid on {', '.join(fit_runs[kind])}")
         (fc, fs), table = refit_levels(cal, [runs[n] for n in fit_runs[kind]], make_policy,
-                                       grids[kind], progress)
+                                       *grids[kind], progress=progress)
         report["levels"][kind], report["grid"][kind] = {"coulomb": fc, "static": fs}, table
         slip = with_stick_slip(cal, coulomb=fc, static=fs)
         for name in fit_runs[kind] + held[kind]:
