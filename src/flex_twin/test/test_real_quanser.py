@@ -189,6 +189,24 @@ def test_hold_ringing_of_quantised_sines():
     assert hold_ringing(t, 3 * small, np.array([0, 1500]))[0] is None
 
 
+def test_transient_share_of_a_decaying_step_error_and_a_constant_offset():
+    """Error e^{-t/tau} after each of two steps (tau 0.1 s, 2.5 s holds) plus a constant
+    hold offset c: over the first 0.75 s after a step the share of the sum of squares is
+    (A + 0.75 c^2 + 2 c tau (1 - e^{-7.5})) / (A + 2.5 c^2 + 2 c tau) per hold, A = tau / 2
+    (1 - e^{-15}), to the 0.1 ms sampling; without the offset all of it, and steps past
+    the end are ignored."""
+    from flex_twin.real_arms.replay import transient_share
+    dt, tau, c = 1e-4, 0.1, 0.2
+    t = np.arange(0.0, 2.5, dt)
+    e = np.concatenate([np.exp(-t / tau) + c] * 2)
+    a = tau / 2 * (1 - np.exp(-15.0))
+    want = (a + 0.75 * c ** 2 + 2 * c * tau * (1 - np.exp(-7.5))) / (
+        a + 2.5 * c ** 2 + 2 * c * tau)
+    assert transient_share(e, [0, 25000, 90000], 7500) == pytest.approx(want, rel=2e-3)
+    assert transient_share(e - c, [0, 25000], 7500) == pytest.approx(1.0, abs=1e-6)
+    assert transient_share(np.zeros(10), [0], 5) == 0.0
+
+
 def test_three_runs_switch_to_their_own_gains_before_the_first_step(cuboulder_root):
     """Three K1K2K3 files start with the previous run's gains and switch 0.3-0.9 s in, before
     the first step, to the gains of their file name; the reader keeps the later ones. With

@@ -112,7 +112,8 @@ def cmd_stick_slip(args) -> int:
     from .quanser_twin import data_root
     from .stick_slip_study import study, write_markdown
     out = Path(args.out)
-    report = study(data_root(args.data), _policy_factory(), out, _progress)
+    report = study(data_root(args.data), _policy_factory(), out, _progress,
+                   session=args.session)
     write_markdown(report, out / "stick_slip.md")
     if args.json:
         print(json.dumps(report, indent=1, default=float))
@@ -272,6 +273,9 @@ def add_real_arm_parsers(sub) -> None:
                           "the holds' evidence for stiction against backlash (minutes)")
     _data_option(sp2)
     sp2.add_argument("--out", default="runs/quanser-stick-slip", help="output directory")
+    sp2.add_argument("--session", action="store_true",
+                     help="also a twin with F_c from each held-out run's first step, every "
+                     "twin scored after that step (a few more minutes)")
     sp2.add_argument("--json", action="store_true")
     sp2.set_defaults(func=cmd_stick_slip)
     up = rsub.add_parser("units", help="the twin per hardware unit: each unit's own link "

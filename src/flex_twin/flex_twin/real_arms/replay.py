@@ -28,6 +28,8 @@ RING_WINDOW = 1.6
 RING_MIN = 0.4
 #: a hold's ringing is measured from this long after its step (s)
 HOLD_SETTLE = 1.0
+#: the first TRANSIENT seconds after a step are its transient, the rest of the hold is held
+TRANSIENT = 0.75
 
 
 @dataclass
@@ -155,6 +157,16 @@ def _rms(x) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
 
+def transient_share(error, steps, samples: int) -> float:
+    """Share of ``error``'s sum of squares within ``samples`` after each step index (the
+    rest lies in the holds)."""
+    near = np.zeros(len(error), bool)
+    for k in steps:
+        near[k:k + samples] = True
+    total = float(np.sum(np.square(error)))
+    return float(np.sum(np.square(error[near])) / total) if total > 0 else 0.0
+
+
 def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None, *,
            mode: str = "closed", t_final: float | None = None,
            dt: float = 5e-4) -> ReplayResult:
@@ -199,6 +211,8 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
                        twin_deflection=defl, twin_voltage=res.u[:n, 0])
     e_th = theta - run.theta[:n]
     out.metrics = {"hub_rms_rad": _rms(e_th), "hub_peak_rad": float(np.max(np.abs(e_th))),
+                   "hub_transient_share": transient_share(
+                       e_th, run.step_indices(), int(round(TRANSIENT / run.dt))),
                    "voltage_rms_V": _rms(out.twin_voltage - run.voltage[:n]),
                    "gauge_sign": sign, "gauge_bias_m": bias, "duration_s": float(t[-1])}
     if run.has_gauge:

@@ -18,6 +18,7 @@ import numpy as np
 
 from flex_model.arm import ArmDescription
 from flex_model.effects import StickSlipFriction
+from .replay import TRANSIENT, plot_replay, replay
 
 #: pre-sliding displacement F_s / sigma_0 at the hub (rad): one encoder count
 #: (2 pi / 4096) of the SRV02's output-shaft encoder
@@ -86,11 +87,10 @@ def _kind(name: str) -> str:
 def replay_metrics(arm, run, make_policy) -> dict:
     """Hub/tip RMS and ring-down of one replay (:func:`.replay.replay`, states [q; v; z])."""
     from flex_model.dynamics import FlexArmModel
-    from .replay import replay
     r = replay(FlexArmModel(arm), run, mechanical_policy(make_policy))
     return r, {k: r.metrics.get(k) for k in (
-        "hub_rms_rad", "tip_rms_m", "ring_freq_measured_hz", "ring_freq_twin_hz",
-        "ring_freq_error_pct", "ring_damping_measured", "ring_damping_twin")}
+        "hub_rms_rad", "hub_transient_share", "tip_rms_m", "ring_freq_measured_hz",
+        "ring_freq_twin_hz", "ring_freq_error_pct", "ring_damping_measured", "ring_damping_twin")}
 
 
 def level_cost(arm, runs, make_policy, coulomb: float, static: float) -> float:
@@ -171,16 +171,17 @@ def hold_stick_spread(run, settle: float = 1.0) -> dict:
             "hold_fraction": float(np.sum(lens) / n)}
 
 
-def study(data, make_policy, out, progress=print) -> dict:
+def study(data, make_policy, out, progress=print, session: bool = False) -> dict:
     """The stick-slip twins (servo levels refitted on the rigid fit runs, link levels on
     the flexible fit runs, the rest of the calibrated twins kept) on every CU Boulder
-    run; the hold evidence (backlash or stiction) and the lab's step-to-step spread."""
+    run; the hold evidence (backlash or stiction) and the lab's step-to-step spread.
+    ``session``: also the twins with F_c from each held-out run's first step
+    (:mod:`.session_friction`), all scored after that step."""
     import json
     from pathlib import Path
     from .calibration import CUBOULDER_SPLIT
     from .quanser_data import CUBOULDER, read_cuboulder
     from .quanser_twin import calibrated_arm_for
-    from .replay import plot_replay
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runs = read_cuboulder(Path(data) / CUBOULDER)
@@ -207,6 +208,13 @@ def study(data, make_policy, out, progress=print) -> dict:
             row = {"run": name, "kind": kind, "role": "fit" if name in fit_runs[kind]
                    else "held out", "calibrated": mc, "stick_slip": ms,
                    "holds": hold_evidence(run), "spread": hold_stick_spread(run)}
+            if session and row["role"] == "held out" and len(run.step_indices()) > 1:
+                from .session_friction import compare
+                row["session"] = compare(cal, run, make_policy, fc, fs)
+                progress("  after the first step, hub calibrated / fixed / session "
+                         + " / ".join(f"{row['session'][k]['hub_rms_rad']:.4f}" for k in
+                                      ("calibrated", "fixed", "session"))
+                         + f" rad (session F_c {row['session']['session_coulomb']:.2f})")
             report["runs"].append(row)
             progress(f"{name}: hub {mc['hub_rms_rad']:.4f} -> {ms['hub_rms_rad']:.4f} rad"
                      + (f", tip {1e3 * mc['tip_rms_m']:.2f} -> {1e3 * ms['tip_rms_m']:.2f}"
@@ -231,6 +239,7 @@ def summarize(report: dict) -> dict:
         ring = [r[twin] for r in flex if r[twin].get("ring_freq_twin_hz")]
         out[twin] = {
             "hub_rms_median_rad": _median(held, twin, "hub_rms_rad"),
+            "hub_transient_share_median": _median(held, twin, "hub_transient_share"),
             "tip_rms_median_m": _median(flex, twin, "tip_rms_m"),
             "ring_freq_error_median_pct": float(np.median(
                 [abs(m["ring_freq_error_pct"]) for m in ring])) if ring else float("nan"),
@@ -255,11 +264,13 @@ def write_markdown(report: dict, path) -> None:
              f"{report['levels']['flexible']['coulomb']} / F_s "
              f"{report['levels']['flexible']['static']} N m (pre-sliding "
              f"{PRESLIDING * 1e3:.2f} mrad).", "",
-             "| twin | hub RMS median (rad) | tip RMS median (mm) | ring freq. error median "
-             "(%) | damping twin/lab median |", "|---|---|---|---|---|"]
+             "| twin | hub RMS median (rad) | share of it in the transients (median) | tip "
+             "RMS median (mm) | ring freq. error median (%) | damping twin/lab median |",
+             "|---|---|---|---|---|---|"]
     for twin in ("calibrated", "stick_slip"):
         m = s[twin]
         lines.append(f"| {twin} | {m['hub_rms_median_rad']:.4f} | "
+                     f"{m['hub_transient_share_median']:.2f} | "
                      f"{1e3 * m['tip_rms_median_m']:.2f} | "
                      f"{m['ring_freq_error_median_pct']:.1f} | "
                      f"{m['ring_damping_ratio_median']:.2f} |")
@@ -269,7 +280,9 @@ def write_markdown(report: dict, path) -> None:
               f"{h['torque_max_Nm'] * 1e3:.0f} mN m (a play holds none: stiction). A twin of "
               f"symmetric friction leaves at least {s['symmetric_floor_median_rad']:.4f} rad "
               "hub RMS (median over the held-out runs: the lab sticks short by different "
-              "amounts after up- and down-steps).", "",
+              "amounts after up- and down-steps). Transients: the first "
+              f"{TRANSIENT} s after each step; the rest of the squared hub error lies in the "
+              "holds.", "",
               "| run | kind | role | hub RMS cal -> stick-slip (rad) | tip RMS (mm) | "
               "symmetric floor (rad) |", "|---|---|---|---|---|---|"]
     for r in report["runs"]:
@@ -279,5 +292,15 @@ def write_markdown(report: dict, path) -> None:
         lines.append(f"| {r['run']} | {r['kind']} | {r['role']} | {c['hub_rms_rad']:.4f} -> "
                      f"{t['hub_rms_rad']:.4f} | {tip} | "
                      f"{r['spread']['symmetric_rms_rad']:.4f} |")
+    rows = [r["session"] for r in report["runs"] if "session" in r]
+    if rows:
+        from .session_friction import summarize as session_summary
+        m = session_summary(rows)
+        lines += ["", f"Scored after each run's first step ({m['runs']} held-out runs; the "
+                  "session twin's F_c chosen on the first step alone):", "",
+                  "| twin | hub RMS median (rad) | tip RMS median (mm) |", "|---|---|---|"]
+        for label in ("calibrated", "fixed", "session"):
+            lines.append(f"| {label} | {m[label]['hub_rms_median_rad']:.4f} | "
+                         f"{1e3 * m[label]['tip_rms_median_m']:.2f} |")
     from pathlib import Path
     Path(path).write_text("\n".join(lines) + "\n")
