@@ -136,6 +136,21 @@ def cmd_units(args) -> int:
     return 0
 
 
+def cmd_floor(args) -> int:
+    from flex_twin.cluster import batch_executor
+    from .quanser_twin import data_root
+    from .run_floor import study, write_report
+    out = Path(args.out)
+    with batch_executor(args.scheduler, args.workers) as executor:
+        report = study(data_root(args.data), executor, _progress, args.max_evaluations)
+    write_report(report, out)
+    if args.json:
+        print(json.dumps(report, indent=1, default=float))
+    else:
+        print((out / "run_floor.md").read_text())
+    return 0
+
+
 def cmd_two_mass(args) -> int:
     """The two-mass motor bench (issue 22): replay of records A and B on the
     ``two_mass_bench`` twin, FRF and time overlays, the frequency-domain diagnosis of the
@@ -227,7 +242,7 @@ def _data_option(parser) -> None:
 
 def add_real_arm_parsers(sub) -> None:
     """``replay``, ``import quanser`` and
-    ``real-arm calibrate|report|stick-slip|units|two-mass|diagnose|transfer``."""
+    ``real-arm calibrate|report|stick-slip|units|floor|two-mass|diagnose|transfer``."""
     sp = sub.add_parser("replay", help="replay a recorded real-arm run on its twin "
                         "(closed loop with the lab's law, or open loop from the voltage)")
     sp.add_argument("run", help="a CU Boulder lab log, or the UC Merced data folder")
@@ -288,6 +303,16 @@ def add_real_arm_parsers(sub) -> None:
     up.add_argument("--max-evaluations", type=int, default=12)
     up.add_argument("--json", action="store_true")
     up.set_defaults(func=cmd_units)
+    fp = rsub.add_parser("floor", help="the model's floor: the calibration's parameters "
+                         "fitted to each held-out run itself (markdown, JSON; ~15 CPU-min)")
+    _data_option(fp)
+    fp.add_argument("--out", default="runs/quanser-floor", help="output directory")
+    fp.add_argument("--max-evaluations", type=int, default=12)
+    fp.add_argument("--workers", type=int, default=None, help="parallel processes")
+    fp.add_argument("--scheduler", default=None, help="a Dask scheduler address or file "
+                    "(default: processes on this machine)")
+    fp.add_argument("--json", action="store_true")
+    fp.set_defaults(func=cmd_floor)
     tp = rsub.add_parser("two-mass", help="the FdiTools two-mass motor bench: twin replay "
                          "of records A (fit) and B (held out), FRF and time overlays, the "
                          "diagnosis of the rigid nominal twin (markdown, PNG, JSON)")
