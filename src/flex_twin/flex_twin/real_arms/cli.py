@@ -142,7 +142,8 @@ def cmd_floor(args) -> int:
     from .run_floor import study, write_report
     out = Path(args.out)
     with batch_executor(args.scheduler, args.workers) as executor:
-        report = study(data_root(args.data), executor, _progress, args.max_evaluations)
+        report = study(data_root(args.data), executor, _progress, args.max_evaluations,
+                       out=out)
     write_report(report, out)
     if args.json:
         print(json.dumps(report, indent=1, default=float))
@@ -304,7 +305,7 @@ def add_real_arm_parsers(sub) -> None:
     up.add_argument("--json", action="store_true")
     up.set_defaults(func=cmd_units)
     fp = rsub.add_parser("floor", help="the model's floor: the calibration's parameters "
-                         "fitted to each held-out run itself (markdown, JSON; ~15 CPU-min)")
+                         "fitted to each held-out run itself (markdown, JSON, PNG; ~15 CPU-min)")
     _data_option(fp)
     fp.add_argument("--out", default="runs/quanser-floor", help="output directory")
     fp.add_argument("--max-evaluations", type=int, default=12)

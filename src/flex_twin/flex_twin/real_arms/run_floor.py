@@ -60,15 +60,16 @@ def starts(name: str, kind: str) -> dict:
     return out
 
 
-def fit_run(data_root: str, name: str, max_nfev: int = 12) -> dict:
+def fit_run(data_root: str, name: str, max_nfev: int = 12, out: str | None = None) -> dict:
     """One held-out run: the shared calibrated twin's and the run-fitted twin's replay
     errors; the fit starts from the better of :func:`starts` (a top-level function of
-    picklable arguments: it runs on a pool or a Dask worker)."""
+    picklable arguments: it runs on a pool or a Dask worker). With ``out``, their overlay
+    ``floor_<run>.png`` is written there."""
     from flex_control.state_feedback import lab_policy_factory
     from flex_model.dynamics import FlexArmModel
     from .calibration import replay_residual
     from .quanser_data import CUBOULDER, read_cuboulder_file, cuboulder_files
-    from .replay import replay
+    from .replay import plot_replay, replay
     from .stick_slip_study import _kind, mechanical_policy
     path = next(p for p in cuboulder_files(Path(data_root) / CUBOULDER) if p.name == name)
     run = read_cuboulder_file(path)
@@ -83,17 +84,27 @@ def fit_run(data_root: str, name: str, max_nfev: int = 12) -> dict:
     row = {"run": name, "kind": kind, "start": start, "start_costs": cost,
            "values": res.values, "evaluations": res.evaluations,
            "cost_run_fit": res.cost_fitted}
+    replays = []
     for label, twin in (("calibrated", twins["shared"]), ("run_fit", res.arm)):
-        m = replay(FlexArmModel(twin), run, policy).metrics
-        row[label] = {"hub_rms_rad": m["hub_rms_rad"], "tip_rms_m": m.get("tip_rms_m")}
+        r = replay(FlexArmModel(twin), run, policy)
+        r.arm_name = {"calibrated": "calibrated", "run_fit": "fitted to this run"}[label]
+        replays.append(r)
+        row[label] = {"hub_rms_rad": r.metrics["hub_rms_rad"],
+                      "tip_rms_m": r.metrics.get("tip_rms_m")}
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        plot_replay(replays, Path(out) / f"floor_{name.replace('.', '_')}.png")
     return row
 
 
-def study(data_root, executor, progress=print, max_nfev: int = 12, runs=HELD_OUT) -> dict:
-    """:func:`fit_run` on every run of ``runs`` (on ``executor``), in the order given."""
+def study(data_root, executor, progress=print, max_nfev: int = 12, runs=HELD_OUT,
+          out=None) -> dict:
+    """:func:`fit_run` on every run of ``runs`` (on ``executor``), in the order given;
+    overlays into ``out``."""
     rows = []
-    for row in executor.map(fit_run, [str(data_root)] * len(runs), runs,
-                            [max_nfev] * len(runs)):
+    n = len(runs)
+    for row in executor.map(fit_run, [str(data_root)] * n, runs, [max_nfev] * n,
+                            [None if out is None else str(out)] * n):
         c, f = row["calibrated"], row["run_fit"]
         progress(f"{row['run']}: hub {c['hub_rms_rad']:.4f} -> {f['hub_rms_rad']:.4f} rad"
                  + (f", tip {1e3 * c['tip_rms_m']:.2f} -> {1e3 * f['tip_rms_m']:.2f} mm"
