@@ -190,18 +190,16 @@ def test_hold_ringing_of_quantised_sines():
 
 
 def test_transient_share_of_a_decaying_step_error_and_a_constant_offset():
-    """Error e^{-t/tau} after each of two steps (tau 0.1 s, 2.5 s holds) plus a constant
-    hold offset c: over the first 0.75 s after a step the share of the sum of squares is
-    (A + 0.75 c^2 + 2 c tau (1 - e^{-7.5})) / (A + 2.5 c^2 + 2 c tau) per hold, A = tau / 2
-    (1 - e^{-15}), to the 0.1 ms sampling; without the offset all of it, and steps past
-    the end are ignored."""
+    """Error e^{-t/tau} + c after each of two steps (tau 0.1 s, 2.5 s holds): the share of
+    the sum of squares within 0.75 s of a step is, per hold, (tau/2 (1 - e^{-15}) + 0.75 c^2
+    + 2 c tau (1 - e^{-7.5})) / (tau/2 (1 - e^{-50}) + 2.5 c^2 + 2 c tau (1 - e^{-25})), to
+    the 0.1 ms sampling; without the offset all of it, and steps past the end are ignored."""
     from flex_twin.real_arms.replay import transient_share
     dt, tau, c = 1e-4, 0.1, 0.2
     t = np.arange(0.0, 2.5, dt)
     e = np.concatenate([np.exp(-t / tau) + c] * 2)
-    a = tau / 2 * (1 - np.exp(-15.0))
-    want = (a + 0.75 * c ** 2 + 2 * c * tau * (1 - np.exp(-7.5))) / (
-        a + 2.5 * c ** 2 + 2 * c * tau)
+    want = (tau / 2 * (1 - np.exp(-15.0)) + 0.75 * c ** 2 + 2 * c * tau * (1 - np.exp(-7.5))) / (
+        tau / 2 * (1 - np.exp(-50.0)) + 2.5 * c ** 2 + 2 * c * tau * (1 - np.exp(-25.0)))
     assert transient_share(e, [0, 25000, 90000], 7500) == pytest.approx(want, rel=2e-3)
     assert transient_share(e - c, [0, 25000], 7500) == pytest.approx(1.0, abs=1e-6)
     assert transient_share(np.zeros(10), [0], 5) == 0.0

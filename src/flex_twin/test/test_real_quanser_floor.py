@@ -16,7 +16,8 @@ def test_run_fits_start_from_the_calibrated_values_and_the_units_twin():
     assert p["static_excess"].start == pytest.approx(0.0772, abs=1e-4)
     flex = {q.name: q for q in run_parameters(calibrated_arm_for("cuboulder", "flexible"),
                                                 "flexible")}
-    assert flex["EI"].upper == pytest.approx(1.5 * flex["EI"].nominal)
+    assert flex["EI"].upper == pytest.approx(2.0 * flex["EI"].nominal)
+    assert {"viscous", "rotor_inertia", "torque_constant"} <= set(flex)
     assert flex["rayleigh_mass"].start == pytest.approx(0.6112, abs=1e-4)
     assert set(starts("flexarm_K1K2_6_-5", "flexible")) == {"shared", "hagenau"}
     assert set(starts("rigidarm_K1_8", "rigid")) == {"shared"}
@@ -25,7 +26,7 @@ def test_run_fits_start_from_the_calibrated_values_and_the_units_twin():
 def test_fitted_to_itself_a_rigid_bar_run_comes_under_the_hub_aim(cuboulder_root):
     """rigidarm_K1_8 (held out; the shared twin: 0.0144 rad): two iterations of the servo
     stage fitted to the run itself (12 replays) bring it to 0.0086 rad, under the 0.01 rad
-    aim (12 iterations: 0.0076). Its session's friction, not the model, limits it."""
+    aim (12 iterations: 0.0075). Its session's friction, not the model, limits it."""
     row = fit_run(str(cuboulder_root.parent), "rigidarm_K1_8", max_nfev=2)
     assert row["start"] == "shared"
     assert row["calibrated"]["hub_rms_rad"] == pytest.approx(0.0144, abs=2e-4)

@@ -10,8 +10,7 @@ from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.quanser_twin import calibrated_arm_for
 from flex_twin.real_arms.replay import replay
 from flex_twin.real_arms.session_friction import compare, first_step_end
-from flex_twin.real_arms.stick_slip_study import (hold_stick_spread, mechanical_policy,
-                                                  with_stick_slip)
+from flex_twin.real_arms.stick_slip_study import hold_stick_spread, with_stick_slip
 
 state_feedback = pytest.importorskip("flex_control.state_feedback")
 
@@ -55,7 +54,7 @@ def test_where_the_twin_sticks_moves_by_tens_of_milliradians_with_a_tenth_more_f
     holds = {}
     for fc in (0.08, 0.09):
         r = replay(FlexArmModel(with_stick_slip(arm, coulomb=fc, static=fc)), run,
-                   mechanical_policy(state_feedback.lab_policy_factory))
+                   state_feedback.lab_policy_factory)
         twin = dataclasses.replace(run, theta=r.twin_theta)
         holds[fc] = np.array(hold_stick_spread(twin)["offsets_rad"])
     np.testing.assert_allclose(hold_stick_spread(run)["offsets_rad"],
@@ -63,3 +62,12 @@ def test_where_the_twin_sticks_moves_by_tens_of_milliradians_with_a_tenth_more_f
     np.testing.assert_allclose(holds[0.08], [0.060, -0.065, 0.069, -0.071], atol=2e-3)
     shift = np.abs(holds[0.09]) - np.abs(holds[0.08])
     assert np.all(shift > 0.014) and np.all(shift < 0.026)
+
+
+def test_a_run_too_short_after_its_second_step_is_not_scored(cuboulder_root):
+    """flexarm_K1K2K3_6_-3_213 steps at 4.06 and 9.06 s of 10 s: 0.94 s after the second
+    step, less than one 2.5 s hold, mostly the step's transient: no session score."""
+    path = next(p for p in qd.cuboulder_files(cuboulder_root)
+                if p.name == "flexarm_K1K2K3_6_-3_213")
+    with pytest.raises(ValueError, match="0.94 s after its second step"):
+        first_step_end(qd.read_cuboulder_file(path))

@@ -90,6 +90,26 @@ def link_parameters(arm: ArmDescription) -> list:
             FitParameter("static_excess", fs - fc, 0.0, 0.2, max(fs - fc, 0.01))]
 
 
+def started_from(arm: ArmDescription, params: list) -> list:
+    """``params`` started from the arm's current values of the friction (F_c, F_s - F_c,
+    F_v), the link's Rayleigh damping and the rotor inertia (a fit from a calibrated twin
+    rather than from the handout), each clipped into its bounds."""
+    j = arm.joint_names[0]
+    now = {}
+    fr = arm.effect("joint_friction", j)
+    if fr is not None:
+        now.update(coulomb=fr["coulomb"], static_excess=fr["static"] - fr["coulomb"],
+                   viscous=fr["viscous"])
+    damping = arm.effect("structural_damping", arm.links[0].name)
+    if damping is not None:
+        now["rayleigh_mass"] = damping["rayleigh_mass"]
+    gear = arm.effect("gear", j)
+    if gear is not None:
+        now["rotor_inertia"] = gear["rotor_inertia"]
+    return [dataclasses.replace(p, start=min(max(now[p.name], p.lower), p.upper))
+            if p.name in now else p for p in params]
+
+
 def apply_parameters(arm: ArmDescription, values: dict) -> ArmDescription:
     """The arm with fitted values (any subset of the stage 1 and 2 names) applied."""
     j = arm.joint_names[0]

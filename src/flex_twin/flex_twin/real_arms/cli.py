@@ -17,8 +17,7 @@ def _policy_factory():
     except ModuleNotFoundError:
         raise ValueError("closed-loop replay needs flex_control (the lab's state feedback); "
                          "install it or use --mode open") from None
-    from .stick_slip_study import mechanical_policy
-    return mechanical_policy(lab_policy_factory)   # twins with stick-slip: x = [q; v; z]
+    return lab_policy_factory   # reads q and v of x = [q; v; z] (z: stick-slip bristles)
 
 
 def _progress(text: str) -> None:

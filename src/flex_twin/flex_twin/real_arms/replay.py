@@ -28,7 +28,7 @@ RING_WINDOW = 1.6
 RING_MIN = 0.4
 #: a hold's ringing is measured from this long after its step (s)
 HOLD_SETTLE = 1.0
-#: the first TRANSIENT seconds after a step are its transient, the rest of the hold is held
+#: the first TRANSIENT seconds after a step are its transient (hub_transient_share)
 TRANSIENT = 0.75
 
 
@@ -159,7 +159,7 @@ def _rms(x) -> float:
 
 def transient_share(error, steps, samples: int) -> float:
     """Share of ``error``'s sum of squares within ``samples`` after each step index (the
-    rest lies in the holds)."""
+    rest: the holds from that long after a step on, and the time before the first step)."""
     near = np.zeros(len(error), bool)
     for k in steps:
         near[k:k + samples] = True

@@ -14,31 +14,36 @@ from __future__ import annotations
 import numpy as np
 
 from flex_model.dynamics import FlexArmModel
-from .replay import replay
-from .stick_slip_study import mechanical_policy, with_stick_slip
+from .replay import _rms, replay
+from .stick_slip_study import with_stick_slip
 
 #: the lattice of Coulomb levels (N m at the hub) the first step chooses from
 LEVELS = tuple(np.round(np.arange(0.02, 0.105, 0.01), 3))
+#: the least scored time after the second step (s): one hold of the CU Boulder square wave
+MIN_SCORED = 2.5
 
 
 def first_step_end(run) -> int:
-    """Sample index of the run's second reference step (the first step's window ends)."""
+    """Sample index of the run's second reference step (the first step's window ends);
+    ValueError when the run has no second step or less than :data:`MIN_SCORED` after it
+    (10 s runs with two steps 5 s apart leave 0.5-3.4 s)."""
     steps = run.step_indices()
     if len(steps) < 2:
         raise ValueError(f"{run.name}: {len(steps)} reference step(s); the session level "
                          "needs a first step and a later one to score on")
+    if run.t[-1] - run.t[steps[1]] < MIN_SCORED:
+        raise ValueError(f"{run.name}: {run.t[-1] - run.t[steps[1]]:.2f} s after its second "
+                         f"step; at least {MIN_SCORED} s needed to score on")
     return int(steps[1])
 
 
 def window_errors(result, start: int) -> tuple:
     """Hub RMS (rad) and tip RMS (m, None without a gauge) of a replay from ``start`` on."""
-    run = result.run
-    e = result.twin_theta[start:] - run.theta[start:len(result.t)]
-    hub = float(np.sqrt(np.mean(e ** 2)))
+    run, n = result.run, len(result.t)
+    hub = _rms(result.twin_theta[start:] - run.theta[start:n])
     if not run.has_gauge:
         return hub, None
-    d = result.twin_deflection[start:] - run.deflection[start:len(result.t)]
-    return hub, float(np.sqrt(np.mean(d ** 2)))
+    return hub, _rms(result.twin_deflection[start:] - run.deflection[start:n])
 
 
 def session_coulomb(arm, run, make_policy, static: float, levels=LEVELS) -> tuple:
@@ -46,11 +51,10 @@ def session_coulomb(arm, run, make_policy, static: float, levels=LEVELS) -> tupl
     hub over the first step best (least hub RMS up to :func:`first_step_end`).
     Returns (F_c, {F_c: hub RMS})."""
     end = first_step_end(run)
-    policy = mechanical_policy(make_policy)
     table = {}
     for fc in levels:
         twin = with_stick_slip(arm, coulomb=float(fc), static=max(float(fc), static))
-        r = replay(FlexArmModel(twin), run, policy, t_final=float(run.t[end]))
+        r = replay(FlexArmModel(twin), run, make_policy, t_final=float(run.t[end]))
         table[float(fc)] = window_errors(r, 0)[0]
     return min(table, key=table.get), table
 
@@ -60,13 +64,12 @@ def compare(arm, run, make_policy, coulomb: float, static: float) -> dict:
     ``static``) and the session twin (F_c from the first step) scored after the first step."""
     end = first_step_end(run)
     fc, table = session_coulomb(arm, run, make_policy, static)
-    policy = mechanical_policy(make_policy)
     row = {"run": run.name, "scored_from_s": float(run.t[end]), "session_coulomb": fc,
            "first_step_table": table}
     for label, twin in (("calibrated", arm),
                         ("fixed", with_stick_slip(arm, coulomb=coulomb, static=static)),
                         ("session", with_stick_slip(arm, coulomb=fc, static=max(fc, static)))):
-        hub, tip = window_errors(replay(FlexArmModel(twin), run, policy), end)
+        hub, tip = window_errors(replay(FlexArmModel(twin), run, make_policy), end)
         row[label] = {"hub_rms_rad": hub, "tip_rms_m": tip}
     return row
 

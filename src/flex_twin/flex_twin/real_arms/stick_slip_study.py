@@ -65,19 +65,6 @@ def hold_evidence(run, gear=48.4, km=0.0107, rm=3.29, last: float = 1.0) -> list
     return out
 
 
-def mechanical_policy(make_policy):
-    """``make_policy`` for states [q; v; z]: the lab law reads q and v only (the bristle
-    states z of stick-slip joints follow them in simulate's state)."""
-    def factory(run, model):
-        policy = make_policy(run, model)
-        n = 2 * model.nq
-
-        def law(t, x):
-            return policy(t, x[:n])
-        return law
-    return factory
-
-
 def _kind(name: str) -> str:
     from .calibration import CUBOULDER_SPLIT
     rigid = CUBOULDER_SPLIT["servo_fit"] + CUBOULDER_SPLIT["servo_holdout"]
@@ -87,7 +74,7 @@ def _kind(name: str) -> str:
 def replay_metrics(arm, run, make_policy) -> dict:
     """Hub/tip RMS and ring-down of one replay (:func:`.replay.replay`, states [q; v; z])."""
     from flex_model.dynamics import FlexArmModel
-    r = replay(FlexArmModel(arm), run, mechanical_policy(make_policy))
+    r = replay(FlexArmModel(arm), run, make_policy)
     return r, {k: r.metrics.get(k) for k in (
         "hub_rms_rad", "hub_transient_share", "tip_rms_m", "ring_freq_measured_hz",
         "ring_freq_twin_hz", "ring_freq_error_pct", "ring_damping_measured", "ring_damping_twin")}
@@ -129,6 +116,9 @@ def refit_levels(arm, runs, make_policy, coulomb, static, step: float = 0.01,
                 if i or k]
 
     best = min(((fc, fs) for fc in coulomb for fs in static), key=cost)
+    if not np.isfinite(cost(best)):
+        raise ValueError(f"no feasible start level (F_s >= F_c >= {step} N m) among "
+                         f"F_c {tuple(coulomb)} x F_s {tuple(static)}")
     while True:
         nxt = min(around(best, step), key=cost)
         if not cost(nxt) < cost(best) * (1.0 - flat):
@@ -208,13 +198,16 @@ def study(data, make_policy, out, progress=print, session: bool = False) -> dict
             row = {"run": name, "kind": kind, "role": "fit" if name in fit_runs[kind]
                    else "held out", "calibrated": mc, "stick_slip": ms,
                    "holds": hold_evidence(run), "spread": hold_stick_spread(run)}
-            if session and row["role"] == "held out" and len(run.step_indices()) > 1:
+            if session and row["role"] == "held out":
                 from .session_friction import compare
-                row["session"] = compare(cal, run, make_policy, fc, fs)
-                progress("  after the first step, hub calibrated / fixed / session "
-                         + " / ".join(f"{row['session'][k]['hub_rms_rad']:.4f}" for k in
-                                      ("calibrated", "fixed", "session"))
-                         + f" rad (session F_c {row['session']['session_coulomb']:.2f})")
+                try:
+                    row["session"] = compare(cal, run, make_policy, fc, fs)
+                    progress("  after the first step, hub calibrated / fixed / session "
+                             + " / ".join(f"{row['session'][k]['hub_rms_rad']:.4f}" for k in
+                                          ("calibrated", "fixed", "session"))
+                             + f" rad (session F_c {row['session']['session_coulomb']:.2f})")
+                except ValueError as exc:   # too short to score after the second step
+                    progress(f"  no session score: {exc}")
             report["runs"].append(row)
             progress(f"{name}: hub {mc['hub_rms_rad']:.4f} -> {ms['hub_rms_rad']:.4f} rad"
                      + (f", tip {1e3 * mc['tip_rms_m']:.2f} -> {1e3 * ms['tip_rms_m']:.2f}"
@@ -294,10 +287,11 @@ def write_markdown(report: dict, path) -> None:
                      f"{r['spread']['symmetric_rms_rad']:.4f} |")
     rows = [r["session"] for r in report["runs"] if "session" in r]
     if rows:
-        from .session_friction import summarize as session_summary
+        from .session_friction import MIN_SCORED, summarize as session_summary
         m = session_summary(rows)
-        lines += ["", f"Scored after each run's first step ({m['runs']} held-out runs; the "
-                  "session twin's F_c chosen on the first step alone):", "",
+        lines += ["", f"Scored after each run's first step ({m['runs']} held-out runs with "
+                  f"at least {MIN_SCORED} s after their second step; the session twin's F_c "
+                  "chosen on the first step alone):", "",
                   "| twin | hub RMS median (rad) | tip RMS median (mm) |", "|---|---|---|"]
         for label in ("calibrated", "fixed", "session"):
             lines.append(f"| {label} | {m[label]['hub_rms_median_rad']:.4f} | "

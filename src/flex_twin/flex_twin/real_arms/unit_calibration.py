@@ -11,7 +11,6 @@ each and keep the shared twin. :func:`compare` replays the held-out runs on both
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 from typing import Callable
@@ -20,7 +19,8 @@ import numpy as np
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from .calibration import calibrate, calibrated_dict, link_parameters, write_preset
+from .calibration import (calibrate, calibrated_dict, link_parameters, started_from,
+                          write_preset)
 from .quanser_twin import calibrated_arm_for
 from .replay import plot_replay, replay
 from .report import fmt, metrics_row
@@ -49,11 +49,7 @@ def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: in
     if shared is None:
         raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
     spec = UNITS[unit]
-    fr = shared.effect("joint_friction", shared.joint_names[0])
-    start = {"rayleigh_mass": shared.effect("structural_damping", shared.links[0].name)[
-        "rayleigh_mass"], "coulomb": fr["coulomb"], "static_excess": fr["static"] - fr["coulomb"]}
-    params = [dataclasses.replace(p, start=start.get(p.name, p.start))
-              for p in link_parameters(shared)]
+    params = started_from(shared, link_parameters(shared))
     return calibrate(shared, [runs[n] for n in spec["fit"]], params, make_policy,
                      stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
 
