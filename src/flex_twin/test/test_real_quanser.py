@@ -224,3 +224,21 @@ def test_three_runs_switch_to_their_own_gains_before_the_first_step(cuboulder_ro
         fit, *_ = np.linalg.lstsq(np.column_stack([-run.deflection[k],
                                                    -run.deflection_rate[k]]), rest, rcond=None)
         assert fit[0] == pytest.approx(k2, abs=0.2) and fit[1] == pytest.approx(k4, abs=0.02)
+
+
+def test_before_their_gain_switch_the_two_laws_differ_by_millivolts(cuboulder_root):
+    """Why the replay keeps one set of gains per run: over the 0.3-0.9 s before the switch
+    (the arm at rest before its first step) the law with the first row's gains and with
+    the last row's differ by 4-6 mV RMS, 0.6-0.9 mN m at the hub (K_g K_m / R_m = 0.157
+    N m/V), about 2 % of the 40 mN m the hub's friction holds."""
+    for name in ("flexarm_K1K2K3_6_-5_213", "flexarm_K1K2K3k4_6_-3_213_2",
+                 "flexarm_K1K2K3k4_6_-3_213_4"):
+        path = next(p for p in qd.cuboulder_files(cuboulder_root) if p.name == name)
+        raw = np.loadtxt(path, comments="%")
+        run = qd.read_cuboulder_file(path)
+        n = np.flatnonzero(np.any(np.diff(raw[:, 7:11], axis=0) != 0, axis=1))[-1] + 1
+        assert 0.3 < run.t[n] < 0.95 < run.t[run.step_indices()[0]]
+        x = np.column_stack([run.reference - run.theta, -run.deflection, -run.theta_rate,
+                             -run.deflection_rate])[:n]
+        dv = np.sqrt(np.mean((x @ (raw[0, 7:11] - raw[-1, 7:11])) ** 2))
+        assert 0.003 < dv < 0.006
