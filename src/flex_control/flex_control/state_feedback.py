@@ -1,10 +1,12 @@
 """The Quanser rotary flexible link lab's state feedback (voltage output, issue 9).
 
-    V = K1 (theta_ref - theta) + K2 (0 - d) - K3 theta_dot - K4 d_dot
+    V = K1 (theta_ref - theta) + K2 (0 - d) - K3 theta_dot - K4 d_dot + V_0
 
 with theta the hub angle (rad), d the strain-gauge tip deflection (m, as the lab logs
 it: ``gauge_sign`` times the twin's deflection plus ``gauge_bias``) and V the motor
-voltage (V), optionally clipped to ``voltage_limit``. The reference is a recorded square
+voltage (V), optionally clipped to ``voltage_limit``. V_0 (``voltage_offset``, default 0)
+is a constant the motor receives on top of the law: an amplifier offset, or any constant
+torque at the hub (K_g K_m V_0 / R_m), such as a cable's pull. The reference is a recorded square
 wave held between its samples (zero-order hold, as the lab's 1 kHz loop).
 """
 from __future__ import annotations
@@ -18,7 +20,8 @@ class TipStateFeedback:
     """V = K1 (r - theta) - K2 d - K3 theta_dot - K4 d_dot for one joint."""
 
     def __init__(self, gains, reference_t, reference, gauge_sign: float = 1.0,
-                 gauge_bias: float = 0.0, voltage_limit: float = np.inf):
+                 gauge_bias: float = 0.0, voltage_limit: float = np.inf,
+                 voltage_offset: float = 0.0):
         k = np.asarray(gains, float).reshape(-1)
         if k.shape != (4,) or not np.all(np.isfinite(k)):
             raise ValueError(f"gains: got {np.asarray(gains).tolist()}; expected 4 finite "
@@ -27,6 +30,9 @@ class TipStateFeedback:
             raise ValueError(f"gauge_sign: got {gauge_sign!r}; expected +1 or -1")
         if not voltage_limit > 0:
             raise ValueError(f"voltage_limit: got {voltage_limit!r}; expected > 0 V")
+        if not np.isfinite(voltage_offset):
+            raise ValueError(f"voltage_offset: got {voltage_offset!r}; expected a finite "
+                             "voltage (V)")
         self.gains = k
         self.t_ref = np.asarray(reference_t, float)
         self.ref = np.asarray(reference, float)
@@ -35,6 +41,7 @@ class TipStateFeedback:
         self.gauge_sign = float(gauge_sign)
         self.gauge_bias = float(gauge_bias)
         self.voltage_limit = float(voltage_limit)
+        self.voltage_offset = float(voltage_offset)
 
     def reference_at(self, t: float) -> float:
         """The held reference sample at t (rad)."""
@@ -47,7 +54,8 @@ class TipStateFeedback:
         k1, k2, k3, k4 = self.gains
         d = self.gauge_sign * deflection + self.gauge_bias
         dd = self.gauge_sign * deflection_rate
-        v = k1 * (self.reference_at(t) - theta) - k2 * d - k3 * theta_rate - k4 * dd
+        v = (k1 * (self.reference_at(t) - theta) - k2 * d - k3 * theta_rate - k4 * dd
+             + self.voltage_offset)
         return float(np.clip(v, -self.voltage_limit, self.voltage_limit))
 
     def policy(self, model) -> Callable:
@@ -63,11 +71,12 @@ class TipStateFeedback:
         return policy
 
 
-def lab_controller(run, voltage_limit: float = np.inf) -> TipStateFeedback:
+def lab_controller(run, voltage_limit: float = np.inf,
+                   voltage_offset: float = 0.0) -> TipStateFeedback:
     """The lab's law of a recorded run (flex_twin.real_arms.quanser_data.LabRun): its
     gains, its reference, its gauge sign and bias."""
     return TipStateFeedback(run.gains, run.t, run.reference, run.gauge_sign(),
-                            run.gauge_bias(), voltage_limit)
+                            run.gauge_bias(), voltage_limit, voltage_offset)
 
 
 def lab_policy_factory(run, model) -> Callable:

@@ -20,6 +20,13 @@ def test_law_and_held_reference():
     assert law.reference_at(1.0) == -0.1 and law.reference_at(0.5) == 0.1
     with pytest.raises(ValueError, match="gains"):
         TipStateFeedback([1.0, 2.0], [0.0], [0.0])
+    # a voltage offset V_0 is added before the clipping (0.246 - 0.15 V clipped to 0.05)
+    off = TipStateFeedback([6.0, -3.0, 0.2, 0.1], [0.0, 1.0], [0.1, -0.1], gauge_sign=-1.0,
+                           gauge_bias=0.002, voltage_limit=0.05, voltage_offset=-0.15)
+    assert off.voltage(0.999, 0.05, 0.4, 0.01, 0.5) == pytest.approx(
+        min(expect - 0.15, 0.05), rel=1e-14)
+    with pytest.raises(ValueError, match="voltage_offset"):
+        TipStateFeedback([1.0, 2.0, 0.0, 0.0], [0.0], [0.0], voltage_offset=np.nan)
 
 
 def test_closed_loop_settles_on_the_reference_without_friction():

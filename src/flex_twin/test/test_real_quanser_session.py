@@ -9,7 +9,7 @@ from flex_model.dynamics import FlexArmModel
 from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.quanser_twin import calibrated_arm_for
 from flex_twin.real_arms.replay import replay
-from flex_twin.real_arms.session_friction import compare, first_step_end
+from flex_twin.real_arms.session_friction import choice_end, compare
 from flex_twin.real_arms.stick_slip_study import hold_stick_spread, with_stick_slip
 
 state_feedback = pytest.importorskip("flex_control.state_feedback")
@@ -28,13 +28,12 @@ def test_the_first_step_chooses_the_sessions_friction_and_the_rest_of_the_run_fo
     (0-3.07 s) alone, F_c is 0.08 N m, and on the rest of the run, which the choice did not
     see, hub RMS 0.0242 rad and tip RMS 3.30 mm (fixed: 5.62 mm)."""
     run = _issue_run(cuboulder_root)
-    row = compare(calibrated_arm_for("cuboulder", "flexible"), run,
-                  state_feedback.lab_policy_factory, 0.04, 0.055)
-    assert row["scored_from_s"] == pytest.approx(run.t[first_step_end(run)]) == \
+    row = compare(calibrated_arm_for("cuboulder", "flexible"), run, 0.04, 0.055)
+    assert row["scored_from_s"] == pytest.approx(run.t[choice_end(run)]) == \
         pytest.approx(3.074)
     assert row["session_coulomb"] == 0.08
-    table = row["first_step_table"]
-    assert min(table.values()) == table[0.08] < 0.5 * table[0.04]
+    table = row["choice_table"]
+    assert min(table.values()) == table["0.08"] < 0.5 * table["0.04"]
     assert row["calibrated"]["hub_rms_rad"] == pytest.approx(0.0585, abs=1e-3)
     assert row["fixed"]["hub_rms_rad"] == pytest.approx(0.0575, abs=1e-3)
     assert row["session"]["hub_rms_rad"] == pytest.approx(0.0242, abs=1e-3)
@@ -69,5 +68,23 @@ def test_a_run_too_short_after_its_second_step_is_not_scored(cuboulder_root):
     step, less than one 2.5 s hold, mostly the step's transient: no session score."""
     path = next(p for p in qd.cuboulder_files(cuboulder_root)
                 if p.name == "flexarm_K1K2K3_6_-3_213")
-    with pytest.raises(ValueError, match="0.94 s after its second step"):
-        first_step_end(qd.read_cuboulder_file(path))
+    with pytest.raises(ValueError, match="0.94 s after its step 2"):
+        choice_end(qd.read_cuboulder_file(path))
+
+
+def test_a_constant_hub_torque_chosen_on_the_first_period_places_both_directions(
+        cuboulder_root):
+    """flexarm_K1K2_6_-5 stops 59 and 65 mrad short after its up-steps, 15 and 28 after its
+    down-steps. Chosen on its first period (0-6.185 s, one up- and one down-step) F_c alone
+    (0.07 N m) leaves 0.0203 rad hub RMS on the rest; F_c with a voltage offset (0.07 N m,
+    -0.15 V = -24 mN m at the hub) 0.0082 rad, under the aim (fixed levels: 0.065)."""
+    path = next(p for p in qd.cuboulder_files(cuboulder_root) if p.name == "flexarm_K1K2_6_-5")
+    row = compare(calibrated_arm_for("cuboulder", "flexible"), qd.read_cuboulder_file(path),
+                  0.04, 0.055, steps=2, offsets=(-0.2, -0.15, -0.1, 0.0),
+                  levels=(0.06, 0.07, 0.08))
+    assert row["scored_from_s"] == pytest.approx(6.185, abs=1e-3)
+    assert (row["session_coulomb"], row["session_offset_coulomb"]) == (0.07, 0.07)
+    assert row["session_offset_V"] == -0.15
+    assert row["fixed"]["hub_rms_rad"] == pytest.approx(0.0652, abs=1e-3)
+    assert row["session"]["hub_rms_rad"] == pytest.approx(0.0203, abs=1e-3)
+    assert row["session_offset"]["hub_rms_rad"] == pytest.approx(0.0082, abs=5e-4)

@@ -289,8 +289,9 @@ def add_real_arm_parsers(sub) -> None:
     _data_option(sp2)
     sp2.add_argument("--out", default="runs/quanser-stick-slip", help="output directory")
     sp2.add_argument("--session", action="store_true",
-                     help="also a twin with F_c from each held-out run's first step, every "
-                     "twin scored after that step (a few more minutes)")
+                     help="also twins with F_c from each held-out run's first step, and with "
+                     "F_c and a voltage offset from its first period, every twin scored after "
+                     "that (about 10 more CPU-minutes)")
     sp2.add_argument("--json", action="store_true")
     sp2.set_defaults(func=cmd_stick_slip)
     up = rsub.add_parser("units", help="the twin per hardware unit: each unit's own link "

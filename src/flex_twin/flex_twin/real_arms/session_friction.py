@@ -1,13 +1,17 @@
-"""A twin that takes its hub's Coulomb friction from the run's own first step (issue 22).
+"""A twin that takes its hub's friction, and a constant hub torque, from the run's own
+start (issue 22).
 
 The CU Boulder sessions hold different frictions: Hagenau's K1K2 runs stick 59-65 mrad
 short at ~0.07 N m where the K1K2K3 runs reach the reference, and the rigid-bar runs of
-different sessions want different levels. One fixed twin cannot follow both. Here the
-stick-slip twin's F_c is set per run from the first step alone (the reference's first
-square-wave period: from the start to the second step) on a lattice, and every twin is
-scored on the rest of the run only, which the choice did not see. The difference between
-the fixed and the session twin's score is what the sessions' friction spread costs a twin
-of fixed levels.
+different sessions want different levels. Within a session the up- and down-steps stop
+short by different amounts (flexarm_K1K2_6_-5: 59-65 against 15-28 mrad), as a constant
+torque at the hub would make them (a cable's pull, an amplifier offset: the law's
+``voltage_offset`` V_0). One fixed twin cannot follow either. Here the stick-slip twin's
+F_c (and V_0) are set per run from its start alone on a lattice: from the first step
+(``steps=1``: the start to the second step), or from the first period (``steps=2``: to the
+third step, one up- and one down-step, which V_0 needs); every twin is then scored on the
+rest of the run only, which the choice did not see. What the fixed twin loses against the
+session twins is what the sessions' spread costs a twin of fixed levels.
 """
 from __future__ import annotations
 
@@ -17,24 +21,27 @@ from flex_model.dynamics import FlexArmModel
 from .replay import _rms, replay
 from .stick_slip_study import with_stick_slip
 
-#: the lattice of Coulomb levels (N m at the hub) the first step chooses from
+#: the lattice of Coulomb levels (N m at the hub) the start chooses from
 LEVELS = tuple(np.round(np.arange(0.02, 0.105, 0.01), 3))
-#: the least scored time after the second step (s): one hold of the CU Boulder square wave
+#: the lattice of voltage offsets V_0 (V; 0.157 N m/V at the hub)
+OFFSETS = tuple(np.round(np.arange(-0.25, 0.2505, 0.05), 3))
+#: the least scored time after the choice window (s): one hold of the CU Boulder square wave
 MIN_SCORED = 2.5
 
 
-def first_step_end(run) -> int:
-    """Sample index of the run's second reference step (the first step's window ends);
-    ValueError when the run has no second step or less than :data:`MIN_SCORED` after it
-    (10 s runs with two steps 5 s apart leave 0.5-3.4 s)."""
-    steps = run.step_indices()
-    if len(steps) < 2:
-        raise ValueError(f"{run.name}: {len(steps)} reference step(s); the session level "
-                         "needs a first step and a later one to score on")
-    if run.t[-1] - run.t[steps[1]] < MIN_SCORED:
-        raise ValueError(f"{run.name}: {run.t[-1] - run.t[steps[1]]:.2f} s after its second "
-                         f"step; at least {MIN_SCORED} s needed to score on")
-    return int(steps[1])
+def choice_end(run, steps: int = 1) -> int:
+    """Sample index of the run's reference step number ``steps`` + 1 (the choice window
+    ends there); ValueError when the run has no such step or less than :data:`MIN_SCORED`
+    after it (10 s runs with two steps 5 s apart leave 0.5-3.4 s after the second)."""
+    idx = run.step_indices()
+    if len(idx) < steps + 1:
+        raise ValueError(f"{run.name}: {len(idx)} reference step(s); choosing on {steps} "
+                         "needs a later one to score on")
+    left = run.t[-1] - run.t[idx[steps]]
+    if left < MIN_SCORED:
+        raise ValueError(f"{run.name}: {left:.2f} s after its step {steps + 1}; at least "
+                         f"{MIN_SCORED} s needed to score on")
+    return int(idx[steps])
 
 
 def window_errors(result, start: int) -> tuple:
@@ -46,40 +53,66 @@ def window_errors(result, start: int) -> tuple:
     return hub, _rms(result.twin_deflection[start:] - run.deflection[start:n])
 
 
-def session_coulomb(arm, run, make_policy, static: float, levels=LEVELS) -> tuple:
-    """The F_c of ``levels`` whose stick-slip twin (F_s = max(F_c, ``static``)) follows the
-    hub over the first step best (least hub RMS up to :func:`first_step_end`).
-    Returns (F_c, {F_c: hub RMS})."""
-    end = first_step_end(run)
+def lab_policy(voltage_offset: float = 0.0):
+    """The replay's ``make_policy``: the run's lab law with a voltage offset V_0."""
+    from flex_control.state_feedback import lab_controller
+
+    def make(run, model):
+        return lab_controller(run, voltage_offset=voltage_offset).policy(model)
+    return make
+
+
+def session_levels(arm, run, static: float, steps: int = 1, levels=LEVELS,
+                   offsets=(0.0,)) -> tuple:
+    """The (F_c, V_0) of ``levels`` x ``offsets`` whose stick-slip twin (F_s = max(F_c,
+    ``static``)) follows the hub best over the choice window (least hub RMS up to
+    :func:`choice_end`). Returns ((F_c, V_0), {(F_c, V_0): hub RMS})."""
+    end = choice_end(run, steps)
     table = {}
     for fc in levels:
-        twin = with_stick_slip(arm, coulomb=float(fc), static=max(float(fc), static))
-        r = replay(FlexArmModel(twin), run, make_policy, t_final=float(run.t[end]))
-        table[float(fc)] = window_errors(r, 0)[0]
+        model = FlexArmModel(with_stick_slip(arm, coulomb=float(fc),
+                                             static=max(float(fc), static)))
+        for v0 in offsets:
+            r = replay(model, run, lab_policy(float(v0)), t_final=float(run.t[end]))
+            table[(float(fc), float(v0))] = window_errors(r, 0)[0]
     return min(table, key=table.get), table
 
 
-def compare(arm, run, make_policy, coulomb: float, static: float) -> dict:
-    """The calibrated twin ``arm``, its stick-slip twin of fixed levels (``coulomb``,
-    ``static``) and the session twin (F_c from the first step) scored after the first step."""
-    end = first_step_end(run)
-    fc, table = session_coulomb(arm, run, make_policy, static)
-    row = {"run": run.name, "scored_from_s": float(run.t[end]), "session_coulomb": fc,
-           "first_step_table": table}
-    for label, twin in (("calibrated", arm),
-                        ("fixed", with_stick_slip(arm, coulomb=coulomb, static=static)),
-                        ("session", with_stick_slip(arm, coulomb=fc, static=max(fc, static)))):
-        hub, tip = window_errors(replay(FlexArmModel(twin), run, make_policy), end)
+def compare(arm, run, coulomb: float, static: float, steps: int = 1,
+            offsets=(0.0,), levels=LEVELS) -> dict:
+    """Scored after the choice window (:func:`choice_end`): the calibrated twin ``arm``, its
+    stick-slip twin of fixed levels (``coulomb``, ``static``), the session twin (F_c chosen
+    on the window) and, with more than one offset, the session twin with F_c and V_0
+    chosen together."""
+    end = choice_end(run, steps)
+    (fc, _), table = session_levels(arm, run, static, steps, levels, (0.0,))
+    row = {"run": run.name, "steps_chosen_on": steps, "scored_from_s": float(run.t[end]),
+           "session_coulomb": fc, "choice_table": {f"{k[0]:g}": v for k, v in table.items()}}
+    twins = [("calibrated", arm, 0.0),
+             ("fixed", with_stick_slip(arm, coulomb=coulomb, static=static), 0.0),
+             ("session", with_stick_slip(arm, coulomb=fc, static=max(fc, static)), 0.0)]
+    if len(offsets) > 1:
+        (fo, v0), _ = session_levels(arm, run, static, steps, levels, offsets)
+        row.update(session_offset_coulomb=fo, session_offset_V=v0)
+        twins.append(("session_offset", with_stick_slip(arm, coulomb=fo,
+                                                        static=max(fo, static)), v0))
+    for label, twin, v in twins:
+        hub, tip = window_errors(replay(FlexArmModel(twin), run, lab_policy(v)), end)
         row[label] = {"hub_rms_rad": hub, "tip_rms_m": tip}
     return row
 
 
 def summarize(rows) -> dict:
-    """Medians over the rows (hub over all, tip over those with a gauge) per twin."""
+    """Medians over the rows (hub over all, tip over those with a gauge) per twin, and how
+    many rows have the hub under the 0.01 rad aim."""
     out = {"runs": len(rows)}
-    for label in ("calibrated", "fixed", "session"):
-        tips = [r[label]["tip_rms_m"] for r in rows if r[label]["tip_rms_m"] is not None]
-        out[label] = {"hub_rms_median_rad": float(np.median([r[label]["hub_rms_rad"]
-                                                             for r in rows])),
+    for label in ("calibrated", "fixed", "session", "session_offset"):
+        have = [r[label] for r in rows if label in r]
+        if not have:
+            continue
+        hub = np.array([m["hub_rms_rad"] for m in have])
+        tips = [m["tip_rms_m"] for m in have if m["tip_rms_m"] is not None]
+        out[label] = {"hub_rms_median_rad": float(np.median(hub)),
+                      "hub_under_aim": int(np.sum(hub < 0.01)),
                       "tip_rms_median_m": float(np.median(tips)) if tips else float("nan")}
     return out

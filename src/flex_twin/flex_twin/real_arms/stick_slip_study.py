@@ -199,15 +199,18 @@ def study(data, make_policy, out, progress=print, session: bool = False) -> dict
                    else "held out", "calibrated": mc, "stick_slip": ms,
                    "holds": hold_evidence(run), "spread": hold_stick_spread(run)}
             if session and row["role"] == "held out":
-                from .session_friction import compare
-                try:
-                    row["session"] = compare(cal, run, make_policy, fc, fs)
-                    progress("  after the first step, hub calibrated / fixed / session "
-                             + " / ".join(f"{row['session'][k]['hub_rms_rad']:.4f}" for k in
-                                          ("calibrated", "fixed", "session"))
-                             + f" rad (session F_c {row['session']['session_coulomb']:.2f})")
-                except ValueError as exc:   # too short to score after the second step
-                    progress(f"  no session score: {exc}")
+                from .session_friction import OFFSETS, compare
+                for key, steps, offsets in (("session", 1, (0.0,)),
+                                            ("session_period", 2, OFFSETS)):
+                    try:
+                        row[key] = compare(cal, run, fc, fs, steps, offsets)
+                    except ValueError as exc:   # too short to score after the window
+                        progress(f"  no {key} score: {exc}")
+                        continue
+                    progress(f"  {key}: hub after step {steps + 1}, "
+                             + " / ".join(f"{k} {row[key][k]['hub_rms_rad']:.4f}" for k in
+                                          ("calibrated", "fixed", "session",
+                                           "session_offset") if k in row[key]) + " rad")
             report["runs"].append(row)
             progress(f"{name}: hub {mc['hub_rms_rad']:.4f} -> {ms['hub_rms_rad']:.4f} rad"
                      + (f", tip {1e3 * mc['tip_rms_m']:.2f} -> {1e3 * ms['tip_rms_m']:.2f}"
@@ -285,16 +288,22 @@ def write_markdown(report: dict, path) -> None:
         lines.append(f"| {r['run']} | {r['kind']} | {r['role']} | {c['hub_rms_rad']:.4f} -> "
                      f"{t['hub_rms_rad']:.4f} | {tip} | "
                      f"{r['spread']['symmetric_rms_rad']:.4f} |")
-    rows = [r["session"] for r in report["runs"] if "session" in r]
-    if rows:
-        from .session_friction import MIN_SCORED, summarize as session_summary
+    from .session_friction import MIN_SCORED, summarize as session_summary
+    for key, what in (("session", "F_c chosen on the first step (to the second step)"),
+                      ("session_period", "F_c and V_0 chosen on the first period (to the "
+                       "third step)")):
+        rows = [r[key] for r in report["runs"] if key in r]
+        if not rows:
+            continue
         m = session_summary(rows)
-        lines += ["", f"Scored after each run's first step ({m['runs']} held-out runs with "
-                  f"at least {MIN_SCORED} s after their second step; the session twin's F_c "
-                  "chosen on the first step alone):", "",
-                  "| twin | hub RMS median (rad) | tip RMS median (mm) |", "|---|---|---|"]
-        for label in ("calibrated", "fixed", "session"):
-            lines.append(f"| {label} | {m[label]['hub_rms_median_rad']:.4f} | "
-                         f"{1e3 * m[label]['tip_rms_median_m']:.2f} |")
+        lines += ["", f"Session twins, {what}; scored after it on the {m['runs']} held-out "
+                  f"runs with at least {MIN_SCORED} s left:", "",
+                  "| twin | hub RMS median (rad) | runs under 0.01 rad | tip RMS median (mm) |",
+                  "|---|---|---|---|"]
+        for label in ("calibrated", "fixed", "session", "session_offset"):
+            if label in m:
+                lines.append(f"| {label} | {m[label]['hub_rms_median_rad']:.4f} | "
+                             f"{m[label]['hub_under_aim']} | "
+                             f"{1e3 * m[label]['tip_rms_median_m']:.2f} |")
     from pathlib import Path
     Path(path).write_text("\n".join(lines) + "\n")
