@@ -65,12 +65,6 @@ def hold_evidence(run, gear=48.4, km=0.0107, rm=3.29, last: float = 1.0) -> list
     return out
 
 
-def _kind(name: str) -> str:
-    from .calibration import CUBOULDER_SPLIT
-    rigid = CUBOULDER_SPLIT["servo_fit"] + CUBOULDER_SPLIT["servo_holdout"]
-    return "rigid" if name in rigid else "flexible"
-
-
 def replay_metrics(arm, run, make_policy) -> dict:
     """Hub/tip RMS and ring-down of one replay (:func:`.replay.replay`, states [q; v; z])."""
     from flex_model.dynamics import FlexArmModel
@@ -165,8 +159,8 @@ def study(data, make_policy, out, progress=print, session: bool = False) -> dict
     """The stick-slip twins (servo levels refitted on the rigid fit runs, link levels on
     the flexible fit runs, the rest of the calibrated twins kept) on every CU Boulder
     run; the hold evidence (backlash or stiction) and the lab's step-to-step spread.
-    ``session``: also the twins with F_c from each held-out run's first step
-    (:mod:`.session_friction`), all scored after that step."""
+    ``session``: also the held-out runs' session twins (:mod:`.session_friction`): F_c
+    from the first step, and F_c with a voltage offset from the first period."""
     import json
     from pathlib import Path
     from .calibration import CUBOULDER_SPLIT
@@ -176,7 +170,7 @@ def study(data, make_policy, out, progress=print, session: bool = False) -> dict
     out.mkdir(parents=True, exist_ok=True)
     runs = read_cuboulder(Path(data) / CUBOULDER)
     report = {"levels": {}, "grid": {}, "runs": []}
-    # where the search starts: the grids of the first study (2026-11), grown past edges
+    # the lattice search starts from the best of the first study's grids (2026-11)
     grids = {"rigid": ((0.04, 0.05, 0.06), (0.08, 0.1)),
              "flexible": ((0.05, 0.06, 0.07), (0.1, 0.12))}
     fit_runs = {"rigid": CUBOULDER_SPLIT["servo_fit"], "flexible": CUBOULDER_SPLIT["link_fit"]}
