@@ -20,6 +20,12 @@ def _policy_factory():
     return lab_policy_factory   # reads q and v of x = [q; v; z] (z: stick-slip bristles)
 
 
+def _print_report(args, report, markdown: Path) -> int:
+    """A study's report on stdout: its JSON with ``--json``, else its markdown file."""
+    print(json.dumps(report, indent=1, default=float) if args.json else markdown.read_text())
+    return 0
+
+
 def _progress(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
@@ -100,11 +106,7 @@ def cmd_report(args) -> int:
     out = Path(args.out or "runs/real-arm-report")
     report = build_report(data_root(args.data), _policy_factory(), out, _progress,
                           diagnoses=args.diagnosis or ())
-    if args.json:
-        print(json.dumps(report, indent=1, default=float))
-    else:
-        print((out / "report.md").read_text())
-    return 0
+    return _print_report(args, report, out / "report.md")
 
 
 def cmd_stick_slip(args) -> int:
@@ -114,11 +116,7 @@ def cmd_stick_slip(args) -> int:
     report = study(data_root(args.data), _policy_factory(), out, _progress,
                    session=args.session)
     write_markdown(report, out / "stick_slip.md")
-    if args.json:
-        print(json.dumps(report, indent=1, default=float))
-    else:
-        print((out / "stick_slip.md").read_text())
-    return 0
+    return _print_report(args, report, out / "stick_slip.md")
 
 
 def cmd_units(args) -> int:
@@ -128,11 +126,7 @@ def cmd_units(args) -> int:
     out = Path(args.out)
     report = study(read_cuboulder(data_root(args.data) / CUBOULDER), _policy_factory(), out,
                    fit=args.fit, progress=_progress, max_nfev=args.max_evaluations)
-    if args.json:
-        print(json.dumps(report, indent=1, default=float))
-    else:
-        print((out / "units.md").read_text())
-    return 0
+    return _print_report(args, report, out / "units.md")
 
 
 def cmd_floor(args) -> int:
@@ -144,11 +138,7 @@ def cmd_floor(args) -> int:
         report = study(data_root(args.data), executor, _progress, args.max_evaluations,
                        out=out)
     write_report(report, out)
-    if args.json:
-        print(json.dumps(report, indent=1, default=float))
-    else:
-        print((out / "run_floor.md").read_text())
-    return 0
+    return _print_report(args, report, out / "run_floor.md")
 
 
 def cmd_two_mass(args) -> int:
@@ -188,11 +178,7 @@ def cmd_transfer(args) -> int:
     out = Path(args.out or Path(args.diagnosis) / "transfer")
     result = transfer(args.diagnosis, data_root(args.data), _policy_factory(), out, _progress,
                       runs=tuple(args.runs) if args.runs else None)
-    if args.json:
-        print(json.dumps(result, indent=1, default=float))
-    else:
-        print((out / "transfer.md").read_text())
-    return 0
+    return _print_report(args, result, out / "transfer.md")
 
 
 def cmd_diagnose(args) -> int:

@@ -210,15 +210,15 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
     out = ReplayResult(run=run, arm_name=model.arm.name, mode=mode, t=t, twin_theta=theta,
                        twin_deflection=defl, twin_voltage=res.u[:n, 0])
     e_th = theta - run.theta[:n]
+    steps = run.step_indices()
     out.metrics = {"hub_rms_rad": _rms(e_th), "hub_peak_rad": float(np.max(np.abs(e_th))),
                    "hub_transient_share": transient_share(
-                       e_th, run.step_indices(), int(round(TRANSIENT / run.dt))),
+                       e_th, steps, int(round(TRANSIENT / run.dt))),
                    "voltage_rms_V": _rms(out.twin_voltage - run.voltage[:n]),
                    "gauge_sign": sign, "gauge_bias_m": bias, "duration_s": float(t[-1])}
     if run.has_gauge:
         e_d = defl - run.deflection[:n]
         out.metrics.update(tip_rms_m=_rms(e_d), tip_peak_m=float(np.max(np.abs(e_d))))
-        steps = run.step_indices()
         steps = steps[steps < n - 100]
         meas, lab_hold = _lab_ringing(run, n, steps)
         twin = ring_downs(t, defl, steps)

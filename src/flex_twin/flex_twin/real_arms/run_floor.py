@@ -28,9 +28,6 @@ HELD_OUT = CUBOULDER_SPLIT["servo_holdout"] + CUBOULDER_SPLIT["link_holdout"] + 
 
 #: upper bounds wider than the calibration's (F_s - F_c 0.2 N m, Rayleigh a 5 1/s)
 UPPER = {"static_excess": 0.4, "rayleigh_mass": 10.0}
-#: replay metrics kept per twin
-METRICS = ("hub_rms_rad", "tip_rms_m", "ring_freq_error_pct", "ring_damping_measured",
-           "ring_damping_twin", "hold_freq_error_pct")
 
 
 def run_parameters(arm, kind: str) -> list:
@@ -71,6 +68,7 @@ def fit_run(data_root: str, name: str, max_nfev: int = 12, out: str | None = Non
     from .calibration import replay_residual
     from .quanser_data import CUBOULDER, read_cuboulder_file, cuboulder_files
     from .replay import plot_replay, replay
+    from .report import metrics_row
     path = next((p for p in cuboulder_files(Path(data_root) / CUBOULDER) if p.name == name),
                 None)
     if path is None:
@@ -79,8 +77,8 @@ def fit_run(data_root: str, name: str, max_nfev: int = 12, out: str | None = Non
     kind = run.kind
     twins = starts(name, kind)
     cost = {k: float(np.sqrt(np.mean(replay_residual(a, [run], lab_policy_factory) ** 2)))
-            for k, a in twins.items()} if len(twins) > 1 else {"shared": None}
-    start = min(cost, key=lambda k: cost[k] or 0.0)
+            for k, a in twins.items()} if len(twins) > 1 else {}
+    start = min(cost, key=cost.get) if cost else "shared"
     res = calibrate(twins[start], [run], run_parameters(twins[start], kind),
                     lab_policy_factory, stage="run", max_nfev=max_nfev)
     row = {"run": name, "kind": kind, "start": start, "start_costs": cost,
@@ -91,7 +89,7 @@ def fit_run(data_root: str, name: str, max_nfev: int = 12, out: str | None = Non
         r = replay(FlexArmModel(twin), run, lab_policy_factory)
         r.arm_name = {"calibrated": "calibrated", "run_fit": "fitted to this run"}[label]
         replays.append(r)
-        row[label] = {k: r.metrics.get(k) for k in METRICS}
+        row[label] = metrics_row(r)
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
         plot_replay(replays, Path(out) / f"floor_{name.replace('.', '_')}.png")

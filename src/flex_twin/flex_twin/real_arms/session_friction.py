@@ -24,7 +24,7 @@ from .stick_slip_study import with_stick_slip
 #: the lattice of Coulomb levels (N m at the hub) the start chooses from
 LEVELS = tuple(np.round(np.arange(0.02, 0.105, 0.01), 3))
 #: the lattice of voltage offsets V_0 (V; 0.157 N m/V at the hub)
-OFFSETS = tuple(np.round(np.arange(-0.25, 0.2505, 0.05), 3))
+OFFSETS = tuple(np.round(np.arange(-0.25, 0.2505, 0.05), 3) + 0.0)   # + 0.0: no -0.0
 #: the least scored time after the choice window (s): one hold of the CU Boulder square wave
 MIN_SCORED = 2.5
 
@@ -85,14 +85,16 @@ def compare(arm, run, coulomb: float, static: float, steps: int = 1,
     on the window) and, with more than one offset, the session twin with F_c and V_0
     chosen together."""
     end = choice_end(run, steps)
-    (fc, _), table = session_levels(arm, run, static, steps, levels, (0.0,))
+    (fo, v0), table = session_levels(arm, run, static, steps, levels,
+                                     tuple(offsets) + (() if 0.0 in offsets else (0.0,)))
+    alone = {k: v for k, v in table.items() if k[1] == 0.0}
+    fc = min(alone, key=alone.get)[0]
     row = {"run": run.name, "steps_chosen_on": steps, "scored_from_s": float(run.t[end]),
-           "session_coulomb": fc, "choice_table": {f"{k[0]:g}": v for k, v in table.items()}}
+           "session_coulomb": fc, "choice_table": {f"{k[0]:g}": v for k, v in alone.items()}}
     twins = [("calibrated", arm, 0.0),
              ("fixed", with_stick_slip(arm, coulomb=coulomb, static=static), 0.0),
              ("session", with_stick_slip(arm, coulomb=fc, static=max(fc, static)), 0.0)]
     if len(offsets) > 1:
-        (fo, v0), _ = session_levels(arm, run, static, steps, levels, offsets)
         row.update(session_offset_coulomb=fo, session_offset_V=v0)
         twins.append(("session_offset", with_stick_slip(arm, coulomb=fo,
                                                         static=max(fo, static)), v0))

@@ -66,12 +66,12 @@ def hold_evidence(run, gear=48.4, km=0.0107, rm=3.29, last: float = 1.0) -> list
 
 
 def replay_metrics(arm, run, make_policy) -> dict:
-    """Hub/tip RMS and ring-down of one replay (:func:`.replay.replay`, states [q; v; z])."""
+    """One replay (:func:`.replay.replay`, states [q; v; z]) and its
+    :func:`.report.metrics_row`."""
     from flex_model.dynamics import FlexArmModel
+    from .report import metrics_row
     r = replay(FlexArmModel(arm), run, make_policy)
-    return r, {k: r.metrics.get(k) for k in (
-        "hub_rms_rad", "hub_transient_share", "tip_rms_m", "ring_freq_measured_hz",
-        "ring_freq_twin_hz", "ring_freq_error_pct", "ring_damping_measured", "ring_damping_twin")}
+    return r, metrics_row(r)
 
 
 def level_cost(arm, runs, make_policy, coulomb: float, static: float) -> float:
