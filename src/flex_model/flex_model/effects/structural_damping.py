@@ -9,8 +9,9 @@ from .base import Effect, Parameter
 class StructuralDamping(Effect):
     """D_link += k_a int w' w'^T dz + a M_ff + b K_ff on the link's deformation block.
 
-    M_ff is the link's clamped deformation inertia (int w w^T m dz with the tip body), so
-    with joints clamped the modal damping ratios are zeta_k = a / (2 w_k) + b w_k / 2.
+    M_ff is the link's clamped deformation inertia (int w w^T m dz with the link's end
+    body; an arm's payload is not in it), so with joints clamped and no payload the modal
+    damping ratios are zeta_k = a / (2 w_k) + b w_k / 2.
     """
 
     TYPE = "structural_damping"

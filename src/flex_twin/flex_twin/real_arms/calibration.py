@@ -183,8 +183,11 @@ class CalibrationResult:
 
 def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
               stage: str = "", t_final: float | None = None, max_nfev: int = 12,
-              progress: Callable | None = None) -> CalibrationResult:
-    """Bounded least squares of ``params`` (FitParameters) on the replay of ``runs``."""
+              progress: Callable | None = None,
+              arm_of: Callable | None = None) -> CalibrationResult:
+    """Bounded least squares of ``params`` (FitParameters) on the replay of ``runs``;
+    ``arm_of(arm, values)`` makes the trial arm (default :func:`apply_parameters`)."""
+    arm_of = arm_of or apply_parameters
     start = np.array([p.nominal if p.start is None else p.start for p in params])
     scale = np.array([max(abs(s), 1e-3 * p.upper) for s, p in zip(start, params)])
     lo = np.array([p.lower for p in params]) / scale
@@ -197,7 +200,7 @@ def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
     def fun(x):
         count[0] += 1
         vals = dict(zip(names, x * scale))
-        r = replay_residual(apply_parameters(arm, vals), runs, make_policy, t_final)
+        r = replay_residual(arm_of(arm, vals), runs, make_policy, t_final)
         cost = float(np.sqrt(np.mean(r ** 2)))
         if cost < best[0]:
             best[:] = [cost, x.copy()]
@@ -208,7 +211,7 @@ def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
     r0 = replay_residual(arm, runs, make_policy, t_final)  # the uncalibrated twin
     least_squares(fun, x0, bounds=(lo, hi), diff_step=0.05, max_nfev=max_nfev, x_scale=1.0)
     values = {n: float(v) for n, v in zip(names, best[1] * scale)}
-    return CalibrationResult(stage=stage, values=values, arm=apply_parameters(arm, values),
+    return CalibrationResult(stage=stage, values=values, arm=arm_of(arm, values),
                              cost_nominal=float(np.sqrt(np.mean(r0 ** 2))),
                              cost_fitted=best[0], evaluations=count[0],
                              runs=tuple(r.name for r in runs))

@@ -129,6 +129,17 @@ def cmd_units(args) -> int:
     return _print_report(args, report, out / "units.md")
 
 
+def cmd_holds(args) -> int:
+    from .quanser_data import CUBOULDER, read_cuboulder
+    from .quanser_twin import data_root
+    from .stuck_holds import study, write_report
+    out = Path(args.out)
+    report = study(read_cuboulder(data_root(args.data) / CUBOULDER), _policy_factory(),
+                   _progress, fit_link=args.fit, max_nfev=args.max_evaluations)
+    write_report(report, out)
+    return _print_report(args, report, out / "stuck_holds.md")
+
+
 def cmd_floor(args) -> int:
     from flex_twin.cluster import batch_executor
     from .quanser_twin import data_root
@@ -290,6 +301,17 @@ def add_real_arm_parsers(sub) -> None:
     up.add_argument("--max-evaluations", type=int, default=12)
     up.add_argument("--json", action="store_true")
     up.set_defaults(func=cmd_units)
+    hp = rsub.add_parser("holds", help="the link's ringing while the lab hub sticks: "
+                         "frequency and damping per stuck stretch, the floor of a twin of "
+                         "one link frequency, the twins' clamped links (markdown, PNG, JSON; "
+                         "--fit: a twin with that link, ~3 CPU-min)")
+    _data_option(hp)
+    hp.add_argument("--out", default="runs/quanser-holds", help="output directory")
+    hp.add_argument("--fit", action="store_true", help="refit Hagenau's twin around the "
+                    "link of its fit runs' stuck stretches and replay its held-out runs")
+    hp.add_argument("--max-evaluations", type=int, default=12)
+    hp.add_argument("--json", action="store_true")
+    hp.set_defaults(func=cmd_holds)
     fp = rsub.add_parser("floor", help="the model's floor: the calibration's parameters "
                          "fitted to each held-out run itself (markdown, JSON, PNG; ~15 CPU-min)")
     _data_option(fp)

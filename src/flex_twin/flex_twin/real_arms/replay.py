@@ -28,7 +28,7 @@ RING_WINDOW = 1.6
 RING_MIN = 0.4
 #: a hold's ringing is measured from this long after its step (s)
 HOLD_SETTLE = 1.0
-#: the first TRANSIENT seconds after a step are its transient (hub_transient_share)
+#: the first TRANSIENT seconds after a step are its transient (hub_ and tip_transient_share)
 TRANSIENT = 0.75
 
 
@@ -59,23 +59,36 @@ def ring_down(t, d, t_step: float, t_end: float) -> RingDown | None:
     tw, dw = t[win] - t[k0], d[win]
     if tw[-1] < RING_MIN or np.ptp(dw) < 2.5 * GAUGE_RESOLUTION:
         return None
-    dt = tw[1] - tw[0]
+    fit = fit_damped_cosine(tw, dw)
+    return RingDown(t_step=float(t_step), frequency_hz=fit["frequency_hz"],
+                    damping_ratio=fit["damping_ratio"], amplitude=fit["amplitude_m"])
+
+
+def fit_damped_cosine(tw, dw, f_band=(0.5, 10.0)) -> dict:
+    """d = A exp(-s t) cos(w t + phi) + c by least squares on a window (tw from 0): w
+    started at the peak of a zero-padded Hann-windowed FFT in ``f_band`` (Hz), A and phi at
+    the undamped cosine's linear fit. Returns frequency_hz (w / 2 pi), damping_ratio
+    (s / |s + i w|), amplitude_m, phase_rad, offset_m and residual_rms_m."""
+    tw, dw = np.asarray(tw, float), np.asarray(dw, float)
     spec = np.abs(np.fft.rfft((dw - dw.mean()) * np.hanning(len(dw)), n=2 ** 16))
-    freqs = np.fft.rfftfreq(2 ** 16, dt)
-    band = (freqs > 0.5) & (freqs < 10.0)
-    f0 = float(freqs[band][np.argmax(spec[band])])
+    freqs = np.fft.rfftfreq(2 ** 16, tw[1] - tw[0])
+    band = (freqs > f_band[0]) & (freqs < f_band[1])
+    w0 = 2 * np.pi * float(freqs[band][np.argmax(spec[band])])
+    basis = np.column_stack([np.cos(w0 * tw), np.sin(w0 * tw), np.ones_like(tw)])
+    ca, sa, c0 = np.linalg.lstsq(basis, dw, rcond=None)[0]
 
     def model(p):
         a, s, w, ph, c = p
         return a * np.exp(-s * tw) * np.cos(w * tw + ph) + c
 
-    p0 = [dw[0] - dw.mean(), 1.0, 2 * np.pi * f0, 0.0, dw.mean()]
+    p0 = [np.hypot(ca, sa), 1.0, w0, np.arctan2(-sa, ca), c0]
     fit = least_squares(lambda p: model(p) - dw, p0,
-                        bounds=([-1, 0, 2 * np.pi * 0.3, -np.pi, -1],
-                                [1, 50, 2 * np.pi * 12, np.pi, 1]))
-    a, s, w, _, _ = fit.x
-    return RingDown(t_step=float(t_step), frequency_hz=float(w / (2 * np.pi)),
-                    damping_ratio=float(s / np.hypot(s, w)), amplitude=float(abs(a)))
+                        bounds=([0, 0, 2 * np.pi * 0.3, -2 * np.pi, -1],
+                                [1, 50, 2 * np.pi * 12, 2 * np.pi, 1]))
+    a, s, w, ph, c = fit.x
+    return {"frequency_hz": float(w / (2 * np.pi)), "damping_ratio": float(s / np.hypot(s, w)),
+            "amplitude_m": float(a), "phase_rad": float(ph), "offset_m": float(c),
+            "residual_rms_m": float(np.sqrt(np.mean(fit.fun ** 2)))}
 
 
 def ring_downs(t, d, steps) -> list:
@@ -218,7 +231,9 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
                    "gauge_sign": sign, "gauge_bias_m": bias, "duration_s": float(t[-1])}
     if run.has_gauge:
         e_d = defl - run.deflection[:n]
-        out.metrics.update(tip_rms_m=_rms(e_d), tip_peak_m=float(np.max(np.abs(e_d))))
+        out.metrics.update(tip_rms_m=_rms(e_d), tip_peak_m=float(np.max(np.abs(e_d))),
+                           tip_transient_share=transient_share(
+                               e_d, steps, int(round(TRANSIENT / run.dt))))
         steps = steps[steps < n - 100]
         meas, lab_hold = _lab_ringing(run, n, steps)
         twin = ring_downs(t, defl, steps)

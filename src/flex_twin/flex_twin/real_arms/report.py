@@ -99,7 +99,7 @@ def metrics_row(r) -> dict:
     """The errors and ring-down figures of a ReplayResult (None where not measured)."""
     m = r.metrics
     return {k: m.get(k) for k in ("hub_rms_rad", "hub_peak_rad", "hub_transient_share",
-                                  "tip_rms_m", "tip_peak_m",
+                                  "tip_rms_m", "tip_peak_m", "tip_transient_share",
                                   "ring_freq_measured_hz", "ring_freq_twin_hz",
                                   "ring_freq_error_pct", "ring_damping_measured",
                                   "ring_damping_twin", "hold_freq_measured_hz",

@@ -1,0 +1,92 @@
+"""Issue 22: the link's ringing while the lab hub sticks (flex_twin.real_arms.stuck_holds).
+Synthetic holds of known frequency and damping; the lab figures on ../shared (skips with a
+reason when it is absent)."""
+import numpy as np
+import pytest
+
+from flex_model.arm import load_arm
+from flex_twin.real_arms import quanser_data as qd
+from flex_twin.real_arms.replay import GAUGE_RESOLUTION
+from flex_twin.real_arms.stuck_holds import (hold_link, one_frequency_floor, stuck_holds,
+                                             twin_link)
+
+
+def _synthetic_run(freqs, zeta=0.006, amplitude=0.006):
+    """10 s at 1 kHz, steps at 0.5, 3.5 and 6.5 s; after each step the hub stops within
+    0.3 s and stays still while the tip rings at the hold's frequency, logged at 1 mm."""
+    t = np.arange(0.0, 10.0, 1e-3)
+    steps = [0.5, 3.5, 6.5]
+    ref = np.where(t < 0.5, 0.0, 0.1 * (-1.0) ** np.searchsorted(steps, t, "right"))
+    theta = np.zeros_like(t)
+    d = np.zeros_like(t)
+    for k, (t0, f) in enumerate(zip(steps, freqs)):
+        sel = t >= t0
+        target = 0.06 * (-1.0) ** (k + 1)
+        theta[sel] = target + (theta[t >= t0 - 1e-3][0] - target) * np.exp(-(t[sel] - t0) / 0.05)
+        tau = t[sel] - t0
+        wn = 2 * np.pi * f / np.sqrt(1 - zeta ** 2)
+        d[sel] = amplitude * np.exp(-zeta * wn * tau) * np.cos(2 * np.pi * f * tau + 0.4 * k)
+    theta = np.round(theta / 1e-3) * 1e-3
+    d = np.round(d / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
+    z = np.zeros_like(t)
+    return qd.LabRun(name="synthetic", lab="cuboulder", kind="flexible", t=t, theta=theta,
+                     deflection=d, theta_rate=z, deflection_rate=z, reference=ref,
+                     voltage=6.0 * (ref - theta), gains=np.array([6.0, 0.0, 0.0, 0.0]))
+
+
+def test_stuck_stretches_give_the_links_frequency_and_damping():
+    """Three holds ringing 6 mm at 1.79 / 1.93 / 1.97 Hz, zeta 0.006, logged at 1 mm with
+    the hub still: each stretch's frequency within 0.3 %, damping ratio within 0.002."""
+    freqs = (1.79, 1.93, 1.97)
+    holds = stuck_holds(_synthetic_run(freqs))
+    assert len(holds) == 3
+    for h, f in zip(holds, freqs):
+        assert h.frequency_hz == pytest.approx(f, rel=3e-3)
+        assert h.damping_ratio == pytest.approx(0.006, abs=2e-3)
+        assert h.amplitude_m == pytest.approx(0.006, rel=0.25)
+        assert h.residual_m < 0.4e-3                      # the 1 mm log: 0.29 mm RMS
+
+
+def test_one_frequency_floor_is_the_quantisation_when_the_holds_agree():
+    """Holds of one frequency: one common frequency fits as well as three own ones (the
+    log's 0.29 mm); holds of 1.79 and 1.97 Hz: a common frequency leaves over twice that."""
+    same = _synthetic_run((1.9, 1.9, 1.9))
+    floor = one_frequency_floor(same, stuck_holds(same))
+    assert floor["common_frequency_hz"] == pytest.approx(1.9, rel=2e-3)
+    assert floor["hold_rms_common_m"] == pytest.approx(floor["hold_rms_own_m"], abs=2e-5)
+    spread = _synthetic_run((1.79, 1.97, 1.79))
+    floor = one_frequency_floor(spread, stuck_holds(spread))
+    assert floor["hold_rms_common_m"] > 2.0 * floor["hold_rms_own_m"]
+    assert floor["run_floor_m"] < floor["hold_rms_common_m"]
+    assert one_frequency_floor(spread, []) is None
+
+
+def test_hold_link_sets_the_clamped_frequency_and_damping():
+    """The Hagenau twin's link set to 1.839 Hz, zeta 0.0067 (its fit runs' stuck
+    stretches): its clamped-hub modal analysis gives both back (to 0.01 %, 0.1 %)."""
+    arm = hold_link(load_arm("quanser_cuboulder_hagenau_calibrated"), 1.839, 0.0067)
+    f, zeta = twin_link(arm)
+    assert f == pytest.approx(1.839, rel=1e-4)   # damping not proportional: 6e-6
+    assert zeta == pytest.approx(0.0067, rel=1e-3)
+
+
+def test_the_lab_links_ringing_while_the_hub_sticks(cuboulder_root):
+    """Nine stuck stretches of five Hagenau runs (none on the others: their hubs keep
+    moving): 1.79-1.97 Hz, damping ratio median 0.006; one run rings at 1.965, 1.788 and
+    1.927 Hz in its three holds. A twin of one link frequency is held by that spread to
+    at most 0.64 mm tip RMS on a run. The shared calibrated twin's clamped link (1.724 Hz)
+    is below every stretch."""
+    runs = qd.read_cuboulder(cuboulder_root)
+    holds = {n: stuck_holds(r) for n, r in runs.items()}
+    stretches = [h for hs in holds.values() for h in hs]
+    assert len(stretches) == 9
+    assert {n for n, hs in holds.items() if hs} <= set(
+        n for n in runs if n.startswith("flexarm_"))
+    freq = np.array([h.frequency_hz for h in stretches])
+    assert 1.78 < freq.min() < 1.80 and 1.95 < freq.max() < 1.98
+    assert np.median([h.damping_ratio for h in stretches]) == pytest.approx(0.006, abs=1e-3)
+    assert [round(h.frequency_hz, 2) for h in holds["flexarm_K1K2_6_-5"]] == [1.97, 1.79, 1.93]
+    floors = [one_frequency_floor(runs[n], hs) for n, hs in holds.items() if hs]
+    assert max(f["run_floor_m"] for f in floors) == pytest.approx(0.64e-3, abs=0.03e-3)
+    shared = twin_link(load_arm("quanser_cuboulder_calibrated"))[0]
+    assert shared == pytest.approx(1.724, abs=1e-3) and shared < freq.min()
