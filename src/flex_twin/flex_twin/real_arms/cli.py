@@ -140,6 +140,17 @@ def cmd_holds(args) -> int:
     return _print_report(args, report, out / "stuck_holds.md")
 
 
+def cmd_link_response(args) -> int:
+    from flex_twin.cluster import batch_executor
+    from .link_response import study, write_report
+    from .quanser_twin import data_root
+    out = Path(args.out)
+    with batch_executor(args.scheduler, args.workers) as executor:
+        report = study(data_root(args.data), executor, _progress, args.runs or None, out=out)
+    write_report(report, out)
+    return _print_report(args, report, out / "link_response.md")
+
+
 def cmd_floor(args) -> int:
     from flex_twin.cluster import batch_executor
     from .quanser_twin import data_root
@@ -312,6 +323,17 @@ def add_real_arm_parsers(sub) -> None:
     hp.add_argument("--max-evaluations", type=int, default=12)
     hp.add_argument("--json", action="store_true")
     hp.set_defaults(func=cmd_holds)
+    lp = rsub.add_parser("link-response", help="the lab's link against its own hub angle: "
+                         "one linear mode fitted to each run, the twin's link driven by the "
+                         "lab's hub (markdown, JSON, PNG per run; ~5 CPU-min)")
+    _data_option(lp)
+    lp.add_argument("runs", nargs="*", help="run names (default: every run with a gauge)")
+    lp.add_argument("--out", default="runs/quanser-link", help="output directory")
+    lp.add_argument("--workers", type=int, default=None, help="parallel processes")
+    lp.add_argument("--scheduler", default=None, help="a Dask scheduler address or file "
+                    "(default: processes on this machine)")
+    lp.add_argument("--json", action="store_true")
+    lp.set_defaults(func=cmd_link_response)
     fp = rsub.add_parser("floor", help="the model's floor: the calibration's parameters "
                          "fitted to each held-out run itself (markdown, JSON, PNG; ~15 CPU-min)")
     _data_option(fp)

@@ -81,10 +81,9 @@ def fit_damped_cosine(tw, dw, f_band=(0.5, 10.0)) -> dict:
         a, s, w, ph, c = p
         return a * np.exp(-s * tw) * np.cos(w * tw + ph) + c
 
-    p0 = [np.hypot(ca, sa), 1.0, w0, np.arctan2(-sa, ca), c0]
-    fit = least_squares(lambda p: model(p) - dw, p0,
-                        bounds=([0, 0, 2 * np.pi * 0.3, -2 * np.pi, -1],
-                                [1, 50, 2 * np.pi * 12, 2 * np.pi, 1]))
+    lo, hi = [0, 0, 2 * np.pi * 0.3, -2 * np.pi, -1], [1, 50, 2 * np.pi * 12, 2 * np.pi, 1]
+    p0 = np.clip([np.hypot(ca, sa), 1.0, w0, np.arctan2(-sa, ca), c0], lo, hi)
+    fit = least_squares(lambda p: model(p) - dw, p0, bounds=(lo, hi))
     a, s, w, ph, c = fit.x
     return {"frequency_hz": float(w / (2 * np.pi)), "damping_ratio": float(s / np.hypot(s, w)),
             "amplitude_m": float(a), "phase_rad": float(ph), "offset_m": float(c),
