@@ -21,7 +21,7 @@ class TipStateFeedback:
 
     def __init__(self, gains, reference_t, reference, gauge_sign: float = 1.0,
                  gauge_bias: float = 0.0, voltage_limit: float = np.inf,
-                 voltage_offset: float = 0.0):
+                 voltage_offset: float = 0.0, gauge_gain: float = 1.0):
         k = np.asarray(gains, float).reshape(-1)
         if k.shape != (4,) or not np.all(np.isfinite(k)):
             raise ValueError(f"gains: got {np.asarray(gains).tolist()}; expected 4 finite "
@@ -30,6 +30,9 @@ class TipStateFeedback:
             raise ValueError(f"gauge_sign: got {gauge_sign!r}; expected +1 or -1")
         if not voltage_limit > 0:
             raise ValueError(f"voltage_limit: got {voltage_limit!r}; expected > 0 V")
+        if not (np.isfinite(gauge_gain) and gauge_gain > 0):
+            raise ValueError(f"gauge_gain: got {gauge_gain!r}; expected a finite number > 0 "
+                             "(the gauge reads gain x the tip deflection)")
         if not np.isfinite(voltage_offset):
             raise ValueError(f"voltage_offset: got {voltage_offset!r}; expected a finite "
                              "voltage (V)")
@@ -42,6 +45,7 @@ class TipStateFeedback:
         self.gauge_bias = float(gauge_bias)
         self.voltage_limit = float(voltage_limit)
         self.voltage_offset = float(voltage_offset)
+        self.gauge_gain = float(gauge_gain)
 
     def reference_at(self, t: float) -> float:
         """The held reference sample at t (rad)."""
@@ -52,8 +56,8 @@ class TipStateFeedback:
                 deflection_rate: float) -> float:
         """The motor voltage (V) for the twin's state (deflection in the twin's sign)."""
         k1, k2, k3, k4 = self.gains
-        d = self.gauge_sign * deflection + self.gauge_bias
-        dd = self.gauge_sign * deflection_rate
+        d = self.gauge_gain * self.gauge_sign * deflection + self.gauge_bias
+        dd = self.gauge_gain * self.gauge_sign * deflection_rate
         v = (k1 * (self.reference_at(t) - theta) - k2 * d - k3 * theta_rate - k4 * dd
              + self.voltage_offset)
         return float(np.clip(v, -self.voltage_limit, self.voltage_limit))
@@ -71,14 +75,17 @@ class TipStateFeedback:
         return policy
 
 
-def lab_controller(run, voltage_limit: float = np.inf,
-                   voltage_offset: float = 0.0) -> TipStateFeedback:
+def lab_controller(run, voltage_limit: float = np.inf, voltage_offset: float = 0.0,
+                   gauge_gain: float = 1.0) -> TipStateFeedback:
     """The lab's law of a recorded run (flex_twin.real_arms.quanser_data.LabRun): its
-    gains, its reference, its gauge sign and bias."""
+    gains, its reference, its gauge sign and bias; the gauge reads ``gauge_gain`` times
+    the twin's tip deflection."""
     return TipStateFeedback(run.gains, run.t, run.reference, run.gauge_sign(),
-                            run.gauge_bias(), voltage_limit, voltage_offset)
+                            run.gauge_bias(), voltage_limit, voltage_offset, gauge_gain)
 
 
 def lab_policy_factory(run, model) -> Callable:
-    """The closed-loop policy of a run on a twin (the replay's ``make_policy`` hook)."""
-    return lab_controller(run).policy(model)
+    """The closed-loop policy of a run on a twin (the replay's ``make_policy`` hook); the
+    gauge gain is the twin's ``tip_deflection`` sensor's (flex_model.sensors)."""
+    from flex_model.sensors import tip_deflection_gain
+    return lab_controller(run, gauge_gain=tip_deflection_gain(model.arm)).policy(model)

@@ -27,6 +27,14 @@ def test_law_and_held_reference():
         min(expect - 0.15, 0.05), rel=1e-14)
     with pytest.raises(ValueError, match="voltage_offset"):
         TipStateFeedback([1.0, 2.0, 0.0, 0.0], [0.0], [0.0], voltage_offset=np.nan)
+    # a gauge reading g times the deflection: the deflection terms see g d (g = 0.5)
+    half = TipStateFeedback([6.0, -3.0, 0.2, 0.1], [0.0, 1.0], [0.1, -0.1], gauge_sign=-1.0,
+                            gauge_bias=0.002, gauge_gain=0.5)
+    d_half, dd_half = -0.005 + 0.002, -0.25
+    assert half.voltage(0.999, 0.05, 0.4, 0.01, 0.5) == pytest.approx(
+        6.0 * 0.05 + 3.0 * d_half - 0.2 * 0.4 - 0.1 * dd_half, rel=1e-14)
+    with pytest.raises(ValueError, match="gauge_gain"):
+        TipStateFeedback([1.0, 2.0, 0.0, 0.0], [0.0], [0.0], gauge_gain=0.0)
 
 
 def test_closed_loop_settles_on_the_reference_without_friction():

@@ -2,7 +2,7 @@
 
 Each sensor turns a simulated trajectory into a measured signal:
 
-    y(t) = Q( x(t - delay) + bias + noise ),   Q = rounding to the resolution
+    y(t) = Q( gain x(t - delay) + bias + noise ),   Q = rounding to the resolution
 
 with white Gaussian noise of standard deviation ``noise`` (seeded, reproducible). Kinds:
 
@@ -14,7 +14,10 @@ with white Gaussian noise of standard deviation ``noise`` (seeded, reproducible)
   (x along the tip tangent), as the single-link arm of seed 000 carries;
 - ``strain_gauge``: surface bending strain -c d''(z) of a link at ``position`` (m from the
   link root), ``surface_distance`` c (m) from the neutral axis;
-- ``tip_position`` (m): x, y of the arm's end in the base frame.
+- ``tip_position`` (m): x, y of the arm's end in the base frame;
+- ``tip_deflection`` (m): a link's tip deflection from its root tangent, as a gauge
+  calibrated to it reads it (the Quanser flexible link's); its ``gain`` is that
+  calibration's error (1: exact).
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ from .config import Fields
 from .integrators import derivative
 
 KINDS = ("joint_encoder", "motor_encoder", "joint_torque", "tip_accelerometer",
-         "strain_gauge", "tip_position")
+         "strain_gauge", "tip_position", "tip_deflection")
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,7 @@ class Sensor:
     delay: float = 0.0
     position: float = 0.0
     surface_distance: float = 0.0
+    gain: float = 1.0
 
     @staticmethod
     def parse(f: Fields, joint_names, link_names) -> "Sensor":
@@ -49,7 +53,7 @@ class Sensor:
         target = ""
         if kind in ("joint_encoder", "motor_encoder", "joint_torque"):
             target = f.string("joint", choices=list(joint_names))
-        elif kind == "strain_gauge":
+        elif kind in ("strain_gauge", "tip_deflection"):
             target = f.string("link", choices=list(link_names))
         sensor = Sensor(
             name=f.string("name", f"{target or 'arm'}/{kind}"), kind=kind, target=target,
@@ -58,7 +62,8 @@ class Sensor:
                                                             nonnegative=True),
             delay=f.number("delay", 0.0, nonnegative=True, unit="s"),
             position=f.number("position", 0.0, nonnegative=True, unit="m"),
-            surface_distance=f.number("surface_distance", 0.0, nonnegative=True, unit="m"))
+            surface_distance=f.number("surface_distance", 0.0, nonnegative=True, unit="m"),
+            gain=f.number("gain", 1.0, positive=True))
         f.done()
         return sensor
 
@@ -87,6 +92,9 @@ def true_signal(sensor: Sensor, result) -> np.ndarray:
         i = [lk.name for lk in model.arm.links].index(sensor.target)
         curv = model.bases[i].curvature_matrix([sensor.position])[0]
         return -sensor.surface_distance * (result.q[:, model.flex_slice(i)] @ curv)[:, None]
+    if sensor.kind == "tip_deflection":
+        i = [lk.name for lk in model.arm.links].index(sensor.target)
+        return result.tip_deflections[:, [i]]
     raise ValueError(f"sensor kind: got {sensor.kind!r}; expected one of {', '.join(KINDS)}")
 
 
@@ -121,11 +129,18 @@ def measure(sensor: Sensor, result, seed: int = 0):
     t = result.t
     if sensor.delay > 0:
         x = np.column_stack([np.interp(t - sensor.delay, t, col, left=col[0]) for col in x.T])
-    y = x + sensor.bias
+    y = sensor.gain * x + sensor.bias
     if sensor.noise > 0:
         y = y + np.random.default_rng(seed).normal(0.0, sensor.noise, size=y.shape)
     y = quantise(y, sensor.resolution)
     return t, y
+
+
+def tip_deflection_gain(arm, link: str | None = None) -> float:
+    """The gain of the arm's ``tip_deflection`` sensor on ``link`` (default: any link), 1.0
+    without one."""
+    return next((s.gain for s in arm.sensors if s.kind == "tip_deflection"
+                 and (link is None or s.target == link)), 1.0)
 
 
 def quantise(x, resolution: float):

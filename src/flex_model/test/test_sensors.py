@@ -1,11 +1,12 @@
-"""Sensors: zero noise is the truth, bias shifts, delay is late, quantisation rounds; the
-accelerometer and the strain gauge against closed forms."""
+"""Sensors: zero noise is the truth, bias shifts, gain scales, delay is late, quantisation
+rounds; the accelerometer and the strain gauge against closed forms."""
 import numpy as np
 import pytest
 
 from flex_model.arm import arm_from_dict, load_arm
+from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_model.sensors import Sensor, measure, true_signal
+from flex_model.sensors import Sensor, measure, tip_deflection_gain, true_signal
 from flex_model.simulate import JointPD, Pulse, simulate
 from flex_model.statics import TipLoad, static_equilibrium
 
@@ -25,6 +26,13 @@ def test_encoder_without_noise_is_the_truth_and_bias_shifts(run):
     np.testing.assert_array_equal(y[:, 0], run.joint_angles[:, 1])
     t, yb = measure(Sensor("e", "joint_encoder", "joint2", bias=0.01), run)
     np.testing.assert_allclose(yb - y, 0.01, rtol=1e-12)
+
+
+def test_tip_deflection_gauge_reads_gain_times_the_deflection(run):
+    """A tip_deflection sensor of gain 0.5 and bias 1 mm on link 2: 0.5 d_tip + 0.001."""
+    t, y = measure(Sensor("g", "tip_deflection", "link2", gain=0.5, bias=1e-3), run)
+    np.testing.assert_allclose(y[:, 0], 0.5 * run.tip_deflections[:, 1] + 1e-3, rtol=1e-12)
+    assert np.ptp(run.tip_deflections[:, 1]) > 1e-4   # the arm does deflect
 
 
 def test_delay_returns_the_signal_late(run):
@@ -91,7 +99,13 @@ def test_sensors_in_the_arm_description():
     arm = arm_from_dict(data, "arm.yaml")
     assert [s.kind for s in arm.sensors] == ["joint_encoder", "strain_gauge"]
     assert arm.sensors[0].resolution == 0.001 and arm.sensors[1].name == "link1/strain_gauge"
+    assert tip_deflection_gain(arm) == 1.0
+    data["sensors"].append({"kind": "tip_deflection", "link": "link1", "gain": 0.45})
+    assert tip_deflection_gain(arm_from_dict(data, "arm.yaml")) == 0.45
+    data["sensors"][-1]["gain"] = 0.0
+    with pytest.raises(ConfigError, match=r"arm.yaml: sensors\[2\].gain: got 0"):
+        arm_from_dict(data, "arm.yaml")
+    data["sensors"].pop()
     data["sensors"][0]["joint"] = "joint7"
-    from flex_model.config import ConfigError
     with pytest.raises(ConfigError, match=r"arm.yaml: sensors\[0\].joint: got 'joint7'"):
         arm_from_dict(data, "arm.yaml")

@@ -242,3 +242,20 @@ def test_before_their_gain_switch_the_two_laws_differ_by_millivolts(cuboulder_ro
                              -run.deflection_rate])[:n]
         dv = np.sqrt(np.mean((x @ (raw[0, 7:11] - raw[-1, 7:11])) ** 2))
         assert 0.003 < dv < 0.006
+
+
+def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
+    """gauge_gain 0.5 applied to a twin: its tip_deflection sensor reads 0.5 d (the law and
+    the replay's gauge both use it); written into a preset and read back, the same."""
+    from flex_model.arm import arm_from_dict, resolve_preset
+    from flex_model.config import read_yaml
+    from flex_model.sensors import tip_deflection_gain
+    from flex_twin.real_arms.calibration import calibrated_dict
+    arm = apply_parameters(calibrated_arm_for("cuboulder", "flexible"), {"gauge_gain": 0.5})
+    assert tip_deflection_gain(arm) == 0.5
+    assert tip_deflection_gain(apply_parameters(arm, {"gauge_gain": 0.7})) == 0.7
+    assert sum(s.kind == "tip_deflection" for s in apply_parameters(
+        arm, {"gauge_gain": 0.7}).sensors) == 1
+    nominal = read_yaml(resolve_preset("quanser_cuboulder_calibrated"))
+    data = calibrated_dict(nominal, {"gauge_gain": 0.4512345}, "g")
+    assert tip_deflection_gain(arm_from_dict(data, "g.yaml")) == 0.4512

@@ -76,12 +76,12 @@ def true_signal(sensor: Sensor, model, q, v, tau=None) -> np.ndarray:
 
 def measure(sensor: Sensor, model, t, q, v, tau=None, seed: int = 0):
     """(t, y): the measured signal of ``sensor`` along a run (flex_model.sensors.measure:
-    delay by linear interpolation, bias, seeded white noise, quantisation)."""
+    delay by linear interpolation, gain and bias, seeded white noise, quantisation)."""
     t = np.asarray(t, float)
     x = true_signal(sensor, model, q, v, tau)
     if sensor.delay > 0:
         x = np.column_stack([np.interp(t - sensor.delay, t, col, left=col[0]) for col in x.T])
-    y = x + sensor.bias
+    y = sensor.gain * x + sensor.bias
     if sensor.noise > 0:
         y = y + np.random.default_rng(seed).normal(0.0, sensor.noise, size=y.shape)
     return t, quantise(y, sensor.resolution)

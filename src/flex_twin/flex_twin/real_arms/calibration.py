@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import DCMotor, Gear, JointFriction, StructuralDamping
+from flex_model.sensors import Sensor, tip_deflection_gain
 from .replay import replay
 
 #: which CU Boulder runs fit which stage; everything else is held out (validation)
@@ -92,8 +93,8 @@ def link_parameters(arm: ArmDescription) -> list:
 
 def started_from(arm: ArmDescription, params: list) -> list:
     """``params`` started from the arm's current values of the friction (F_c, F_s - F_c,
-    F_v), the link's Rayleigh damping and the rotor inertia (a fit from a calibrated twin
-    rather than from the handout), each clipped into its bounds."""
+    F_v), the link's Rayleigh damping, the rotor inertia and the gauge gain (a fit from a
+    calibrated twin rather than from the handout), each clipped into its bounds."""
     j = arm.joint_names[0]
     now = {}
     fr = arm.effect("joint_friction", j)
@@ -106,6 +107,7 @@ def started_from(arm: ArmDescription, params: list) -> list:
     gear = arm.effect("gear", j)
     if gear is not None:
         now["rotor_inertia"] = gear["rotor_inertia"]
+    now["gauge_gain"] = tip_deflection_gain(arm)
     return [dataclasses.replace(p, start=min(max(now[p.name], p.lower), p.upper))
             if p.name in now else p for p in params]
 
@@ -140,6 +142,10 @@ def apply_parameters(arm: ArmDescription, values: dict) -> ArmDescription:
         out = dataclasses.replace(out, links=(link,))
     if "tip_mass" in values:
         out = dataclasses.replace(out, payload_mass=values["tip_mass"])
+    if "gauge_gain" in values:
+        gauge = Sensor("tip_gauge", "tip_deflection", link.name, gain=values["gauge_gain"])
+        out = dataclasses.replace(out, sensors=tuple(
+            s for s in out.sensors if s.kind != "tip_deflection") + (gauge,))
     return out
 
 
@@ -268,6 +274,11 @@ def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
     if "tip_mass" in values:
         out["payload"] = {**nominal.get("payload", {}),
                           "mass": float(f"{values['tip_mass']:.4g}")}
+    if "gauge_gain" in values:
+        out["sensors"] = [x for x in nominal.get("sensors", [])
+                          if x.get("kind") != "tip_deflection"] + [
+            {"name": "tip_gauge", "kind": "tip_deflection", "link": links[0]["name"],
+             "gain": float(f"{values['gauge_gain']:.4g}")}]
     out["links"], out["effects"] = links, effects
     return out
 

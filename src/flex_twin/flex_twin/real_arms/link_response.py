@@ -100,14 +100,10 @@ def driven_link_policy(run, model, bandwidth_hz: float = TRACKING):
 
 
 def run_twin(name: str):
-    """The twin of a run's unit (:data:`.unit_calibration.UNITS`), else the shared one."""
-    from flex_model.arm import load_arm
-    from .quanser_twin import calibrated_arm_for
-    from .unit_calibration import UNITS
-    for spec in UNITS.values():
-        if name in spec["fit"] + spec["holdout"]:
-            return load_arm(spec["preset"])
-    return calibrated_arm_for("cuboulder", "flexible")
+    """The twin of a flexible run's unit (:func:`.run_floor.starts`), else the shared one."""
+    from .run_floor import starts
+    twins = starts(name, "flexible")
+    return next((arm for unit, arm in twins.items() if unit != "shared"), twins["shared"])
 
 
 def check_run(data_root: str, name: str, out: str | None = None) -> dict:

@@ -5,7 +5,8 @@ ringing during the holds.
 The closed loop takes a ``make_policy(run, model) -> policy(t, x) -> [V]`` callable (for
 the Quanser arms: ``flex_control.state_feedback.lab_policy_factory``), built by the caller,
 so that flex_model never imports flex_control. The twin's gauge output is the lab's:
-``gauge_sign * d + gauge_bias`` rounded to the log's 1 mm.
+``gauge_sign * gain * d + gauge_bias`` rounded to the log's 1 mm (gain: the twin's
+``tip_deflection`` sensor's, 1 without one).
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from scipy.optimize import least_squares
 
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
+from flex_model.sensors import tip_deflection_gain
 from flex_model.simulate import SimulationDivergedError, simulate
 from .quanser_data import LabRun
 
@@ -216,7 +218,7 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
             if k == 2:
                 raise
     theta = res.joint_angles[:n, 0]
-    defl = sign * res.tip_deflections[:n, 0] + bias
+    defl = sign * tip_deflection_gain(model.arm) * res.tip_deflections[:n, 0] + bias
     if run.lab == "cuboulder":
         defl = np.round(defl / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
     out = ReplayResult(run=run, arm_name=model.arm.name, mode=mode, t=t, twin_theta=theta,
