@@ -320,7 +320,7 @@ def add_real_arm_parsers(sub) -> None:
     hp = rsub.add_parser("holds", help="the link's ringing while the lab hub sticks: "
                          "frequency and damping per stuck stretch, the floor of a twin of "
                          "one link frequency, the twins' clamped links (markdown, PNG, JSON; "
-                         "--fit: a twin with that link, ~3 CPU-min)")
+                         "--fit: a twin with that link, ~2 CPU-min)")
     _data_option(hp)
     hp.add_argument("--out", default="runs/quanser-holds", help="output directory")
     hp.add_argument("--fit", action="store_true", help="refit Hagenau's twin around the "
