@@ -86,6 +86,8 @@ def lab_controller(run, voltage_limit: float = np.inf, voltage_offset: float = 0
 
 def lab_policy_factory(run, model) -> Callable:
     """The closed-loop policy of a run on a twin (the replay's ``make_policy`` hook); the
-    gauge gain is the twin's ``tip_deflection`` sensor's (flex_model.sensors)."""
+    gauge gain is the twin's first link's ``tip_deflection`` sensor's (flex_model.sensors;
+    its other fields are not used: the run gives sign and bias)."""
     from flex_model.sensors import tip_deflection_gain
-    return lab_controller(run, gauge_gain=tip_deflection_gain(model.arm)).policy(model)
+    gain = tip_deflection_gain(model.arm, model.arm.links[0].name)
+    return lab_controller(run, gauge_gain=gain).policy(model)

@@ -245,8 +245,8 @@ def test_before_their_gain_switch_the_two_laws_differ_by_millivolts(cuboulder_ro
 
 
 def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
-    """gauge_gain 0.5 applied to a twin: its tip_deflection sensor reads 0.5 d (the law and
-    the replay's gauge both use it); written into a preset and read back, the same."""
+    """gauge_gain 0.5 applied to a twin: its tip_deflection sensor reads 0.5 d; a second
+    fit replaces it, keeping one; written into a preset and read back, the same."""
     from flex_model.arm import arm_from_dict, resolve_preset
     from flex_model.config import read_yaml
     from flex_model.sensors import tip_deflection_gain
@@ -259,3 +259,26 @@ def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
     nominal = read_yaml(resolve_preset("quanser_cuboulder_calibrated"))
     data = calibrated_dict(nominal, {"gauge_gain": 0.4512345}, "g")
     assert tip_deflection_gain(arm_from_dict(data, "g.yaml")) == 0.4512
+
+
+def test_a_twin_with_a_gauge_gain_starts_where_the_lab_reads(cuboulder_root):
+    """flexarm_k1k2_6_-3 on the calibrated twin with gauge gains 1 and 0.5: the twin starts
+    with d0 = reading / g, its gauge reads the lab's first sample again (to the 1 mm log)
+    and the lab law sees the reading (V at t = 0 within 1 mV of the logged law's)."""
+    from flex_twin.real_arms.replay import gauge_deflection, gauge_reading, initial_state
+    run = next(qd.read_cuboulder_file(p) for p in qd.cuboulder_files(cuboulder_root)
+               if p.name == "flexarm_k1k2_6_-3")
+    arm = calibrated_arm_for("cuboulder", "flexible")
+    d = {}
+    for g in (1.0, 0.5):
+        model = FlexArmModel(apply_parameters(arm, {"gauge_gain": g}))
+        q0, _ = initial_state(model, run)
+        d[g] = model.tip_deflections(q0)[0]
+        assert float(gauge_reading(model, run, d[g])) == pytest.approx(run.deflection[0],
+                                                                        abs=1e-12)
+        assert float(gauge_deflection(model, run, gauge_reading(model, run, 0.004))) == \
+            pytest.approx(0.004, rel=1e-12)
+        r = replay(model, run, state_feedback.lab_policy_factory, t_final=0.02)
+        assert abs(r.twin_deflection[0] - run.deflection[0]) <= 0.5e-3
+        assert r.twin_voltage[0] == pytest.approx(run.voltage[0], abs=1e-3)
+    assert d[0.5] == pytest.approx(2.0 * d[1.0], rel=1e-9) and abs(d[1.0]) > 1e-3

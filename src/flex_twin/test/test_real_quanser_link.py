@@ -58,7 +58,6 @@ def test_one_frequency_floor_is_the_quantisation_when_the_holds_agree():
     spread = _synthetic_run((1.79, 1.97, 1.79))
     floor = one_frequency_floor(spread, stuck_holds(spread))
     assert floor["hold_rms_common_m"] > 2.0 * floor["hold_rms_own_m"]
-    assert floor["run_floor_m"] < floor["hold_rms_common_m"]
     assert one_frequency_floor(spread, []) is None
 
 
@@ -81,8 +80,8 @@ def test_the_lab_links_ringing_while_the_hub_sticks(cuboulder_root):
     holds = {n: stuck_holds(r) for n, r in runs.items()}
     stretches = [h for hs in holds.values() for h in hs]
     assert len(stretches) == 9
-    assert {n for n, hs in holds.items() if hs} <= set(
-        n for n in runs if n.startswith("flexarm_"))
+    with_stretch = {n for n, hs in holds.items() if hs}
+    assert len(with_stretch) == 5 and all(n.startswith("flexarm_") for n in with_stretch)
     freq = np.array([h.frequency_hz for h in stretches])
     assert 1.78 < freq.min() < 1.80 and 1.95 < freq.max() < 1.98
     assert np.median([h.damping_ratio for h in stretches]) == pytest.approx(0.006, abs=1e-3)
@@ -94,37 +93,45 @@ def test_the_lab_links_ringing_while_the_hub_sticks(cuboulder_root):
 
 
 def test_one_mode_fit_recovers_a_driven_mode():
-    """A 1.8 Hz, zeta 0.014, gain 0.46 mode driven by a smooth hub step (the twin's link
-    driven by a hub, in closed form), starting at 3 mm and 20 mm/s, logged at 1 mm:
-    the fit gives frequency, damping ratio and gain back within 0.5 %, 0.003 and 2 %, and
-    leaves the log's 0.29 mm."""
-    from flex_twin.real_arms.link_response import base_excited_mode, mode_response
+    """A 1.8 Hz, zeta 0.014, gain 0.46 mode driven by a smooth hub step, starting at 3 mm
+    and 20 mm/s, integrated independently (solve_ivp), logged at 1 mm: the fit gives
+    frequency, damping ratio and gain back within 0.5 %, 0.003 and 2 %, the start within
+    0.5 mm, and leaves the log's 0.29 mm."""
+    from scipy.integrate import solve_ivp
+    from flex_twin.real_arms.link_response import base_excited_mode
     t = np.arange(0.0, 10.0, 1e-3)
-    theta = 0.1 * (1 - np.cos(np.pi * np.clip((t - 1.0) / 0.4, 0, 1))) / 2
-    acc = np.gradient(np.gradient(theta, 1e-3), 1e-3)
-    true = dict(frequency_hz=1.8, damping_ratio=0.014, gain=0.46, initial_rate_m_s=0.02)
-    d = np.round(mode_response(t, acc, 0.003, **true) / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
-    fit = base_excited_mode(t, acc, d)
+    w, zeta, gain = 2 * np.pi * 1.8, 0.014, 0.46
+
+    def acc(tt):      # the second derivative of 0.05 (1 - cos(pi (t - 1) / 0.4)) on [1, 1.4]
+        return np.where((tt > 1.0) & (tt < 1.4), 0.05 * (np.pi / 0.4) ** 2
+                        * np.cos(np.pi * (tt - 1.0) / 0.4), 0.0)
+
+    sol = solve_ivp(lambda tt, x: [x[1], -w * w * x[0] - 2 * zeta * w * x[1] - gain * acc(tt)],
+                    (0.0, t[-1]), [0.003, 0.02], t_eval=t, rtol=1e-10, atol=1e-12,
+                    max_step=1e-3)
+    d = np.round(sol.y[0] / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
+    fit = base_excited_mode(t, acc(t), d)
     assert fit["frequency_hz"] == pytest.approx(1.8, rel=5e-3)
     assert fit["damping_ratio"] == pytest.approx(0.014, abs=3e-3)
     assert fit["gain"] == pytest.approx(0.46, rel=0.02)
+    assert fit["initial_m"] == pytest.approx(0.003, abs=5e-4)
     assert fit["residual_rms_m"] == pytest.approx(GAUGE_RESOLUTION / np.sqrt(12), rel=0.1)
 
 
 def test_the_lab_link_is_no_linear_response_of_its_hub_angle(cuboulder_root):
     """flexarm_k1k2_6_-3: one linear mode driven by the lab's encoder angle, fitted to the
-    run itself, leaves 2.27 mm of the gauge's 4.2 mm RMS (above the 2 mm aim on its own),
+    run itself, leaves 2.26 mm of the gauge's 4.2 mm RMS (above the 2 mm aim on its own),
     with a gain 0.215 m s^2/rad; the unit twin's link driven by the same hub angle (tracked
     to 0.3 mrad) gives that fit back to the log's 0.29 mm with its clamped 1.805 Hz and a
-    gain 0.462, and rings so much more that its tip RMS is 13.3 mm."""
+    gain 0.461, and rings so much more that its tip RMS is 13.3 mm."""
     from flex_twin.real_arms.link_response import check_run
     row = check_run(str(cuboulder_root.parent), "flexarm_k1k2_6_-3")
     lab, twin = row["lab"], row["twin_driven"]
-    assert lab["residual_rms_m"] == pytest.approx(2.27e-3, abs=0.05e-3)
+    assert lab["residual_rms_m"] == pytest.approx(2.26e-3, abs=0.05e-3)
     assert lab["signal_rms_m"] == pytest.approx(4.19e-3, abs=0.05e-3)
     assert lab["gain"] == pytest.approx(0.215, abs=0.005)
-    assert twin["hub_rms_rad"] < 0.5e-3
+    assert twin["hub_rms_rad"] < 0.35e-3
     assert twin["fit"]["residual_rms_m"] < 0.32e-3
     assert twin["fit"]["frequency_hz"] == pytest.approx(1.805, abs=0.005)
-    assert twin["fit"]["gain"] == pytest.approx(0.462, abs=0.005)
+    assert twin["fit"]["gain"] == pytest.approx(0.461, abs=0.005)
     assert twin["tip_rms_m"] == pytest.approx(13.3e-3, abs=0.2e-3)

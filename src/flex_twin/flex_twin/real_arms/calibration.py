@@ -29,7 +29,7 @@ from scipy.optimize import least_squares
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import DCMotor, Gear, JointFriction, StructuralDamping
-from flex_model.sensors import Sensor, tip_deflection_gain
+from flex_model.sensors import Sensor
 from .replay import replay
 
 #: which CU Boulder runs fit which stage; everything else is held out (validation)
@@ -93,8 +93,8 @@ def link_parameters(arm: ArmDescription) -> list:
 
 def started_from(arm: ArmDescription, params: list) -> list:
     """``params`` started from the arm's current values of the friction (F_c, F_s - F_c,
-    F_v), the link's Rayleigh damping, the rotor inertia and the gauge gain (a fit from a
-    calibrated twin rather than from the handout), each clipped into its bounds."""
+    F_v), the link's Rayleigh damping and the rotor inertia (a fit from a calibrated twin
+    rather than from the handout), each clipped into its bounds."""
     j = arm.joint_names[0]
     now = {}
     fr = arm.effect("joint_friction", j)
@@ -107,7 +107,6 @@ def started_from(arm: ArmDescription, params: list) -> list:
     gear = arm.effect("gear", j)
     if gear is not None:
         now["rotor_inertia"] = gear["rotor_inertia"]
-    now["gauge_gain"] = tip_deflection_gain(arm)
     return [dataclasses.replace(p, start=min(max(now[p.name], p.lower), p.upper))
             if p.name in now else p for p in params]
 
@@ -143,9 +142,13 @@ def apply_parameters(arm: ArmDescription, values: dict) -> ArmDescription:
     if "tip_mass" in values:
         out = dataclasses.replace(out, payload_mass=values["tip_mass"])
     if "gauge_gain" in values:
-        gauge = Sensor("tip_gauge", "tip_deflection", link.name, gain=values["gauge_gain"])
-        out = dataclasses.replace(out, sensors=tuple(
-            s for s in out.sensors if s.kind != "tip_deflection") + (gauge,))
+        prior = next((s for s in out.sensors if s.kind == "tip_deflection"
+                      and s.target == link.name), None)
+        gauge = (dataclasses.replace(prior, gain=values["gauge_gain"]) if prior is not None
+                 else Sensor("tip_gauge", "tip_deflection", link.name,
+                             gain=values["gauge_gain"]))
+        out = dataclasses.replace(out, sensors=tuple(s for s in out.sensors
+                                                     if s is not prior) + (gauge,))
     return out
 
 
@@ -275,10 +278,14 @@ def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
         out["payload"] = {**nominal.get("payload", {}),
                           "mass": float(f"{values['tip_mass']:.4g}")}
     if "gauge_gain" in values:
-        out["sensors"] = [x for x in nominal.get("sensors", [])
-                          if x.get("kind") != "tip_deflection"] + [
-            {"name": "tip_gauge", "kind": "tip_deflection", "link": links[0]["name"],
-             "gain": float(f"{values['gauge_gain']:.4g}")}]
+        sensors = [dict(x) for x in nominal.get("sensors", [])]
+        gauge = next((x for x in sensors if x.get("kind") == "tip_deflection"
+                      and x.get("link") == links[0]["name"]), None)
+        if gauge is None:
+            gauge = {"name": "tip_gauge", "kind": "tip_deflection", "link": links[0]["name"]}
+            sensors.append(gauge)
+        gauge["gain"] = float(f"{values['gauge_gain']:.4g}")
+        out["sensors"] = sensors
     out["links"], out["effects"] = links, effects
     return out
 

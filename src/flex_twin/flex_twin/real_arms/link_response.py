@@ -9,12 +9,12 @@ amplitude where it stays linear,
 m/(rad/s^2), is the mode's participation times its tip amplitude, about the link length
 for a tip-mass dominated link; the suite's beam gives 0.46 m for the Quanser link). The
 hub angle is known from the encoder, so this needs no twin: :func:`base_excited_mode`
-fits the mode to each run itself, and what it leaves no such link, linear with its root
-on the encoder's shaft, can explain on that run (a linear compliance between the two
-only changes the fitted values). :func:`check_run` also drives the run's twin's link by
-the lab's hub angle (:func:`driven_arm`, :func:`driven_link_policy`: torque input, the
-encoder tracked to a fraction of a count) and fits the same mode to its output, which
-must give the twin's clamped mode back (the method's check).
+fits the mode to each run itself, and what it leaves no such single mode, with its root
+on the encoder's shaft, explains on that run. :func:`check_run` also drives the run's
+twin's link by the lab's hub angle (:func:`driven_arm`, :func:`driven_link_policy`: torque
+input, the encoder tracked to a fraction of a count) and fits the same mode to its
+output, which must give the twin's clamped mode back (the method's check: the twin's
+beam answers the hub as one mode to within the log's quantisation).
 """
 from __future__ import annotations
 
@@ -40,31 +40,34 @@ def hub_acceleration(run, cutoff: float = CUTOFF) -> tuple:
     return theta, np.gradient(np.gradient(theta, run.dt), run.dt)
 
 
-def mode_response(t, acc, d0: float, frequency_hz: float, damping_ratio: float,
+def mode_response(t, acc, initial_m: float, frequency_hz: float, damping_ratio: float,
                   gain: float, offset_m: float = 0.0, initial_rate_m_s: float = 0.0,
                   **_) -> np.ndarray:
-    """d(t) of the mode above driven by ``acc`` from d0 at the given initial rate (m)."""
+    """d(t) (m) of the mode above driven by ``acc``, from ``initial_m`` at
+    ``initial_rate_m_s``, about ``offset_m``."""
     t = np.asarray(t, float) - t[0]
     w = 2 * np.pi * frequency_hz
     sys = signal.StateSpace([[0.0, 1.0], [-w * w, -2 * damping_ratio * w]], [[0.0], [-gain]],
                             [[1.0, 0.0]], [[0.0]])
-    return signal.lsim(sys, acc, t, X0=[d0 - offset_m, initial_rate_m_s])[1] + offset_m
+    return signal.lsim(sys, acc, t, X0=[initial_m - offset_m, initial_rate_m_s])[1] + offset_m
 
 
 def base_excited_mode(t, acc, d, step: int = 5) -> dict:
-    """Least-squares frequency_hz, damping_ratio, gain (m/(rad/s^2)), offset_m and
-    initial_rate_m_s (a run may start ringing) of :func:`mode_response` to d; with the
+    """Least-squares initial_m, frequency_hz, damping_ratio, gain (m/(rad/s^2)), offset_m
+    and initial_rate_m_s (a run may start ringing) of :func:`mode_response` to d; with the
     fit's residual_rms_m and the signal_rms_m of d about its mean. Fitted on every
     ``step``-th sample (the acceleration is low-passed far below that rate), started from
-    1.5-2.5 Hz and damping ratios 0.01 / 0.1, the best kept."""
+    1.5-2.5 Hz and damping ratios 0.01 / 0.1, the best kept: a local search, so the
+    residual bounds this mode's best fit from above."""
     t, acc, d = (np.asarray(x, float)[::step] for x in (t, acc, d))
-    names = ("frequency_hz", "damping_ratio", "gain", "offset_m", "initial_rate_m_s")
+    names = ("initial_m", "frequency_hz", "damping_ratio", "gain", "offset_m",
+             "initial_rate_m_s")
     best = None
     for f0 in (1.5, 2.0, 2.5):
         for z0 in (0.01, 0.1):
             fit = least_squares(
-                lambda p: mode_response(t, acc, d[0], *p) - d, [f0, z0, 0.25, 0.0, 0.0],
-                bounds=([0.3, 0.0, -5.0, -0.1, -1.0], [10.0, 1.0, 5.0, 0.1, 1.0]))
+                lambda p: mode_response(t, acc, *p) - d, [d[0], f0, z0, 0.25, 0.0, 0.0],
+                bounds=([-0.2, 0.3, 0.0, -5.0, -0.1, -1.0], [0.2, 10.0, 1.0, 5.0, 0.1, 1.0]))
             if best is None or fit.cost < best.cost:
                 best = fit
     out = {k: float(v) for k, v in zip(names, best.x)}
@@ -103,7 +106,10 @@ def run_twin(name: str):
     """The twin of a flexible run's unit (:func:`.run_floor.starts`), else the shared one."""
     from .run_floor import starts
     twins = starts(name, "flexible")
-    return next((arm for unit, arm in twins.items() if unit != "shared"), twins["shared"])
+    arm = next((arm for unit, arm in twins.items() if unit != "shared"), twins["shared"])
+    if arm is None:
+        raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
+    return arm
 
 
 def check_run(data_root: str, name: str, out: str | None = None) -> dict:
@@ -134,7 +140,7 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
                            "fit": base_excited_mode(run.t, acc, d_twin)}}
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
-        plot_run(run, d_lab, mode_response(run.t, acc, d_lab[0], **lab), d_twin,
+        plot_run(run, d_lab, mode_response(run.t, acc, **lab), d_twin,
                  Path(out) / f"link_{name.replace('.', '_')}.png")
     return row
 
@@ -174,6 +180,8 @@ def gauge_runs(data_root) -> list:
 def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
     """:func:`check_run` on ``runs`` (default: every run with a gauge) on ``executor``."""
     runs = list(runs or gauge_runs(data_root))
+    if not runs:
+        raise ValueError(f"{data_root}: no CU Boulder run with a tip deflection")
     n = len(runs)
     rows = []
     for row in executor.map(check_run, [str(data_root)] * n, runs,
@@ -204,9 +212,9 @@ def write_report(report: dict, out) -> None:
     s = report["summary"]
     lines = ["# The lab's link against its own hub angle", "",
              "One linear mode d'' + 2 zeta w d' + w^2 d = -gain theta'' driven by the encoder's "
-             f"hub angle (low-passed at {report['cutoff_hz']:g} Hz), fitted to each run "
-             "itself; the same fit on the run's twin driven by that hub angle checks the "
-             "method (its residual is the 1 mm log's 0.29 mm).", "",
+             f"hub angle (2nd-order Butterworth at {report['cutoff_hz']:g} Hz, forward and "
+             "back), fitted to each run itself; the same fit on the run's twin driven by that "
+             "hub angle checks the method (the 1 mm log alone leaves 0.29 mm).", "",
              "| run | lab: frequency (Hz) | damping ratio | gain (m s^2/rad) | left (mm) | "
              "of (mm) | twin driven: frequency | damping ratio | gain | left (mm) | "
              "twin's tip RMS (mm) |", "|---|---|---|---|---|---|---|---|---|---|---|"]

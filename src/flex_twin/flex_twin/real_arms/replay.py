@@ -4,9 +4,9 @@ ringing during the holds.
 
 The closed loop takes a ``make_policy(run, model) -> policy(t, x) -> [V]`` callable (for
 the Quanser arms: ``flex_control.state_feedback.lab_policy_factory``), built by the caller,
-so that flex_model never imports flex_control. The twin's gauge output is the lab's:
-``gauge_sign * gain * d + gauge_bias`` rounded to the log's 1 mm (gain: the twin's
-``tip_deflection`` sensor's, 1 without one).
+so that flex_model never imports flex_control. The twin's gauge output is the lab's
+(:func:`gauge_reading`: ``gauge_sign * gain * d + gauge_bias``, gain the twin's
+``tip_deflection`` sensor's, 1 without one) rounded to the log's 1 mm.
 """
 from __future__ import annotations
 
@@ -72,8 +72,9 @@ def fit_damped_cosine(tw, dw, f_band=(0.5, 10.0)) -> dict:
     the undamped cosine's linear fit. Returns frequency_hz (w / 2 pi), damping_ratio
     (s / |s + i w|), amplitude_m, phase_rad, offset_m and residual_rms_m."""
     tw, dw = np.asarray(tw, float), np.asarray(dw, float)
-    spec = np.abs(np.fft.rfft((dw - dw.mean()) * np.hanning(len(dw)), n=2 ** 16))
-    freqs = np.fft.rfftfreq(2 ** 16, tw[1] - tw[0])
+    nfft = max(2 ** 16, 2 * len(dw))
+    spec = np.abs(np.fft.rfft((dw - dw.mean()) * np.hanning(len(dw)), n=nfft))
+    freqs = np.fft.rfftfreq(nfft, tw[1] - tw[0])
     band = (freqs > f_band[0]) & (freqs < f_band[1])
     w0 = 2 * np.pi * float(freqs[band][np.argmax(spec[band])])
     basis = np.column_stack([np.cos(w0 * tw), np.sin(w0 * tw), np.ones_like(tw)])
@@ -141,19 +142,38 @@ class ReplayResult:
         return out
 
 
+def gauge_gain(model: FlexArmModel) -> float:
+    """The gain of the twin's tip gauge: its first link's ``tip_deflection`` sensor's."""
+    return tip_deflection_gain(model.arm, model.arm.links[0].name)
+
+
+def gauge_reading(model: FlexArmModel, run: LabRun, d):
+    """What the lab's gauge reads for the twin's tip deflection d (m):
+    gauge_sign * gain * d + gauge_bias (the law's input and the replay's output)."""
+    return run.gauge_sign() * gauge_gain(model) * np.asarray(d) + run.gauge_bias()
+
+
+def gauge_deflection(model: FlexArmModel, run: LabRun, reading, rate: bool = False):
+    """The twin's tip deflection (or, ``rate``, its rate) for a gauge reading: the inverse
+    of :func:`gauge_reading`."""
+    bias = 0.0 if rate else run.gauge_bias()
+    return run.gauge_sign() * (np.asarray(reading) - bias) / gauge_gain(model)
+
+
 def initial_state(model: FlexArmModel, run: LabRun):
     """(q0, v0) matching the first sample: hub angle and rate, and the tip deflection and
-    its rate as the first clamped-hub mode (the link often still rings at t = 0)."""
+    its rate (through the gauge, :func:`gauge_deflection`) as the first clamped-hub mode
+    (the link often still rings at t = 0)."""
     theta0, rate0 = run.theta[0], run.theta_rate[0]
     if not run.has_gauge:
         return model.q_from_joint_angles([theta0]), model.q_from_joint_angles([rate0])
     shape = natural_modes(model, joints="clamped").shapes_q[:, 0]
     shape = shape / shape[model.tip_deflection_index(0)]
     flex = shape[model.flex_indices]
-    sign = run.gauge_sign()
-    d0 = sign * (run.deflection[0] - run.gauge_bias())
+    d0 = gauge_deflection(model, run, run.deflection[0])
+    dd0 = gauge_deflection(model, run, run.deflection_rate[0], rate=True)
     return (model.q_from_joint_angles([theta0], d0 * flex),
-            model.q_from_joint_angles([rate0], sign * run.deflection_rate[0] * flex))
+            model.q_from_joint_angles([rate0], dd0 * flex))
 
 
 def _lab_ringing(run: LabRun, n: int, steps) -> tuple:
@@ -218,7 +238,7 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
             if k == 2:
                 raise
     theta = res.joint_angles[:n, 0]
-    defl = sign * tip_deflection_gain(model.arm) * res.tip_deflections[:n, 0] + bias
+    defl = gauge_reading(model, run, res.tip_deflections[:n, 0])
     if run.lab == "cuboulder":
         defl = np.round(defl / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
     out = ReplayResult(run=run, arm_name=model.arm.name, mode=mode, t=t, twin_theta=theta,

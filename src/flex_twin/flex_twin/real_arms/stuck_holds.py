@@ -30,7 +30,7 @@ from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
 from .replay import GAUGE_RESOLUTION, fit_damped_cosine
-from .stiction_evidence import _intervals, stuck_mask
+from .stiction_evidence import TORQUE_PER_VOLT, _intervals, stuck_mask
 
 #: shortest stuck stretch measured (s)
 MIN_STUCK = 1.0
@@ -159,6 +159,8 @@ def fit_hold_link(runs: dict, make_policy, progress=None, max_nfev: int = 12) ->
     from .unit_calibration import UNITS
     spec = UNITS["hagenau"]
     stretches = [h for n in spec["fit"] for h in stuck_holds(runs[n])]
+    if not stretches:
+        raise ValueError(f"no stuck stretch on Hagenau's fit runs {spec['fit']}")
     f = float(np.median([h.frequency_hz for h in stretches]))
     z = float(np.median([h.damping_ratio for h in stretches]))
     unit = load_arm(spec["preset"])
@@ -234,7 +236,7 @@ def plot(report: dict, path) -> None:
     for k, (name, tw) in enumerate(report["twins"].items()):
         ax.axhline(tw["frequency_hz"], ls="--", color=f"C{k + len(runs)}", lw=1,
                    label=f"{name} (clamped)")
-    ax.set_xlabel("mean voltage while stuck (V): holding torque 0.157 N m/V")
+    ax.set_xlabel(f"mean voltage while stuck (V): holding torque {TORQUE_PER_VOLT:.3f} N m/V")
     ax.set_ylabel("tip ringing frequency, hub stuck (Hz)")
     ax.set_title("The link's ringing while the lab hub sticks")
     ax.grid(alpha=0.3)
