@@ -251,6 +251,15 @@ def _data_option(parser) -> None:
                         "../shared/data/real)")
 
 
+def _batch_options(parser, out: str) -> None:
+    """--out, --workers, --scheduler and --json of a study run on the batch executor."""
+    parser.add_argument("--out", default=out, help="output directory")
+    parser.add_argument("--workers", type=int, default=None, help="parallel processes")
+    parser.add_argument("--scheduler", default=None, help="a Dask scheduler address or file "
+                        "(default: processes on this machine)")
+    parser.add_argument("--json", action="store_true")
+
+
 def add_real_arm_parsers(sub) -> None:
     """``replay``, ``import quanser`` and
     ``real-arm calibrate|report|stick-slip|units|floor|two-mass|diagnose|transfer``."""
@@ -333,21 +342,13 @@ def add_real_arm_parsers(sub) -> None:
                          "lab's hub (markdown, JSON, PNG per run; ~5 CPU-min)")
     _data_option(lp)
     lp.add_argument("runs", nargs="*", help="run names (default: every run with a gauge)")
-    lp.add_argument("--out", default="runs/quanser-link", help="output directory")
-    lp.add_argument("--workers", type=int, default=None, help="parallel processes")
-    lp.add_argument("--scheduler", default=None, help="a Dask scheduler address or file "
-                    "(default: processes on this machine)")
-    lp.add_argument("--json", action="store_true")
+    _batch_options(lp, "runs/quanser-link")
     lp.set_defaults(func=cmd_link_response)
     fp = rsub.add_parser("floor", help="the model's floor: the calibration's parameters "
                          "fitted to each held-out run itself (markdown, JSON, PNG; ~15 CPU-min)")
     _data_option(fp)
-    fp.add_argument("--out", default="runs/quanser-floor", help="output directory")
     fp.add_argument("--max-evaluations", type=int, default=12)
-    fp.add_argument("--workers", type=int, default=None, help="parallel processes")
-    fp.add_argument("--scheduler", default=None, help="a Dask scheduler address or file "
-                    "(default: processes on this machine)")
-    fp.add_argument("--json", action="store_true")
+    _batch_options(fp, "runs/quanser-floor")
     fp.set_defaults(func=cmd_floor)
     tp = rsub.add_parser("two-mass", help="the FdiTools two-mass motor bench: twin replay "
                          "of records A (fit) and B (held out), FRF and time overlays, the "

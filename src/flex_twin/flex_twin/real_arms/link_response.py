@@ -19,7 +19,6 @@ beam answers the hub as one mode to within the log's quantisation).
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 
 import numpy as np
@@ -206,9 +205,7 @@ def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
 
 def write_report(report: dict, out) -> None:
     """``link_response.json`` and ``link_response.md`` in ``out``."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "link_response.json").write_text(json.dumps(report, indent=1))
+    from .report import write_study
     s = report["summary"]
     lines = ["# The lab's link against its own hub angle", "",
              "One linear mode d'' + 2 zeta w d' + w^2 d = -gain theta'' driven by the encoder's "
@@ -232,4 +229,4 @@ def write_report(report: dict, out) -> None:
               f"most {1e3 * s['twin_residual_max_m']:.2f}; lab gain / twin gain "
               f"{lo:.2f}-{hi:.2f}; the twins driven by the lab's hub: tip RMS median "
               f"{1e3 * s['twin_driven_tip_median_m']:.1f} mm."]
-    (out / "link_response.md").write_text("\n".join(lines) + "\n")
+    write_study(out, "link_response", report, lines)

@@ -74,6 +74,12 @@ class LabRun:
         """Sample indices where the reference changes (every sample of a ramp)."""
         return np.flatnonzero(np.abs(np.diff(self.reference)) > 1e-6) + 1
 
+    def holds(self) -> list:
+        """(start, stop) sample indices of every hold: from a reference step to the next
+        step or the end of the run."""
+        bounds = list(self.step_indices()) + [len(self.t)]
+        return list(zip(bounds[:-1], bounds[1:]))
+
     def step_indices(self, min_gap: float = 0.1) -> np.ndarray:
         """Sample indices where the square-wave reference steps: the first change of
         each group closer than ``min_gap`` (s) (UC Merced ramps over 20 ms)."""

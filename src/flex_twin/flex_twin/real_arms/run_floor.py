@@ -13,7 +13,6 @@ bounds meets it there.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -143,9 +142,7 @@ def summarize(rows) -> dict:
 
 def write_report(report: dict, out) -> None:
     """``run_floor.json`` and ``run_floor.md`` (per-run table and medians) in ``out``."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "run_floor.json").write_text(json.dumps(report, indent=1))
+    from .report import write_study
     s = report["summary"]
     lines = ["# The model's floor: every fitted parameter chosen per held-out run", "",
              "Least squares from the better of the shared calibrated twin and the run's "
@@ -173,4 +170,4 @@ def write_report(report: dict, out) -> None:
         vals = ", ".join(f"{k} {v:.4g}" for k, v in r["values"].items())
         lines.append(f"| {r['run']} | {c['hub_rms_rad']:.4f} -> {f['hub_rms_rad']:.4f} | "
                      f"{tip} | {r['start']} | {vals} |")
-    (out / "run_floor.md").write_text("\n".join(lines) + "\n")
+    write_study(out, "run_floor", report, lines)

@@ -130,10 +130,9 @@ def hold_stick_spread(run, settle: float = 1.0) -> dict:
     e_k - d_k a (a the hold-weighted mean of d_k e_k); a twin that sticks at one offset per
     direction leaves the spread about the direction means. Both as RMS over the whole run
     (rad), and the offset common to both directions (asymmetry, rad)."""
-    steps = list(run.step_indices()) + [len(run.t)]
     n0 = int(round(settle / run.dt))
     offs, dirs, lens = [], [], []
-    for a, b in zip(steps[:-1], steps[1:]):
+    for a, b in run.holds():
         if b - (a + n0) < 100:
             continue
         sl = slice(a + n0, b)

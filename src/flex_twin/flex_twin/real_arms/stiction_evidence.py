@@ -47,7 +47,7 @@ def stuck_mask(run, window: float = STUCK_WINDOW, travel: float = STUCK_TRAVEL) 
     return out
 
 
-def _intervals(mask) -> list:
+def intervals(mask) -> list:
     """[start, stop) of the runs of True in ``mask``."""
     d = np.diff(np.r_[0, mask.astype(np.int8), 0])
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
@@ -58,14 +58,12 @@ def hold_statistics(run, torque_per_volt: float = TORQUE_PER_VOLT, ei: float = L
     """Per hold of the run, the figures of the module docstring (dicts; a hold in which
     the hub never sticks has ``stuck_fraction`` 0 and no other figure)."""
     stuck = stuck_mask(run)
-    steps = list(run.step_indices())
-    bounds = steps + [len(run.t)]
     d = run.deflection - run.gauge_bias() if run.has_gauge else np.zeros(len(run.t))
     moment = 3.0 * ei * run.gauge_sign() * d / length ** 2
     tau_m = torque_per_volt * run.voltage
     half = max(1, int(round(0.5 * STUCK_WINDOW / run.dt)))
     out = []
-    for a0, b in zip(bounds[:-1], bounds[1:]):
+    for a0, b in run.holds():
         a = min(a0 + 2 * half, b - 1) if a0 > 0 else a0   # the step's break-away excluded
         s = stuck[a:b]
         h = {"t_step": float(run.t[a0]), "duration_s": float(run.t[b - 1] - run.t[a0]),
@@ -74,7 +72,7 @@ def hold_statistics(run, torque_per_volt: float = TORQUE_PER_VOLT, ei: float = L
         if s.any():
             k = np.flatnonzero(s) + a
             tot = tau_m[k] + moment[k]
-            ends = [(i0 + a, i1 + a) for i0, i1 in _intervals(s) if i1 + a < b - half]
+            ends = [(i0 + a, i1 + a) for i0, i1 in intervals(s) if i1 + a < b - half]
             h.update(stick_after_s=float(run.t[k[0]] - run.t[a0]),
                      error_rad=float(np.mean(run.reference[k] - run.theta[k])),
                      voltage_V=float(np.mean(run.voltage[k])),

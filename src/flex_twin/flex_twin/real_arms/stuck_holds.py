@@ -30,7 +30,7 @@ from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
 from .replay import GAUGE_RESOLUTION, fit_damped_cosine
-from .stiction_evidence import TORQUE_PER_VOLT, _intervals, stuck_mask
+from .stiction_evidence import TORQUE_PER_VOLT, intervals, stuck_mask
 
 #: shortest stuck stretch measured (s)
 MIN_STUCK = 1.0
@@ -64,12 +64,11 @@ def stuck_holds(run, min_stuck: float = MIN_STUCK) -> list:
     if not run.has_gauge:
         return []
     stuck = stuck_mask(run)
-    bounds = list(run.step_indices()) + [len(run.t)]
     skip = int(round(SETTLE / run.dt))
     out = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
+    for a, b in run.holds():
         a += skip
-        spans = [(i0 + a, i1 + a) for i0, i1 in _intervals(stuck[a:b])
+        spans = [(i0 + a, i1 + a) for i0, i1 in intervals(stuck[a:b])
                  if (i1 - i0) * run.dt >= min_stuck]
         if not spans:
             continue
@@ -248,12 +247,7 @@ def plot(report: dict, path) -> None:
 
 def write_report(report: dict, out) -> None:
     """``stuck_holds.json``, ``stuck_holds.md`` and ``stuck_holds.png`` in ``out``."""
-    import json
-    from pathlib import Path
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "stuck_holds.json").write_text(json.dumps(report, indent=1))
-    plot(report, out / "stuck_holds.png")
+    from .report import write_study
     lines = ["# The link's ringing while the hub sticks", "",
              "| run | stuck (s) | reference (rad) | hub (rad) | mean V | frequency (Hz) | "
              "damping ratio | amplitude (mm) | fit residual (mm) |",
@@ -292,4 +286,4 @@ def write_report(report: dict, out) -> None:
         lines.append(f"| median | {m['unit']['hub_rms_rad']:.4f} / "
                      f"{1e3 * m['unit']['tip_rms_m']:.2f} | {m['hold_link']['hub_rms_rad']:.4f}"
                      f" / {1e3 * m['hold_link']['tip_rms_m']:.2f} |")
-    (out / "stuck_holds.md").write_text("\n".join(lines) + "\n")
+    plot(report, write_study(out, "stuck_holds", report, lines).parent / "stuck_holds.png")
