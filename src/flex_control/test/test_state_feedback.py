@@ -37,6 +37,29 @@ def test_law_and_held_reference():
         TipStateFeedback([1.0, 2.0, 0.0, 0.0], [0.0], [0.0], gauge_gain=0.0)
 
 
+def test_a_lagging_gauge_feeds_the_law_the_tip_of_a_while_ago():
+    """gauge_delay 25 ms: along a tip deflection d = 0.01 t (rate 0.01) sampled every
+    10 ms, the law's K2 term is -K2 d(t - 0.025), interpolated between the samples, with
+    d(0) before t = 25 ms; a call at an earlier time starts a new run (the replay's
+    retry at a halved step)."""
+    model = FlexArmModel(load_arm("quanser_cuboulder_flexible"))
+    law = TipStateFeedback([0.0, 2.0, 0.0, 0.0], [0.0], [0.0], gauge_delay=0.025)
+    policy = law.policy(model)
+    i = model.tip_deflection_index(0)
+
+    def state(t):
+        x = np.zeros(2 * model.nq)
+        x[i], x[model.nq + i] = 0.01 * t + 0.003, 0.01
+        return x
+
+    for rerun in range(2):
+        for t in np.arange(0.0, 0.1, 0.01):
+            lagged = 0.01 * max(t - 0.025, 0.0) + 0.003
+            assert policy(t, state(t))[0] == pytest.approx(-2.0 * lagged, rel=1e-12)
+    with pytest.raises(ValueError, match="gauge_delay"):
+        TipStateFeedback([1.0, 2.0, 0.0, 0.0], [0.0], [0.0], gauge_delay=-0.01)
+
+
 def test_closed_loop_settles_on_the_reference_without_friction():
     """The frictionless handout twin under the law (K1 = 6, K3 = 0.2) settles on the
     reference (an integrating plant: zero steady-state error) with the link at rest."""

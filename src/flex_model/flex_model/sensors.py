@@ -17,7 +17,7 @@ with white Gaussian noise of standard deviation ``noise`` (seeded, reproducible)
 - ``tip_position`` (m): x, y of the arm's end in the base frame;
 - ``tip_deflection`` (m): a link's tip deflection from its root tangent, as a gauge
   calibrated to it reads it (the Quanser flexible link's); its ``gain`` is that
-  calibration's error (1: exact).
+  calibration's error (1: exact), its ``delay`` the lag of its signal chain.
 """
 from __future__ import annotations
 
@@ -125,22 +125,36 @@ def tip_specific_force(result) -> np.ndarray:
 
 def measure(sensor: Sensor, result, seed: int = 0):
     """(t, y): the measured signal of ``sensor`` along a simulation result."""
-    x = true_signal(sensor, result)
     t = result.t
-    if sensor.delay > 0:
-        x = np.column_stack([np.interp(t - sensor.delay, t, col, left=col[0]) for col in x.T])
-    y = sensor.gain * x + sensor.bias
+    y = sensor.gain * delayed(t, true_signal(sensor, result), sensor.delay) + sensor.bias
     if sensor.noise > 0:
         y = y + np.random.default_rng(seed).normal(0.0, sensor.noise, size=y.shape)
     y = quantise(y, sensor.resolution)
     return t, y
 
 
+def delayed(t, x, delay: float) -> np.ndarray:
+    """x (N,) or (N, k) sampled at t, as read ``delay`` (s) later: x(t - delay), linearly
+    interpolated, the first sample held before t[0]."""
+    x = np.asarray(x, float)
+    if delay <= 0:
+        return x
+    cols = x.reshape(len(t), -1).T
+    out = np.column_stack([np.interp(np.asarray(t) - delay, t, c, left=c[0]) for c in cols])
+    return out.reshape(x.shape)
+
+
+def tip_gauge(arm, link: str | None = None) -> Sensor:
+    """The arm's ``tip_deflection`` sensor on ``link`` (default: any link); without one, an
+    exact gauge (gain 1, no delay)."""
+    return next((s for s in arm.sensors if s.kind == "tip_deflection"
+                 and (link is None or s.target == link)),
+                Sensor("tip_gauge", "tip_deflection", link or ""))
+
+
 def tip_deflection_gain(arm, link: str | None = None) -> float:
-    """The gain of the arm's ``tip_deflection`` sensor on ``link`` (default: any link), 1.0
-    without one."""
-    return next((s.gain for s in arm.sensors if s.kind == "tip_deflection"
-                 and (link is None or s.target == link)), 1.0)
+    """The gain of the arm's ``tip_deflection`` sensor on ``link`` (:func:`tip_gauge`)."""
+    return tip_gauge(arm, link).gain
 
 
 def quantise(x, resolution: float):

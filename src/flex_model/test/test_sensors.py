@@ -41,6 +41,23 @@ def test_delay_returns_the_signal_late(run):
     np.testing.assert_allclose(y[k:, 0], run.joint_angles[:-k, 0], rtol=1e-12, atol=1e-15)
 
 
+def test_delayed_interpolates_and_holds_the_first_sample():
+    """delayed(t, x, 0.25) of the ramp x = 2t on a 0.1 s grid: 2 (t - 0.25) between the
+    samples, x[0] held before t = 0.25; columns kept; delay 0 is x itself; the tip gauge
+    of an arm without one is exact."""
+    from flex_model.sensors import delayed, tip_gauge
+    t = np.arange(0.0, 1.01, 0.1)
+    x = np.column_stack([2 * t, -t])
+    y = delayed(t, x, 0.25)
+    np.testing.assert_allclose(y[3:], np.column_stack([2 * (t[3:] - 0.25), -(t[3:] - 0.25)]),
+                               atol=1e-12)
+    np.testing.assert_array_equal(y[:3], 0.0)
+    assert delayed(t, x[:, 0], 0.25).shape == t.shape
+    np.testing.assert_array_equal(delayed(t, x, 0.0), x)
+    gauge = tip_gauge(load_arm("quanser_cuboulder_flexible"))
+    assert (gauge.gain, gauge.delay) == (1.0, 0.0)
+
+
 def test_quantisation_and_noise(run):
     t, y = measure(Sensor("e", "joint_encoder", "joint1", resolution=2 * np.pi / 4096), run)
     steps = y[:, 0] / (2 * np.pi / 4096)

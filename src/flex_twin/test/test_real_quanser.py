@@ -246,10 +246,11 @@ def test_before_their_gain_switch_the_two_laws_differ_by_millivolts(cuboulder_ro
 
 def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
     """gauge_gain 0.5 applied to a twin: its tip_deflection sensor reads 0.5 d; a second
-    fit replaces it, keeping one; written into a preset and read back, the same."""
+    fit replaces it, keeping one; written into a preset and read back, the same; a
+    gauge_delay joins that sensor too (4 digits in the preset)."""
     from flex_model.arm import arm_from_dict, resolve_preset
     from flex_model.config import read_yaml
-    from flex_model.sensors import tip_deflection_gain
+    from flex_model.sensors import tip_deflection_gain, tip_gauge
     from flex_twin.real_arms.calibration import calibrated_dict
     arm = apply_parameters(calibrated_arm_for("cuboulder", "flexible"), {"gauge_gain": 0.5})
     assert tip_deflection_gain(arm) == 0.5
@@ -259,6 +260,30 @@ def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
     nominal = read_yaml(resolve_preset("quanser_cuboulder_calibrated"))
     data = calibrated_dict(nominal, {"gauge_gain": 0.4512345}, "g")
     assert tip_deflection_gain(arm_from_dict(data, "g.yaml")) == 0.4512
+    # a gauge delay joins the same sensor, the gain kept
+    lagged = apply_parameters(arm, {"gauge_delay": 0.0612345})
+    assert (tip_gauge(lagged).gain, tip_gauge(lagged).delay) == (0.5, 0.0612345)
+    data = calibrated_dict(nominal, {"gauge_gain": 0.5, "gauge_delay": 0.0612345}, "g")
+    gauge = tip_gauge(arm_from_dict(data, "g.yaml"))
+    assert (gauge.gain, gauge.delay) == (0.5, 0.06123)
+
+
+def test_the_twins_gauge_output_lags_by_its_delay(cuboulder_root):
+    """flexarm_k1k2_6_-3 driven by its recorded voltage (open loop, 1 s) on the calibrated
+    twin with a gauge delay of 0 and 50 ms: the lagging twin's gauge output is the other's
+    50 samples late, its first sample held before; the hub is the same."""
+    from flex_model.sensors import tip_gauge
+    run = next(qd.read_cuboulder_file(p) for p in qd.cuboulder_files(cuboulder_root)
+               if p.name == "flexarm_k1k2_6_-3")
+    arm = calibrated_arm_for("cuboulder", "flexible")
+    r0, r5 = (replay(FlexArmModel(apply_parameters(arm, {"gauge_delay": lag})), run,
+                     mode="open", t_final=1.0) for lag in (0.0, 0.05))
+    assert tip_gauge(FlexArmModel(apply_parameters(arm, {"gauge_delay": 0.05})).arm).delay \
+        == 0.05
+    np.testing.assert_array_equal(r5.twin_theta, r0.twin_theta)
+    np.testing.assert_allclose(r5.twin_deflection[50:], r0.twin_deflection[:-50], atol=1e-12)
+    np.testing.assert_allclose(r5.twin_deflection[:50], r0.twin_deflection[0], atol=1e-12)
+    assert np.ptp(r0.twin_deflection) >= 3e-3    # the link does move in that second
 
 
 def test_a_twin_with_a_gauge_gain_starts_where_the_lab_reads(cuboulder_root):

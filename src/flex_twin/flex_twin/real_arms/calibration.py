@@ -47,6 +47,8 @@ HUB_SCALE = 0.01      # rad
 TIP_SCALE = 0.002     # m
 SUBSAMPLE = 5         # every 5 ms
 SERVO_WINDOW = 5.0    # s of each rigid fit run (two steps)
+#: fitted values that are fields of the first link's tip_deflection sensor
+GAUGE_FIELDS = {"gauge_gain": "gain", "gauge_delay": "delay"}
 
 
 @dataclass(frozen=True)
@@ -141,14 +143,14 @@ def apply_parameters(arm: ArmDescription, values: dict) -> ArmDescription:
         out = dataclasses.replace(out, links=(link,))
     if "tip_mass" in values:
         out = dataclasses.replace(out, payload_mass=values["tip_mass"])
-    if "gauge_gain" in values:
+    gauge = {f: values[k] for k, f in GAUGE_FIELDS.items() if k in values}
+    if gauge:
         prior = next((s for s in out.sensors if s.kind == "tip_deflection"
                       and s.target == link.name), None)
-        gauge = (dataclasses.replace(prior, gain=values["gauge_gain"]) if prior is not None
-                 else Sensor("tip_gauge", "tip_deflection", link.name,
-                             gain=values["gauge_gain"]))
+        new = dataclasses.replace(prior or Sensor("tip_gauge", "tip_deflection", link.name),
+                                  **gauge)
         out = dataclasses.replace(out, sensors=tuple(s for s in out.sensors
-                                                     if s is not prior) + (gauge,))
+                                                     if s is not prior) + (new,))
     return out
 
 
@@ -277,14 +279,15 @@ def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
     if "tip_mass" in values:
         out["payload"] = {**nominal.get("payload", {}),
                           "mass": float(f"{values['tip_mass']:.4g}")}
-    if "gauge_gain" in values:
+    if any(k in values for k in GAUGE_FIELDS):
         sensors = [dict(x) for x in nominal.get("sensors", [])]
         gauge = next((x for x in sensors if x.get("kind") == "tip_deflection"
                       and x.get("link") == links[0]["name"]), None)
         if gauge is None:
             gauge = {"name": "tip_gauge", "kind": "tip_deflection", "link": links[0]["name"]}
             sensors.append(gauge)
-        gauge["gain"] = float(f"{values['gauge_gain']:.4g}")
+        gauge.update({f: float(f"{values[k]:.4g}") for k, f in GAUGE_FIELDS.items()
+                      if k in values})
         out["sensors"] = sensors
     out["links"], out["effects"] = links, effects
     return out

@@ -124,11 +124,12 @@ def cmd_units(args) -> int:
     from .quanser_twin import data_root
     from .unit_calibration import study
     out = Path(args.out)
-    if args.gauge_gain and not args.fit:
-        raise ValueError("--gauge-gain refits the units' links: give --fit too")
+    gauge = tuple(g for g in ("gauge_gain", "gauge_delay") if getattr(args, g))
+    if gauge and not args.fit:
+        raise ValueError("--gauge-gain/--gauge-delay refit the units' links: give --fit too")
     report = study(read_cuboulder(data_root(args.data) / CUBOULDER), _policy_factory(), out,
                    fit=args.fit, progress=_progress, max_nfev=args.max_evaluations,
-                   gauge_gain=args.gauge_gain)
+                   gauge=gauge)
     return _print_report(args, report, out / "units.md")
 
 
@@ -323,6 +324,8 @@ def add_real_arm_parsers(sub) -> None:
                     "write its preset into --out (~2 CPU-min per unit)")
     up.add_argument("--gauge-gain", action="store_true", help="with --fit: fit the gain of "
                     "the lab's tip gauge too (a tip_deflection sensor in the presets)")
+    up.add_argument("--gauge-delay", action="store_true", help="with --fit: fit the lag of "
+                    "the lab's tip gauge too (the law reads the gauge that late)")
     up.add_argument("--max-evaluations", type=int, default=12)
     up.add_argument("--json", action="store_true")
     up.set_defaults(func=cmd_units)

@@ -10,7 +10,11 @@ m/(rad/s^2), is the mode's participation times its tip amplitude, about the link
 for a tip-mass dominated link; the suite's beam gives 0.46 m for the Quanser link). The
 hub angle is known from the encoder, so this needs no twin: :func:`base_excited_mode`
 fits the mode to each run itself, and what it leaves no such single mode, with its root
-on the encoder's shaft, explains on that run. :func:`check_run` also drives the run's
+on the encoder's shaft, explains on that run. Read as the lab's gauge logged it, at the
+encoder's time, it leaves 2.2-8.3 mm with half the twins' gain and 2-9 % damping; read
+50-80 ms late (the gauge's signal chain lags the encoder: fitted per run, ``delay=True``)
+it leaves 1.0-2.4 mm, and on the four units but Hagenau's with the twins' gain (0.43-0.47)
+and the link's stuck-hub damping (0-1.5 %). :func:`check_run` also drives the run's
 twin's link by the lab's hub angle (:func:`driven_arm`, :func:`driven_link_policy`: torque
 input, the encoder tracked to a fraction of a count) and fits the same mode to its
 output, which must give the twin's clamped mode back (the method's check: the twin's
@@ -24,6 +28,8 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 from scipy.optimize import least_squares
+
+from flex_model.sensors import delayed
 
 #: zero-phase low-pass of the encoder angle before it is differentiated twice (Hz)
 CUTOFF = 20.0
@@ -41,32 +47,36 @@ def hub_acceleration(run, cutoff: float = CUTOFF) -> tuple:
 
 def mode_response(t, acc, initial_m: float, frequency_hz: float, damping_ratio: float,
                   gain: float, offset_m: float = 0.0, initial_rate_m_s: float = 0.0,
-                  **_) -> np.ndarray:
+                  delay_s: float = 0.0, **_) -> np.ndarray:
     """d(t) (m) of the mode above driven by ``acc``, from ``initial_m`` at
-    ``initial_rate_m_s``, about ``offset_m``."""
-    t = np.asarray(t, float) - t[0]
+    ``initial_rate_m_s``, about ``offset_m``; read ``delay_s`` late (a gauge's lag,
+    :func:`flex_model.sensors.delayed`)."""
+    t = np.asarray(t, float)
     w = 2 * np.pi * frequency_hz
     sys = signal.StateSpace([[0.0, 1.0], [-w * w, -2 * damping_ratio * w]], [[0.0], [-gain]],
                             [[1.0, 0.0]], [[0.0]])
-    return signal.lsim(sys, acc, t, X0=[initial_m - offset_m, initial_rate_m_s])[1] + offset_m
+    d = signal.lsim(sys, acc, t - t[0], X0=[initial_m - offset_m, initial_rate_m_s])[1]
+    return delayed(t, d, delay_s) + offset_m
 
 
-def base_excited_mode(t, acc, d, step: int = 5) -> dict:
+def base_excited_mode(t, acc, d, step: int = 5, delay: bool = False) -> dict:
     """Least-squares initial_m, frequency_hz, damping_ratio, gain (m/(rad/s^2)), offset_m
-    and initial_rate_m_s (a run may start ringing) of :func:`mode_response` to d; with the
-    fit's residual_rms_m and the signal_rms_m of d about its mean. Fitted on every
-    ``step``-th sample (the acceleration is low-passed far below that rate), started from
-    1.5-2.5 Hz and damping ratios 0.01 / 0.1, the best kept: a local search, so the
+    and initial_rate_m_s (a run may start ringing) of :func:`mode_response` to d, and with
+    ``delay`` the gauge's lag delay_s (0-0.2 s); with the fit's residual_rms_m and the
+    signal_rms_m of d about its mean. Fitted on every ``step``-th sample (the acceleration
+    is low-passed far below that rate), started from 1.5-2.5 Hz and damping ratios
+    0.01 / 0.1 (with ``delay``: 0.01 and 60 ms), the best kept: a local search, so the
     residual bounds this mode's best fit from above."""
     t, acc, d = (np.asarray(x, float)[::step] for x in (t, acc, d))
     names = ("initial_m", "frequency_hz", "damping_ratio", "gain", "offset_m",
-             "initial_rate_m_s")
+             "initial_rate_m_s") + (("delay_s",) if delay else ())
+    lo, hi = [-0.2, 0.3, 0.0, -5.0, -0.1, -1.0], [0.2, 10.0, 1.0, 5.0, 0.1, 1.0]
     best = None
     for f0 in (1.5, 2.0, 2.5):
-        for z0 in (0.01, 0.1):
-            fit = least_squares(
-                lambda p: mode_response(t, acc, *p) - d, [d[0], f0, z0, 0.25, 0.0, 0.0],
-                bounds=([-0.2, 0.3, 0.0, -5.0, -0.1, -1.0], [0.2, 10.0, 1.0, 5.0, 0.1, 1.0]))
+        for z0 in ((0.01,) if delay else (0.01, 0.1)):
+            p0 = [d[0], f0, z0, 0.25, 0.0, 0.0] + ([0.06] if delay else [])
+            fit = least_squares(lambda p: mode_response(t, acc, *p) - d, p0,
+                                bounds=(lo + [0.0] * delay, hi + [0.2] * delay))
             if best is None or fit.cost < best.cost:
                 best = fit
     out = {k: float(v) for k, v in zip(names, best.x)}
@@ -130,23 +140,25 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
     sign, bias = run.gauge_sign(), run.gauge_bias()
     d_lab = sign * (run.deflection - bias)
     lab = base_excited_mode(run.t, acc, d_lab)
+    lagged = base_excited_mode(run.t, acc, d_lab, delay=True)
     arm = run_twin(name)
     r = replay(FlexArmModel(driven_arm(arm)), run, driven_link_policy)
     d_twin = sign * (r.twin_deflection - bias)
-    row = {"run": name, "twin": arm.name, "lab": lab,
+    row = {"run": name, "twin": arm.name, "lab": lab, "lab_lagged": lagged,
            "twin_driven": {"hub_rms_rad": r.metrics["hub_rms_rad"],
                            "tip_rms_m": r.metrics["tip_rms_m"],
                            "fit": base_excited_mode(run.t, acc, d_twin)}}
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
-        plot_run(run, d_lab, mode_response(run.t, acc, **lab), d_twin,
+        plot_run(run, d_lab, mode_response(run.t, acc, **lab),
+                 mode_response(run.t, acc, **lagged), d_twin,
                  Path(out) / f"link_{name.replace('.', '_')}.png")
     return row
 
 
-def plot_run(run, d_lab, d_mode, d_twin, path) -> None:
-    """The lab's tip (in the twin's sign), the mode fitted to it and the twin's link driven
-    by the same hub angle; the hub angle below."""
+def plot_run(run, d_lab, d_mode, d_lagged, d_twin, path) -> None:
+    """The lab's tip (in the twin's sign), the mode fitted to it without and with a gauge
+    lag, and the twin's link driven by the same hub angle; the hub angle below."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -155,6 +167,8 @@ def plot_run(run, d_lab, d_mode, d_twin, path) -> None:
     ax[0].plot(run.t, 1e3 * d_lab, color="k", lw=1, label="lab gauge")
     ax[0].plot(run.t, 1e3 * d_mode, color="C1", lw=1,
                label="one linear mode driven by the lab's hub, fitted to this run")
+    ax[0].plot(run.t, 1e3 * d_lagged, color="C3", lw=1,
+               label="the same, read by a gauge that lags (lag fitted)")
     ax[0].plot(run.t, 1e3 * d_twin, color="C0", lw=1, alpha=0.7,
                label="twin's link driven by the lab's hub")
     ax[0].set_ylabel("tip deflection (mm)")
@@ -185,18 +199,26 @@ def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
     rows = []
     for row in executor.map(check_run, [str(data_root)] * n, runs,
                             [None if out is None else str(out)] * n):
-        lab, tw = row["lab"], row["twin_driven"]
+        lab, lag, tw = row["lab"], row["lab_lagged"], row["twin_driven"]
         progress(f"{row['run']}: one mode leaves {1e3 * lab['residual_rms_m']:.2f} of "
-                 f"{1e3 * lab['signal_rms_m']:.1f} mm (gain {lab['gain']:.3f}; the twin's "
-                 f"{tw['fit']['gain']:.3f}, left {1e3 * tw['fit']['residual_rms_m']:.2f} mm)")
+                 f"{1e3 * lab['signal_rms_m']:.1f} mm (gain {lab['gain']:.3f}), read "
+                 f"{1e3 * lag['delay_s']:.0f} ms late {1e3 * lag['residual_rms_m']:.2f} mm "
+                 f"(gain {lag['gain']:.3f}; the twin's {tw['fit']['gain']:.3f}, left "
+                 f"{1e3 * tw['fit']['residual_rms_m']:.2f} mm)")
         rows.append(row)
     lab = [r["lab"] for r in rows]
+    lagged = [r["lab_lagged"] for r in rows]
     twin = [r["twin_driven"]["fit"] for r in rows]
     return {"cutoff_hz": CUTOFF, "runs": rows, "summary": {
         "runs": n,
         "lab_residual_min_m": min(x["residual_rms_m"] for x in lab),
         "lab_residual_median_m": float(np.median([x["residual_rms_m"] for x in lab])),
         "twin_residual_max_m": max(x["residual_rms_m"] for x in twin),
+        "lagged_residual_range_m": [min(x["residual_rms_m"] for x in lagged),
+                                    max(x["residual_rms_m"] for x in lagged)],
+        "lagged_residual_median_m": float(np.median([x["residual_rms_m"] for x in lagged])),
+        "delay_range_s": [min(x["delay_s"] for x in lagged), max(x["delay_s"] for x in lagged)],
+        "delay_median_s": float(np.median([x["delay_s"] for x in lagged])),
         "gain_ratio_range": [min(a["gain"] / b["gain"] for a, b in zip(lab, twin)),
                              max(a["gain"] / b["gain"] for a, b in zip(lab, twin))],
         "twin_driven_tip_median_m": float(np.median([r["twin_driven"]["tip_rms_m"]
@@ -213,20 +235,27 @@ def write_report(report: dict, out) -> None:
              "back), fitted to each run itself; the same fit on the run's twin driven by that "
              "hub angle checks the method (the 1 mm log alone leaves 0.29 mm).", "",
              "| run | lab: frequency (Hz) | damping ratio | gain (m s^2/rad) | left (mm) | "
-             "of (mm) | twin driven: frequency | damping ratio | gain | left (mm) | "
-             "twin's tip RMS (mm) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "of (mm) | read late: lag (ms) | frequency | damping ratio | gain | left (mm) | "
+             "twin driven: frequency | damping ratio | gain | left (mm) | twin's tip RMS (mm) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in report["runs"]:
-        a, t = r["lab"], r["twin_driven"]["fit"]
+        a, g, t = r["lab"], r["lab_lagged"], r["twin_driven"]["fit"]
         lines.append(f"| {r['run']} | {a['frequency_hz']:.3f} | {a['damping_ratio']:.4f} | "
                      f"{a['gain']:.3f} | {1e3 * a['residual_rms_m']:.2f} | "
-                     f"{1e3 * a['signal_rms_m']:.1f} | {t['frequency_hz']:.3f} | "
+                     f"{1e3 * a['signal_rms_m']:.1f} | {1e3 * g['delay_s']:.1f} | "
+                     f"{g['frequency_hz']:.3f} | {g['damping_ratio']:.4f} | {g['gain']:.3f} | "
+                     f"{1e3 * g['residual_rms_m']:.2f} | {t['frequency_hz']:.3f} | "
                      f"{t['damping_ratio']:.4f} | {t['gain']:.3f} | "
                      f"{1e3 * t['residual_rms_m']:.2f} | "
                      f"{1e3 * r['twin_driven']['tip_rms_m']:.1f} |")
     lo, hi = s["gain_ratio_range"]
+    (l0, l1), (d0, d1) = s["lagged_residual_range_m"], s["delay_range_s"]
     lines += ["", f"{s['runs']} runs: the lab's mode leaves {1e3 * s['lab_residual_min_m']:.2f}"
               f" mm at least (median {1e3 * s['lab_residual_median_m']:.2f}); the twin's at "
               f"most {1e3 * s['twin_residual_max_m']:.2f}; lab gain / twin gain "
               f"{lo:.2f}-{hi:.2f}; the twins driven by the lab's hub: tip RMS median "
-              f"{1e3 * s['twin_driven_tip_median_m']:.1f} mm."]
+              f"{1e3 * s['twin_driven_tip_median_m']:.1f} mm. Read by a gauge that lags "
+              f"{1e3 * d0:.0f}-{1e3 * d1:.0f} ms (median {1e3 * s['delay_median_s']:.0f}), the "
+              f"lab's mode leaves {1e3 * l0:.2f}-{1e3 * l1:.2f} mm (median "
+              f"{1e3 * s['lagged_residual_median_m']:.2f})."]
     write_study(out, "link_response", report, lines)

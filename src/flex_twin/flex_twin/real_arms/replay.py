@@ -6,7 +6,8 @@ The closed loop takes a ``make_policy(run, model) -> policy(t, x) -> [V]`` calla
 the Quanser arms: ``flex_control.state_feedback.lab_policy_factory``), built by the caller,
 so that flex_model never imports flex_control. The twin's gauge output is the lab's
 (:func:`gauge_reading`: ``gauge_sign * gain * d + gauge_bias``, gain the twin's
-``tip_deflection`` sensor's, 1 without one) rounded to the log's 1 mm.
+``tip_deflection`` sensor's, 1 without one), lagging by that sensor's ``delay`` and rounded
+to the log's 1 mm.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from scipy.optimize import least_squares
 
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
-from flex_model.sensors import tip_deflection_gain
+from flex_model.sensors import delayed, tip_gauge
 from flex_model.simulate import SimulationDivergedError, simulate
 from .quanser_data import LabRun
 
@@ -144,7 +145,7 @@ class ReplayResult:
 
 def gauge_gain(model: FlexArmModel) -> float:
     """The gain of the twin's tip gauge: its first link's ``tip_deflection`` sensor's."""
-    return tip_deflection_gain(model.arm, model.arm.links[0].name)
+    return tip_gauge(model.arm, model.arm.links[0].name).gain
 
 
 def gauge_reading(model: FlexArmModel, run: LabRun, d):
@@ -238,7 +239,8 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
             if k == 2:
                 raise
     theta = res.joint_angles[:n, 0]
-    defl = gauge_reading(model, run, res.tip_deflections[:n, 0])
+    lag = tip_gauge(model.arm, model.arm.links[0].name).delay
+    defl = gauge_reading(model, run, delayed(t, res.tip_deflections[:n, 0], lag))
     if run.lab == "cuboulder":
         defl = np.round(defl / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
     out = ReplayResult(run=run, arm_name=model.arm.name, mode=mode, t=t, twin_theta=theta,

@@ -42,25 +42,31 @@ UNITS = {
 SINGLE_RUN_UNITS = ("4PM_Group37_FlexArm_Unit6", "Unit7_Flex_trial1.csv")
 
 
-#: the gauge gain's bounds and start when it is fitted (``--gauge-gain``): the lab's
-#: gauge answers the hub with 0.38-0.78 of the twins' link (flex-twin real-arm
+#: the lab's tip gauge's fields, bounds and starts when they are fitted (``--gauge-gain``,
+#: ``--gauge-delay``): the lab's gauge answers the hub with 0.38-0.78 of the twins' link
+#: without a lag, and like one mode of the twins' gain 50-65 ms late (flex-twin real-arm
 #: link-response)
-GAUGE_GAIN = FitParameter("gauge_gain", 1.0, 0.3, 1.2, 0.7)
+GAUGE = {"gauge_gain": FitParameter("gauge_gain", 1.0, 0.3, 1.2, 0.7),
+         "gauge_delay": FitParameter("gauge_delay", 0.0, 0.0, 0.15, 0.06)}
 
 
 def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: int = 12,
-                   progress: Callable | None = None, gauge_gain: bool = False):
+                   progress: Callable | None = None, gauge: tuple = ()):
     """The link stage on the unit's fit runs, started from the shared calibrated flexible
-    twin's values (EI, tip mass, damping, friction); with ``gauge_gain`` also the gain of
-    the lab's tip gauge (:data:`GAUGE_GAIN`; EI and tip mass then within x0.5-2)."""
+    twin's values (EI, tip mass, damping, friction); with ``gauge`` (names of :data:`GAUGE`)
+    also the lab's tip gauge's gain and/or delay (EI and tip mass then within x0.5-2)."""
     shared = calibrated_arm_for("cuboulder", "flexible")
     if shared is None:
         raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
     spec = UNITS[unit]
     params = started_from(shared, link_parameters(shared))
-    if gauge_gain:
+    unknown = [g for g in gauge if g not in GAUGE]
+    if unknown:
+        raise ValueError(f"gauge: got {unknown}; expected names among {sorted(GAUGE)}")
+    if gauge:
         params = [dataclasses.replace(p, lower=0.5 * p.nominal, upper=2.0 * p.nominal)
-                  if p.name in ("EI", "tip_mass") else p for p in params] + [GAUGE_GAIN]
+                  if p.name in ("EI", "tip_mass") else p for p in params]
+        params += [GAUGE[g] for g in gauge]
     return calibrate(shared, [runs[n] for n in spec["fit"]], params, make_policy,
                      stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
 
@@ -164,17 +170,16 @@ def write_markdown(report: dict, path) -> None:
 
 
 def study(runs: dict, make_policy: Callable, out, fit: bool = False,
-          progress: Callable = print, max_nfev: int = 12, gauge_gain: bool = False) -> dict:
-    """``fit``: refit every unit's link stage first (minutes; with ``gauge_gain`` the
-    gauge's gain too) and write its preset into ``out``; then :func:`compare` and write
+          progress: Callable = print, max_nfev: int = 12, gauge: tuple = ()) -> dict:
+    """``fit``: refit every unit's link stage first (minutes; with ``gauge`` the gauge's
+    gain and/or delay too) and write its preset into ``out``; then :func:`compare` and write
     units.md, units.json and the PNGs."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     presets, fits = {}, {}
     if fit:
         for unit in UNITS:
-            res = calibrate_unit(unit, runs, make_policy, max_nfev=max_nfev,
-                                 gauge_gain=gauge_gain)
+            res = calibrate_unit(unit, runs, make_policy, max_nfev=max_nfev, gauge=gauge)
             presets[unit] = write_unit_preset(unit, res, out)
             fits[unit] = res.as_dict()
             progress(f"{unit}: fitted {res.values}")
