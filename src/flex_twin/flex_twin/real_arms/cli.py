@@ -125,11 +125,12 @@ def cmd_units(args) -> int:
     from .unit_calibration import study
     out = Path(args.out)
     gauge = tuple(g for g in ("gauge_gain", "gauge_delay") if getattr(args, g))
-    if gauge and not args.fit:
-        raise ValueError("--gauge-gain/--gauge-delay refit the units' links: give --fit too")
+    if (gauge or args.from_units) and not args.fit:
+        raise ValueError("--gauge-gain/--gauge-delay/--from-units refit the units' links: "
+                         "give --fit too")
     report = study(read_cuboulder(data_root(args.data) / CUBOULDER), _policy_factory(), out,
                    fit=args.fit, progress=_progress, max_nfev=args.max_evaluations,
-                   gauge=gauge)
+                   gauge=gauge, from_unit=args.from_units)
     return _print_report(args, report, out / "units.md")
 
 
@@ -326,6 +327,8 @@ def add_real_arm_parsers(sub) -> None:
                     "the lab's tip gauge too (a tip_deflection sensor in the presets)")
     up.add_argument("--gauge-delay", action="store_true", help="with --fit: fit the lag of "
                     "the lab's tip gauge too (the law reads the gauge that late)")
+    up.add_argument("--from-units", action="store_true", help="with --fit: start each "
+                    "unit's fit from its stored preset (default: from the shared twin)")
     up.add_argument("--max-evaluations", type=int, default=12)
     up.add_argument("--json", action="store_true")
     up.set_defaults(func=cmd_units)

@@ -29,7 +29,7 @@ import numpy as np
 from scipy import signal
 from scipy.optimize import least_squares
 
-from flex_model.sensors import delayed
+from flex_model.sensors import delayed, tip_gauge
 
 #: zero-phase low-pass of the encoder angle before it is differentiated twice (Hz)
 CUTOFF = 20.0
@@ -83,6 +83,18 @@ def base_excited_mode(t, acc, d, step: int = 5, delay: bool = False) -> dict:
     out.update(residual_rms_m=float(np.sqrt(np.mean(best.fun ** 2))),
                signal_rms_m=float(np.std(d)))
     return out
+
+
+def law_voltage_error(run, shift: int) -> float:
+    """RMS (V) of the logged voltage minus the lab's law (its logged gains) on the logged
+    hub and the gauge read ``shift`` samples later: least at 0 where the loop read the
+    gauge as it was logged."""
+    n = len(run.t)
+    k = np.arange(max(0, -shift), min(n, n - shift))
+    k1, k2, k3, k4 = run.gains
+    v = (k1 * (run.reference[k] - run.theta[k]) - k2 * run.deflection[k + shift]
+         - k3 * run.theta_rate[k] - k4 * run.deflection_rate[k + shift])
+    return float(np.sqrt(np.mean((v - run.voltage[k]) ** 2)))
 
 
 def driven_arm(arm):
@@ -144,10 +156,15 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
     arm = run_twin(name)
     r = replay(FlexArmModel(driven_arm(arm)), run, driven_link_policy)
     d_twin = sign * (r.twin_deflection - bias)
+    shift = int(round(lagged["delay_s"] / run.dt))
+    law = ({str(k): law_voltage_error(run, k) for k in (-shift, 0, shift)}
+           if run.gains[1] or run.gains[3] else None)   # None: the law ignores the gauge
     row = {"run": name, "twin": arm.name, "lab": lab, "lab_lagged": lagged,
+           "law_voltage_rms_V": law,
            "twin_driven": {"hub_rms_rad": r.metrics["hub_rms_rad"],
                            "tip_rms_m": r.metrics["tip_rms_m"],
-                           "fit": base_excited_mode(run.t, acc, d_twin)}}
+                           "fit": base_excited_mode(run.t, acc, d_twin,
+                                                    delay=tip_gauge(arm).delay > 0)}}
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
         plot_run(run, d_lab, mode_response(run.t, acc, **lab),
@@ -219,6 +236,10 @@ def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
         "lagged_residual_median_m": float(np.median([x["residual_rms_m"] for x in lagged])),
         "delay_range_s": [min(x["delay_s"] for x in lagged), max(x["delay_s"] for x in lagged)],
         "delay_median_s": float(np.median([x["delay_s"] for x in lagged])),
+        "law_reads_gauge": sum(r["law_voltage_rms_V"] is not None for r in rows),
+        "law_best_unshifted": sum(min(r["law_voltage_rms_V"].values())
+                                  == r["law_voltage_rms_V"]["0"] for r in rows
+                                  if r["law_voltage_rms_V"] is not None),
         "gain_ratio_range": [min(a["gain"] / b["gain"] for a, b in zip(lab, twin)),
                              max(a["gain"] / b["gain"] for a, b in zip(lab, twin))],
         "twin_driven_tip_median_m": float(np.median([r["twin_driven"]["tip_rms_m"]
@@ -257,5 +278,8 @@ def write_report(report: dict, out) -> None:
               f"{1e3 * s['twin_driven_tip_median_m']:.1f} mm. Read by a gauge that lags "
               f"{1e3 * d0:.0f}-{1e3 * d1:.0f} ms (median {1e3 * s['delay_median_s']:.0f}), the "
               f"lab's mode leaves {1e3 * l0:.2f}-{1e3 * l1:.2f} mm (median "
-              f"{1e3 * s['lagged_residual_median_m']:.2f})."]
+              f"{1e3 * s['lagged_residual_median_m']:.2f}). The logged voltage is the lab's "
+              f"law on the gauge as logged (not shifted by the lag either way) on "
+              f"{s['law_best_unshifted']} of the {s['law_reads_gauge']} runs whose law "
+              "reads it: the loop read the lagging gauge."]
     write_study(out, "link_response", report, lines)

@@ -51,14 +51,18 @@ GAUGE = {"gauge_gain": FitParameter("gauge_gain", 1.0, 0.3, 1.2, 0.7),
 
 
 def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: int = 12,
-                   progress: Callable | None = None, gauge: tuple = ()):
+                   progress: Callable | None = None, gauge: tuple = (),
+                   from_unit: bool = False):
     """The link stage on the unit's fit runs, started from the shared calibrated flexible
-    twin's values (EI, tip mass, damping, friction); with ``gauge`` (names of :data:`GAUGE`)
-    also the lab's tip gauge's gain and/or delay (EI and tip mass then within x0.5-2)."""
+    twin's values (EI, tip mass, damping, friction), or with ``from_unit`` from the unit's
+    stored preset; with ``gauge`` (names of :data:`GAUGE`) also the lab's tip gauge's gain
+    and/or delay (EI and tip mass then within x0.5-2 of the start)."""
     shared = calibrated_arm_for("cuboulder", "flexible")
     if shared is None:
         raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
     spec = UNITS[unit]
+    if from_unit:
+        shared = load_arm(spec["preset"])
     params = started_from(shared, link_parameters(shared))
     unknown = [g for g in gauge if g not in GAUGE]
     if unknown:
@@ -71,8 +75,9 @@ def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: in
                      stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
 
 
-def write_unit_preset(unit: str, result, out_dir) -> Path:
-    """``<preset>.yaml``: the shared calibrated twin with the unit's link values."""
+def write_unit_preset(unit: str, result, out_dir, options: str = "") -> Path:
+    """``<preset>.yaml``: the shared calibrated twin with the unit's link values (its
+    header names the ``units --fit`` ``options`` that made it)."""
     from flex_model.arm import resolve_preset
     from flex_model.config import read_yaml
     name = UNITS[unit]["preset"]
@@ -82,8 +87,8 @@ def write_unit_preset(unit: str, result, out_dir) -> Path:
     data["description"] = (f"Quanser SRV02 + flexible link, {unit}'s unit: the shared "
                            "calibrated twin with its own link stage (issue 22)")
     return write_preset(data, Path(out_dir) / f"{name}.yaml", "quanser_cuboulder_calibrated "
-                        "with the link refitted by flex-twin real-arm units --fit (issue 22)",
-                        result)
+                        f"with the link refitted by flex-twin real-arm units --fit{options} "
+                        "(issue 22)", result)
 
 
 def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = None,
@@ -170,17 +175,23 @@ def write_markdown(report: dict, path) -> None:
 
 
 def study(runs: dict, make_policy: Callable, out, fit: bool = False,
-          progress: Callable = print, max_nfev: int = 12, gauge: tuple = ()) -> dict:
+          progress: Callable = print, max_nfev: int = 12, gauge: tuple = (),
+          from_unit: bool = False) -> dict:
     """``fit``: refit every unit's link stage first (minutes; with ``gauge`` the gauge's
-    gain and/or delay too) and write its preset into ``out``; then :func:`compare` and write
+    gain and/or delay too; ``from_unit``: from the unit's stored preset) and write its
+    preset into ``out``; then :func:`compare` and write
     units.md, units.json and the PNGs."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     presets, fits = {}, {}
     if fit:
         for unit in UNITS:
-            res = calibrate_unit(unit, runs, make_policy, max_nfev=max_nfev, gauge=gauge)
-            presets[unit] = write_unit_preset(unit, res, out)
+            res = calibrate_unit(unit, runs, make_policy, max_nfev=max_nfev, gauge=gauge,
+                                 from_unit=from_unit)
+            options = "".join(f" --{g.replace('_', '-')}" for g in gauge) + \
+                (" --from-units" if from_unit else "") + \
+                (f" --max-evaluations {max_nfev}" if max_nfev != 12 else "")
+            presets[unit] = write_unit_preset(unit, res, out, options)
             fits[unit] = res.as_dict()
             progress(f"{unit}: fitted {res.values}")
     report = compare(runs, make_policy, out, presets, progress)
