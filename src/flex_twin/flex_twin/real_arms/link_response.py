@@ -11,14 +11,15 @@ for a tip-mass dominated link; the suite's beam gives 0.46 m for the Quanser lin
 hub angle is known from the encoder, so this needs no twin: :func:`base_excited_mode`
 fits the mode to each run itself, and what it leaves no such single mode, with its root
 on the encoder's shaft, explains on that run. Read as the lab's gauge logged it, at the
-encoder's time, it leaves 2.2-8.3 mm with half the twins' gain and 2-9 % damping; read
-50-80 ms late (the gauge's signal chain lags the encoder: fitted per run, ``delay=True``)
-it leaves 1.0-2.4 mm, and on the four units but Hagenau's with the twins' gain (0.43-0.47)
-and the link's stuck-hub damping (0-1.5 %). :func:`check_run` also drives the run's
-twin's link by the lab's hub angle (:func:`driven_arm`, :func:`driven_link_policy`: torque
-input, the encoder tracked to a fraction of a count) and fits the same mode to its
-output, which must give the twin's clamped mode back (the method's check: the twin's
-beam answers the hub as one mode to within the log's quantisation).
+encoder's time, it leaves 2.2-8.3 mm with 0.36-0.80 of the twins' gain and 2-9 % damping;
+read 45-80 ms late (the gauge's signal chain lags the encoder: fitted per run,
+``delay=True``) it leaves 1.0-2.4 mm, and on the three units besides Hagenau's with the
+twins' gain (0.43-0.47) and the link's stuck-hub damping (0-1.5 %). :func:`check_run`
+also drives the run's twin's link by the lab's hub angle (:func:`driven_arm`,
+:func:`driven_link_policy`: torque input, the encoder tracked to a fraction of a count)
+and fits the same mode to its output (with a lag if the twin's gauge has one), which must
+give the twin's clamped mode back (the method's check: the twin's beam answers the hub as
+one mode to within the log's quantisation).
 """
 from __future__ import annotations
 
