@@ -8,8 +8,8 @@ voltage (V), optionally clipped to ``voltage_limit``. V_0 (``voltage_offset``, d
 is a constant the motor receives on top of the law: an amplifier offset, or any constant
 torque at the hub (K_g K_m V_0 / R_m), such as a cable's pull. The reference is a recorded square
 wave held between its samples (zero-order hold, as the lab's 1 kHz loop). The gauge's
-signal may lag the tip by ``gauge_delay`` (s): the law then acts on d(t - gauge_delay) and
-its rate, as the lab's loop received them (the CU Boulder logs: about 60 ms, flex-twin
+reading may lag the tip by ``gauge_delay`` (s): the law then acts on d(t - gauge_delay)
+and its rate, as the lab's loop received them (the CU Boulder logs: about 60 ms, flex-twin
 real-arm link-response).
 """
 from __future__ import annotations
@@ -110,10 +110,11 @@ def lab_controller(run, voltage_limit: float = np.inf, voltage_offset: float = 0
                             gauge_delay)
 
 
-def lab_policy_factory(run, model) -> Callable:
+def lab_policy_factory(run, model, voltage_offset: float = 0.0) -> Callable:
     """The closed-loop policy of a run on a twin (the replay's ``make_policy`` hook); the
     gauge's gain and delay are the twin's first link's ``tip_deflection`` sensor's
     (flex_model.sensors; its other fields are not used: the run gives sign and bias)."""
     from flex_model.sensors import tip_gauge
     gauge = tip_gauge(model.arm, model.arm.links[0].name)
-    return lab_controller(run, gauge_gain=gauge.gain, gauge_delay=gauge.delay).policy(model)
+    return lab_controller(run, voltage_offset=voltage_offset, gauge_gain=gauge.gain,
+                          gauge_delay=gauge.delay).policy(model)

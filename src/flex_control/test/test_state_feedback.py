@@ -38,24 +38,27 @@ def test_law_and_held_reference():
 
 
 def test_a_lagging_gauge_feeds_the_law_the_tip_of_a_while_ago():
-    """gauge_delay 25 ms: along a tip deflection d = 0.01 t (rate 0.01) sampled every
-    10 ms, the law's K2 term is -K2 d(t - 0.025), interpolated between the samples, with
-    d(0) before t = 25 ms; a call at an earlier time starts a new run (the replay's
-    retry at a halved step)."""
+    """gauge_delay 25 ms: along a tip deflection d = 0.003 + sin(3 t) / 100 and its rate,
+    called at uneven times, the law's K2 and K4 terms read d and d_dot at t - 0.025,
+    linearly interpolated between the calls (np.interp), the first call's values held
+    before t = 25 ms; a call at an earlier time starts a new run (the replay's retry at a
+    halved step)."""
     model = FlexArmModel(load_arm("quanser_cuboulder_flexible"))
-    law = TipStateFeedback([0.0, 2.0, 0.0, 0.0], [0.0], [0.0], gauge_delay=0.025)
+    law = TipStateFeedback([0.0, 2.0, 0.0, 0.5], [0.0], [0.0], gauge_delay=0.025)
     policy = law.policy(model)
     i = model.tip_deflection_index(0)
+    times = np.cumsum(np.r_[0.0, np.random.default_rng(1).uniform(0.002, 0.012, 30)])
 
-    def state(t):
-        x = np.zeros(2 * model.nq)
-        x[i], x[model.nq + i] = 0.01 * t + 0.003, 0.01
-        return x
+    def tip(t):
+        return 0.003 + np.sin(3 * t) / 100, 0.03 * np.cos(3 * t)
 
     for rerun in range(2):
-        for t in np.arange(0.0, 0.1, 0.01):
-            lagged = 0.01 * max(t - 0.025, 0.0) + 0.003
-            assert policy(t, state(t))[0] == pytest.approx(-2.0 * lagged, rel=1e-12)
+        for k, t in enumerate(times):
+            x = np.zeros(2 * model.nq)
+            x[i], x[model.nq + i] = tip(t)
+            d, dd = (np.interp(t - 0.025, times[:k + 1], tip(times[:k + 1])[j])
+                     for j in (0, 1))
+            assert policy(t, x)[0] == pytest.approx(-2.0 * d - 0.5 * dd, rel=1e-12)
     with pytest.raises(ValueError, match="gauge_delay"):
         TipStateFeedback([1.0, 2.0, 0.0, 0.0], [0.0], [0.0], gauge_delay=-0.01)
 

@@ -152,10 +152,6 @@ def tip_gauge(arm, link: str | None = None) -> Sensor:
                 Sensor("tip_gauge", "tip_deflection", link or ""))
 
 
-def tip_deflection_gain(arm, link: str | None = None) -> float:
-    """The gain of the arm's ``tip_deflection`` sensor on ``link`` (:func:`tip_gauge`)."""
-    return tip_gauge(arm, link).gain
-
 
 def quantise(x, resolution: float):
     """Round to the resolution (an encoder's or ADC's step); unchanged for resolution 0."""

@@ -6,7 +6,7 @@ import pytest
 from flex_model.arm import arm_from_dict, load_arm
 from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
-from flex_model.sensors import Sensor, measure, tip_deflection_gain, true_signal
+from flex_model.sensors import Sensor, measure, tip_gauge, true_signal
 from flex_model.simulate import JointPD, Pulse, simulate
 from flex_model.statics import TipLoad, static_equilibrium
 
@@ -45,7 +45,7 @@ def test_delayed_interpolates_and_holds_the_first_sample():
     """delayed(t, x, 0.25) of the ramp x = 2t on a 0.1 s grid: 2 (t - 0.25) between the
     samples, x[0] held before t = 0.25; columns kept; delay 0 is x itself; the tip gauge
     of an arm without one is exact."""
-    from flex_model.sensors import delayed, tip_gauge
+    from flex_model.sensors import delayed
     t = np.arange(0.0, 1.01, 0.1)
     x = np.column_stack([2 * t, -t])
     y = delayed(t, x, 0.25)
@@ -116,9 +116,9 @@ def test_sensors_in_the_arm_description():
     arm = arm_from_dict(data, "arm.yaml")
     assert [s.kind for s in arm.sensors] == ["joint_encoder", "strain_gauge"]
     assert arm.sensors[0].resolution == 0.001 and arm.sensors[1].name == "link1/strain_gauge"
-    assert tip_deflection_gain(arm) == 1.0
+    assert tip_gauge(arm).gain == 1.0
     data["sensors"].append({"kind": "tip_deflection", "link": "link1", "gain": 0.45})
-    assert tip_deflection_gain(arm_from_dict(data, "arm.yaml")) == 0.45
+    assert tip_gauge(arm_from_dict(data, "arm.yaml")).gain == 0.45
     data["sensors"][-1]["gain"] = 0.0
     with pytest.raises(ConfigError, match=r"arm.yaml: sensors\[2\].gain: got 0"):
         arm_from_dict(data, "arm.yaml")

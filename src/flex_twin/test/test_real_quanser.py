@@ -250,22 +250,45 @@ def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
     gauge_delay joins that sensor too (4 digits in the preset)."""
     from flex_model.arm import arm_from_dict, resolve_preset
     from flex_model.config import read_yaml
-    from flex_model.sensors import tip_deflection_gain, tip_gauge
+    from flex_model.sensors import tip_gauge
     from flex_twin.real_arms.calibration import calibrated_dict
     arm = apply_parameters(calibrated_arm_for("cuboulder", "flexible"), {"gauge_gain": 0.5})
-    assert tip_deflection_gain(arm) == 0.5
-    assert tip_deflection_gain(apply_parameters(arm, {"gauge_gain": 0.7})) == 0.7
+    assert tip_gauge(arm).gain == 0.5
+    assert tip_gauge(apply_parameters(arm, {"gauge_gain": 0.7})).gain == 0.7
     assert sum(s.kind == "tip_deflection" for s in apply_parameters(
         arm, {"gauge_gain": 0.7}).sensors) == 1
     nominal = read_yaml(resolve_preset("quanser_cuboulder_calibrated"))
     data = calibrated_dict(nominal, {"gauge_gain": 0.4512345}, "g")
-    assert tip_deflection_gain(arm_from_dict(data, "g.yaml")) == 0.4512
+    assert tip_gauge(arm_from_dict(data, "g.yaml")).gain == 0.4512
     # a gauge delay joins the same sensor, the gain kept
     lagged = apply_parameters(arm, {"gauge_delay": 0.0612345})
     assert (tip_gauge(lagged).gain, tip_gauge(lagged).delay) == (0.5, 0.0612345)
     data = calibrated_dict(nominal, {"gauge_gain": 0.5, "gauge_delay": 0.0612345}, "g")
     gauge = tip_gauge(arm_from_dict(data, "g.yaml"))
     assert (gauge.gain, gauge.delay) == (0.5, 0.06123)
+
+
+def test_a_unit_refit_from_its_stored_twin_starts_from_and_keeps_its_gauge(tmp_path):
+    """The stored Hagenau twin's gauge lags 34.06 ms: a fit from it starts the lag there,
+    and a preset written from it with new link values only keeps that lag (and the
+    link values); written from the shared twin, it has no gauge."""
+    from flex_model.arm import load_arm
+    from flex_model.sensors import tip_gauge
+    from flex_twin.real_arms.calibration import CalibrationResult, started_from
+    from flex_twin.real_arms.unit_calibration import GAUGE, UNITS, write_unit_preset
+    stored = load_arm(UNITS["hagenau"]["preset"])
+    assert tip_gauge(stored).delay == pytest.approx(0.03406)
+    assert started_from(stored, [GAUGE["gauge_delay"]])[0].start == pytest.approx(0.03406)
+    assert started_from(load_arm("quanser_cuboulder_calibrated"),
+                        [GAUGE["gauge_delay"]])[0].start == 0.06
+    result = CalibrationResult("link@hagenau", {"EI": 0.4}, stored, 1.0, 0.9, 3, ("r",))
+    for from_unit, delay in ((True, 0.03406), (False, 0.0)):
+        path = write_unit_preset("hagenau", result, tmp_path / str(from_unit), " --x",
+                                 from_unit)
+        arm = load_arm(str(path))
+        assert tip_gauge(arm).delay == pytest.approx(delay)
+        assert arm.links[0].segments[0].dims["EI"][0] == 0.4
+        assert ("started from the stored" in path.read_text()) == from_unit
 
 
 def test_the_twins_gauge_output_lags_by_its_delay(cuboulder_root):

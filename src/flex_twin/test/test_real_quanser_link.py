@@ -133,7 +133,7 @@ def test_the_lab_link_answers_its_hub_angle_as_one_mode_read_late(cuboulder_root
     run itself, leaves 2.26 mm of the gauge's 4.2 mm RMS (above the 2 mm aim on its own),
     with a gain 0.215 m s^2/rad; read by a gauge lagging 68 ms it leaves 1.00 mm with a
     gain 0.363 and no damping, and the logged voltage is the law on the gauge as logged
-    (0.0176 V RMS; 68 ms either way: 2 mV more). The unit twin's link driven by the same
+    (0.0176 V RMS; 68 ms either way: 2.5-3.1 mV more). The unit twin's link driven by the same
     hub angle (tracked to 0.3 mrad) gives that fit back to the log's 0.29 mm with its
     clamped 1.844 Hz, a gain 0.460 and its gauge's 34.06 ms lag; its tip RMS is 6.8 mm."""
     from flex_twin.real_arms.link_response import check_run
@@ -148,8 +148,9 @@ def test_the_lab_link_answers_its_hub_angle_as_one_mode_read_late(cuboulder_root
     assert lag["gain"] == pytest.approx(0.363, abs=0.01)
     assert lag["damping_ratio"] < 2e-3
     law = row["law_voltage_rms_V"]   # the logged voltage is the law on the logged gauge
+    shift = str(int(round(lag["delay_s"] / 1e-3)))
     assert law["0"] == pytest.approx(0.0176, abs=5e-4)
-    assert min(law["-68"], law["68"]) > law["0"] + 2e-3
+    assert min(law["-" + shift], law[shift]) > law["0"] + 2e-3
     assert twin["hub_rms_rad"] < 0.35e-3
     assert twin["fit"]["residual_rms_m"] < 0.32e-3
     assert twin["fit"]["frequency_hz"] == pytest.approx(1.844, abs=0.005)

@@ -95,8 +95,9 @@ def link_parameters(arm: ArmDescription) -> list:
 
 def started_from(arm: ArmDescription, params: list) -> list:
     """``params`` started from the arm's current values of the friction (F_c, F_s - F_c,
-    F_v), the link's Rayleigh damping and the rotor inertia (a fit from a calibrated twin
-    rather than from the handout), each clipped into its bounds."""
+    F_v), the link's Rayleigh damping, the rotor inertia and its tip gauge's gain and
+    delay if it has one (a fit from a calibrated twin rather than from the handout), each
+    clipped into its bounds."""
     j = arm.joint_names[0]
     now = {}
     fr = arm.effect("joint_friction", j)
@@ -109,6 +110,10 @@ def started_from(arm: ArmDescription, params: list) -> list:
     gear = arm.effect("gear", j)
     if gear is not None:
         now["rotor_inertia"] = gear["rotor_inertia"]
+    gauge = next((s for s in arm.sensors if s.kind == "tip_deflection"
+                  and s.target == arm.links[0].name), None)
+    if gauge is not None:
+        now.update({k: getattr(gauge, f) for k, f in GAUGE_FIELDS.items()})
     return [dataclasses.replace(p, start=min(max(now[p.name], p.lower), p.upper))
             if p.name in now else p for p in params]
 

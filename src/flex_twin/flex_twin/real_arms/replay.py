@@ -143,22 +143,22 @@ class ReplayResult:
         return out
 
 
-def gauge_gain(model: FlexArmModel) -> float:
-    """The gain of the twin's tip gauge: its first link's ``tip_deflection`` sensor's."""
-    return tip_gauge(model.arm, model.arm.links[0].name).gain
+def twin_gauge(model: FlexArmModel):
+    """The twin's tip gauge: its first link's ``tip_deflection`` sensor (gain, delay)."""
+    return tip_gauge(model.arm, model.arm.links[0].name)
 
 
 def gauge_reading(model: FlexArmModel, run: LabRun, d):
     """What the lab's gauge reads for the twin's tip deflection d (m):
     gauge_sign * gain * d + gauge_bias (the law's input and the replay's output)."""
-    return run.gauge_sign() * gauge_gain(model) * np.asarray(d) + run.gauge_bias()
+    return run.gauge_sign() * twin_gauge(model).gain * np.asarray(d) + run.gauge_bias()
 
 
 def gauge_deflection(model: FlexArmModel, run: LabRun, reading, rate: bool = False):
     """The twin's tip deflection (or, ``rate``, its rate) for a gauge reading: the inverse
     of :func:`gauge_reading`."""
     bias = 0.0 if rate else run.gauge_bias()
-    return run.gauge_sign() * (np.asarray(reading) - bias) / gauge_gain(model)
+    return run.gauge_sign() * (np.asarray(reading) - bias) / twin_gauge(model).gain
 
 
 def initial_state(model: FlexArmModel, run: LabRun):
@@ -239,8 +239,8 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
             if k == 2:
                 raise
     theta = res.joint_angles[:n, 0]
-    lag = tip_gauge(model.arm, model.arm.links[0].name).delay
-    defl = gauge_reading(model, run, delayed(t, res.tip_deflections[:n, 0], lag))
+    defl = gauge_reading(model, run, delayed(t, res.tip_deflections[:n, 0],
+                                             twin_gauge(model).delay))
     if run.lab == "cuboulder":
         defl = np.round(defl / GAUGE_RESOLUTION) * GAUGE_RESOLUTION
     out = ReplayResult(run=run, arm_name=model.arm.name, mode=mode, t=t, twin_theta=theta,

@@ -55,10 +55,10 @@ def window_errors(result, start: int) -> tuple:
 
 def lab_policy(voltage_offset: float = 0.0):
     """The replay's ``make_policy``: the run's lab law with a voltage offset V_0."""
-    from flex_control.state_feedback import lab_controller
+    from flex_control.state_feedback import lab_policy_factory
 
     def make(run, model):
-        return lab_controller(run, voltage_offset=voltage_offset).policy(model)
+        return lab_policy_factory(run, model, voltage_offset=voltage_offset)
     return make
 
 

@@ -43,9 +43,10 @@ SINGLE_RUN_UNITS = ("4PM_Group37_FlexArm_Unit6", "Unit7_Flex_trial1.csv")
 
 
 #: the lab's tip gauge's fields, bounds and starts when they are fitted (``--gauge-gain``,
-#: ``--gauge-delay``): the lab's gauge answers the hub with 0.38-0.78 of the twins' link
-#: without a lag, and like one mode of the twins' gain 50-65 ms late (flex-twin real-arm
-#: link-response)
+#: ``--gauge-delay``; a twin with a gauge starts from its values): the lab's gauge answers
+#: the hub with 0.36-0.80 of the twins' link as logged, and read 45-80 ms late like one
+#: mode with the twins' gain on three units, 0.25-0.45 of it on Hagenau's (flex-twin
+#: real-arm link-response)
 GAUGE = {"gauge_gain": FitParameter("gauge_gain", 1.0, 0.3, 1.2, 0.7),
          "gauge_delay": FitParameter("gauge_delay", 0.0, 0.0, 0.15, 0.06)}
 
@@ -75,20 +76,23 @@ def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: in
                      stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
 
 
-def write_unit_preset(unit: str, result, out_dir, options: str = "") -> Path:
+def write_unit_preset(unit: str, result, out_dir, options: str = "",
+                      from_unit: bool = False) -> Path:
     """``<preset>.yaml``: the shared calibrated twin with the unit's link values (its
-    header names the ``units --fit`` ``options`` that made it)."""
+    header names the ``units --fit`` ``options`` that made it); ``from_unit``: the unit's
+    stored twin with them (what the fit did not free, such as its gauge, kept)."""
     from flex_model.arm import resolve_preset
     from flex_model.config import read_yaml
     name = UNITS[unit]["preset"]
-    shared = read_yaml(resolve_preset("quanser_cuboulder_calibrated"))
-    fr = next(e for e in shared["effects"] if e["type"] == "joint_friction")
-    data = calibrated_dict(shared, {"viscous": fr["viscous"], **result.values}, name)
+    base = read_yaml(resolve_preset(name if from_unit else "quanser_cuboulder_calibrated"))
+    fr = next(e for e in base["effects"] if e["type"] == "joint_friction")
+    data = calibrated_dict(base, {"viscous": fr["viscous"], **result.values}, name)
     data["description"] = (f"Quanser SRV02 + flexible link, {unit}'s unit: the shared "
                            "calibrated twin with its own link stage (issue 22)")
+    start = f", started from the stored {name}" if from_unit else ""
     return write_preset(data, Path(out_dir) / f"{name}.yaml", "quanser_cuboulder_calibrated "
-                        f"with the link refitted by flex-twin real-arm units --fit{options} "
-                        "(issue 22)", result)
+                        f"with the link refitted by flex-twin real-arm units --fit{options}"
+                        f"{start} (issue 22)", result)
 
 
 def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = None,
@@ -191,7 +195,7 @@ def study(runs: dict, make_policy: Callable, out, fit: bool = False,
             options = "".join(f" --{g.replace('_', '-')}" for g in gauge) + \
                 (" --from-units" if from_unit else "") + \
                 (f" --max-evaluations {max_nfev}" if max_nfev != 12 else "")
-            presets[unit] = write_unit_preset(unit, res, out, options)
+            presets[unit] = write_unit_preset(unit, res, out, options, from_unit)
             fits[unit] = res.as_dict()
             progress(f"{unit}: fitted {res.values}")
     report = compare(runs, make_policy, out, presets, progress)
