@@ -6,21 +6,20 @@ amplitude where it stays linear,
     d'' + 2 zeta w d' + w^2 d = -gain theta''(t)
 
 (base excitation: the tip deflection d driven by the hub's angular acceleration; the gain,
-m/(rad/s^2), is the mode's participation times its tip amplitude, about the link length
-for a tip-mass dominated link; the suite's beam gives 0.46 m for the Quanser link). The
-hub angle is known from the encoder, so this needs no twin: :func:`base_excited_mode`
-fits the mode to each run itself, and what it leaves no such single mode, with its root
-on the encoder's shaft, explains on that run. Read as the lab's gauge logged it, at the
-encoder's time, it leaves 2.2-8.3 mm with 0.36-0.80 of the twins' gain and 2-9 % damping;
-read 45-80 ms late (``delay=True``: the lag fitted per run; where it arises, in the
-gauge's signal chain or in the link, the data do not say) it leaves 1.0-2.4 mm, and on
-the three units besides Hagenau's with the twins' gain (0.43-0.47) and the link's
-stuck-hub damping (0-1.5 %). :func:`check_run`
-also drives the run's twin's link by the lab's hub angle (:func:`driven_arm`,
-:func:`driven_link_policy`: torque input, the encoder tracked to a fraction of a count)
-and fits the same mode to its output (with a lag if the twin's gauge has one), which must
-give the twin's clamped mode back (the method's check: the twin's beam answers the hub as
-one mode to within the log's quantisation).
+m/(rad/s^2), is the mode's participation times its tip amplitude, about the link length for
+a tip-mass dominated link; the suite's beam gives 0.46 m for the Quanser link). The hub
+angle is known from the encoder, so this needs no twin: :func:`base_excited_mode` fits the
+mode to each run itself, and what it leaves no such single mode, with its root on the
+encoder's shaft, explains on that run. Read as the lab's gauge logged it, at the encoder's
+time, it leaves 2.2-8.3 mm with 0.36-0.80 of the twins' gain and 2-9 % damping; read 45-80
+ms late (``delay=True``: the lag fitted per run; where it arises, in the gauge's signal
+chain or in the link, the data do not say) it leaves 1.0-2.4 mm, and on the three units
+besides Hagenau's with the twins' gain (0.43-0.47) and the link's stuck-hub damping (0-1.5
+%). :func:`check_run` also drives the run's twin's link by the lab's hub angle
+(:func:`driven_arm`, :func:`driven_link_policy`: torque input, the encoder tracked to a
+fraction of a count) and fits the same mode to its output (with a lag if the twin's gauge
+has one), which must give the twin's clamped mode back (the method's check: the twin's beam
+answers the hub as one mode to within the log's quantisation).
 """
 from __future__ import annotations
 
