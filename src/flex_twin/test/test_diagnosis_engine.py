@@ -316,3 +316,30 @@ def test_a_named_effect_states_the_interval_of_its_fine_fit():
         is None
     assert _fine_halfwidths(ctx, fit, np.array([1.0, 0.7])) is None
     assert _split(pick, h, x_fine, NOMINAL)[0].ci == [569.0, 1.2]
+
+
+def test_a_declared_tip_gauge_gets_a_lag_hypothesis_that_delays_the_w_channels():
+    """gauge_delay exists only for a link whose tip_deflection sensor the arm declares, in
+    steps of 10 control periods (20 ms here); at x = 2 (40 ms) the twin's w2 is the
+    undelayed one 20 samples late (its first value held), q unchanged; the updated arm
+    YAML's entry is that sensor with its delay."""
+    import dataclasses
+    from flex_model.sensors import Sensor
+    from flex_twin.diagnosis.evaluation import predict_channels
+    rec = _run(NOMINAL, 1.0)
+    assert "gauge_delay" not in {h.kind for h in library_hypotheses(NOMINAL, rec, CTL)}
+    gauged = dataclasses.replace(NOMINAL, sensors=NOMINAL.sensors + (
+        Sensor("g", "tip_deflection", "link2"),))
+    hyp = next(h for h in library_hypotheses(gauged, rec, CTL) if h.kind == "gauge_delay")
+    assert hyp.target == "link2" and hyp.values([2.0])[0] == pytest.approx(0.04)
+    arm, _ = hyp.apply(gauged, [2.0])
+    assert [s.delay for s in arm.sensors if s.kind == "tip_deflection"] == [
+        pytest.approx(0.04)]
+    ctx = Context.build(gauged, CTL, rec, baseline_parameters(gauged), dt=1e-3)
+    p0, p1 = predict_channels(ctx, gauged), predict_channels(ctx, arm)
+    np.testing.assert_allclose(p1.channels["w2"][20:], p0.channels["w2"][:-20], atol=1e-12)
+    np.testing.assert_allclose(p1.channels["w2"][:20], p0.channels["w2"][0], atol=1e-12)
+    np.testing.assert_allclose(p1.channels["q1"], p0.channels["q1"], atol=1e-12)
+    assert np.ptp(p0.channels["w2"]) > 1e-4
+    assert hyp.effect_dicts(gauged, [2.0]) == [{"sensor": {
+        "kind": "tip_deflection", "link": "link2", "delay": pytest.approx(0.04)}}]

@@ -85,9 +85,14 @@ def test_controller_is_the_lab_law(real, tmp_path):
 
 
 def test_nominal_arm_is_the_handout_twin(real, tmp_path):
-    """The exported arm has the preset's EI and m (1e-12) and its 1.8 Hz clamped mode."""
+    """The exported arm has the preset's EI and m (1e-12) and its 1.8 Hz clamped mode, and
+    declares the run's tip gauge (exact: gain 1, no lag) for the diagnosis to fit."""
+    from flex_model.sensors import tip_gauge
     e = export_run(run_path("flexarm_K1_6", real), tmp_path)
     arm, preset = load_arm(e["paths"]["arm"]), load_arm("quanser_cuboulder_flexible")
+    assert [(s.kind, s.target, s.gain, s.delay) for s in arm.sensors
+            if s.kind == "tip_deflection"] == [("tip_deflection", "link1", 1.0, 0.0)]
+    assert tip_gauge(arm).name == "tip_gauge"
     z = np.linspace(0.0, 1.0, 5)
     for a, b in zip(arm.links[0].segments[0].properties(z)[:2],
                     preset.links[0].segments[0].properties(z)[:2]):
@@ -126,3 +131,22 @@ def test_the_issue_run_names_stick_slip_friction_by_default(real, tmp_path):
     assert values["coulomb"] == pytest.approx(0.0833, abs=0.005)
     assert values["static"] == pytest.approx(values["coulomb"], rel=1e-3)
     assert d["holdout_error_reduction"] > 0.95
+
+
+def test_the_gauges_lag_is_fitted_but_not_named_on_the_handout_twin(real, tmp_path):
+    """Covington's flexibleArm_test_3 -> test_4 on the handout twin: the diagnosis fits the
+    declared gauge's lag to 50 ms (the link's own fit: 57-64 ms on these runs, flex-twin
+    real-arm link-response) but it explains 9.7 % of the held-out excess, under the gate:
+    nothing is named (the handout link's other errors dominate); ~15 s on 2 workers."""
+    import json
+    parser = argparse.ArgumentParser()
+    add_real_arm_parsers(parser.add_subparsers())
+    code = run_command(parser.parse_args(
+        ["real-arm", "diagnose", "flexibleArm_test_3", "--holdout", "flexibleArm_test_4",
+         "--data", str(real), "--out", str(tmp_path), "--workers", "2", "--no-plots"]))
+    assert code == 0
+    d = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert d["named"] == []
+    lag = next(c for c in d["rounds"][0]["candidates"] if c["label"] == "gauge_delay@link1")
+    assert lag["parameters"]["delay"] == pytest.approx(0.05, abs=1e-9)
+    assert lag["share_explained"] == pytest.approx(0.097, abs=0.02)

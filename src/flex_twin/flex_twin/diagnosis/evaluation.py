@@ -146,6 +146,16 @@ def encoder_faults(arm: ArmDescription) -> tuple[np.ndarray, np.ndarray]:
     return b, d
 
 
+def gauge_delays(arm: ArmDescription) -> np.ndarray:
+    """Per link: the delay (s) of its tip_deflection sensor (0 without one)."""
+    names = [lk.name for lk in arm.links]
+    d = np.zeros(arm.n_links)
+    for s in arm.sensors:
+        if s.kind == "tip_deflection" and s.target in names:
+            d[names.index(s.target)] = max(d[names.index(s.target)], s.delay)
+    return d
+
+
 def _segments(ctx: Context) -> list[tuple[int, int]]:
     """Sample ranges [k0, k1) of the replay: the whole record, or windows of
     ``ctx.segment`` seconds sharing their boundary sample (multiple shooting)."""
@@ -178,6 +188,10 @@ def predict_channels(ctx: Context, arm: ArmDescription):
     period = ctx.controller.instant_period(rec.dt)
     periods = np.rint(delay / period).astype(np.int64)
     cdelay = np.array([periods[j] if j is not None else 0 for j in joint_of], np.int64)
+    gauges = gauge_delays(arm)   # a lagging tip gauge: the law reads w<i> late too
+    for c, name in enumerate(ctx.controller.channels):
+        if name[0] == "w":
+            cdelay[c] = int(np.rint(gauges[int(name[1:]) - 1] / period))
     window = start_window(ctx)
     pred = None
     for k0, k1 in _segments(ctx):
@@ -195,7 +209,13 @@ def predict_channels(ctx: Context, arm: ArmDescription):
             for c in pred.channels:
                 pred.channels[c] = np.concatenate([pred.channels[c][:-1], seg.channels[c]])
     samples = np.rint(delay / rec.dt).astype(int)
+    w_samples = np.rint(gauges / rec.dt).astype(int)
     for i in range(arm.n_links):
+        name = f"w{i + 1}"
+        if w_samples[i] and name in pred.channels:
+            y = pred.channels[name]
+            pred.channels[name] = np.concatenate([np.full(w_samples[i], y[0]),
+                                                  y[:-w_samples[i]]])
         for kind, add in (("q", bias[i]), ("v", 0.0)):
             name = f"{kind}{i + 1}"
             if name in pred.channels:

@@ -31,6 +31,10 @@ contact_surface      y (floor height), stiffness, damping      x 0, normal up
 payload              mass (arm field, not an effect)
 sensor_bias          bias of the joint encoder (seen by the controller too)
 sensor_delay         delay of the joint encoder and rate (whole control periods)
+gauge_delay          delay of a link's tip-deflection gauge    in steps of 10 control
+                     and its rate, read by the law too         periods; only for a link
+                                                               whose ``tip_deflection``
+                                                               sensor the arm declares
 stiffness            relative change of a link's E beyond its tolerance
 ==================== ========================================= ===========================
 
@@ -55,7 +59,7 @@ of the torque-commanded arms (0.1 x the rms command) put the probes at 0.16 N m 
 of viscous friction (twice the back-EMF damping), where a fit of one step's hold
 reproduces the hold with a viscous term that does not transfer to the next step.
 
-The two delays are not screened under a continuous law (the replay cannot delay it).
+The delays are not screened under a continuous law (the replay cannot delay it).
 Left out: ``dc_motor`` under a torque command (its parameters act only on a voltage
 command), ``timoshenko`` (slender links: beta >> 100, no measurable effect), ``cogging``
 (``LIBRARY = False``: the out-of-library case).
@@ -82,6 +86,9 @@ ELASTIC_FRACTION = 0.5
 #: T = g tau_rms, and the sliding level's share F_c / F_s
 SLIP_BREAKAWAY = (1.0, 1.5, 2.0)
 SLIP_SLIDING = 0.6
+#: gauge_delay's step in control periods (a strain gauge's chain lags tens of ms: the
+#: Quanser lab's 45-80 ms, flex-twin real-arm link-response)
+GAUGE_DELAY_STEP = 10
 
 
 @dataclass(frozen=True)
@@ -169,6 +176,14 @@ class Hypothesis:
             s = Sensor(name=f"{self.target}/joint_encoder", kind="joint_encoder",
                        target=self.target, **{field: float(v[0])})
             return dataclasses.replace(arm, sensors=arm.sensors + (s,)), None
+        if k == "gauge_delay":
+            prior = next((s for s in arm.sensors if s.kind == "tip_deflection"
+                          and s.target == self.target), None)
+            s = dataclasses.replace(prior or Sensor(f"{self.target}/tip_deflection",
+                                                    "tip_deflection", self.target),
+                                    delay=float(v[0]))
+            return dataclasses.replace(arm, sensors=tuple(
+                x for x in arm.sensors if x is not prior) + (s,)), None
         if k == "stiffness":
             i = [lk.name for lk in arm.links].index(self.target)
             links = list(arm.links)
@@ -226,6 +241,9 @@ class Hypothesis:
             field = "bias" if self.kind == "sensor_bias" else "delay"
             return [{"sensor": {"kind": "joint_encoder", "joint": self.target,
                                 field: float(values[0])}}]
+        if self.kind == "gauge_delay":
+            return [{"sensor": {"kind": "tip_deflection", "link": self.target,
+                                "delay": float(values[0])}}]
         if self.kind == "stiffness":
             return [{"link_stiffness": {"link": self.target,
                                         "relative_change": float(values[0])}}]
@@ -409,7 +427,12 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
             _h("sensor_delay", name, ("delay",), (controller.period,), (0,), (25,),
                [(1.0,)], (2.0,), discrete=True),
         ]
-    for lk in arm.links:
+    for i, lk in enumerate(arm.links):
+        if rec.has(f"w{i + 1}") and any(s.kind == "tip_deflection" and s.target == lk.name
+                                        for s in arm.sensors):
+            out.append(_h("gauge_delay", lk.name, ("delay",),
+                          (GAUGE_DELAY_STEP * controller.period,), (0,), (15,), [(1.0,)],
+                          (6.0,), discrete=True))
         # probes on both sides: over a 20 s run a softer link's ringing drifts in phase,
         # which a +10 % probe's linearization does not reach (independent suite,
         # A-cont-stiffness-m1-s2: E -20 % screened 0.026 from +10 %, 0.72 from -20 %;
@@ -429,5 +452,6 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
                       probes=[(ymin + 0.01, 1.0, 1.0), (ymin + 0.02, 0.3, 1.0)],
                       linear=False))
     if controller.continuous:   # a continuous law is not delayed in the replay
-        out = [h for h in out if h.kind not in ("actuator_delay", "sensor_delay")]
+        out = [h for h in out if h.kind not in ("actuator_delay", "sensor_delay",
+                                                "gauge_delay")]
     return [h for h in out if h.label not in exclude]

@@ -36,8 +36,15 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
     for c in diagnosis.accepted:
         hyp, x = next((h, x) for h, x in diagnosis.final_effects if h.label == c.label)
         for entry in hyp.effect_dicts(scaled, x):
-            if "sensor" in entry:
-                raw.setdefault("sensors", []).append(entry["sensor"])
+            if "sensor" in entry:   # a declared tip gauge gets the fitted field
+                new = entry["sensor"]
+                same = next((s for s in raw.get("sensors", []) if new["kind"] ==
+                             "tip_deflection" == s.get("kind") and s.get("link") ==
+                             new["link"]), None)
+                if same is not None:
+                    same.update(new)
+                else:
+                    raw.setdefault("sensors", []).append(new)
             elif "link_stiffness" in entry:
                 change = entry["link_stiffness"]
                 i = [lk.get("name", f"link{k + 1}")

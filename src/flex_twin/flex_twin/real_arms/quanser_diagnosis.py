@@ -68,9 +68,17 @@ def controller_dict(case: dict) -> dict:
 
 
 def nominal_arm_dict(case: dict) -> dict:
-    """The nominal arm YAML mapping of the run (the handout preset)."""
+    """The nominal arm YAML mapping of the run (the handout preset), its tip gauge
+    declared (an exact ``tip_deflection`` sensor) where the run logs one: the diagnosis
+    may then fit its lag (``gauge_delay``)."""
     run = case["run"]
-    return read_yaml(resolve_preset(NOMINAL_PRESETS[(run.lab, run.kind)]))
+    data = read_yaml(resolve_preset(NOMINAL_PRESETS[(run.lab, run.kind)]))
+    if run.has_gauge:
+        link = data["links"][0].get("name", "link1")
+        data["sensors"] = [s for s in data.get("sensors", []) if not (
+            s.get("kind") == "tip_deflection" and s.get("link") == link)] + [
+            {"name": "tip_gauge", "kind": "tip_deflection", "link": link}]
+    return data
 
 
 def write_csv(columns: dict, path) -> None:
