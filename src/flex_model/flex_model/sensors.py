@@ -144,12 +144,16 @@ def delayed(t, x, delay: float) -> np.ndarray:
     return out.reshape(x.shape)
 
 
-def tip_gauge(arm, link: str | None = None) -> Sensor:
-    """The arm's ``tip_deflection`` sensor on ``link`` (default: any link); without one, an
-    exact gauge (gain 1, no delay)."""
+def declared_tip_gauge(arm, link: str | None = None) -> Sensor | None:
+    """The arm's (first) ``tip_deflection`` sensor on ``link`` (default: any link), None
+    without one."""
     return next((s for s in arm.sensors if s.kind == "tip_deflection"
-                 and (link is None or s.target == link)),
-                Sensor("tip_gauge", "tip_deflection", link or ""))
+                 and (link is None or s.target == link)), None)
+
+
+def tip_gauge(arm, link: str | None = None) -> Sensor:
+    """:func:`declared_tip_gauge`, or without one an exact gauge (gain 1, no delay)."""
+    return declared_tip_gauge(arm, link) or Sensor("tip_gauge", "tip_deflection", link or "")
 
 
 

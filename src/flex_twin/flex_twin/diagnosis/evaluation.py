@@ -34,6 +34,7 @@ from ..cluster import SerialExecutor  # noqa: F401 (the executors: flex_twin.clu
 from ..cluster import local_executor as default_executor  # noqa: F401
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
+from flex_model.sensors import tip_gauge
 from flex_model.simulate import SimulationDivergedError
 from flex_model.statics import StaticConvergenceError
 from .baseline import apply_scales
@@ -147,13 +148,14 @@ def encoder_faults(arm: ArmDescription) -> tuple[np.ndarray, np.ndarray]:
 
 
 def gauge_delays(arm: ArmDescription) -> np.ndarray:
-    """Per link: the delay (s) of its tip_deflection sensor (0 without one)."""
-    names = [lk.name for lk in arm.links]
-    d = np.zeros(arm.n_links)
-    for s in arm.sensors:
-        if s.kind == "tip_deflection" and s.target in names:
-            d[names.index(s.target)] = max(d[names.index(s.target)], s.delay)
-    return d
+    """Per link: the delay (s) of its tip gauge (flex_model.sensors.tip_gauge: 0 without
+    one)."""
+    return np.array([tip_gauge(arm, lk.name).delay for lk in arm.links])
+
+
+def _late(y, n: int):
+    """y read n samples late, its first value held."""
+    return np.concatenate([np.full(n, y[0]), y[:-n]]) if n else y
 
 
 def _segments(ctx: Context) -> list[tuple[int, int]]:
@@ -211,18 +213,11 @@ def predict_channels(ctx: Context, arm: ArmDescription):
     samples = np.rint(delay / rec.dt).astype(int)
     w_samples = np.rint(gauges / rec.dt).astype(int)
     for i in range(arm.n_links):
-        name = f"w{i + 1}"
-        if w_samples[i] and name in pred.channels:
-            y = pred.channels[name]
-            pred.channels[name] = np.concatenate([np.full(w_samples[i], y[0]),
-                                                  y[:-w_samples[i]]])
-        for kind, add in (("q", bias[i]), ("v", 0.0)):
+        for kind, n, add in (("q", samples[i], bias[i]), ("v", samples[i], 0.0),
+                             ("w", w_samples[i], 0.0)):
             name = f"{kind}{i + 1}"
             if name in pred.channels:
-                y = pred.channels[name]
-                if samples[i]:
-                    y = np.concatenate([np.full(samples[i], y[0]), y[:-samples[i]]])
-                pred.channels[name] = y + add
+                pred.channels[name] = _late(pred.channels[name], n) + add
     return pred
 
 

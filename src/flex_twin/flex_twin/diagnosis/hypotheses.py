@@ -72,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flex_model.effects import EFFECT_TYPES
-from flex_model.sensors import Sensor
+from flex_model.sensors import Sensor, declared_tip_gauge, tip_gauge
 
 FRICTION_EPS = 1e-3
 STRIBECK_VELOCITY = 0.05
@@ -177,11 +177,8 @@ class Hypothesis:
                        target=self.target, **{field: float(v[0])})
             return dataclasses.replace(arm, sensors=arm.sensors + (s,)), None
         if k == "gauge_delay":
-            prior = next((s for s in arm.sensors if s.kind == "tip_deflection"
-                          and s.target == self.target), None)
-            s = dataclasses.replace(prior or Sensor(f"{self.target}/tip_deflection",
-                                                    "tip_deflection", self.target),
-                                    delay=float(v[0]))
+            prior = declared_tip_gauge(arm, self.target)
+            s = dataclasses.replace(tip_gauge(arm, self.target), delay=float(v[0]))
             return dataclasses.replace(arm, sensors=tuple(
                 x for x in arm.sensors if x is not prior) + (s,)), None
         if k == "stiffness":
@@ -428,8 +425,7 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
                [(1.0,)], (2.0,), discrete=True),
         ]
     for i, lk in enumerate(arm.links):
-        if rec.has(f"w{i + 1}") and any(s.kind == "tip_deflection" and s.target == lk.name
-                                        for s in arm.sensors):
+        if rec.has(f"w{i + 1}") and declared_tip_gauge(arm, lk.name) is not None:
             out.append(_h("gauge_delay", lk.name, ("delay",),
                           (GAUGE_DELAY_STEP * controller.period,), (0,), (15,), [(1.0,)],
                           (6.0,), discrete=True))

@@ -29,7 +29,7 @@ from scipy.optimize import least_squares
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import DCMotor, Gear, JointFriction, StructuralDamping
-from flex_model.sensors import Sensor
+from flex_model.sensors import declared_tip_gauge, tip_gauge
 from .replay import replay
 
 #: which CU Boulder runs fit which stage; everything else is held out (validation)
@@ -110,8 +110,7 @@ def started_from(arm: ArmDescription, params: list) -> list:
     gear = arm.effect("gear", j)
     if gear is not None:
         now["rotor_inertia"] = gear["rotor_inertia"]
-    gauge = next((s for s in arm.sensors if s.kind == "tip_deflection"
-                  and s.target == arm.links[0].name), None)
+    gauge = declared_tip_gauge(arm, arm.links[0].name)
     if gauge is not None:
         now.update({k: getattr(gauge, f) for k, f in GAUGE_FIELDS.items()})
     return [dataclasses.replace(p, start=min(max(now[p.name], p.lower), p.upper))
@@ -150,10 +149,8 @@ def apply_parameters(arm: ArmDescription, values: dict) -> ArmDescription:
         out = dataclasses.replace(out, payload_mass=values["tip_mass"])
     gauge = {f: values[k] for k, f in GAUGE_FIELDS.items() if k in values}
     if gauge:
-        prior = next((s for s in out.sensors if s.kind == "tip_deflection"
-                      and s.target == link.name), None)
-        new = dataclasses.replace(prior or Sensor("tip_gauge", "tip_deflection", link.name),
-                                  **gauge)
+        prior = declared_tip_gauge(out, link.name)
+        new = dataclasses.replace(tip_gauge(out, link.name), **gauge)
         out = dataclasses.replace(out, sensors=tuple(s for s in out.sensors
                                                      if s is not prior) + (new,))
     return out

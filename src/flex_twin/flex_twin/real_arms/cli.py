@@ -122,9 +122,9 @@ def cmd_stick_slip(args) -> int:
 def cmd_units(args) -> int:
     from .quanser_data import CUBOULDER, read_cuboulder
     from .quanser_twin import data_root
-    from .unit_calibration import study
+    from .unit_calibration import GAUGE, study
     out = Path(args.out)
-    gauge = tuple(g for g in ("gauge_gain", "gauge_delay") if getattr(args, g))
+    gauge = tuple(g for g in GAUGE if getattr(args, g))
     if (gauge or args.from_units) and not args.fit:
         raise ValueError("--gauge-gain/--gauge-delay/--from-units refit the units' links: "
                          "give --fit too")
@@ -345,7 +345,7 @@ def add_real_arm_parsers(sub) -> None:
     hp.set_defaults(func=cmd_holds)
     lp = rsub.add_parser("link-response", help="the lab's link against its own hub angle: "
                          "one linear mode fitted to each run, the twin's link driven by the "
-                         "lab's hub (markdown, JSON, PNG per run; ~5 CPU-min)")
+                         "lab's hub (markdown, JSON, PNG per run; ~9 CPU-min)")
     _data_option(lp)
     lp.add_argument("runs", nargs="*", help="run names (default: every run with a gauge)")
     _batch_options(lp, "runs/quanser-link")

@@ -24,6 +24,7 @@ answers the hub as one mode to within the log's quantisation).
 from __future__ import annotations
 
 import dataclasses
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -90,12 +91,9 @@ def law_voltage_error(run, shift: int) -> float:
     """RMS (V) of the logged voltage minus the lab's law (its logged gains) on the logged
     hub and the gauge read ``shift`` samples later: least at 0 where the loop read the
     gauge as it was logged."""
-    n = len(run.t)
-    k = np.arange(max(0, -shift), min(n, n - shift))
-    k1, k2, k3, k4 = run.gains
-    v = (k1 * (run.reference[k] - run.theta[k]) - k2 * run.deflection[k + shift]
-         - k3 * run.theta_rate[k] - k4 * run.deflection_rate[k + shift])
-    return float(np.sqrt(np.mean((v - run.voltage[k]) ** 2)))
+    from .quanser_data import law_regressors
+    X, k = law_regressors(run, shift)
+    return float(np.sqrt(np.mean((X @ run.gains - run.voltage[k]) ** 2)))
 
 
 def driven_arm(arm):
@@ -106,11 +104,12 @@ def driven_arm(arm):
                                                  "stick_slip_friction")))
 
 
-def driven_link_policy(run, model, bandwidth_hz: float = TRACKING):
+def driven_link_policy(run, model, bandwidth_hz: float = TRACKING, theta=None):
     """A stiff PD (``bandwidth_hz``, damping 0.8, on the hub's inertia with the link) that
-    makes the twin's hub follow the lab's low-passed encoder angle (the replay's
-    ``make_policy`` hook)."""
-    theta, _ = hub_acceleration(run)
+    makes the twin's hub follow the lab's low-passed encoder angle (``theta``, default
+    :func:`hub_acceleration`'s; the replay's ``make_policy`` hook)."""
+    if theta is None:
+        theta, _ = hub_acceleration(run)
     rate = np.gradient(theta, run.dt)
     wb = 2 * np.pi * bandwidth_hz
     inertia = float(model.Ga[0] @ model.mass_matrix(np.zeros(model.nq)) @ model.Ga[0])
@@ -149,13 +148,13 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
     run = read_cuboulder_file(path)
     if not run.has_gauge:
         raise ValueError(f"{name}: no tip deflection logged")
-    _, acc = hub_acceleration(run)
+    theta, acc = hub_acceleration(run)
     sign, bias = run.gauge_sign(), run.gauge_bias()
     d_lab = sign * (run.deflection - bias)
     lab = base_excited_mode(run.t, acc, d_lab)
     lagged = base_excited_mode(run.t, acc, d_lab, delay=True)
     arm = run_twin(name)
-    r = replay(FlexArmModel(driven_arm(arm)), run, driven_link_policy)
+    r = replay(FlexArmModel(driven_arm(arm)), run, partial(driven_link_policy, theta=theta))
     d_twin = sign * (r.twin_deflection - bias)
     shift = int(round(lagged["delay_s"] / run.dt))
     law = ({str(k): law_voltage_error(run, k) for k in (-shift, 0, shift)}

@@ -259,10 +259,18 @@ def read_ucmerced(root, link_length: float) -> LabRun:
     return run
 
 
+def law_regressors(run: LabRun, shift: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(X, k): the lab law V = X @ [K1..K4] = K1 (r - theta) - K2 d - K3 theta_dot -
+    K4 d_dot on the samples k where the gauge read ``shift`` samples later exists."""
+    n = len(run.t)
+    k = np.arange(max(0, -shift), min(n, n - shift))
+    return np.column_stack([run.reference[k] - run.theta[k], -run.deflection[k + shift],
+                            -run.theta_rate[k], -run.deflection_rate[k + shift]]), k
+
+
 def identify_gains(run: LabRun) -> tuple[np.ndarray, float]:
     """K1..K4 of V = K1 (r - theta) - K2 d - K3 theta_dot - K4 d_dot fitted to a record."""
-    X = np.column_stack([run.reference - run.theta, -run.deflection, -run.theta_rate,
-                         -run.deflection_rate])
+    X, _ = law_regressors(run)
     k, *_ = np.linalg.lstsq(X, run.voltage, rcond=None)
     resid = float(np.sqrt(np.mean((X @ k - run.voltage) ** 2)))
     return k, resid

@@ -69,15 +69,16 @@ def controller_dict(case: dict) -> dict:
 
 def nominal_arm_dict(case: dict) -> dict:
     """The nominal arm YAML mapping of the run (the handout preset), its tip gauge
-    declared (an exact ``tip_deflection`` sensor) where the run logs one: the diagnosis
+    declared (an exact ``tip_deflection`` sensor, unless the preset declares one) where the
+    run logs one: the diagnosis
     may then fit its lag (``gauge_delay``)."""
     run = case["run"]
     data = read_yaml(resolve_preset(NOMINAL_PRESETS[(run.lab, run.kind)]))
-    if run.has_gauge:
-        link = data["links"][0].get("name", "link1")
-        data["sensors"] = [s for s in data.get("sensors", []) if not (
-            s.get("kind") == "tip_deflection" and s.get("link") == link)] + [
-            {"name": "tip_gauge", "kind": "tip_deflection", "link": link}]
+    link = data["links"][0].get("name", "link1")
+    if run.has_gauge and not any(s.get("kind") == "tip_deflection" and s.get("link") == link
+                                 for s in data.get("sensors", [])):
+        data.setdefault("sensors", []).append(
+            {"name": "tip_gauge", "kind": "tip_deflection", "link": link})
     return data
 
 
