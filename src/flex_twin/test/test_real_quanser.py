@@ -271,24 +271,87 @@ def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
 def test_a_unit_refit_from_its_stored_twin_starts_from_and_keeps_its_gauge(tmp_path):
     """The stored Hagenau twin's gauge lags 34.06 ms: a fit from it starts the lag there,
     and a preset written from it with new link values only keeps that lag (and the
-    link values); written from the shared twin, it has no gauge."""
+    link values); written from the shared twin, it has the shared twin's 37.41 ms; a fit
+    from the handout (no gauge) starts at 60 ms."""
     from flex_model.arm import load_arm
     from flex_model.sensors import tip_gauge
-    from flex_twin.real_arms.calibration import CalibrationResult, started_from
-    from flex_twin.real_arms.unit_calibration import GAUGE, UNITS, write_unit_preset
+    from flex_twin.real_arms.calibration import GAUGE, CalibrationResult, started_from
+    from flex_twin.real_arms.unit_calibration import UNITS, write_unit_preset
     stored = load_arm(UNITS["hagenau"]["preset"])
     assert tip_gauge(stored).delay == pytest.approx(0.03406)
     assert started_from(stored, [GAUGE["gauge_delay"]])[0].start == pytest.approx(0.03406)
     assert started_from(load_arm("quanser_cuboulder_calibrated"),
+                        [GAUGE["gauge_delay"]])[0].start == pytest.approx(0.03741)
+    assert started_from(load_arm("quanser_cuboulder_flexible"),
                         [GAUGE["gauge_delay"]])[0].start == 0.06
     result = CalibrationResult("link@hagenau", {"EI": 0.4}, stored, 1.0, 0.9, 3, ("r",))
-    for from_unit, delay in ((True, 0.03406), (False, 0.0)):
+    for from_unit, delay in ((True, 0.03406), (False, 0.03741)):
         path = write_unit_preset("hagenau", result, tmp_path / str(from_unit), " --x",
                                  from_unit)
         arm = load_arm(str(path))
         assert tip_gauge(arm).delay == pytest.approx(delay)
         assert arm.links[0].segments[0].dims["EI"][0] == 0.4
         assert ("started from the stored" in path.read_text()) == from_unit
+
+
+def test_a_fitted_gauge_frees_the_link_and_names_itself_in_the_preset(tmp_path):
+    """with_gauge: the gauge's fields join the link stage, EI and tip mass then within
+    x0.5-2 (from -50/+20 % and +-50 %), an unknown name is an error naming the allowed
+    ones; the calibrated preset's header names the options that made it."""
+    from flex_model.sensors import tip_gauge
+    from flex_twin.real_arms.calibration import (CalibrationResult, link_parameters,
+                                                 with_gauge, write_calibrated_presets)
+    arm = load_arm("quanser_cuboulder_flexible")
+    base = link_parameters(arm)
+    assert with_gauge(base) == base
+    p = {q.name: q for q in with_gauge(base, ("gauge_delay",))}
+    assert list(p)[-1] == "gauge_delay" and len(p) == len(base) + 1
+    assert (p["gauge_delay"].lower, p["gauge_delay"].upper, p["gauge_delay"].start) == (
+        0.0, 0.15, 0.06)
+    ei = arm.links[0].segments[0].dims["EI"][0]
+    assert (p["EI"].lower, p["EI"].upper) == (pytest.approx(0.5 * ei), pytest.approx(2 * ei))
+    assert p["tip_mass"].upper == pytest.approx(2 * arm.payload_mass)
+    with pytest.raises(ValueError, match=r"gauge_lag.*'gauge_delay', 'gauge_gain'"):
+        with_gauge(base, ("gauge_lag",))
+    servo = CalibrationResult("servo", {"coulomb": 0.03}, arm, 2.0, 1.0, 3, ("r",))
+    link = CalibrationResult("link", {"gauge_delay": 0.04}, arm, 2.0, 1.0, 3, ("f",))
+    rigid, flexible = write_calibrated_presets(servo, link, tmp_path, " --gauge-delay")
+    assert "real-arm calibrate --gauge-delay (issue 9)" in flexible.read_text()
+    assert "real-arm calibrate (issue 9)" in rigid.read_text()
+    assert tip_gauge(load_arm(str(flexible))).delay == 0.04
+
+
+def test_a_link_stage_from_the_stored_twin_keeps_its_friction_on_the_new_servo(monkeypatch):
+    """calibrate_cuboulder(link_start=...): the link stage starts from the start's link
+    values, its hub friction too (F_c 0.0459, Rayleigh 0.8405, lag 37.41 ms of the stored
+    twin), on stage 1's rotor inertia; from the handout, friction starts at stage 1's. A
+    unit's fit starts its gauge's lag from its start twin's (Hagenau's 34.06 ms)."""
+    from flex_twin.real_arms import calibration as cal, unit_calibration
+    seen = []
+
+    def fake(arm, runs, params, make_policy, **kw):
+        seen.append((arm, {p.name: p for p in params}))
+        values = {"coulomb": 0.011, "static_excess": 0.022, "rotor_inertia": 5e-6}
+        return cal.CalibrationResult(kw["stage"], values if kw["stage"] == "servo" else {},
+                                     arm, 1.0, 1.0, 1, ())
+    monkeypatch.setattr(cal, "calibrate", fake)
+    runs = dict.fromkeys(CUBOULDER_SPLIT["servo_fit"] + CUBOULDER_SPLIT["link_fit"])
+    stored = calibrated_arm_for("cuboulder", "flexible")
+    for start, coulomb, rayleigh in ((stored, 0.0459, 0.8405), (None, 0.011, 0.2)):
+        seen.clear()
+        cal.calibrate_cuboulder(load_arm("quanser_cuboulder_rigid"),
+                                load_arm("quanser_cuboulder_flexible"), runs, None,
+                                gauge=("gauge_delay",), link_start=start)
+        arm, p = seen[1]
+        assert arm.effect("gear", "joint1")["rotor_inertia"] == 5e-6
+        assert p["coulomb"].start == pytest.approx(coulomb, abs=1e-4)
+        assert p["rayleigh_mass"].start == pytest.approx(rayleigh, abs=1e-4)
+        assert p["gauge_delay"].start == pytest.approx(0.03741 if start else 0.06)
+    monkeypatch.setattr(unit_calibration, "calibrate", fake)
+    for from_unit, lag in ((True, 0.03406), (False, 0.03741)):   # Hagenau's, the shared
+        unit_calibration.calibrate_unit("hagenau", runs, None, gauge=("gauge_delay",),
+                                        from_unit=from_unit)
+        assert seen[-1][1]["gauge_delay"].start == pytest.approx(lag)
 
 
 def test_the_twins_gauge_output_lags_by_its_delay(cuboulder_root):

@@ -10,7 +10,8 @@ pytest.importorskip("flex_control.state_feedback")
 
 def test_run_fits_start_from_the_calibrated_values_and_the_units_twin():
     """The servo stage starts from the calibrated friction (F_c 0.0311, F_s - F_c 0.0772
-    N m), not the handout's zero; a Hagenau run may also start from its unit's twin."""
+    N m), not the handout's zero; a Hagenau run may also start from its unit's twin, and
+    on a run with a gauge the gauge's lag is fitted too, from the twin's 34.06 ms."""
     p = {q.name: q for q in run_parameters(calibrated_arm_for("cuboulder", "rigid"), "rigid")}
     assert p["coulomb"].start == pytest.approx(0.0311, abs=1e-4)
     assert p["static_excess"].start == pytest.approx(0.0772, abs=1e-4)
@@ -18,8 +19,13 @@ def test_run_fits_start_from_the_calibrated_values_and_the_units_twin():
                                                 "flexible")}
     assert flex["EI"].upper == pytest.approx(2.0 * flex["EI"].nominal)
     assert {"viscous", "rotor_inertia", "torque_constant"} <= set(flex)
-    assert flex["rayleigh_mass"].start == pytest.approx(0.6112, abs=1e-4)
-    assert set(starts("flexarm_K1K2_6_-5", "flexible")) == {"shared", "hagenau"}
+    assert flex["rayleigh_mass"].start == pytest.approx(0.8405, abs=1e-4)
+    assert "gauge_delay" not in flex
+    hagenau = starts("flexarm_K1K2_6_-5", "flexible")
+    assert set(hagenau) == {"shared", "hagenau"}
+    lag = {q.name: q for q in run_parameters(hagenau["hagenau"], "flexible", True)}[
+        "gauge_delay"]     # a run with a gauge: its lag is free, from the unit twin's
+    assert (lag.start, lag.lower, lag.upper) == (pytest.approx(0.03406), 0.0, 0.15)
     assert set(starts("rigidarm_K1_8", "rigid")) == {"shared"}
 
 

@@ -62,6 +62,28 @@ class FitParameter:
     start: float | None = None
 
 
+#: the lab's tip gauge's fields, bounds and starts when they are fitted (``--gauge-gain``,
+#: ``--gauge-delay``; a twin with a gauge starts from its values): the lab's gauge answers
+#: the hub with 0.36-0.80 of the twins' link as logged, and read 45-80 ms late like one
+#: mode with the twins' gain on three units, 0.25-0.45 of it on Hagenau's (flex-twin
+#: real-arm link-response)
+GAUGE = {"gauge_gain": FitParameter("gauge_gain", 1.0, 0.3, 1.2, 0.7),
+         "gauge_delay": FitParameter("gauge_delay", 0.0, 0.0, 0.15, 0.06)}
+
+
+def with_gauge(params: list, gauge: tuple = ()) -> list:
+    """Link-stage ``params`` plus the :data:`GAUGE` fields named in ``gauge``, EI and tip
+    mass then free within x0.5-2 of their nominal (a lagging gauge moves the link's
+    frequency the fit sees); ``params`` unchanged when ``gauge`` is empty."""
+    unknown = [g for g in gauge if g not in GAUGE]
+    if unknown:
+        raise ValueError(f"gauge: got {unknown}; expected names among {sorted(GAUGE)}")
+    if not gauge:
+        return params
+    return [dataclasses.replace(p, lower=0.5 * p.nominal, upper=2.0 * p.nominal)
+            if p.name in ("EI", "tip_mass") else p for p in params] + [GAUGE[g] for g in gauge]
+
+
 def servo_parameters(arm: ArmDescription) -> list:
     """Stage 1 unknowns with their bounds (the handout has no friction)."""
     j = arm.joint_names[0]
@@ -232,17 +254,26 @@ def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
 
 def calibrate_cuboulder(rigid_arm: ArmDescription, flexible_arm: ArmDescription, runs: dict,
                         make_policy: Callable, progress: Callable | None = None,
-                        max_nfev: int = 12) -> tuple:
-    """Stage 1 on the rigid fit runs, then stage 2 on the flexible fit runs; returns
-    (servo result, link result); the link result's arm is the calibrated twin."""
+                        max_nfev: int = 12, gauge: tuple = (),
+                        link_start: ArmDescription | None = None) -> tuple:
+    """Stage 1 on the rigid fit runs, then stage 2 on the flexible fit runs (with ``gauge``,
+    :func:`with_gauge`, also the lab's tip gauge's fields), from the handout's link or
+    from ``link_start``'s link values (:func:`started_from`, the servo of stage 1 put in);
+    returns (servo result, link result); the link result's arm is the calibrated twin."""
     servo = calibrate(rigid_arm, [runs[n] for n in CUBOULDER_SPLIT["servo_fit"]],
                       servo_parameters(rigid_arm), make_policy, stage="servo",
                       t_final=SERVO_WINDOW, max_nfev=max_nfev, progress=progress)
     servo_vals = dict(servo.values)
-    flex0 = apply_parameters(flexible_arm, servo_vals)
-    link = calibrate(flex0, [runs[n] for n in CUBOULDER_SPLIT["link_fit"]],
-                     link_parameters(flex0), make_policy, stage="link", max_nfev=max_nfev,
-                     progress=progress)
+    if link_start is None:
+        flex0 = apply_parameters(flexible_arm, servo_vals)
+        params = with_gauge(link_parameters(flex0), gauge)
+    else:   # the start's link stage (its friction and gauge too) on stage 1's servo
+        own = {p.name for p in link_parameters(link_start)}
+        flex0 = apply_parameters(link_start, {k: v for k, v in servo_vals.items()
+                                              if k not in own})
+        params = started_from(flex0, with_gauge(link_parameters(flex0), gauge))
+    link = calibrate(flex0, [runs[n] for n in CUBOULDER_SPLIT["link_fit"]], params,
+                     make_policy, stage="link", max_nfev=max_nfev, progress=progress)
     link.values = {**servo_vals, **link.values}
     return servo, link
 
@@ -312,8 +343,9 @@ def write_preset(data: dict, path, origin: str, result: CalibrationResult) -> Pa
 
 
 def write_calibrated_presets(servo: CalibrationResult, link: CalibrationResult,
-                             out_dir) -> list:
-    """quanser_cuboulder_rigid_calibrated.yaml and quanser_cuboulder_calibrated.yaml."""
+                             out_dir, options: str = "") -> list:
+    """quanser_cuboulder_rigid_calibrated.yaml and quanser_cuboulder_calibrated.yaml (the
+    flexible one's header names the ``calibrate`` ``options`` that made it)."""
     from flex_model.arm import resolve_preset
     from flex_model.config import read_yaml
     paths = []
@@ -322,6 +354,6 @@ def write_calibrated_presets(servo: CalibrationResult, link: CalibrationResult,
                                          "quanser_cuboulder_calibrated", link)):
         data = calibrated_dict(read_yaml(resolve_preset(nominal)), res.values, name)
         paths.append(write_preset(data, Path(out_dir) / f"{name}.yaml",
-                                  f"{nominal} calibrated by flex-twin real-arm calibrate "
-                                  "(issue 9)", res))
+                                  f"{nominal} calibrated by flex-twin real-arm calibrate"
+                                  f"{options if res is link else ''} (issue 9)", res))
     return paths

@@ -20,6 +20,14 @@ def _policy_factory():
     return lab_policy_factory   # reads q and v of x = [q; v; z] (z: stick-slip bristles)
 
 
+def _gauge_options(parser, when: str) -> None:
+    """``--gauge-gain``, ``--gauge-delay``: fit the lab's tip gauge with the link stage."""
+    parser.add_argument("--gauge-gain", action="store_true", help=f"{when}fit the gain of "
+                        "the lab's tip gauge too (a tip_deflection sensor in the presets)")
+    parser.add_argument("--gauge-delay", action="store_true", help=f"{when}fit the lag of "
+                        "the lab's tip gauge too (the law reads the gauge that late)")
+
+
 def _print_report(args, report, markdown: Path) -> int:
     """A study's report on stdout: its JSON with ``--json``, else its markdown file."""
     print(json.dumps(report, indent=1, default=float) if args.json else markdown.read_text())
@@ -82,19 +90,27 @@ def cmd_import_quanser(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    from .calibration import calibrate_cuboulder, write_calibrated_presets
+    from .calibration import GAUGE, calibrate_cuboulder, write_calibrated_presets
     from .quanser_data import CUBOULDER, read_cuboulder
-    from .quanser_twin import data_root, nominal_arm_for
+    from .quanser_twin import calibrated_arm_for, data_root, nominal_arm_for
     root = data_root(args.data)
     runs = read_cuboulder(root / CUBOULDER)
+    gauge = tuple(g for g in GAUGE if getattr(args, g))
+    start = calibrated_arm_for("cuboulder", "flexible") if args.from_stored else None
+    if args.from_stored and start is None:
+        raise ValueError("--from-stored: no stored quanser_cuboulder_calibrated preset")
 
     def progress(k, cost, values):
         _progress(f"  evaluation {k}: scaled RMS residual {cost:.4f}")
     servo, link = calibrate_cuboulder(nominal_arm_for("cuboulder", "rigid"),
                                       nominal_arm_for("cuboulder", "flexible"), runs,
                                       _policy_factory(), progress=progress,
-                                      max_nfev=args.max_evaluations)
-    paths = write_calibrated_presets(servo, link, Path(args.out))
+                                      max_nfev=args.max_evaluations, gauge=gauge,
+                                      link_start=start)
+    options = "".join(f" --{g.replace('_', '-')}" for g in gauge) + (
+        " --from-stored, started from the stored quanser_cuboulder_calibrated"
+        if args.from_stored else "")
+    paths = write_calibrated_presets(servo, link, Path(args.out), options)
     print(json.dumps({"servo": servo.as_dict(), "link": link.as_dict(),
                       "wrote": [str(p) for p in paths]}, indent=1))
     return 0
@@ -122,7 +138,8 @@ def cmd_stick_slip(args) -> int:
 def cmd_units(args) -> int:
     from .quanser_data import CUBOULDER, read_cuboulder
     from .quanser_twin import data_root
-    from .unit_calibration import GAUGE, study
+    from .calibration import GAUGE
+    from .unit_calibration import study
     out = Path(args.out)
     gauge = tuple(g for g in GAUGE if getattr(args, g))
     if (gauge or args.from_units) and not args.fit:
@@ -295,6 +312,9 @@ def add_real_arm_parsers(sub) -> None:
     _data_option(cp)
     cp.add_argument("--out", default="runs/quanser-calibrated", help="output directory")
     cp.add_argument("--max-evaluations", type=int, default=10)
+    _gauge_options(cp, "")
+    cp.add_argument("--from-stored", action="store_true", help="start the link stage from "
+                    "the stored calibrated twin's link (default: from the handout's)")
     cp.set_defaults(func=cmd_calibrate)
     rp = rsub.add_parser("report", help="nominal vs calibrated twin on held-out runs, the "
                          "second lab and the third lab's FRFs (markdown, PNG, JSON)")
@@ -323,10 +343,7 @@ def add_real_arm_parsers(sub) -> None:
     up.add_argument("--out", default="runs/quanser-units", help="output directory")
     up.add_argument("--fit", action="store_true", help="refit every unit's link stage and "
                     "write its preset into --out (~2 CPU-min per unit)")
-    up.add_argument("--gauge-gain", action="store_true", help="with --fit: fit the gain of "
-                    "the lab's tip gauge too (a tip_deflection sensor in the presets)")
-    up.add_argument("--gauge-delay", action="store_true", help="with --fit: fit the lag of "
-                    "the lab's tip gauge too (the law reads the gauge that late)")
+    _gauge_options(up, "with --fit: ")
     up.add_argument("--from-units", action="store_true", help="with --fit: start each "
                     "unit's fit from its stored preset (default: from the shared twin)")
     up.add_argument("--max-evaluations", type=int, default=12)

@@ -5,8 +5,9 @@ A twin fitted elsewhere (the split's fit runs, another session, another unit) ca
 better on a run than the same model with every parameter the calibration fits chosen for
 that run. Per held-out run this fits (:func:`.calibration.calibrate`) the servo stage on a
 rigid-bar run and, on a flexible run, the link and the servo stage together (its unit's
-servo may differ), from the better of the shared and the unit's twin, within bounds wider
-than the calibration's (:func:`run_parameters`). What it scores bounds the model's floor
+servo may differ) and the lag of its tip gauge if it logs one, from the better of the
+shared and the unit's twin, within bounds wider than the calibration's
+(:func:`run_parameters`). What it scores bounds the model's floor
 from above: the search is local, at most ``max_nfev`` iterations, and the cost rough.
 Where it stays above an aim on a run, no parameter set the search reached within these
 bounds meets it there.
@@ -17,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .calibration import (CUBOULDER_SPLIT, FitParameter, calibrate, link_parameters,
+from .calibration import (CUBOULDER_SPLIT, GAUGE, FitParameter, calibrate, link_parameters,
                           servo_parameters, started_from)
 
 #: the held-out runs of the calibration's split (7 rigid-bar, 10 flexible)
@@ -29,14 +30,16 @@ HELD_OUT = CUBOULDER_SPLIT["servo_holdout"] + CUBOULDER_SPLIT["link_holdout"] + 
 UPPER = {"static_excess": 0.4, "rayleigh_mass": 10.0}
 
 
-def run_parameters(arm, kind: str) -> list:
+def run_parameters(arm, kind: str, gauge: bool = False) -> list:
     """The parameters fitted to one run, started from ``arm``'s values and bounded wider
     than the calibration's: the servo stage (rigid bar: friction, rotor inertia x0.3-6,
     K_t +-5 %), or on a flexible run the link stage (EI and tip mass within x0.5-2) with
-    the servo stage; F_s - F_c and the Rayleigh damping up to :data:`UPPER`."""
+    the servo stage and, with ``gauge`` (a run that logs the tip), the gauge's lag
+    (:data:`.calibration.GAUGE`); F_s - F_c and the Rayleigh damping up to :data:`UPPER`."""
     servo = servo_parameters(arm)
     params = servo if kind == "rigid" else link_parameters(arm) + [
-        p for p in servo if p.name not in ("coulomb", "static_excess")]
+        p for p in servo if p.name not in ("coulomb", "static_excess")] + (
+        [GAUGE["gauge_delay"]] if gauge else [])
     params = [FitParameter(p.name, p.nominal, 0.5 * p.nominal, 2.0 * p.nominal)
               if p.name in ("EI", "tip_mass") else
               FitParameter(p.name, p.nominal, p.lower, UPPER[p.name], p.start)
@@ -78,7 +81,7 @@ def fit_run(data_root: str, name: str, max_nfev: int = 12, out: str | None = Non
     cost = {k: float(np.sqrt(np.mean(replay_residual(a, [run], lab_policy_factory) ** 2)))
             for k, a in twins.items()} if len(twins) > 1 else {}
     start = min(cost, key=cost.get) if cost else "shared"
-    res = calibrate(twins[start], [run], run_parameters(twins[start], kind),
+    res = calibrate(twins[start], [run], run_parameters(twins[start], kind, run.has_gauge),
                     lab_policy_factory, stage="run", max_nfev=max_nfev)
     row = {"run": name, "kind": kind, "start": start, "start_costs": cost,
            "values": res.values, "evaluations": res.evaluations,

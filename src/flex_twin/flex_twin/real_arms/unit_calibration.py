@@ -11,7 +11,6 @@ each and keep the shared twin. :func:`compare` replays the held-out runs on both
 """
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 from typing import Callable
@@ -20,8 +19,8 @@ import numpy as np
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from .calibration import (FitParameter, calibrate, calibrated_dict, link_parameters,
-                          started_from, write_preset)
+from .calibration import (calibrate, calibrated_dict, link_parameters, started_from,
+                          with_gauge, write_preset)
 from .quanser_twin import calibrated_arm_for
 from .replay import plot_replay, replay
 from .report import fmt, metrics_row
@@ -42,21 +41,12 @@ UNITS = {
 SINGLE_RUN_UNITS = ("4PM_Group37_FlexArm_Unit6", "Unit7_Flex_trial1.csv")
 
 
-#: the lab's tip gauge's fields, bounds and starts when they are fitted (``--gauge-gain``,
-#: ``--gauge-delay``; a twin with a gauge starts from its values): the lab's gauge answers
-#: the hub with 0.36-0.80 of the twins' link as logged, and read 45-80 ms late like one
-#: mode with the twins' gain on three units, 0.25-0.45 of it on Hagenau's (flex-twin
-#: real-arm link-response)
-GAUGE = {"gauge_gain": FitParameter("gauge_gain", 1.0, 0.3, 1.2, 0.7),
-         "gauge_delay": FitParameter("gauge_delay", 0.0, 0.0, 0.15, 0.06)}
-
-
 def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: int = 12,
                    progress: Callable | None = None, gauge: tuple = (),
                    from_unit: bool = False):
     """The link stage on the unit's fit runs, started from the shared calibrated flexible
     twin's values (EI, tip mass, damping, friction), or with ``from_unit`` from the unit's
-    stored preset; with ``gauge`` (names of :data:`GAUGE`) also the lab's tip gauge's gain
+    stored preset; with ``gauge`` (:func:`calibration.with_gauge`) also the lab's tip gauge's gain
     and/or delay (EI and tip mass then within x0.5-2 of the start)."""
     shared = calibrated_arm_for("cuboulder", "flexible")
     if shared is None:
@@ -64,14 +54,7 @@ def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: in
     spec = UNITS[unit]
     if from_unit:
         shared = load_arm(spec["preset"])
-    params = started_from(shared, link_parameters(shared))
-    unknown = [g for g in gauge if g not in GAUGE]
-    if unknown:
-        raise ValueError(f"gauge: got {unknown}; expected names among {sorted(GAUGE)}")
-    if gauge:
-        params = [dataclasses.replace(p, lower=0.5 * p.nominal, upper=2.0 * p.nominal)
-                  if p.name in ("EI", "tip_mass") else p for p in params]
-        params += [GAUGE[g] for g in gauge]
+    params = started_from(shared, with_gauge(link_parameters(shared), gauge))
     return calibrate(shared, [runs[n] for n in spec["fit"]], params, make_policy,
                      stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
 
