@@ -324,8 +324,9 @@ def test_a_fitted_gauge_frees_the_link_and_names_itself_in_the_preset(tmp_path):
 def test_a_link_stage_from_the_stored_twin_keeps_its_friction_on_the_new_servo(monkeypatch):
     """calibrate_cuboulder(link_start=...): the link stage starts from the start's link
     values, its hub friction too (F_c 0.0459, Rayleigh 0.8405, lag 37.41 ms of the stored
-    twin), on stage 1's rotor inertia; from the handout, friction starts at stage 1's. A
-    unit's fit starts its gauge's lag from its start twin's (Hagenau's 34.06 ms)."""
+    twin), on stage 1's rotor inertia; from the handout, friction starts at stage 1's. Not
+    fitted, the start's lag is kept in the values the preset is written from. A unit's fit
+    starts its gauge's lag from its start twin's (Hagenau's 34.06 ms)."""
     from flex_twin.real_arms import calibration as cal, unit_calibration
     seen = []
 
@@ -347,11 +348,41 @@ def test_a_link_stage_from_the_stored_twin_keeps_its_friction_on_the_new_servo(m
         assert p["coulomb"].start == pytest.approx(coulomb, abs=1e-4)
         assert p["rayleigh_mass"].start == pytest.approx(rayleigh, abs=1e-4)
         assert p["gauge_delay"].start == pytest.approx(0.03741 if start else 0.06)
+    # not fitted, the start's lag stays in what the preset is written from
+    _, link = cal.calibrate_cuboulder(load_arm("quanser_cuboulder_rigid"),
+                                      load_arm("quanser_cuboulder_flexible"), runs, None,
+                                      link_start=stored)
+    assert "gauge_delay" not in seen[-1][1] and link.values["gauge_delay"] == 0.03741
     monkeypatch.setattr(unit_calibration, "calibrate", fake)
     for from_unit, lag in ((True, 0.03406), (False, 0.03741)):   # Hagenau's, the shared
         unit_calibration.calibrate_unit("hagenau", runs, None, gauge=("gauge_delay",),
                                         from_unit=from_unit)
         assert seen[-1][1]["gauge_delay"].start == pytest.approx(lag)
+
+
+def test_calibrate_flags_reach_the_fit_and_the_preset_header(monkeypatch, tmp_path):
+    """``real-arm calibrate --gauge-delay --from-stored --max-evaluations 4``: the fit gets
+    the gauge's lag, the stored twin as the link's start and 4 evaluations; the written
+    preset's header names all three."""
+    from flex_twin.cli import main
+    from flex_twin.real_arms import calibration as cal, quanser_data
+    got = {}
+
+    def fake(rigid, flexible, runs, make_policy, progress=None, max_nfev=12, gauge=(),
+             link_start=None):
+        got.update(gauge=gauge, start=link_start, max_nfev=max_nfev)
+        return (cal.CalibrationResult("servo", {}, rigid, 1.0, 1.0, 1, ()),
+                cal.CalibrationResult("link", {"gauge_delay": 0.05}, flexible, 1.0, 1.0, 1, ()))
+    monkeypatch.setattr(cal, "calibrate_cuboulder", fake)
+    monkeypatch.setattr(quanser_data, "read_cuboulder", lambda root: {})
+    (tmp_path / quanser_data.CUBOULDER).mkdir(parents=True)
+    assert main(["real-arm", "calibrate", "--data", str(tmp_path), "--out", str(tmp_path),
+                 "--gauge-delay", "--from-stored", "--max-evaluations", "4"]) == 0
+    assert got["gauge"] == ("gauge_delay",) and got["max_nfev"] == 4
+    assert got["start"].links[0].segments[0].dims["EI"][0] == pytest.approx(0.33651)
+    header = (tmp_path / "quanser_cuboulder_calibrated.yaml").read_text().splitlines()[0]
+    assert "calibrate --gauge-delay --from-stored, started from the stored" in header
+    assert header.endswith("--max-evaluations 4 (issue 9)")
 
 
 def test_the_twins_gauge_output_lags_by_its_delay(cuboulder_root):

@@ -78,10 +78,19 @@ def with_gauge(params: list, gauge: tuple = ()) -> list:
     unknown = [g for g in gauge if g not in GAUGE]
     if unknown:
         raise ValueError(f"gauge: got {unknown}; expected names among {sorted(GAUGE)}")
-    if not gauge:
-        return params
+    return widened(params) + [GAUGE[g] for g in gauge] if gauge else params
+
+
+def widened(params: list) -> list:
+    """``params`` with EI and tip mass free within x0.5-2 of their nominal."""
     return [dataclasses.replace(p, lower=0.5 * p.nominal, upper=2.0 * p.nominal)
-            if p.name in ("EI", "tip_mass") else p for p in params] + [GAUGE[g] for g in gauge]
+            if p.name in ("EI", "tip_mass") else p for p in params]
+
+
+def gauge_options(gauge: tuple) -> str:
+    """The command-line flags that fit ``gauge`` (names of :data:`GAUGE`), for a preset's
+    header: ``("gauge_delay",)`` -> ``" --gauge-delay"``."""
+    return "".join(f" --{g.replace('_', '-')}" for g in gauge)
 
 
 def servo_parameters(arm: ArmDescription) -> list:
@@ -274,7 +283,9 @@ def calibrate_cuboulder(rigid_arm: ArmDescription, flexible_arm: ArmDescription,
         params = started_from(flex0, with_gauge(link_parameters(flex0), gauge))
     link = calibrate(flex0, [runs[n] for n in CUBOULDER_SPLIT["link_fit"]], params,
                      make_policy, stage="link", max_nfev=max_nfev, progress=progress)
-    link.values = {**servo_vals, **link.values}
+    kept = declared_tip_gauge(flex0, flex0.links[0].name)   # the start's, where not fitted
+    kept = {k: getattr(kept, f) for k, f in GAUGE_FIELDS.items()} if kept else {}
+    link.values = {**servo_vals, **kept, **link.values}
     return servo, link
 
 

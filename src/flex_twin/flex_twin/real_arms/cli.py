@@ -28,6 +28,12 @@ def _gauge_options(parser, when: str) -> None:
                         "the lab's tip gauge too (the law reads the gauge that late)")
 
 
+def _gauge_flags(args) -> tuple:
+    """The names of :data:`.calibration.GAUGE` whose ``--gauge-*`` flag is given."""
+    from .calibration import GAUGE
+    return tuple(g for g in GAUGE if getattr(args, g))
+
+
 def _print_report(args, report, markdown: Path) -> int:
     """A study's report on stdout: its JSON with ``--json``, else its markdown file."""
     print(json.dumps(report, indent=1, default=float) if args.json else markdown.read_text())
@@ -90,12 +96,12 @@ def cmd_import_quanser(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    from .calibration import GAUGE, calibrate_cuboulder, write_calibrated_presets
+    from .calibration import calibrate_cuboulder, gauge_options, write_calibrated_presets
     from .quanser_data import CUBOULDER, read_cuboulder
     from .quanser_twin import calibrated_arm_for, data_root, nominal_arm_for
     root = data_root(args.data)
     runs = read_cuboulder(root / CUBOULDER)
-    gauge = tuple(g for g in GAUGE if getattr(args, g))
+    gauge = _gauge_flags(args)
     start = calibrated_arm_for("cuboulder", "flexible") if args.from_stored else None
     if args.from_stored and start is None:
         raise ValueError("--from-stored: no stored quanser_cuboulder_calibrated preset")
@@ -107,9 +113,10 @@ def cmd_calibrate(args) -> int:
                                       _policy_factory(), progress=progress,
                                       max_nfev=args.max_evaluations, gauge=gauge,
                                       link_start=start)
-    options = "".join(f" --{g.replace('_', '-')}" for g in gauge) + (
+    options = gauge_options(gauge) + (
         " --from-stored, started from the stored quanser_cuboulder_calibrated"
-        if args.from_stored else "")
+        if args.from_stored else "") + (
+        f" --max-evaluations {args.max_evaluations}" if args.max_evaluations != 10 else "")
     paths = write_calibrated_presets(servo, link, Path(args.out), options)
     print(json.dumps({"servo": servo.as_dict(), "link": link.as_dict(),
                       "wrote": [str(p) for p in paths]}, indent=1))
@@ -138,10 +145,9 @@ def cmd_stick_slip(args) -> int:
 def cmd_units(args) -> int:
     from .quanser_data import CUBOULDER, read_cuboulder
     from .quanser_twin import data_root
-    from .calibration import GAUGE
     from .unit_calibration import study
     out = Path(args.out)
-    gauge = tuple(g for g in GAUGE if getattr(args, g))
+    gauge = _gauge_flags(args)
     if (gauge or args.from_units) and not args.fit:
         raise ValueError("--gauge-gain/--gauge-delay/--from-units refit the units' links: "
                          "give --fit too")

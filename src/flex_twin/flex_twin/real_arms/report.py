@@ -71,6 +71,7 @@ def kyoto_comparison(data, out: Path, progress: Callable = print) -> dict:
 def twin_parameters() -> dict:
     """Nominal (handout) and calibrated values of the CU Boulder twins, side by side."""
     from flex_model.modes import natural_modes
+    from flex_model.sensors import tip_gauge
     out = {}
     for label, get in (("nominal", nominal_arm_for), ("calibrated", calibrated_arm_for)):
         flex, rigid = get("cuboulder", "flexible"), get("cuboulder", "rigid")
@@ -90,6 +91,7 @@ def twin_parameters() -> dict:
             "EI_N_m2": flex.links[0].segments[0].dims["EI"][0],
             "tip_mass_kg": flex.payload_mass,
             "rayleigh_mass_1_s": sd["rayleigh_mass"] if sd else 0.0,
+            "gauge_delay_s": tip_gauge(flex).delay,
             "clamped_f1_hz": float(natural_modes(FlexArmModel(flex), joints="clamped")
                                    .frequencies_hz[0])}
     return out

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .calibration import (CUBOULDER_SPLIT, GAUGE, FitParameter, calibrate, link_parameters,
-                          servo_parameters, started_from)
+                          servo_parameters, started_from, widened)
 
 #: the held-out runs of the calibration's split (7 rigid-bar, 10 flexible)
 HELD_OUT = CUBOULDER_SPLIT["servo_holdout"] + CUBOULDER_SPLIT["link_holdout"] + (
@@ -40,10 +40,8 @@ def run_parameters(arm, kind: str, gauge: bool = False) -> list:
     params = servo if kind == "rigid" else link_parameters(arm) + [
         p for p in servo if p.name not in ("coulomb", "static_excess")] + (
         [GAUGE["gauge_delay"]] if gauge else [])
-    params = [FitParameter(p.name, p.nominal, 0.5 * p.nominal, 2.0 * p.nominal)
-              if p.name in ("EI", "tip_mass") else
-              FitParameter(p.name, p.nominal, p.lower, UPPER[p.name], p.start)
-              if p.name in UPPER else p for p in params]
+    params = [FitParameter(p.name, p.nominal, p.lower, UPPER[p.name], p.start)
+              if p.name in UPPER else p for p in widened(params)]
     return started_from(arm, params)
 
 

@@ -19,8 +19,8 @@ import numpy as np
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from .calibration import (calibrate, calibrated_dict, link_parameters, started_from,
-                          with_gauge, write_preset)
+from .calibration import (calibrate, calibrated_dict, gauge_options, link_parameters,
+                          started_from, with_gauge, write_preset)
 from .quanser_twin import calibrated_arm_for
 from .replay import plot_replay, replay
 from .report import fmt, metrics_row
@@ -175,7 +175,7 @@ def study(runs: dict, make_policy: Callable, out, fit: bool = False,
         for unit in UNITS:
             res = calibrate_unit(unit, runs, make_policy, max_nfev=max_nfev, gauge=gauge,
                                  from_unit=from_unit)
-            options = "".join(f" --{g.replace('_', '-')}" for g in gauge) + \
+            options = gauge_options(gauge) + \
                 (" --from-units" if from_unit else "") + \
                 (f" --max-evaluations {max_nfev}" if max_nfev != 12 else "")
             presets[unit] = write_unit_preset(unit, res, out, options, from_unit)
