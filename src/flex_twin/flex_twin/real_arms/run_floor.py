@@ -7,8 +7,8 @@ that run. Per held-out run this fits (:func:`.calibration.calibrate`) the servo 
 rigid-bar run and, on a flexible run, the link and the servo stage together (its unit's
 servo may differ) and the lag of its tip gauge if it logs one, from the better of the
 shared and the unit's twin, within bounds wider than the calibration's
-(:func:`run_parameters`). What it scores bounds the model's floor
-from above: the search is local, at most ``max_nfev`` iterations, and the cost rough.
+(:func:`run_parameters`). What it scores bounds the model's floor from above: the search
+is local, at most ``max_nfev`` iterations, and the cost rough.
 Where it stays above an aim on a run, no parameter set the search reached within these
 bounds meets it there.
 """
