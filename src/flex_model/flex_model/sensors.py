@@ -156,6 +156,16 @@ def tip_gauge(arm, link: str | None = None) -> Sensor:
     return declared_tip_gauge(arm, link) or Sensor("tip_gauge", "tip_deflection", link or "")
 
 
+def tip_gauge_entry(sensors: list, link: str) -> dict:
+    """In an arm description's ``sensors`` list (parsed YAML): the ``tip_deflection``
+    entry of ``link``, appended as an exact gauge where there is none (in place)."""
+    entry = next((s for s in sensors if s.get("kind") == "tip_deflection"
+                  and s.get("link") == link), None)
+    if entry is None:
+        entry = {"name": "tip_gauge", "kind": "tip_deflection", "link": link}
+        sensors.append(entry)
+    return entry
+
 
 def quantise(x, resolution: float):
     """Round to the resolution (an encoder's or ADC's step); unchanged for resolution 0."""

@@ -126,3 +126,15 @@ def test_sensors_in_the_arm_description():
     data["sensors"][0]["joint"] = "joint7"
     with pytest.raises(ConfigError, match=r"arm.yaml: sensors\[0\].joint: got 'joint7'"):
         arm_from_dict(data, "arm.yaml")
+
+
+def test_a_tip_gauge_entry_is_found_or_declared_exact_in_place():
+    """tip_gauge_entry: the link's declared tip_deflection entry itself (fields kept), else a
+    new exact one appended; other links' and other kinds' entries untouched."""
+    from flex_model.sensors import tip_gauge_entry
+    sensors = [{"kind": "joint_encoder", "joint": "j1"},
+               {"kind": "tip_deflection", "link": "link2", "delay": 0.05}]
+    assert tip_gauge_entry(sensors, "link2") is sensors[1] and sensors[1]["delay"] == 0.05
+    new = tip_gauge_entry(sensors, "link1")
+    assert new == {"name": "tip_gauge", "kind": "tip_deflection", "link": "link1"}
+    assert len(sensors) == 3 and sensors[2] is new

@@ -16,6 +16,7 @@ import numpy as np
 import yaml
 
 from flex_model.config import read_yaml
+from flex_model.sensors import tip_gauge_entry
 from .baseline import apply_scales, scale_raw, scale_raw_link
 from .evaluation import predict_channels, twin_arm
 
@@ -37,14 +38,11 @@ def updated_arm_dict(nominal_path, diagnosis) -> dict:
         hyp, x = next((h, x) for h, x in diagnosis.final_effects if h.label == c.label)
         for entry in hyp.effect_dicts(scaled, x):
             if "sensor" in entry:   # a declared tip gauge gets the fitted field
-                new = entry["sensor"]
-                same = next((s for s in raw.get("sensors", []) if new["kind"] ==
-                             "tip_deflection" == s.get("kind") and s.get("link") ==
-                             new["link"]), None)
-                if same is not None:
-                    same.update(new)
+                new, sensors = entry["sensor"], raw.setdefault("sensors", [])
+                if new["kind"] == "tip_deflection":
+                    tip_gauge_entry(sensors, new["link"]).update(new)
                 else:
-                    raw.setdefault("sensors", []).append(new)
+                    sensors.append(new)
             elif "link_stiffness" in entry:
                 change = entry["link_stiffness"]
                 i = [lk.get("name", f"link{k + 1}")

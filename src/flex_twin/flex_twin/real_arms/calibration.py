@@ -29,7 +29,7 @@ from scipy.optimize import least_squares
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import DCMotor, Gear, JointFriction, StructuralDamping
-from flex_model.sensors import declared_tip_gauge, tip_gauge
+from flex_model.sensors import declared_tip_gauge, tip_gauge, tip_gauge_entry
 from .replay import replay
 
 #: which CU Boulder runs fit which stage; everything else is held out (validation)
@@ -325,13 +325,8 @@ def calibrated_dict(nominal: dict, values: dict, name: str) -> dict:
                           "mass": float(f"{values['tip_mass']:.4g}")}
     if any(k in values for k in GAUGE_FIELDS):
         sensors = [dict(x) for x in nominal.get("sensors", [])]
-        gauge = next((x for x in sensors if x.get("kind") == "tip_deflection"
-                      and x.get("link") == links[0]["name"]), None)
-        if gauge is None:
-            gauge = {"name": "tip_gauge", "kind": "tip_deflection", "link": links[0]["name"]}
-            sensors.append(gauge)
-        gauge.update({f: float(f"{values[k]:.4g}") for k, f in GAUGE_FIELDS.items()
-                      if k in values})
+        tip_gauge_entry(sensors, links[0]["name"]).update(
+            {f: float(f"{values[k]:.4g}") for k, f in GAUGE_FIELDS.items() if k in values})
         out["sensors"] = sensors
     out["links"], out["effects"] = links, effects
     return out

@@ -25,6 +25,7 @@ import yaml
 
 from flex_model.arm import resolve_preset
 from flex_model.config import read_yaml
+from flex_model.sensors import tip_gauge_entry
 from .quanser_data import CUBOULDER
 from .quanser_twin import NOMINAL_PRESETS, diagnosis_case
 
@@ -70,15 +71,11 @@ def controller_dict(case: dict) -> dict:
 def nominal_arm_dict(case: dict) -> dict:
     """The nominal arm YAML mapping of the run (the handout preset), its tip gauge
     declared (an exact ``tip_deflection`` sensor, unless the preset declares one) where the
-    run logs one: the diagnosis
-    may then fit its lag (``gauge_delay``)."""
+    run logs one: the diagnosis may then fit its lag (``gauge_delay``)."""
     run = case["run"]
     data = read_yaml(resolve_preset(NOMINAL_PRESETS[(run.lab, run.kind)]))
-    link = data["links"][0].get("name", "link1")
-    if run.has_gauge and not any(s.get("kind") == "tip_deflection" and s.get("link") == link
-                                 for s in data.get("sensors", [])):
-        data.setdefault("sensors", []).append(
-            {"name": "tip_gauge", "kind": "tip_deflection", "link": link})
+    if run.has_gauge:
+        tip_gauge_entry(data.setdefault("sensors", []), data["links"][0].get("name", "link1"))
     return data
 
 
