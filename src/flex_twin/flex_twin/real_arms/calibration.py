@@ -225,13 +225,11 @@ class CalibrationResult:
                 "evaluations": self.evaluations}
 
 
-def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
-              stage: str = "", t_final: float | None = None, max_nfev: int = 12,
-              progress: Callable | None = None,
-              arm_of: Callable | None = None) -> CalibrationResult:
-    """Bounded least squares of ``params`` (FitParameters) on the replay of ``runs``;
-    ``arm_of(arm, values)`` makes the trial arm (default :func:`apply_parameters`)."""
-    arm_of = arm_of or apply_parameters
+def fit_values(params: list, residual: Callable, max_nfev: int = 12,
+               progress: Callable | None = None) -> tuple:
+    """Bounded least squares of ``params`` (FitParameters) on ``residual(values)``, finite
+    differences, parameters scaled to their starts; the cost is rough, so the best point
+    evaluated is kept, not the last. Returns (values, RMS of that residual, evaluations)."""
     start = np.array([p.nominal if p.start is None else p.start for p in params])
     scale = np.array([max(abs(s), 1e-3 * p.upper) for s, p in zip(start, params)])
     lo = np.array([p.lower for p in params]) / scale
@@ -239,12 +237,12 @@ def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
     x0 = np.clip(start / scale, lo, hi)
     names = [p.name for p in params]
     count = [0]
-    best = [np.inf, x0]  # the cost is rough: keep the best point evaluated, not the last
+    best = [np.inf, x0]
 
     def fun(x):
         count[0] += 1
         vals = dict(zip(names, x * scale))
-        r = replay_residual(arm_of(arm, vals), runs, make_policy, t_final)
+        r = residual(vals)
         cost = float(np.sqrt(np.mean(r ** 2)))
         if cost < best[0]:
             best[:] = [cost, x.copy()]
@@ -252,12 +250,24 @@ def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
             progress(count[0], cost, vals)
         return r
 
-    r0 = replay_residual(arm, runs, make_policy, t_final)  # the uncalibrated twin
     least_squares(fun, x0, bounds=(lo, hi), diff_step=0.05, max_nfev=max_nfev, x_scale=1.0)
-    values = {n: float(v) for n, v in zip(names, best[1] * scale)}
+    return {n: float(v) for n, v in zip(names, best[1] * scale)}, best[0], count[0]
+
+
+def calibrate(arm: ArmDescription, runs, params: list, make_policy: Callable, *,
+              stage: str = "", t_final: float | None = None, max_nfev: int = 12,
+              progress: Callable | None = None,
+              arm_of: Callable | None = None) -> CalibrationResult:
+    """:func:`fit_values` of ``params`` on the replay of ``runs``; ``arm_of(arm, values)``
+    makes the trial arm (default :func:`apply_parameters`)."""
+    arm_of = arm_of or apply_parameters
+    r0 = replay_residual(arm, runs, make_policy, t_final)  # the uncalibrated twin
+    values, cost, count = fit_values(
+        params, lambda v: replay_residual(arm_of(arm, v), runs, make_policy, t_final),
+        max_nfev, progress)
     return CalibrationResult(stage=stage, values=values, arm=arm_of(arm, values),
                              cost_nominal=float(np.sqrt(np.mean(r0 ** 2))),
-                             cost_fitted=best[0], evaluations=count[0],
+                             cost_fitted=cost, evaluations=count,
                              runs=tuple(r.name for r in runs))
 
 

@@ -191,6 +191,16 @@ def cmd_floor(args) -> int:
     return _print_report(args, report, out / "run_floor.md")
 
 
+def cmd_servo_split(args) -> int:
+    from .quanser_data import CUBOULDER, read_cuboulder
+    from .quanser_twin import data_root
+    from .servo_split import study
+    out = Path(args.out)
+    report = study(read_cuboulder(data_root(args.data) / CUBOULDER), _policy_factory(), out,
+                   args.kt_tolerance, args.max_evaluations, _progress)
+    return _print_report(args, report, out / "servo_split.md")
+
+
 def cmd_two_mass(args) -> int:
     """The two-mass motor bench (issue 22): replay of records A and B on the
     ``two_mass_bench`` twin, FRF and time overlays, the frequency-domain diagnosis of the
@@ -287,7 +297,7 @@ def _batch_options(parser, out: str) -> None:
 
 def add_real_arm_parsers(sub) -> None:
     """``replay``, ``import quanser`` and
-    ``real-arm calibrate|report|stick-slip|units|floor|two-mass|diagnose|transfer``."""
+    ``real-arm calibrate|report|stick-slip|units|floor|servo-split|two-mass|diagnose|transfer``."""
     sp = sub.add_parser("replay", help="replay a recorded real-arm run on its twin "
                         "(closed loop with the lab's law, or open loop from the voltage)")
     sp.add_argument("run", help="a CU Boulder lab log, or the UC Merced data folder")
@@ -379,6 +389,16 @@ def add_real_arm_parsers(sub) -> None:
     fp.add_argument("--max-evaluations", type=int, default=12)
     _batch_options(fp, "runs/quanser-floor")
     fp.set_defaults(func=cmd_floor)
+    vp = rsub.add_parser("servo-split", help="one servo fitted to the rigid-bar and the "
+                         "flexible fit runs together, the rigid bar's inertia free, scored on "
+                         "the held-out runs (markdown, JSON; ~10 CPU-min)")
+    _data_option(vp)
+    vp.add_argument("--kt-tolerance", type=float, default=0.05, help="K_t free within this "
+                    "fraction of the handout's (default 0.05, its tolerance)")
+    vp.add_argument("--max-evaluations", type=int, default=10)
+    vp.add_argument("--out", default="runs/quanser-servo-split", help="output directory")
+    vp.add_argument("--json", action="store_true")
+    vp.set_defaults(func=cmd_servo_split)
     tp = rsub.add_parser("two-mass", help="the FdiTools two-mass motor bench: twin replay "
                          "of records A (fit) and B (held out), FRF and time overlays, the "
                          "diagnosis of the rigid nominal twin (markdown, PNG, JSON)")

@@ -113,12 +113,13 @@ def study(data_root, executor, progress=print, max_nfev: int = 12, runs=HELD_OUT
     return {"max_evaluations": max_nfev, "runs": rows, "summary": summarize(rows)}
 
 
-def summarize(rows) -> dict:
+def summarize(rows, labels=("calibrated", "run_fit")) -> dict:
     """Medians (hub over all rows; tip, ring-down and hold ringing over those with a gauge)
     and how many rows meet the issue's aims (hub 0.01 rad, tip 2 mm, ring-down frequency
-    3 %, damping ratio x1.5), for the calibrated and the run-fitted twins."""
+    3 %, damping ratio x1.5), for each twin of ``labels`` (default: the calibrated and the
+    run-fitted twins)."""
     out = {"runs": len(rows)}
-    for label in ("calibrated", "run_fit"):
+    for label in labels:
         m = [r[label] for r in rows]
         hub = np.array([x["hub_rms_rad"] for x in m])
         tip = np.array([x["tip_rms_m"] for x in m if x["tip_rms_m"] is not None])
@@ -141,6 +142,24 @@ def summarize(rows) -> dict:
     return out
 
 
+def summary_lines(summary: dict, labels) -> list:
+    """The markdown table of :func:`summarize`'s medians and aims, a row per label."""
+    lines = ["| twin | hub RMS median (rad) | under 0.01 rad | tip RMS median (mm) | under 2 "
+             "mm | ring-down freq. error median | under 3 % | damping ratio twin / lab "
+             "median | within x1.5 | hold ringing freq. error median |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for label in labels:
+        m = summary[label]
+        lines.append(f"| {label} | {m['hub_rms_median_rad']:.4f} | {m['hub_under_aim']} of "
+                     f"{summary['runs']} | {1e3 * m['tip_rms_median_m']:.2f} | "
+                     f"{m['tip_under_aim']} of {m['with_gauge']} | "
+                     f"{m['ring_freq_error_median_pct']:.1f} % | {m['ring_under_aim']} of "
+                     f"{m['with_ring']} | {m['damping_ratio_median']:.2f} | "
+                     f"{m['damping_within_aim']} of {m['with_ring']} | "
+                     f"{m['hold_freq_error_median_pct']:.1f} % |")
+    return lines
+
+
 def write_report(report: dict, out) -> None:
     """``run_floor.json`` and ``run_floor.md`` (per-run table and medians) in ``out``."""
     from .report import write_study
@@ -150,18 +169,7 @@ def write_report(report: dict, out) -> None:
              f"unit twin, at most {report['max_evaluations']} iterations per run (the servo "
              "stage on rigid-bar runs, the link and the servo stage on flexible runs; bounds "
              "in run_floor.run_parameters).", "",
-             "| twin | hub RMS median (rad) | under 0.01 rad | tip RMS median (mm) | under 2 "
-             "mm | ring-down freq. error median | under 3 % | damping ratio twin / lab "
-             "median | within x1.5 | hold ringing freq. error median |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    for label in ("calibrated", "run_fit"):
-        m = s[label]
-        lines.append(f"| {label} | {m['hub_rms_median_rad']:.4f} | {m['hub_under_aim']} of "
-                     f"{s['runs']} | {1e3 * m['tip_rms_median_m']:.2f} | {m['tip_under_aim']}"
-                     f" of {m['with_gauge']} | {m['ring_freq_error_median_pct']:.1f} % | "
-                     f"{m['ring_under_aim']} of {m['with_ring']} | "
-                     f"{m['damping_ratio_median']:.2f} | {m['damping_within_aim']} of "
-                     f"{m['with_ring']} | {m['hold_freq_error_median_pct']:.1f} % |")
+             *summary_lines(s, ("calibrated", "run_fit"))]
     lines += ["", "| run | hub RMS calibrated -> run fit (rad) | tip RMS (mm) | start | fitted |",
               "|---|---|---|---|---|"]
     for r in report["runs"]:

@@ -1,0 +1,183 @@
+"""One servo for the rigid-bar and the flexible-link runs (issue 22).
+
+The calibration fits the servo on the rigid-bar runs alone (:data:`.calibration.
+CUBOULDER_SPLIT`): rotor inertia 3.7x the handout and K_t at -5 %, its tolerance; fitted to
+the flexible runs themselves, the servo wants K_t at +5 % and less rotor inertia
+(``real-arm floor``). The rigid bar's inertia (handout J_load 0.0015 kg m^2) adds to the
+rotor's reflected inertia Kg^2 J_r in those runs, and only there: if the bar were heavier
+than the handout says, the rigid runs would put its excess on the rotor.
+
+:func:`joint_fit` tests that: one least-squares fit (:func:`.calibration.fit_values`) of
+the rigid fit runs (first :data:`.calibration.SERVO_WINDOW` s) and the link fit runs
+together, the rotor inertia and K_t shared, the bar's inertia free (x0.5-8 of the handout)
+with the rigid runs' friction, the link stage (:func:`.calibration.link_parameters`, EI and
+tip mass x0.5-2) with the gauge's lag on the flexible ones; started from the stored twins,
+K_t within ``kt_tolerance`` of the handout's, from the best point of a coarse grid
+(:func:`grid_starts`). :func:`study` scores the two twins it gives against the stored ones
+on the 17 held-out runs.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import numpy as np
+
+from flex_model.dynamics import FlexArmModel
+from .calibration import (CUBOULDER_SPLIT, SERVO_WINDOW, FitParameter, apply_parameters,
+                          fit_values, link_parameters, replay_residual, servo_parameters,
+                          started_from, with_gauge)
+from .quanser_twin import calibrated_arm_for, hub_inertia, nominal_arm_for
+from .replay import replay
+from .report import metrics_row, write_study
+from .run_floor import HELD_OUT, summarize, summary_lines
+
+#: the servo's parameters both setups share
+SHARED = ("rotor_inertia", "torque_constant")
+#: prefix of the rigid-bar runs' own friction parameters
+RIGID = "rigid_"
+#: the handout's rigid bar (quanser_cuboulder_rigid: J_minus of its short stiff link)
+BAR_INERTIA = 0.0015
+
+
+def joint_parameters(rigid, flexible, kt_tolerance: float = 0.05) -> list:
+    """The joint fit's unknowns, started from the ``rigid`` and ``flexible`` twins: the
+    shared rotor inertia (x0.3-6 of the handout) and K_t (within ``kt_tolerance`` of the
+    handout's), the bar's inertia, the rigid runs' friction (``rigid_*``) and the link
+    stage with the gauge's lag."""
+    nominal = nominal_arm_for("cuboulder", "rigid")
+    kt = nominal.effect("dc_motor", nominal.joint_names[0])["torque_constant"]
+    servo = {p.name: p for p in servo_parameters(nominal)}
+    shared = [servo["rotor_inertia"], FitParameter("torque_constant", kt,
+                                                   (1 - kt_tolerance) * kt,
+                                                   (1 + kt_tolerance) * kt)]
+    own = [dataclasses.replace(p, name=RIGID + p.name) for p in started_from(
+        rigid, [servo[n] for n in ("coulomb", "static_excess", "viscous")])]
+    bar = FitParameter("bar_inertia", BAR_INERTIA, 0.5 * BAR_INERTIA, 8.0 * BAR_INERTIA,
+                       rigid.links[0].J_minus)
+    link = started_from(flexible, with_gauge(link_parameters(flexible), ("gauge_delay",)))
+    return started_from(flexible, shared) + own + [bar] + link
+
+
+def joint_arms(rigid, flexible, values: dict) -> tuple:
+    """The (rigid-bar, flexible) twins with the joint fit's ``values`` applied."""
+    shared = {k: values[k] for k in SHARED if k in values}
+    r = apply_parameters(rigid, {**shared, **{k[len(RIGID):]: v for k, v in values.items()
+                                              if k.startswith(RIGID)}})
+    if "bar_inertia" in values:
+        r = dataclasses.replace(r, links=(dataclasses.replace(
+            r.links[0], J_minus=values["bar_inertia"]),) + r.links[1:])
+    f = apply_parameters(flexible, {k: v for k, v in values.items()
+                                    if not k.startswith(RIGID) and k != "bar_inertia"})
+    return r, f
+
+
+def grid_starts(rigid, params: list, kt_tolerance: float) -> list:
+    """The coarse grid the joint fit starts from the best point of (the cost is rough and
+    the search local): K_t at the handout's and at both ends of its tolerance, the rotor
+    inertia at the stored twin's and 0.6x, each with the bar's inertia that keeps the rigid
+    twin's torque per hub inertia K_t / (Kg^2 J_r + J_bar) (:func:`.quanser_twin.
+    hub_inertia`), clipped into its bounds."""
+    p = {x.name: x for x in params}
+    gear = rigid.effect("gear", rigid.joint_names[0])
+    kt_now = rigid.effect("dc_motor", rigid.joint_names[0])["torque_constant"]
+    per_kt = hub_inertia(rigid) / kt_now
+    kt0, jr0, bar = p["torque_constant"].nominal, p["rotor_inertia"].start, p["bar_inertia"]
+    out = []
+    for kt in (kt0, (1 - kt_tolerance) * kt0, (1 + kt_tolerance) * kt0):
+        for jr in (jr0, 0.6 * jr0):
+            j_bar = per_kt * kt - gear["ratio"] ** 2 * jr
+            out.append({"torque_constant": kt, "rotor_inertia": jr,
+                        "bar_inertia": min(max(j_bar, bar.lower), bar.upper)})
+    return out
+
+
+def joint_fit(runs: dict, make_policy: Callable, kt_tolerance: float = 0.05,
+              max_nfev: int = 10, progress: Callable | None = None) -> dict:
+    """The joint fit from the stored calibrated twins, from the best of :func:`grid_starts`:
+    the fitted values, the scaled RMS residual of the fit runs on the stored twins, at the
+    grid's best and fitted, and the evaluations (the grid's included)."""
+    rigid = calibrated_arm_for("cuboulder", "rigid")
+    flexible = calibrated_arm_for("cuboulder", "flexible")
+    if rigid is None or flexible is None:
+        raise ValueError("no quanser_cuboulder_calibrated presets: run real-arm calibrate")
+    rigid_runs = [runs[n] for n in CUBOULDER_SPLIT["servo_fit"]]
+    link_runs = [runs[n] for n in CUBOULDER_SPLIT["link_fit"]]
+
+    def cost(r):
+        return float(np.sqrt(np.mean(r ** 2)))
+
+    def residual(values):
+        r, f = joint_arms(rigid, flexible, values)
+        return np.concatenate([replay_residual(r, rigid_runs, make_policy, SERVO_WINDOW),
+                               replay_residual(f, link_runs, make_policy)])
+    params = joint_parameters(rigid, flexible, kt_tolerance)
+    starts = {x.name: x.nominal if x.start is None else x.start for x in params}
+    grid = [(cost(residual({**starts, **g})), g)
+            for g in grid_starts(rigid, params, kt_tolerance)]
+    best_cost, best = min(grid, key=lambda c: c[0])
+    if progress is not None:
+        for c, g in grid:
+            progress(0, c, g)
+    params = [dataclasses.replace(x, start=best[x.name]) if x.name in best else x
+              for x in params]
+    values, fitted, count = fit_values(params, residual, max_nfev, progress)
+    return {"values": values, "kt_tolerance": kt_tolerance, "evaluations": count + len(grid),
+            "cost_stored": cost(residual({})), "cost_grid": best_cost, "cost_fitted": fitted,
+            "grid": [{"cost": c, **g} for c, g in grid],
+            "runs": [r.name for r in rigid_runs + link_runs]}
+
+
+def study(runs: dict, make_policy: Callable, out, kt_tolerance: float = 0.05,
+          max_nfev: int = 10, progress: Callable = print) -> dict:
+    """:func:`joint_fit`, then the stored twins and the joint fit's on every held-out run;
+    ``servo_split.md`` and ``.json`` in ``out``."""
+    fit = joint_fit(runs, make_policy, kt_tolerance, max_nfev,
+                    lambda k, c, v: progress(f"  evaluation {k or 'of the start grid'}: "
+                                             f"scaled RMS residual {c:.4f}"))
+    stored = {k: calibrated_arm_for("cuboulder", k) for k in ("rigid", "flexible")}
+    joint = dict(zip(("rigid", "flexible"),
+                     joint_arms(stored["rigid"], stored["flexible"], fit["values"])))
+    rows = []
+    for name in HELD_OUT:
+        run = runs[name]
+        row = {"run": name, "kind": run.kind}
+        for label, arms in (("calibrated", stored), ("joint_servo", joint)):
+            row[label] = metrics_row(replay(FlexArmModel(arms[run.kind]), run, make_policy))
+        progress(f"{name}: hub {row['calibrated']['hub_rms_rad']:.4f} -> "
+                 f"{row['joint_servo']['hub_rms_rad']:.4f} rad")
+        rows.append(row)
+    report = {**fit, "held_out": rows,
+              "summary": summarize(rows, ("calibrated", "joint_servo"))}
+    write_report(report, out)
+    return report
+
+
+def write_report(report: dict, out) -> None:
+    """``servo_split.md`` (the fit, the medians, a row per run) and ``.json`` in ``out``."""
+    v = report["values"]
+    nominal = nominal_arm_for("cuboulder", "rigid")
+    jr = nominal.effect("gear", nominal.joint_names[0])["rotor_inertia"]
+    kt = nominal.effect("dc_motor", nominal.joint_names[0])["torque_constant"]
+    lines = ["# One servo for the rigid-bar and the flexible runs, the bar's inertia free", "",
+             f"Fit runs: {', '.join(report['runs'])}; scaled RMS residual "
+             f"{report['cost_stored']:.3f} (the stored twins), {report['cost_grid']:.3f} (the "
+             f"start grid's best) -> {report['cost_fitted']:.3f}, {report['evaluations']} "
+             f"evaluations; K_t within {100 * report['kt_tolerance']:.0f} % of the "
+             "handout's.", "",
+             f"Shared servo: rotor inertia {v['rotor_inertia']:.4g} kg m^2 "
+             f"({v['rotor_inertia'] / jr:.2f}x the handout), K_t {v['torque_constant']:.4g}"
+             f" N m/A ({100 * (v['torque_constant'] / kt - 1):+.1f} %); rigid bar "
+             f"{v['bar_inertia']:.4g} kg m^2 ({v['bar_inertia'] / BAR_INERTIA:.2f}x the "
+             "handout's).", "",
+             "Fitted: " + ", ".join(f"{k} {x:.4g}" for k, x in v.items()), "",
+             "Held out: the stored calibrated twins (calibrated) and the joint fit's.", "",
+             *summary_lines(report["summary"], ("calibrated", "joint_servo")), "",
+             "| run | hub RMS calibrated -> joint servo (rad) | tip RMS (mm) |", "|---|---|---|"]
+    for r in report["held_out"]:
+        c, j = r["calibrated"], r["joint_servo"]
+        tip = (f"{1e3 * c['tip_rms_m']:.2f} -> {1e3 * j['tip_rms_m']:.2f}"
+               if j["tip_rms_m"] is not None else "-")
+        lines.append(f"| {r['run']} | {c['hub_rms_rad']:.4f} -> {j['hub_rms_rad']:.4f} | "
+                     f"{tip} |")
+    write_study(out, "servo_split", report, lines)
