@@ -494,10 +494,64 @@ def test_the_joint_fits_start_grid_keeps_the_rigid_runs_torque_per_inertia():
     rigid, flexible = (calibrated_arm_for("cuboulder", k) for k in ("rigid", "flexible"))
     ratio = rigid.effect("dc_motor", "joint1")["torque_constant"] / hub_inertia(rigid)
     grid = grid_starts(rigid, joint_parameters(rigid, flexible, 0.05), 0.05)
-    assert len(grid) == 6
+    assert len(grid) == 15
     for g in grid:
         r = joint_arms(rigid, flexible, g)[0]
         assert g["torque_constant"] / hub_inertia(r) == pytest.approx(ratio, rel=1e-9)
     low = next(g for g in grid if g["torque_constant"] < 0.0107 and g["rotor_inertia"]
                == pytest.approx(3.1666e-6))
     assert low["bar_inertia"] == pytest.approx(0.0015, rel=2e-3)   # K_t stored to 5 digits
+
+
+def test_fit_values_finds_a_quadratics_minimum_and_keeps_the_best_point():
+    """calibration.fit_values on r = (x - 2, 3 (y + 1)) from (0, 0) within bounds
+    [-5, 5] x [0, 5]: x = 2, y at its bound 0, cost sqrt(9 / 2); the values it returns are
+    those of the lowest cost it evaluated."""
+    from flex_twin.real_arms.calibration import FitParameter, fit_values
+    seen = []
+
+    def residual(v):
+        r = np.array([v["x"] - 2.0, 3.0 * (v["y"] + 1.0)])
+        seen.append((float(np.sqrt(np.mean(r ** 2))), v))
+        return r
+    values, cost, count = fit_values([FitParameter("x", 1.0, -5.0, 5.0, 0.5),
+                                      FitParameter("y", 1.0, 0.0, 5.0, 1.0)], residual, 20)
+    assert (values["x"], values["y"]) == pytest.approx((2.0, 0.0), abs=1e-6)
+    assert cost == pytest.approx(np.sqrt(4.5), rel=1e-5) == min(c for c, _ in seen)
+    assert count == len(seen)
+
+
+def test_the_joint_fit_starts_from_its_grids_best_point(monkeypatch):
+    """servo_split.joint_fit with a stand-in replay: the rigid runs see only K_t / hub
+    inertia, the flexible ones want a rotor of 1.5e-6 and K_t 0.0112: of the 15 grid
+    points the fit starts at K_t +5 % and 0.45x the stored rotor; the stored twins' cost
+    and every evaluation are reported."""
+    from types import SimpleNamespace
+    from flex_twin.real_arms import servo_split
+    from flex_twin.real_arms.quanser_twin import hub_inertia
+    rigid = calibrated_arm_for("cuboulder", "rigid")
+    ratio = rigid.effect("dc_motor", "joint1")["torque_constant"] / hub_inertia(rigid)
+
+    def fake_replay(arm, runs, make_policy, t_final=None):
+        kt = arm.effect("dc_motor", "joint1")["torque_constant"]
+        if arm.links[0].length < 0.2:   # the rigid bar
+            return np.array([1e3 * (kt / hub_inertia(arm) / ratio - 1.0)])
+        jr = arm.effect("gear", "joint1")["rotor_inertia"]
+        return np.array([(jr - 1.5e-6) / 1e-7, (kt - 0.0112) / 1e-4])
+    got = {}
+
+    def fake_fit(params, residual, max_nfev, progress):
+        got.update({p.name: p.start for p in params})
+        return {"rotor_inertia": 1.0}, 0.5, 7
+    monkeypatch.setattr(servo_split, "replay_residual", fake_replay)
+    monkeypatch.setattr(servo_split, "fit_values", fake_fit)
+    names = CUBOULDER_SPLIT["servo_fit"] + CUBOULDER_SPLIT["link_fit"]
+    fit = servo_split.joint_fit({n: SimpleNamespace(name=n) for n in names}, None, 0.05)
+    assert len(fit["grid"]) == 15 and fit["evaluations"] == 7 + 15 + 1
+    assert got["torque_constant"] == pytest.approx(1.05 * 0.0107)
+    assert got["rotor_inertia"] == pytest.approx(0.45 * 3.1666e-6)
+    assert fit["cost_grid"] == min(g["cost"] for g in fit["grid"])
+    stored = np.array([1e3 * (0.010167 / hub_inertia(rigid) / ratio - 1.0),
+                       (3.1666e-6 - 1.5e-6) / 1e-7, (0.010167 - 0.0112) / 1e-4])
+    assert fit["cost_stored"] == pytest.approx(np.sqrt(np.mean(stored ** 2)), rel=1e-9)
+    assert (fit["values"], fit["cost_fitted"]) == ({"rotor_inertia": 1.0}, 0.5)

@@ -391,7 +391,7 @@ def add_real_arm_parsers(sub) -> None:
     fp.set_defaults(func=cmd_floor)
     vp = rsub.add_parser("servo-split", help="one servo fitted to the rigid-bar and the "
                          "flexible fit runs together, the rigid bar's inertia free, scored on "
-                         "the held-out runs (markdown, JSON; ~10 CPU-min)")
+                         "the held-out runs (markdown, JSON; ~5-10 CPU-min)")
     _data_option(vp)
     vp.add_argument("--kt-tolerance", type=float, default=0.05, help="K_t free within this "
                     "fraction of the handout's (default 0.05, its tolerance)")

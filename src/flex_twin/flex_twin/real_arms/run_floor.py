@@ -160,6 +160,14 @@ def summary_lines(summary: dict, labels) -> list:
     return lines
 
 
+def change_cells(before: dict, after: dict) -> str:
+    """``hub a -> b | tip a -> b`` table cells of two :func:`.report.metrics_row` (rad, mm;
+    ``-`` for a run without a gauge)."""
+    tip = (f"{1e3 * before['tip_rms_m']:.2f} -> {1e3 * after['tip_rms_m']:.2f}"
+           if after["tip_rms_m"] is not None else "-")
+    return f"{before['hub_rms_rad']:.4f} -> {after['hub_rms_rad']:.4f} | {tip}"
+
+
 def write_report(report: dict, out) -> None:
     """``run_floor.json`` and ``run_floor.md`` (per-run table and medians) in ``out``."""
     from .report import write_study
@@ -173,10 +181,7 @@ def write_report(report: dict, out) -> None:
     lines += ["", "| run | hub RMS calibrated -> run fit (rad) | tip RMS (mm) | start | fitted |",
               "|---|---|---|---|---|"]
     for r in report["runs"]:
-        c, f = r["calibrated"], r["run_fit"]
-        tip = (f"{1e3 * c['tip_rms_m']:.2f} -> {1e3 * f['tip_rms_m']:.2f}"
-               if f["tip_rms_m"] is not None else "-")
         vals = ", ".join(f"{k} {v:.4g}" for k, v in r["values"].items())
-        lines.append(f"| {r['run']} | {c['hub_rms_rad']:.4f} -> {f['hub_rms_rad']:.4f} | "
-                     f"{tip} | {r['start']} | {vals} |")
+        lines.append(f"| {r['run']} | {change_cells(r['calibrated'], r['run_fit'])} | "
+                     f"{r['start']} | {vals} |")
     write_study(out, "run_floor", report, lines)

@@ -2,18 +2,19 @@
 
 The calibration fits the servo on the rigid-bar runs alone (:data:`.calibration.
 CUBOULDER_SPLIT`): rotor inertia 3.7x the handout and K_t at -5 %, its tolerance; fitted to
-the flexible runs themselves, the servo wants K_t at +5 % and less rotor inertia
-(``real-arm floor``). The rigid bar's inertia (handout J_load 0.0015 kg m^2) adds to the
-rotor's reflected inertia Kg^2 J_r in those runs, and only there: if the bar were heavier
-than the handout says, the rigid runs would put its excess on the rotor.
+the flexible runs themselves, the servo takes K_t at the top of its bound (+5 % over
+the calibrated value: the handout's) and less rotor inertia (``real-arm floor``). The
+rigid bar's inertia (handout J_load 0.0015 kg m^2) adds to the rotor's reflected inertia
+Kg^2 J_r in those runs, and only there: if the bar were heavier than the handout says,
+the rigid runs would put its excess on the rotor.
 
 :func:`joint_fit` tests that: one least-squares fit (:func:`.calibration.fit_values`) of
 the rigid fit runs (first :data:`.calibration.SERVO_WINDOW` s) and the link fit runs
 together, the rotor inertia and K_t shared, the bar's inertia free (x0.5-8 of the handout)
 with the rigid runs' friction, the link stage (:func:`.calibration.link_parameters`, EI and
-tip mass x0.5-2) with the gauge's lag on the flexible ones; started from the stored twins,
-K_t within ``kt_tolerance`` of the handout's, from the best point of a coarse grid
-(:func:`grid_starts`). :func:`study` scores the two twins it gives against the stored ones
+tip mass x0.5-2) with the gauge's lag on the flexible ones; started from the stored twins
+at the best point of a grid of K_t (within ``kt_tolerance`` of the handout's) and rotor
+inertia (:func:`grid_starts`). :func:`study` scores the two twins it gives against the stored ones
 on the 17 held-out runs.
 """
 from __future__ import annotations
@@ -30,7 +31,7 @@ from .calibration import (CUBOULDER_SPLIT, SERVO_WINDOW, FitParameter, apply_par
 from .quanser_twin import calibrated_arm_for, hub_inertia, nominal_arm_for
 from .replay import replay
 from .report import metrics_row, write_study
-from .run_floor import HELD_OUT, summarize, summary_lines
+from .run_floor import HELD_OUT, change_cells, summarize, summary_lines
 
 #: the servo's parameters both setups share
 SHARED = ("rotor_inertia", "torque_constant")
@@ -38,13 +39,17 @@ SHARED = ("rotor_inertia", "torque_constant")
 RIGID = "rigid_"
 #: the handout's rigid bar (quanser_cuboulder_rigid: J_minus of its short stiff link)
 BAR_INERTIA = 0.0015
+#: the bar's inertia is free within these multiples of the handout's
+BAR_RANGE = (0.5, 8.0)
+#: the start grid's rotor inertias, times the stored twin's (3.7x the handout: 0.3 is 1.1x)
+ROTOR_SCAN = (1.0, 0.8, 0.6, 0.45, 0.3)
 
 
 def joint_parameters(rigid, flexible, kt_tolerance: float = 0.05) -> list:
-    """The joint fit's unknowns, started from the ``rigid`` and ``flexible`` twins: the
-    shared rotor inertia (x0.3-6 of the handout) and K_t (within ``kt_tolerance`` of the
-    handout's), the bar's inertia, the rigid runs' friction (``rigid_*``) and the link
-    stage with the gauge's lag."""
+    """The joint fit's unknowns: the shared rotor inertia (x0.3-6 of the handout, started
+    from the ``flexible`` twin's) and K_t (within ``kt_tolerance`` of the handout's, from
+    it), the bar's inertia and the rigid runs' friction (``rigid_*``) from the ``rigid``
+    twin's, the link stage with the gauge's lag from the ``flexible`` twin's."""
     nominal = nominal_arm_for("cuboulder", "rigid")
     kt = nominal.effect("dc_motor", nominal.joint_names[0])["torque_constant"]
     servo = {p.name: p for p in servo_parameters(nominal)}
@@ -53,8 +58,8 @@ def joint_parameters(rigid, flexible, kt_tolerance: float = 0.05) -> list:
                                                    (1 + kt_tolerance) * kt)]
     own = [dataclasses.replace(p, name=RIGID + p.name) for p in started_from(
         rigid, [servo[n] for n in ("coulomb", "static_excess", "viscous")])]
-    bar = FitParameter("bar_inertia", BAR_INERTIA, 0.5 * BAR_INERTIA, 8.0 * BAR_INERTIA,
-                       rigid.links[0].J_minus)
+    bar = FitParameter("bar_inertia", BAR_INERTIA, BAR_RANGE[0] * BAR_INERTIA,
+                       BAR_RANGE[1] * BAR_INERTIA, rigid.links[0].J_minus)
     link = started_from(flexible, with_gauge(link_parameters(flexible), ("gauge_delay",)))
     return started_from(flexible, shared) + own + [bar] + link
 
@@ -73,11 +78,12 @@ def joint_arms(rigid, flexible, values: dict) -> tuple:
 
 
 def grid_starts(rigid, params: list, kt_tolerance: float) -> list:
-    """The coarse grid the joint fit starts from the best point of (the cost is rough and
-    the search local): K_t at the handout's and at both ends of its tolerance, the rotor
-    inertia at the stored twin's and 0.6x, each with the bar's inertia that keeps the rigid
-    twin's torque per hub inertia K_t / (Kg^2 J_r + J_bar) (:func:`.quanser_twin.
-    hub_inertia`), clipped into its bounds."""
+    """The start grid: K_t at the handout's and at both ends of its tolerance, the rotor
+    inertia at :data:`ROTOR_SCAN` times its start, each with the bar's inertia that keeps
+    the rigid twin's torque per hub inertia K_t / (Kg^2 J_r + J_bar)
+    (:func:`.quanser_twin.hub_inertia`) where the bar's bounds allow (clipped into them).
+    Along such a line the rigid-bar runs replay alike, so the grid scans what the flexible
+    runs say about the split of the inertia between rotor and bar."""
     p = {x.name: x for x in params}
     gear = rigid.effect("gear", rigid.joint_names[0])
     kt_now = rigid.effect("dc_motor", rigid.joint_names[0])["torque_constant"]
@@ -85,7 +91,7 @@ def grid_starts(rigid, params: list, kt_tolerance: float) -> list:
     kt0, jr0, bar = p["torque_constant"].nominal, p["rotor_inertia"].start, p["bar_inertia"]
     out = []
     for kt in (kt0, (1 - kt_tolerance) * kt0, (1 + kt_tolerance) * kt0):
-        for jr in (jr0, 0.6 * jr0):
+        for jr in (f * jr0 for f in ROTOR_SCAN):
             j_bar = per_kt * kt - gear["ratio"] ** 2 * jr
             out.append({"torque_constant": kt, "rotor_inertia": jr,
                         "bar_inertia": min(max(j_bar, bar.lower), bar.upper)})
@@ -94,9 +100,9 @@ def grid_starts(rigid, params: list, kt_tolerance: float) -> list:
 
 def joint_fit(runs: dict, make_policy: Callable, kt_tolerance: float = 0.05,
               max_nfev: int = 10, progress: Callable | None = None) -> dict:
-    """The joint fit from the stored calibrated twins, from the best of :func:`grid_starts`:
-    the fitted values, the scaled RMS residual of the fit runs on the stored twins, at the
-    grid's best and fitted, and the evaluations (the grid's included)."""
+    """The joint fit from the stored calibrated twins, started from the best point of
+    :func:`grid_starts`: the fitted values, the scaled RMS residual of the fit runs on the
+    stored twins, at every grid point and fitted, and the evaluations (all counted)."""
     rigid = calibrated_arm_for("cuboulder", "rigid")
     flexible = calibrated_arm_for("cuboulder", "flexible")
     if rigid is None or flexible is None:
@@ -104,27 +110,27 @@ def joint_fit(runs: dict, make_policy: Callable, kt_tolerance: float = 0.05,
     rigid_runs = [runs[n] for n in CUBOULDER_SPLIT["servo_fit"]]
     link_runs = [runs[n] for n in CUBOULDER_SPLIT["link_fit"]]
 
-    def cost(r):
-        return float(np.sqrt(np.mean(r ** 2)))
-
     def residual(values):
         r, f = joint_arms(rigid, flexible, values)
         return np.concatenate([replay_residual(r, rigid_runs, make_policy, SERVO_WINDOW),
                                replay_residual(f, link_runs, make_policy)])
+
+    def cost(values):
+        return float(np.sqrt(np.mean(residual(values) ** 2)))
     params = joint_parameters(rigid, flexible, kt_tolerance)
     starts = {x.name: x.nominal if x.start is None else x.start for x in params}
-    grid = [(cost(residual({**starts, **g})), g)
-            for g in grid_starts(rigid, params, kt_tolerance)]
-    best_cost, best = min(grid, key=lambda c: c[0])
-    if progress is not None:
-        for c, g in grid:
-            progress(0, c, g)
+    grid = []
+    for g in grid_starts(rigid, params, kt_tolerance):
+        grid.append({"cost": cost({**starts, **g}), **g})
+        if progress is not None:
+            progress(0, grid[-1]["cost"], g)
+    best = min(grid, key=lambda g: g["cost"])
     params = [dataclasses.replace(x, start=best[x.name]) if x.name in best else x
               for x in params]
     values, fitted, count = fit_values(params, residual, max_nfev, progress)
-    return {"values": values, "kt_tolerance": kt_tolerance, "evaluations": count + len(grid),
-            "cost_stored": cost(residual({})), "cost_grid": best_cost, "cost_fitted": fitted,
-            "grid": [{"cost": c, **g} for c, g in grid],
+    return {"values": values, "kt_tolerance": kt_tolerance,
+            "evaluations": count + len(grid) + 1, "cost_stored": cost({}),
+            "cost_grid": best["cost"], "cost_fitted": fitted, "grid": grid,
             "runs": [r.name for r in rigid_runs + link_runs]}
 
 
@@ -159,6 +165,8 @@ def write_report(report: dict, out) -> None:
     nominal = nominal_arm_for("cuboulder", "rigid")
     jr = nominal.effect("gear", nominal.joint_names[0])["rotor_inertia"]
     kt = nominal.effect("dc_motor", nominal.joint_names[0])["torque_constant"]
+    n = len(ROTOR_SCAN)
+    clipped = [r * BAR_INERTIA for r in BAR_RANGE]
     lines = ["# One servo for the rigid-bar and the flexible runs, the bar's inertia free", "",
              f"Fit runs: {', '.join(report['runs'])}; scaled RMS residual "
              f"{report['cost_stored']:.3f} (the stored twins), {report['cost_grid']:.3f} (the "
@@ -171,13 +179,20 @@ def write_report(report: dict, out) -> None:
              f"{v['bar_inertia']:.4g} kg m^2 ({v['bar_inertia'] / BAR_INERTIA:.2f}x the "
              "handout's).", "",
              "Fitted: " + ", ".join(f"{k} {x:.4g}" for k, x in v.items()), "",
-             "Held out: the stored calibrated twins (calibrated) and the joint fit's.", "",
-             *summary_lines(report["summary"], ("calibrated", "joint_servo")), "",
-             "| run | hub RMS calibrated -> joint servo (rad) | tip RMS (mm) |", "|---|---|---|"]
-    for r in report["held_out"]:
-        c, j = r["calibrated"], r["joint_servo"]
-        tip = (f"{1e3 * c['tip_rms_m']:.2f} -> {1e3 * j['tip_rms_m']:.2f}"
-               if j["tip_rms_m"] is not None else "-")
-        lines.append(f"| {r['run']} | {c['hub_rms_rad']:.4f} -> {j['hub_rms_rad']:.4f} | "
-                     f"{tip} |")
+             "The start grid: scaled RMS residual of the fit runs, the bar's inertia keeping "
+             "the rigid runs' torque per inertia (clipped into its bounds where marked *).",
+             "", "| K_t / handout | " + " | ".join(
+                 f"rotor {g['rotor_inertia'] / jr:.2f}x" for g in report["grid"][:n]) + " |",
+             "|---" * (n + 1) + "|"]
+    for i in range(0, len(report["grid"]), n):
+        row = report["grid"][i:i + n]
+        lines.append(f"| {row[0]['torque_constant'] / kt:.3f} | " + " | ".join(
+            f"{g['cost']:.3f} (bar {g['bar_inertia'] / BAR_INERTIA:.2f}x"
+            f"{'*' if g['bar_inertia'] in clipped else ''})" for g in row) + " |")
+    lines += ["", "Held out: the stored calibrated twins (calibrated) and the joint fit's.", "",
+              *summary_lines(report["summary"], ("calibrated", "joint_servo")), "",
+              "| run | hub RMS calibrated -> joint servo (rad) | tip RMS (mm) |",
+              "|---|---|---|"]
+    lines += [f"| {r['run']} | {change_cells(r['calibrated'], r['joint_servo'])} |"
+              for r in report["held_out"]]
     write_study(out, "servo_split", report, lines)
