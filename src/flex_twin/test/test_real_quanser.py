@@ -555,3 +555,16 @@ def test_the_joint_fit_starts_from_its_grids_best_point(monkeypatch):
                        (3.1666e-6 - 1.5e-6) / 1e-7, (0.010167 - 0.0112) / 1e-4])
     assert fit["cost_stored"] == pytest.approx(np.sqrt(np.mean(stored ** 2)), rel=1e-9)
     assert (fit["values"], fit["cost_fitted"]) == ({"rotor_inertia": 1.0}, 0.5)
+
+
+def test_a_missing_calibrated_preset_is_named_with_the_command_that_writes_it(monkeypatch):
+    """stored_calibrated_arm: the stored twin (EI 0.33651 N m^2), or, when its preset
+    cannot be loaded, a ValueError naming the preset and ``flex-twin real-arm calibrate``."""
+    from flex_twin.real_arms import quanser_twin
+    arm = quanser_twin.stored_calibrated_arm("flexible")
+    assert arm.links[0].segments[0].dims["EI"][0] == pytest.approx(0.33651)
+    monkeypatch.setitem(quanser_twin.CALIBRATED_PRESETS, ("cuboulder", "flexible"),
+                        "quanser_no_such_twin")
+    with pytest.raises(ValueError, match="no quanser_no_such_twin preset: run flex-twin "
+                       "real-arm calibrate"):
+        quanser_twin.stored_calibrated_arm("flexible")

@@ -98,13 +98,11 @@ def cmd_import_quanser(args) -> int:
 def cmd_calibrate(args) -> int:
     from .calibration import calibrate_cuboulder, gauge_options, write_calibrated_presets
     from .quanser_data import CUBOULDER, read_cuboulder
-    from .quanser_twin import calibrated_arm_for, data_root, nominal_arm_for
+    from .quanser_twin import data_root, nominal_arm_for, stored_calibrated_arm
     root = data_root(args.data)
     runs = read_cuboulder(root / CUBOULDER)
     gauge = _gauge_flags(args)
-    start = calibrated_arm_for("cuboulder", "flexible") if args.from_stored else None
-    if args.from_stored and start is None:
-        raise ValueError("--from-stored: no stored quanser_cuboulder_calibrated preset")
+    start = stored_calibrated_arm("flexible") if args.from_stored else None
 
     def progress(k, cost, values):
         _progress(f"  evaluation {k}: scaled RMS residual {cost:.4f}")

@@ -126,11 +126,10 @@ def driven_link_policy(run, model, bandwidth_hz: float = TRACKING, theta=None):
 def run_twin(name: str):
     """The twin of a flexible run's unit (:func:`.run_floor.starts`), else the shared one."""
     from .run_floor import starts
-    twins = starts(name, "flexible")
-    arm = next((arm for unit, arm in twins.items() if unit != "shared"), twins["shared"])
-    if arm is None:
-        raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
-    return arm
+    from .quanser_twin import stored_calibrated_arm
+    unit = next((arm for unit, arm in starts(name, "flexible").items() if unit != "shared"),
+                None)
+    return unit if unit is not None else stored_calibrated_arm("flexible")
 
 
 def check_run(data_root: str, name: str, out: str | None = None) -> dict:

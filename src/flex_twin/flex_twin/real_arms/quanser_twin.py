@@ -66,6 +66,16 @@ def calibrated_arm_for(lab: str, kind: str) -> ArmDescription | None:
         return None
 
 
+def stored_calibrated_arm(kind: str, lab: str = "cuboulder") -> ArmDescription:
+    """:func:`calibrated_arm_for`, or a ValueError that names the missing preset and the
+    command that writes it."""
+    arm = calibrated_arm_for(lab, kind)
+    if arm is None:
+        raise ValueError(f"no {CALIBRATED_PRESETS.get((lab, kind), f'calibrated {kind} twin')}"
+                         " preset: run flex-twin real-arm calibrate")
+    return arm
+
+
 def controller_description(run: LabRun) -> dict:
     """The lab's control law of a run as data (what flex_control.state_feedback needs)."""
     return {"law": "tip_state_feedback",

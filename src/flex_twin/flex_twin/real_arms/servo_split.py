@@ -28,7 +28,7 @@ from flex_model.dynamics import FlexArmModel
 from .calibration import (CUBOULDER_SPLIT, SERVO_WINDOW, FitParameter, apply_parameters,
                           fit_values, link_parameters, replay_residual, servo_parameters,
                           started_from, with_gauge)
-from .quanser_twin import calibrated_arm_for, hub_inertia, nominal_arm_for
+from .quanser_twin import hub_inertia, nominal_arm_for, stored_calibrated_arm
 from .replay import replay
 from .report import metrics_row, write_study
 from .run_floor import HELD_OUT, change_cells, summarize, summary_lines
@@ -103,10 +103,7 @@ def joint_fit(runs: dict, make_policy: Callable, kt_tolerance: float = 0.05,
     """The joint fit from the stored calibrated twins, started from the best point of
     :func:`grid_starts`: the fitted values, the scaled RMS residual of the fit runs on the
     stored twins, at every grid point and fitted, and the evaluations (all counted)."""
-    rigid = calibrated_arm_for("cuboulder", "rigid")
-    flexible = calibrated_arm_for("cuboulder", "flexible")
-    if rigid is None or flexible is None:
-        raise ValueError("no quanser_cuboulder_calibrated presets: run real-arm calibrate")
+    rigid, flexible = stored_calibrated_arm("rigid"), stored_calibrated_arm("flexible")
     rigid_runs = [runs[n] for n in CUBOULDER_SPLIT["servo_fit"]]
     link_runs = [runs[n] for n in CUBOULDER_SPLIT["link_fit"]]
 
@@ -141,7 +138,7 @@ def study(runs: dict, make_policy: Callable, out, kt_tolerance: float = 0.05,
     fit = joint_fit(runs, make_policy, kt_tolerance, max_nfev,
                     lambda k, c, v: progress(f"  evaluation {k or 'of the start grid'}: "
                                              f"scaled RMS residual {c:.4f}"))
-    stored = {k: calibrated_arm_for("cuboulder", k) for k in ("rigid", "flexible")}
+    stored = {k: stored_calibrated_arm(k) for k in ("rigid", "flexible")}
     joint = dict(zip(("rigid", "flexible"),
                      joint_arms(stored["rigid"], stored["flexible"], fit["values"])))
     rows = []

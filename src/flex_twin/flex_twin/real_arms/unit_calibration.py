@@ -21,7 +21,7 @@ from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
 from .calibration import (calibrate, calibrated_dict, gauge_options, link_parameters,
                           started_from, with_gauge, write_preset)
-from .quanser_twin import calibrated_arm_for
+from .quanser_twin import stored_calibrated_arm
 from .replay import plot_replay, replay
 from .report import fmt, metrics_row
 
@@ -48,9 +48,7 @@ def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: in
     twin's values (EI, tip mass, damping, friction), or with ``from_unit`` from the unit's
     stored preset; with ``gauge`` (:func:`calibration.with_gauge`) also the lab's tip gauge's gain
     and/or delay (EI and tip mass then within x0.5-2 of the start)."""
-    shared = calibrated_arm_for("cuboulder", "flexible")
-    if shared is None:
-        raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
+    shared = stored_calibrated_arm("flexible")
     spec = UNITS[unit]
     if from_unit:
         shared = load_arm(spec["preset"])
@@ -83,9 +81,7 @@ def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = 
     """Every unit's fit and held-out runs on the shared twin and on the unit's own;
     ``presets`` maps a unit to an arm (name, path or ArmDescription; default its
     preset). Overlay PNGs when ``out`` is given."""
-    shared_arm = calibrated_arm_for("cuboulder", "flexible")
-    if shared_arm is None:
-        raise ValueError("no quanser_cuboulder_calibrated preset: run real-arm calibrate")
+    shared_arm = stored_calibrated_arm("flexible")
     shared = FlexArmModel(shared_arm)
     rows = []
     for unit, spec in UNITS.items():
