@@ -8,8 +8,8 @@ import pytest
 from flex_model.arm import load_arm
 from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.replay import GAUGE_RESOLUTION
-from flex_twin.real_arms.stuck_holds import (hold_link, one_frequency_floor, stuck_holds,
-                                             twin_link)
+from flex_twin.real_arms.stuck_holds import (frequency_rank_correlations, hold_link,
+                                             one_frequency_floor, stuck_holds, twin_link)
 
 
 def _synthetic_run(freqs, zeta=0.006, amplitude=0.006):
@@ -48,6 +48,21 @@ def test_stuck_stretches_give_the_links_frequency_and_damping():
         assert h.residual_m < 0.4e-3                      # the 1 mm log: 0.29 mm RMS
 
 
+def test_rank_correlations_of_the_stretches_frequency():
+    """Frequencies rising with |V| and falling with |theta| rank +1 and -1 (signs of V and
+    theta ignored); fewer than three stretches give none."""
+    from flex_twin.real_arms.stuck_holds import StuckHold
+
+    def hold(v, hub, f):
+        return StuckHold("r", 0.0, 1.0, 0.1, hub, v, f, 0.005, 1e-3, 1e-4)
+    hs = [hold(-0.1, 0.09, 1.80), hold(0.2, -0.06, 1.85), hold(0.3, 0.05, 1.90),
+          hold(-0.4, 0.03, 1.95)]
+    rank = frequency_rank_correlations(hs)
+    assert rank["holding_voltage"]["spearman"] == pytest.approx(1.0)
+    assert rank["hub_angle"]["spearman"] == pytest.approx(-1.0)
+    assert frequency_rank_correlations(hs[:2]) == {}
+
+
 def test_one_frequency_floor_is_the_quantisation_when_the_holds_agree():
     """Holds of one frequency: one common frequency fits as well as three own ones (the
     log's 0.29 mm); holds of 1.79 and 1.97 Hz: a common frequency leaves over twice that."""
@@ -75,7 +90,8 @@ def test_the_lab_links_ringing_while_the_hub_sticks(cuboulder_root):
     moving): 1.79-1.97 Hz, damping ratio median 0.006; one run rings at 1.965, 1.788 and
     1.927 Hz in its three holds. A twin of one link frequency is held by that spread to
     at most 0.64 mm tip RMS on a run. The shared calibrated twin's clamped link (1.809 Hz;
-    1.724 before its gauge's lag) is above the lowest stretch and below their median."""
+    1.724 before its gauge's lag) is above the lowest stretch and below their median. The
+    frequency ranks with the holding voltage (Spearman 0.78)."""
     runs = qd.read_cuboulder(cuboulder_root)
     holds = {n: stuck_holds(r) for n, r in runs.items()}
     stretches = [h for hs in holds.values() for h in hs]
@@ -91,6 +107,12 @@ def test_the_lab_links_ringing_while_the_hub_sticks(cuboulder_root):
     assert max(f["run_floor_m"] for f in floors) == pytest.approx(0.64e-3, abs=0.03e-3)
     shared = twin_link(load_arm("quanser_cuboulder_calibrated"))[0]
     assert shared == pytest.approx(1.809, abs=1e-3) and freq.min() < shared < np.median(freq)
+    # faster under more holding torque: 0.35-0.39 V ring at 1.93-1.97 Hz, 0.01-0.14 V at
+    # 1.79-1.90 (the same four stretches stick nearest the start, at 0.035-0.041 rad)
+    rank = frequency_rank_correlations(stretches)
+    assert rank["holding_voltage"]["spearman"] == pytest.approx(0.783, abs=2e-3)
+    assert rank["holding_voltage"]["p_value"] < 0.02
+    assert rank["hub_angle"]["spearman"] == pytest.approx(-0.617, abs=2e-3)
 
 
 def test_one_mode_fit_recovers_a_driven_mode():

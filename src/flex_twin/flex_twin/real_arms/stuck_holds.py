@@ -186,6 +186,23 @@ def fit_hold_link(runs: dict, make_policy, progress=None, max_nfev: int = 12) ->
                         for label, rows in held.items()}}
 
 
+def frequency_rank_correlations(stretches) -> dict:
+    """Spearman rank correlation (and its p-value) of the stretches' ringing frequency with
+    the holding voltage |V| and with the stuck hub angle |theta|: does the clamped link
+    ring faster under more holding torque, or at some hub positions? (None with fewer than
+    three stretches.)"""
+    from scipy.stats import spearmanr
+    if len(stretches) < 3:
+        return {}
+    f = [h.frequency_hz for h in stretches]
+    out = {}
+    for key, x in (("holding_voltage", [abs(h.voltage_V) for h in stretches]),
+                   ("hub_angle", [abs(h.hub_rad) for h in stretches])):
+        r = spearmanr(x, f)
+        out[key] = {"spearman": float(r.statistic), "p_value": float(r.pvalue)}
+    return out
+
+
 def study(runs: dict, make_policy=None, progress=print, fit_link: bool = False,
           max_nfev: int = 12) -> dict:
     """Stuck stretches and one-frequency floors of ``runs`` ({name: LabRun}), the twins'
@@ -211,7 +228,8 @@ def study(runs: dict, make_policy=None, progress=print, fit_link: bool = False,
                                                               for h in stretches]))
                                              if stretches else None),
                           "run_floor_max_m": max((f["run_floor_m"] for f in floors),
-                                                 default=None)}}
+                                                 default=None),
+                          "rank_correlation": frequency_rank_correlations(stretches)}}
     if fit_link:
         progress("fitting the hold link (Hagenau's fit runs, a few minutes)")
         report["hold_link_fit"] = fit_hold_link(
@@ -257,6 +275,12 @@ def write_report(report: dict, out) -> None:
                      f"{h['reference_rad']:+.2f} | {h['hub_rad']:+.3f} | {h['voltage_V']:+.2f} "
                      f"| {h['frequency_hz']:.3f} | {h['damping_ratio']:.4f} | "
                      f"{1e3 * h['amplitude_m']:.1f} | {1e3 * h['residual_m']:.2f} |")
+    rank = report["summary"].get("rank_correlation") or {}
+    if rank:
+        lines += ["", "Frequency against the holding voltage |V| and the stuck hub angle "
+                  "|theta| (Spearman rank correlation over the stretches): " + "; ".join(
+                      f"{k.replace('_', ' ')} {c['spearman']:+.2f} (p {c['p_value']:.3f})"
+                      for k, c in rank.items()) + "."]
     lines += ["", "One clamped frequency per run (per stretch its own amplitude, phase, decay "
               "and offset): the least tip RMS any twin of one link frequency can have.", "",
               "| run | stretches | common frequency (Hz) | stuck RMS own fits (mm) | "
