@@ -189,7 +189,7 @@ def fit_hold_link(runs: dict, make_policy, progress=None, max_nfev: int = 12) ->
 def frequency_rank_correlations(stretches) -> dict:
     """Spearman rank correlation (and its p-value) of the stretches' ringing frequency with
     the holding voltage |V| and with the stuck hub angle |theta|: does the clamped link
-    ring faster under more holding torque, or at some hub positions? (None with fewer than
+    ring faster under more holding torque, or at some hub positions? (Empty with fewer than
     three stretches.)"""
     from scipy.stats import spearmanr
     if len(stretches) < 3:
