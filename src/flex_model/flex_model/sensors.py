@@ -156,6 +156,15 @@ def tip_gauge(arm, link: str | None = None) -> Sensor:
     return declared_tip_gauge(arm, link) or Sensor("tip_gauge", "tip_deflection", link or "")
 
 
+def with_tip_gauge(arm, link: str, **fields):
+    """The arm with ``link``'s tip gauge (:func:`tip_gauge`: declared, else exact) given
+    ``fields`` (e.g. ``delay``, ``gain``); the declared one is replaced, not duplicated."""
+    from dataclasses import replace
+    prior = declared_tip_gauge(arm, link)
+    new = replace(prior or Sensor("tip_gauge", "tip_deflection", link), **fields)
+    return replace(arm, sensors=tuple(s for s in arm.sensors if s is not prior) + (new,))
+
+
 def tip_gauge_entry(sensors: list, link: str) -> dict:
     """In an arm description's ``sensors`` list (parsed YAML): the ``tip_deflection``
     entry of ``link``, appended as an exact gauge where there is none (in place)."""

@@ -138,3 +138,21 @@ def test_a_tip_gauge_entry_is_found_or_declared_exact_in_place():
     new = tip_gauge_entry(sensors, "link1")
     assert new == {"name": "tip_gauge", "kind": "tip_deflection", "link": "link1"}
     assert len(sensors) == 3 and sensors[2] is new
+
+
+def test_with_tip_gauge_replaces_the_declared_gauge_or_adds_an_exact_one():
+    """with_tip_gauge: a declared gauge gets the new field and keeps the others, in one
+    sensor, not two; without one an exact gauge with that field is added."""
+    import dataclasses
+    from flex_model.arm import load_arm
+    from flex_model.sensors import Sensor, declared_tip_gauge, with_tip_gauge
+    arm = load_arm("quanser_cuboulder_calibrated")
+    n = len(arm.sensors)
+    lagged = with_tip_gauge(arm, "link1", gain=0.7)
+    g = declared_tip_gauge(lagged, "link1")
+    assert (g.gain, g.delay, g.name) == (0.7, 0.03741, "tip_gauge") and len(lagged.sensors) == n
+    bare = dataclasses.replace(arm, sensors=tuple(s for s in arm.sensors
+                                                  if s.kind != "tip_deflection"))
+    new = declared_tip_gauge(with_tip_gauge(bare, "link1", delay=0.05), "link1")
+    assert new == Sensor("tip_gauge", "tip_deflection", "link1", delay=0.05)
+    assert len(with_tip_gauge(bare, "link1", delay=0.05).sensors) == n

@@ -72,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flex_model.effects import EFFECT_TYPES
-from flex_model.sensors import Sensor, declared_tip_gauge, tip_gauge
+from flex_model.sensors import Sensor, declared_tip_gauge, with_tip_gauge
 
 FRICTION_EPS = 1e-3
 STRIBECK_VELOCITY = 0.05
@@ -177,10 +177,7 @@ class Hypothesis:
                        target=self.target, **{field: float(v[0])})
             return dataclasses.replace(arm, sensors=arm.sensors + (s,)), None
         if k == "gauge_delay":
-            prior = declared_tip_gauge(arm, self.target)
-            s = dataclasses.replace(tip_gauge(arm, self.target), delay=float(v[0]))
-            return dataclasses.replace(arm, sensors=tuple(
-                x for x in arm.sensors if x is not prior) + (s,)), None
+            return with_tip_gauge(arm, self.target, delay=float(v[0])), None
         if k == "stiffness":
             i = [lk.name for lk in arm.links].index(self.target)
             links = list(arm.links)

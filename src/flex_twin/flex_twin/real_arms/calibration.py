@@ -29,7 +29,7 @@ from scipy.optimize import least_squares
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import DCMotor, Gear, JointFriction, StructuralDamping
-from flex_model.sensors import declared_tip_gauge, tip_gauge, tip_gauge_entry
+from flex_model.sensors import declared_tip_gauge, tip_gauge_entry, with_tip_gauge
 from .replay import replay
 
 #: which CU Boulder runs fit which stage; everything else is held out (validation)
@@ -179,12 +179,7 @@ def apply_parameters(arm: ArmDescription, values: dict) -> ArmDescription:
     if "tip_mass" in values:
         out = dataclasses.replace(out, payload_mass=values["tip_mass"])
     gauge = {f: values[k] for k, f in GAUGE_FIELDS.items() if k in values}
-    if gauge:
-        prior = declared_tip_gauge(out, link.name)
-        new = dataclasses.replace(tip_gauge(out, link.name), **gauge)
-        out = dataclasses.replace(out, sensors=tuple(s for s in out.sensors
-                                                     if s is not prior) + (new,))
-    return out
+    return with_tip_gauge(out, link.name, **gauge) if gauge else out
 
 
 def replay_residual(arm: ArmDescription, runs, make_policy: Callable,

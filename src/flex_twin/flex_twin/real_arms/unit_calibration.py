@@ -48,12 +48,10 @@ def calibrate_unit(unit: str, runs: dict, make_policy: Callable, *, max_nfev: in
     twin's values (EI, tip mass, damping, friction), or with ``from_unit`` from the unit's
     stored preset; with ``gauge`` (:func:`calibration.with_gauge`) also the lab's tip gauge's gain
     and/or delay (EI and tip mass then within x0.5-2 of the start)."""
-    shared = stored_calibrated_arm("flexible")
     spec = UNITS[unit]
-    if from_unit:
-        shared = load_arm(spec["preset"])
-    params = started_from(shared, with_gauge(link_parameters(shared), gauge))
-    return calibrate(shared, [runs[n] for n in spec["fit"]], params, make_policy,
+    start = load_arm(spec["preset"]) if from_unit else stored_calibrated_arm("flexible")
+    params = started_from(start, with_gauge(link_parameters(start), gauge))
+    return calibrate(start, [runs[n] for n in spec["fit"]], params, make_policy,
                      stage=f"link@{unit}", max_nfev=max_nfev, progress=progress)
 
 
