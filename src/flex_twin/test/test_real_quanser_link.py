@@ -179,3 +179,132 @@ def test_the_lab_link_answers_its_hub_angle_as_one_mode_read_late(cuboulder_root
     assert twin["fit"]["gain"] == pytest.approx(0.460, abs=0.005)
     assert twin["fit"]["delay_s"] == pytest.approx(0.03406, abs=1e-3)
     assert twin["tip_rms_m"] == pytest.approx(6.84e-3, abs=0.2e-3)
+
+
+def _driven_mode(t, acc, freq, zeta, gain, x0):
+    """The mode d'' + 2 zeta w d' + w^2 d = -gain acc(t), its parameters functions of t
+    (``freq``, ``gain``: callables), integrated independently (solve_ivp) from x0."""
+    from scipy.integrate import solve_ivp
+
+    def rhs(tt, x):
+        w = 2 * np.pi * freq(tt)
+        return [x[1], -w * w * x[0] - 2 * zeta * w * x[1] - gain(tt) * acc(tt)]
+
+    return solve_ivp(rhs, (0.0, t[-1]), x0, t_eval=t, rtol=1e-10, atol=1e-12,
+                     max_step=1e-3).y[0]
+
+
+def _hub_steps(times, height=0.1, rise=0.4):
+    """theta'' of smooth hub steps of ``height`` rad over ``rise`` s at ``times``,
+    alternating in direction: 0.5 h (1 - cos(pi (t - t0) / rise)) each."""
+    def acc(tt):
+        out = 0.0 * np.asarray(tt, float)
+        for k, t0 in enumerate(times):
+            on = (tt > t0) & (tt < t0 + rise)
+            out = out + np.where(on, (-1.0) ** k * 0.5 * height * (np.pi / rise) ** 2
+                                 * np.cos(np.pi * (tt - t0) / rise), 0.0)
+        return out
+    return acc
+
+
+def test_one_mode_for_several_runs_gives_their_common_link_back():
+    """Two runs of one 1.8 Hz, zeta 0.014, gain 0.46 link, each with its own hub steps,
+    start (3 mm at 20 mm/s; -2 mm at rest) and gauge offset (0; +31 mm), logged 60 ms late
+    at 1 mm: unit_mode gives frequency, damping ratio, gain and lag back within 0.5 %,
+    0.003, 2 % and 2 ms, and leaves each run the log's 0.29 mm."""
+    from flex_twin.real_arms.link_response import unit_mode
+    t = np.arange(0.0, 10.0, 1e-3)
+    series = []
+    for times, x0, offset in (([1.0, 6.0], [0.003, 0.02], 0.0),
+                              ([2.5, 5.0, 7.5], [-0.002, 0.0], 0.031)):
+        acc = _hub_steps(times)
+        d = _driven_mode(t, acc, lambda tt: 1.8, 0.014, lambda tt: 0.46, x0)
+        late = np.interp(t - 0.06, t, d, left=x0[0]) + offset
+        series.append((t, acc(t), np.round(late / GAUGE_RESOLUTION) * GAUGE_RESOLUTION))
+    fit = unit_mode(series)
+    assert fit["frequency_hz"] == pytest.approx(1.8, rel=5e-3)
+    assert fit["damping_ratio"] == pytest.approx(0.014, abs=3e-3)
+    assert fit["gain"] == pytest.approx(0.46, rel=0.02)
+    assert fit["delay_s"] == pytest.approx(0.06, abs=2e-3)
+    for e in fit["residual_rms_m"]:
+        assert e == pytest.approx(GAUGE_RESOLUTION / np.sqrt(12), rel=0.15)
+
+
+def test_step_modes_see_a_link_that_changes_between_steps():
+    """A link that rings at 1.95 Hz with a gain 0.46 until the second step and at 1.80 Hz
+    with 0.30 after it (as a root that gives a little more), 0.2 rad hub steps at 2.5, 5
+    and 7.5 s, logged at 1 mm: step_modes gives each stretch its hub's turn, its own
+    frequency within 0.5 % and gain within 3 %; the stretch before the first step (the hub
+    at rest) comes out undriven."""
+    from types import SimpleNamespace
+    from flex_twin.real_arms.link_response import DRIVEN, step_modes
+    t = np.arange(0.0, 10.0, 1e-3)
+    times = [2.5, 5.0, 7.5]
+    acc = _hub_steps(times, height=0.2)
+    d = _driven_mode(t, acc, lambda tt: 1.95 if tt < 5.0 else 1.80, 0.01,
+                     lambda tt: 0.46 if tt < 5.0 else 0.30, [0.002, 0.0])
+    theta = np.cumsum(np.cumsum(acc(t)) * 1e-3) * 1e-3
+    run = SimpleNamespace(t=t, dt=1e-3, theta=theta,
+                          step_indices=lambda: np.array([int(x * 1000) for x in times]))
+    steps = step_modes(run, acc(t), np.round(d / GAUGE_RESOLUTION) * GAUGE_RESOLUTION)
+    assert [s["start_s"] for s in steps] == [0.0, 2.5, 5.0, 7.5]
+    assert abs(steps[0]["hub_change_rad"]) < DRIVEN
+    for s, (f, g) in zip(steps[1:], [(1.95, 0.46), (1.80, 0.30), (1.80, 0.30)]):
+        assert abs(s["hub_change_rad"]) == pytest.approx(0.2, abs=3e-3)
+        assert s["frequency_hz"] == pytest.approx(f, rel=5e-3)
+        assert abs(s["gain"]) == pytest.approx(g, rel=0.03)
+
+
+def test_the_lab_link_changes_from_step_to_step(cuboulder_root):
+    """flexarm_K1K2_6_-5, each stretch from one step to the next fitted alone (read late):
+    the link rings at 1.972, 1.768 and 1.927 Hz with a gain 0.441, 0.288 and 0.453 (the
+    twins' beam: 0.46 at its one frequency), each leaving 0.48-1.16 mm (the log: 0.29).
+    One mode for it and flexarm_k1k2_6_-3 together (the K1K2 pair of Hagenau's unit) takes
+    1.913 Hz, gain 0.284 and leaves 1.32 and 2.24 mm where their own modes leave 1.00 and
+    2.02: a link fixed for the unit misses what changes between steps."""
+    from flex_twin.real_arms.link_response import hub_acceleration, step_modes, unit_mode
+    series = []
+    for name in ("flexarm_k1k2_6_-3", "flexarm_K1K2_6_-5"):
+        run = qd.read_cuboulder_file(next(p for p in qd.cuboulder_files(cuboulder_root)
+                                          if p.name == name))
+        acc = hub_acceleration(run)[1]
+        series.append((run.t, acc, run.gauge_sign() * (run.deflection - run.gauge_bias())))
+    steps = step_modes(run, acc, series[-1][2])
+    assert [s["start_s"] for s in steps] == pytest.approx([1.2, 3.7, 6.2], abs=0.05)
+    assert [s["frequency_hz"] for s in steps] == pytest.approx([1.972, 1.768, 1.927],
+                                                               abs=0.005)
+    assert [abs(s["gain"]) for s in steps] == pytest.approx([0.441, 0.288, 0.453], abs=0.005)
+    assert [s["residual_rms_m"] for s in steps] == pytest.approx([0.48e-3, 1.16e-3, 0.54e-3],
+                                                                 abs=0.02e-3)
+    both = unit_mode(series, start={"frequency_hz": 1.9, "gain": 0.3})
+    assert both["frequency_hz"] == pytest.approx(1.913, abs=0.005)
+    assert both["gain"] == pytest.approx(0.284, abs=0.005)
+    assert both["residual_rms_m"] == pytest.approx([1.32e-3, 2.24e-3], abs=0.03e-3)
+
+
+def test_step_summary_counts_the_driven_stretches_and_the_gains_exponent():
+    """Stretches whose gain is 0.11 f^2 (a root spring's signature) give the exponent 2 and
+    a rank correlation 1; an undriven stretch (the hub turning 0.01 rad) is left out of the
+    summary and of the report's step table, and the unit's table lists each of its runs."""
+    from flex_twin.real_arms.link_response import step_summary, unit_lines
+
+    def stretch(f, turn=0.2):
+        return {"start_s": 1.0, "hub_change_rad": turn, "frequency_hz": f,
+                "damping_ratio": 0.01, "gain": -0.11 * f * f, "delay_s": 0.06,
+                "residual_rms_m": 1e-3}
+
+    rows = [{"run": "a", "steps": [stretch(1.8, 0.01), stretch(1.8), stretch(2.0)]},
+            {"run": "b", "steps": [stretch(1.9), stretch(2.1)]}]
+    s = step_summary(rows, ["a", "b"])
+    assert s["stretches"] == 4
+    assert s["gain_frequency_exponent"] == pytest.approx(2.0, abs=1e-9)
+    assert s["gain_frequency_spearman"] == pytest.approx(1.0)
+    assert s["gain_range"] == pytest.approx([0.11 * 1.8 ** 2, 0.11 * 2.1 ** 2])
+    unit = {"frequency_hz": 1.9, "damping_ratio": 0.03, "gain": 0.3, "delay_s": 0.05,
+            "runs": {"a": {"residual_rms_m": 2e-3, "own_m": 1e-3},
+                     "b": {"residual_rms_m": 3e-3, "own_m": 2e-3}}, "steps": s}
+    lines = unit_lines({"runs": rows, "units": {"u": unit}})
+    assert sum(line.startswith("| a | ") or line.startswith("| b | ") for line in lines) == 4
+    assert "| u | 1.900 | 0.0300 | 0.300 | 50 | a | 2.00 | 1.00 |" in lines
+    assert "|  | | | | | b | 3.00 | 2.00 |" in lines
+    assert any("gain ~ frequency^2.0" in line for line in lines)

@@ -375,8 +375,9 @@ def add_real_arm_parsers(sub) -> None:
     hp.add_argument("--json", action="store_true")
     hp.set_defaults(func=cmd_holds)
     lp = rsub.add_parser("link-response", help="the lab's link against its own hub angle: "
-                         "one linear mode fitted to each run, the twin's link driven by the "
-                         "lab's hub (markdown, JSON, PNG per run; ~9 CPU-min)")
+                         "one linear mode fitted to each run and to each step, one for each "
+                         "unit, the twin's link driven by the lab's hub (markdown, JSON, PNG "
+                         "per run; ~10 CPU-min)")
     _data_option(lp)
     lp.add_argument("runs", nargs="*", help="run names (default: every run with a gauge)")
     _batch_options(lp, "runs/quanser-link")

@@ -20,6 +20,11 @@ besides Hagenau's with the twins' gain (0.43-0.47) and the link's stuck-hub damp
 fraction of a count) and fits the same mode to its output (with a lag if the twin's gauge
 has one), which must give the twin's clamped mode back (the method's check: the twin's beam
 answers the hub as one mode to within the log's quantisation).
+
+:func:`step_modes` fits the mode to each stretch between two steps alone: on Hagenau's unit
+the link rings at 1.77-2.07 Hz with a gain of 0.29-0.46 from step to step, the two rising
+together, and each stretch leaves 0.5-1.2 mm. :func:`unit_mode` fits one mode to all runs of
+a unit: the best a link fixed for the unit does with the lab's own hub angle.
 """
 from __future__ import annotations
 
@@ -85,6 +90,51 @@ def base_excited_mode(t, acc, d, step: int = 5, delay: bool = False) -> dict:
     out.update(residual_rms_m=float(np.sqrt(np.mean(best.fun ** 2))),
                signal_rms_m=float(np.std(d)))
     return out
+
+
+def step_modes(run, acc, d, min_window: float = 1.5) -> list:
+    """:func:`base_excited_mode` with a lag fitted to every stretch of ``d`` from one
+    reference step to the next (the first from the run's start), if at least
+    ``min_window`` s long: whether the link answers the hub alike from step to step. Each
+    with its start_s and the hub's change over it, hub_change_rad."""
+    edges = [0] + [int(k) for k in run.step_indices()] + [len(run.t)]
+    n_min = int(round(min_window / run.dt))
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        if b - a >= n_min:
+            fit = base_excited_mode(run.t[a:b], acc[a:b], d[a:b], delay=True)
+            out.append({"start_s": float(run.t[a] - run.t[0]),
+                        "hub_change_rad": float(run.theta[b - 1] - run.theta[a]), **fit})
+    return out
+
+
+def unit_mode(series, step: int = 5, start: dict | None = None) -> dict:
+    """One mode (frequency, damping ratio, gain, lag) for several runs of one unit, each
+    run ``(t, acc, d)`` with its own initial deflection, rate and offset: the best fixed
+    linear link driven by the lab's own hubs (in-sample: a twin's link, fixed for the unit,
+    does no better on these runs even with the hub right). Started from ``start`` (default
+    1.85 Hz, zeta 0.01, gain 0.4, 60 ms). Returns the shared values and residual_rms_m per
+    run."""
+    start = {"frequency_hz": 1.85, "damping_ratio": 0.01, "gain": 0.4, "delay_s": 0.06,
+             **(start or {})}
+    data = [tuple(np.asarray(x, float)[::step] for x in s) for s in series]
+
+    def residual(p):
+        f, z, g, lag = p[:4]
+        return np.concatenate([
+            mode_response(t, a, p[4 + 3 * k], f, z, g, p[6 + 3 * k], p[5 + 3 * k], lag) - d
+            for k, (t, a, d) in enumerate(data)])
+
+    p0 = [start[k] for k in ("frequency_hz", "damping_ratio", "gain", "delay_s")]
+    for t, a, d in data:
+        p0 += [d[0], 0.0, 0.0]
+    lo = [0.3, 0.0, -5.0, 0.0] + [-0.2, -1.0, -0.1] * len(data)
+    hi = [10.0, 1.0, 5.0, 0.2] + [0.2, 1.0, 0.1] * len(data)
+    fit = least_squares(residual, p0, bounds=(lo, hi))
+    e = np.split(fit.fun, np.cumsum([len(t) for t, _, _ in data])[:-1])
+    return {"frequency_hz": float(fit.x[0]), "damping_ratio": float(fit.x[1]),
+            "gain": float(fit.x[2]), "delay_s": float(fit.x[3]),
+            "residual_rms_m": [float(np.sqrt(np.mean(x ** 2))) for x in e]}
 
 
 def law_voltage_error(run, shift: int) -> float:
@@ -159,7 +209,7 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
     law = ({str(k): law_voltage_error(run, k) for k in (-shift, 0, shift)}
            if run.gains[1] or run.gains[3] else None)   # None: the law ignores the gauge
     row = {"run": name, "twin": arm.name, "lab": lab, "lab_lagged": lagged,
-           "law_voltage_rms_V": law,
+           "law_voltage_rms_V": law, "steps": step_modes(run, acc, d_lab),
            "twin_driven": {"hub_rms_rad": r.metrics["hub_rms_rad"],
                            "tip_rms_m": r.metrics["tip_rms_m"],
                            "fit": base_excited_mode(run.t, acc, d_twin,
@@ -206,8 +256,62 @@ def gauge_runs(data_root) -> list:
     return [n for n, r in read_cuboulder(Path(data_root) / CUBOULDER).items() if r.has_gauge]
 
 
+def unit_modes(data_root, rows) -> dict:
+    """:func:`unit_mode` for every unit of :data:`.unit_calibration.UNITS` with at least
+    two of the ``rows``' runs, started from the median of their own lagged fits."""
+    from .quanser_data import CUBOULDER, cuboulder_files, read_cuboulder_file
+    from .unit_calibration import UNITS
+    files = {p.name: p for p in cuboulder_files(Path(data_root) / CUBOULDER)}
+    by_run = {r["run"]: r for r in rows}
+    out = {}
+    for unit, spec in UNITS.items():
+        names = [n for n in spec["fit"] + spec["holdout"] if n in by_run]
+        if len(names) < 2:
+            continue
+        series = []
+        for name in names:
+            run = read_cuboulder_file(files[name])
+            series.append((run.t, hub_acceleration(run)[1],
+                           run.gauge_sign() * (run.deflection - run.gauge_bias())))
+        start = {k: float(np.median([by_run[n]["lab_lagged"][k] for n in names]))
+                 for k in ("frequency_hz", "damping_ratio", "gain", "delay_s")}
+        fit = unit_mode(series, start=start)
+        fit["runs"] = {n: {"residual_rms_m": e,
+                           "own_m": by_run[n]["lab_lagged"]["residual_rms_m"]}
+                       for n, e in zip(names, fit.pop("residual_rms_m"))}
+        out[unit] = fit
+    return out
+
+
+#: a stretch whose hub turns less than this (rad) does not drive the link enough to fit a gain
+DRIVEN = 0.05
+
+
+def step_summary(rows, runs) -> dict:
+    """Over the driven stretches (:data:`DRIVEN`) of ``runs``: the ranges of their own
+    modes' frequency, gain and left RMS, the Spearman correlation of gain and frequency
+    and the exponent n of gain ~ frequency^n (least squares in logs). A tip mass on a
+    beam behind a root spring that gives a little more or less from step to step changes
+    both together, its gain as the frequency squared."""
+    from scipy.stats import spearmanr
+    steps = [s for r in rows if r["run"] in runs for s in r["steps"]
+             if abs(s["hub_change_rad"]) >= DRIVEN]
+    if len(steps) < 3:
+        return {}
+    f = [s["frequency_hz"] for s in steps]
+    g = [abs(s["gain"]) for s in steps]
+    left = [s["residual_rms_m"] for s in steps]
+    rank = spearmanr(g, f)
+    return {"stretches": len(steps), "frequency_range_hz": [min(f), max(f)],
+            "gain_range": [min(g), max(g)], "left_range_m": [min(left), max(left)],
+            "gain_frequency_spearman": float(rank.statistic),
+            "gain_frequency_p_value": float(rank.pvalue),
+            "gain_frequency_exponent": float(np.polyfit(np.log(f), np.log(g), 1)[0])}
+
+
 def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
-    """:func:`check_run` on ``runs`` (default: every run with a gauge) on ``executor``."""
+    """:func:`check_run` on ``runs`` (default: every run with a gauge) on ``executor``,
+    then :func:`unit_modes` and, for each such unit, :func:`step_summary`."""
     runs = list(runs or gauge_runs(data_root))
     if not runs:
         raise ValueError(f"{data_root}: no CU Boulder run with a tip deflection")
@@ -225,7 +329,10 @@ def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
     lab = [r["lab"] for r in rows]
     lagged = [r["lab_lagged"] for r in rows]
     twin = [r["twin_driven"]["fit"] for r in rows]
-    return {"cutoff_hz": CUTOFF, "runs": rows, "summary": {
+    units = unit_modes(data_root, rows)
+    for unit, fit in units.items():
+        fit["steps"] = step_summary(rows, fit["runs"])
+    return {"cutoff_hz": CUTOFF, "runs": rows, "units": units, "summary": {
         "runs": n,
         "lab_residual_min_m": min(x["residual_rms_m"] for x in lab),
         "lab_residual_median_m": float(np.median([x["residual_rms_m"] for x in lab])),
@@ -281,4 +388,43 @@ def write_report(report: dict, out) -> None:
               f"law on the gauge as logged (not shifted by the lag either way) on "
               f"{s['law_best_unshifted']} of the {s['law_reads_gauge']} runs whose law "
               "reads it: the loop read the lagging gauge."]
+    lines += unit_lines(report)
     write_study(out, "link_response", report, lines)
+
+
+def unit_lines(report: dict) -> list:
+    """The markdown of the step-by-step modes and of the units' fixed modes."""
+    lines = ["", "## From step to step", "",
+             "The same mode, read late, fitted to each stretch from one step to the next "
+             f"(the hub turning at least {DRIVEN} rad in it).", "",
+             "| run | from (s) | hub turns (rad) | frequency (Hz) | damping ratio | gain | "
+             "lag (ms) | left (mm) |", "|---|---|---|---|---|---|---|---|"]
+    for r in report["runs"]:
+        lines += [f"| {r['run']} | {s['start_s']:.1f} | {s['hub_change_rad']:+.3f} | "
+                  f"{s['frequency_hz']:.3f} | {s['damping_ratio']:.4f} | {abs(s['gain']):.3f} | "
+                  f"{1e3 * s['delay_s']:.0f} | {1e3 * s['residual_rms_m']:.2f} |"
+                  for s in r["steps"] if abs(s["hub_change_rad"]) >= DRIVEN]
+    lines += ["", "## One link for each unit", "",
+              "One mode (frequency, damping, gain, lag) for all runs of a unit, each run with "
+              "its own start and offset, driven by the lab's hubs: no fixed linear link does "
+              "better on these runs, even with the hub right.", "",
+              "| unit | frequency (Hz) | damping ratio | gain | lag (ms) | run | left (mm) | "
+              "its own mode (mm) |", "|---|---|---|---|---|---|---|---|"]
+    notes = []
+    for unit, u in report.get("units", {}).items():
+        for k, (name, e) in enumerate(u["runs"].items()):
+            head = (f"{unit} | {u['frequency_hz']:.3f} | {u['damping_ratio']:.4f} | "
+                    f"{u['gain']:.3f} | {1e3 * u['delay_s']:.0f}" if k == 0 else " | | | |")
+            lines.append(f"| {head} | {name} | {1e3 * e['residual_rms_m']:.2f} | "
+                         f"{1e3 * e['own_m']:.2f} |")
+        st = u.get("steps")
+        if st:
+            notes += ["", f"{unit}: {st['stretches']} driven stretches ring at "
+                      f"{st['frequency_range_hz'][0]:.2f}-{st['frequency_range_hz'][1]:.2f} Hz "
+                      f"with a gain {st['gain_range'][0]:.3f}-{st['gain_range'][1]:.3f} "
+                      f"(Spearman of gain and frequency {st['gain_frequency_spearman']:+.2f}, "
+                      f"p {st['gain_frequency_p_value']:.1e}; gain ~ frequency^"
+                      f"{st['gain_frequency_exponent']:.1f}); each leaves "
+                      f"{1e3 * st['left_range_m'][0]:.2f}-{1e3 * st['left_range_m'][1]:.2f} "
+                      "mm."]
+    return lines + notes
