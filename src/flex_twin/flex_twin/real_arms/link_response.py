@@ -21,10 +21,9 @@ fraction of a count) and fits the same mode to its output (with a lag if the twi
 has one), which must give the twin's clamped mode back (the method's check: the twin's beam
 answers the hub as one mode to within the log's quantisation).
 
-:func:`step_modes` fits the mode to each stretch between two steps alone: on Hagenau's unit
-the link rings at 1.77-2.07 Hz with a gain of 0.29-0.46 from step to step, the two rising
-together, and each stretch leaves 0.5-1.2 mm. :func:`unit_mode` fits one mode to all runs of
-a unit: the best a link fixed for the unit does with the lab's own hub angle.
+:func:`step_modes` fits the mode to each stretch between two steps alone (does the link
+answer its hub alike from step to step?), :func:`unit_mode` one mode to all runs of a unit
+(a link fixed for the unit, driven by the lab's own hub angle).
 """
 from __future__ import annotations
 
@@ -42,6 +41,14 @@ from flex_model.sensors import delayed, tip_gauge
 CUTOFF = 20.0
 #: bandwidth of the twin's hub tracking of the lab's angle (Hz)
 TRACKING = 20.0
+
+
+def lab_series(run) -> tuple:
+    """(t, theta'', d) of a run: its time, the hub's angular acceleration
+    (:func:`hub_acceleration`) and its gauge in the twin's sign, the gauge's offset
+    removed."""
+    return run.t, hub_acceleration(run)[1], run.gauge_sign() * (run.deflection
+                                                                - run.gauge_bias())
 
 
 def hub_acceleration(run, cutoff: float = CUTOFF) -> tuple:
@@ -110,11 +117,10 @@ def step_modes(run, acc, d, min_window: float = 1.5) -> list:
 
 def unit_mode(series, step: int = 5, start: dict | None = None) -> dict:
     """One mode (frequency, damping ratio, gain, lag) for several runs of one unit, each
-    run ``(t, acc, d)`` with its own initial deflection, rate and offset: the best fixed
-    linear link driven by the lab's own hubs (in-sample: a twin's link, fixed for the unit,
-    does no better on these runs even with the hub right). Started from ``start`` (default
-    1.85 Hz, zeta 0.01, gain 0.4, 60 ms). Returns the shared values and residual_rms_m per
-    run."""
+    run ``(t, acc, d)`` with its own initial deflection, rate and offset (:func:`lab_series`):
+    the linear link fixed for the unit with the least squared error over its runs, driven
+    by the lab's own hubs (in-sample, a local search from ``start``, default 1.85 Hz, zeta
+    0.01, gain 0.4, 60 ms). Returns the shared values and residual_rms_m per run."""
     start = {"frequency_hz": 1.85, "damping_ratio": 0.01, "gain": 0.4, "delay_s": 0.06,
              **(start or {})}
     data = [tuple(np.asarray(x, float)[::step] for x in s) for s in series]
@@ -197,9 +203,9 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
     run = read_cuboulder_file(path)
     if not run.has_gauge:
         raise ValueError(f"{name}: no tip deflection logged")
-    theta, acc = hub_acceleration(run)
+    theta = hub_acceleration(run)[0]
+    _, acc, d_lab = lab_series(run)
     sign, bias = run.gauge_sign(), run.gauge_bias()
-    d_lab = sign * (run.deflection - bias)
     lab = base_excited_mode(run.t, acc, d_lab)
     lagged = base_excited_mode(run.t, acc, d_lab, delay=True)
     arm = run_twin(name)
@@ -268,11 +274,7 @@ def unit_modes(data_root, rows) -> dict:
         names = [n for n in spec["fit"] + spec["holdout"] if n in by_run]
         if len(names) < 2:
             continue
-        series = []
-        for name in names:
-            run = read_cuboulder_file(files[name])
-            series.append((run.t, hub_acceleration(run)[1],
-                           run.gauge_sign() * (run.deflection - run.gauge_bias())))
+        series = [lab_series(read_cuboulder_file(files[name])) for name in names]
         start = {k: float(np.median([by_run[n]["lab_lagged"][k] for n in names]))
                  for k in ("frequency_hz", "damping_ratio", "gain", "delay_s")}
         fit = unit_mode(series, start=start)
@@ -290,10 +292,11 @@ DRIVEN = 0.05
 def step_summary(rows, runs) -> dict:
     """Over the driven stretches (:data:`DRIVEN`) of ``runs``: the ranges of their own
     modes' frequency, gain and left RMS, the Spearman correlation of gain and frequency
-    and the exponent n of gain ~ frequency^n (least squares in logs). A tip mass on a
-    beam behind a root spring that gives a little more or less from step to step changes
-    both together, its gain as the frequency squared."""
-    from scipy.stats import spearmanr
+    (its p-value exact by permutation up to 8 stretches) and the exponent n of gain ~
+    frequency^n (least squares in logs). A tip mass on a beam behind a root spring that
+    gives a little more or less from step to step changes both together, its gain as the
+    frequency squared."""
+    from scipy.stats import permutation_test, spearmanr
     steps = [s for r in rows if r["run"] in runs for s in r["steps"]
              if abs(s["hub_change_rad"]) >= DRIVEN]
     if len(steps) < 3:
@@ -302,10 +305,13 @@ def step_summary(rows, runs) -> dict:
     g = [abs(s["gain"]) for s in steps]
     left = [s["residual_rms_m"] for s in steps]
     rank = spearmanr(g, f)
+    p = (permutation_test((g,), lambda x: spearmanr(x, f).statistic, n_resamples=np.inf,
+                          permutation_type="pairings").pvalue if len(g) <= 8
+         else rank.pvalue)   # exact where there are few; the t approximation above
     return {"stretches": len(steps), "frequency_range_hz": [min(f), max(f)],
             "gain_range": [min(g), max(g)], "left_range_m": [min(left), max(left)],
             "gain_frequency_spearman": float(rank.statistic),
-            "gain_frequency_p_value": float(rank.pvalue),
+            "gain_frequency_p_value": float(p),
             "gain_frequency_exponent": float(np.polyfit(np.log(f), np.log(g), 1)[0])}
 
 
@@ -396,7 +402,7 @@ def unit_lines(report: dict) -> list:
     """The markdown of the step-by-step modes and of the units' fixed modes."""
     lines = ["", "## From step to step", "",
              "The same mode, read late, fitted to each stretch from one step to the next "
-             f"(the hub turning at least {DRIVEN} rad in it).", "",
+             f"(at least 1.5 s long, the hub turning at least {DRIVEN} rad in it).", "",
              "| run | from (s) | hub turns (rad) | frequency (Hz) | damping ratio | gain | "
              "lag (ms) | left (mm) |", "|---|---|---|---|---|---|---|---|"]
     for r in report["runs"]:
@@ -406,15 +412,15 @@ def unit_lines(report: dict) -> list:
                   for s in r["steps"] if abs(s["hub_change_rad"]) >= DRIVEN]
     lines += ["", "## One link for each unit", "",
               "One mode (frequency, damping, gain, lag) for all runs of a unit, each run with "
-              "its own start and offset, driven by the lab's hubs: no fixed linear link does "
-              "better on these runs, even with the hub right.", "",
+              "its own start and offset, driven by the lab's hubs: the link fixed for the unit "
+              "with the least squared error over its runs.", "",
               "| unit | frequency (Hz) | damping ratio | gain | lag (ms) | run | left (mm) | "
               "its own mode (mm) |", "|---|---|---|---|---|---|---|---|"]
     notes = []
     for unit, u in report.get("units", {}).items():
         for k, (name, e) in enumerate(u["runs"].items()):
             head = (f"{unit} | {u['frequency_hz']:.3f} | {u['damping_ratio']:.4f} | "
-                    f"{u['gain']:.3f} | {1e3 * u['delay_s']:.0f}" if k == 0 else " | | | |")
+                    f"{abs(u['gain']):.3f} | {1e3 * u['delay_s']:.0f}" if k == 0 else " | | | |")
             lines.append(f"| {head} | {name} | {1e3 * e['residual_rms_m']:.2f} | "
                          f"{1e3 * e['own_m']:.2f} |")
         st = u.get("steps")
