@@ -172,6 +172,30 @@ def test_ring_down_fit_recovers_a_quantised_damped_cosine():
     assert r.damping_ratio == pytest.approx(0.03, abs=5e-3)
 
 
+def test_ring_spread_of_two_ring_downs_and_the_labs_own(cuboulder_root):
+    """Two quantised ring-downs of 1.5 and 1.8 Hz, zeta 0.02 and 0.06, give a frequency
+    spread of 20 % and a damping spread of 3 (to the fits' 0.5 % and 0.005); one ring-down
+    gives {}. The lab's flexarm_K1K2_6_-5 rings down at 1.43-1.75 Hz after its four steps:
+    22.4 %, damping x1.71; flexarm_k1k2_6_-3 at 1.46-1.67 Hz, damping 0.020-0.205."""
+    from flex_twin.real_arms.replay import GAUGE_RESOLUTION, ring_down, ring_downs, ring_spread
+    t = np.arange(0, 3.0, 1e-3)
+    rings = []
+    for f0, zeta in ((1.5, 0.02), (1.8, 0.06)):
+        wn = 2 * np.pi * f0 / np.sqrt(1 - zeta ** 2)
+        d = np.where(t < 0.5, 0.0, 0.02 * np.exp(-zeta * wn * (t - 0.5))
+                     * np.cos(2 * np.pi * f0 * (t - 0.5)))
+        rings.append(ring_down(t, np.round(d / GAUGE_RESOLUTION) * GAUGE_RESOLUTION, 0.5, 3.0))
+    s = ring_spread(rings + [None])
+    assert s["frequency_spread_pct"] == pytest.approx(20.0, abs=0.6)
+    assert s["damping_spread"] == pytest.approx(3.0, rel=0.3)
+    assert ring_spread(rings[:1]) == {}
+    for name, f_pct, z in (("flexarm_K1K2_6_-5", 22.4, 1.71), ("flexarm_k1k2_6_-3", 14.2, 10.3)):
+        run = _run(cuboulder_root, name)
+        s = ring_spread(ring_downs(run.t, run.deflection, run.step_indices()))
+        assert s["frequency_spread_pct"] == pytest.approx(f_pct, abs=0.3)
+        assert s["damping_spread"] == pytest.approx(z, rel=0.03)
+
+
 def test_hold_ringing_of_quantised_sines():
     """Holds of 5, 2.5 and 2.5 s (measured over 4, 1.5 and 1.5 s) ringing 3 mm at 1.39 /
     1.85 / 1.97 Hz, logged at 1 mm:
@@ -568,3 +592,29 @@ def test_a_missing_calibrated_preset_is_named_with_the_command_that_writes_it(mo
     with pytest.raises(ValueError, match="no quanser_no_such_twin preset: run flex-twin "
                        "real-arm calibrate"):
         quanser_twin.stored_calibrated_arm("flexible")
+
+
+def test_report_summarizes_the_labs_ring_down_spread_over_held_out_runs():
+    """summarize: the held-out runs' ring-down spreads (3 runs with them, a fit run and a
+    run without left out) give medians 8 % and x1.5, maxima 25 % and x10; the findings say
+    so and take the calibrated twin's clamped frequency from the parameters."""
+    from flex_twin.real_arms.report import _findings, summarize
+
+    def row(role, f=None, z=None, tip=0.004):
+        m = {"hub_rms_rad": 0.02, "tip_rms_m": tip, "ring_freq_measured_hz": 1.5,
+             "hold_freq_measured_hz": 1.9, "ring_freq_measured_spread_pct": f,
+             "ring_damping_measured_spread": z}
+        return {"run": "r", "role": role, "nominal": m, "calibrated": dict(m),
+                "repeatability": {}}
+
+    rows = [row("held out", 8.0, 1.5), row("held out", 2.0, 10.0), row("held out", 25.0, 1.2),
+            row("fit", 90.0, 90.0), row("held out")]
+    s = summarize(rows)
+    assert s["ring_spread_runs"] == 3
+    assert s["ring_freq_spread_median_pct"] == 8.0 and s["ring_freq_spread_max_pct"] == 25.0
+    assert s["ring_damping_spread_median"] == 1.5 and s["ring_damping_spread_max"] == 10.0
+    text = "\n".join(_findings({"cuboulder": rows,
+                                "parameters": {"calibrated": {"clamped_f1_hz": 1.809}}}))
+    assert "frequency by a median 8.0 % (at most 25.0 %)" in text
+    assert "by a factor 1.50 (at most 10.00)" in text
+    assert "rings near its clamped 1.81 Hz" in text

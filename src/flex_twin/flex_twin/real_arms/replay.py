@@ -100,6 +100,19 @@ def ring_downs(t, d, steps) -> list:
     return [ring_down(t, d, t[k], e) for k, e in zip(steps, ends)]
 
 
+def ring_spread(rings) -> dict:
+    """How much the ring-downs of one run differ from step to step: frequency_spread_pct
+    = 100 (max / min - 1) of their frequencies and damping_spread = max / min of their
+    damping ratios (None with a ratio of 0); {} with fewer than two."""
+    rings = [r for r in rings if r is not None]
+    if len(rings) < 2:
+        return {}
+    f = [r.frequency_hz for r in rings]
+    z = [r.damping_ratio for r in rings]
+    return {"frequency_spread_pct": 100.0 * (max(f) / min(f) - 1.0),
+            "damping_spread": max(z) / min(z) if min(z) > 0 else None}
+
+
 def hold_ringing(t, d, steps, settle: float = HOLD_SETTLE) -> list:
     """Frequency (Hz) of the tip's ringing during every hold: from ``settle`` s after a
     step to the next step (at least 1 s), the peak of a zero-padded Hann-windowed FFT in
@@ -273,6 +286,9 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
                                                                    for a, _ in pairs]))
             out.metrics["ring_damping_twin"] = float(np.mean([b.damping_ratio
                                                                for _, b in pairs]))
+            spread = ring_spread([a for a, _ in pairs])
+            out.metrics["ring_freq_measured_spread_pct"] = spread.get("frequency_spread_pct")
+            out.metrics["ring_damping_measured_spread"] = spread.get("damping_spread")
         twin_hold = hold_ringing(t, defl, steps)
         for key, f in (("hold_freq_measured_hz", lab_hold), ("hold_freq_twin_hz", twin_hold)):
             if any(x is not None for x in f):

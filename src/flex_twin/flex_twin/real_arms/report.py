@@ -104,7 +104,8 @@ def metrics_row(r) -> dict:
                                   "tip_rms_m", "tip_peak_m", "tip_transient_share",
                                   "ring_freq_measured_hz", "ring_freq_twin_hz",
                                   "ring_freq_error_pct", "ring_damping_measured",
-                                  "ring_damping_twin", "hold_freq_measured_hz",
+                                  "ring_damping_twin", "ring_freq_measured_spread_pct",
+                                  "ring_damping_measured_spread", "hold_freq_measured_hz",
                                   "hold_freq_twin_hz", "hold_freq_error_pct")}
 
 
@@ -184,6 +185,10 @@ def summarize(rows) -> dict:
                if r["repeatability"].get("hub_rms_rad") is not None]
     rep_tip = [r["repeatability"]["tip_rms_m"] for r in held
                if r["repeatability"].get("tip_rms_m") is not None]
+    f_spread = [r["nominal"]["ring_freq_measured_spread_pct"] for r in held
+                if r["nominal"].get("ring_freq_measured_spread_pct") is not None]
+    z_spread = [r["nominal"]["ring_damping_measured_spread"] for r in held
+                if r["nominal"].get("ring_damping_measured_spread") is not None]
     return {"repeat_runs": len(rep_hub),
             "repeat_hub_median": float(np.median(rep_hub)) if rep_hub else None,
             "repeat_hub_max": float(max(rep_hub)) if rep_hub else None,
@@ -197,13 +202,19 @@ def summarize(rows) -> dict:
             "tip_median_calibrated": float(np.median(tip_c)),
             "tip_aim_met": int(np.sum(tip_c < AIM_TIP_RMS)),
             "ring_measured_range_hz": [float(min(ring)), float(max(ring))],
-            "hold_measured_range_hz": [float(min(hold)), float(max(hold))] if hold else None}
+            "hold_measured_range_hz": [float(min(hold)), float(max(hold))] if hold else None,
+            "ring_spread_runs": len(f_spread),
+            "ring_freq_spread_median_pct": float(np.median(f_spread)) if f_spread else None,
+            "ring_freq_spread_max_pct": float(max(f_spread)) if f_spread else None,
+            "ring_damping_spread_median": float(np.median(z_spread)) if z_spread else None,
+            "ring_damping_spread_max": float(max(z_spread)) if z_spread else None}
 
 
 def _findings(report: dict) -> list:
     s = summarize(report["cuboulder"])
     if not s:
         return []
+    clamped = report.get("parameters", {}).get("calibrated", {}).get("clamped_f1_hz")
     return ["", "## Findings", "",
             f"- Held-out CU Boulder runs: the calibrated twin's hub RMS error is lower on "
             f"{s['hub_improved']} of {s['held_out_runs']} (median {s['hub_median_nominal']:.4f}"
@@ -229,7 +240,16 @@ def _findings(report: dict) -> list:
             "1.6-1.7 Hz, zeta 0.01-0.03); when the hub moves, the coupled closed-loop mode "
             "is lower (1.2-1.4 Hz with K3, K4). The frictionless handout twin always moves "
             "its hub (1.0 Hz, zeta 0.2); the calibrated one sticks and rings near its clamped"
-            " 1.72 Hz.",
+            + (f" {clamped:.2f} Hz." if clamped else " frequency."),
+            *([f"- The lab's own ring-downs differ from step to step: within one run (the "
+               f"{s['ring_spread_runs']} held-out runs with two or more) their frequency by "
+               f"a median {s['ring_freq_spread_median_pct']:.1f} % (at most "
+               f"{s['ring_freq_spread_max_pct']:.1f} %), their damping ratio by a factor "
+               f"{s['ring_damping_spread_median']:.2f} (at most "
+               f"{s['ring_damping_spread_max']:.2f}). A twin that rings down alike at every "
+               "step can match a run's mean, not each step."]
+              if s.get("ring_freq_spread_median_pct") is not None
+              and s.get("ring_damping_spread_median") is not None else []),
             *([f"- Ringing during the holds (1 s after a step to the next): measured "
                f"{s['hold_measured_range_hz'][0]:.2f}-{s['hold_measured_range_hz'][1]:.2f} "
                "Hz; where the hub sticks (Hagenau's runs) the link's clamped mode, above the "
