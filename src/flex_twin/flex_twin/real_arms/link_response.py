@@ -43,12 +43,15 @@ CUTOFF = 20.0
 TRACKING = 20.0
 
 
+def lab_deflection(run) -> np.ndarray:
+    """A run's gauge in the twin's sign, its offset removed (m)."""
+    return run.gauge_sign() * (run.deflection - run.gauge_bias())
+
+
 def lab_series(run) -> tuple:
     """(t, theta'', d) of a run: its time, the hub's angular acceleration
-    (:func:`hub_acceleration`) and its gauge in the twin's sign, the gauge's offset
-    removed."""
-    return run.t, hub_acceleration(run)[1], run.gauge_sign() * (run.deflection
-                                                                - run.gauge_bias())
+    (:func:`hub_acceleration`) and :func:`lab_deflection`."""
+    return run.t, hub_acceleration(run)[1], lab_deflection(run)
 
 
 def hub_acceleration(run, cutoff: float = CUTOFF) -> tuple:
@@ -99,7 +102,11 @@ def base_excited_mode(t, acc, d, step: int = 5, delay: bool = False) -> dict:
     return out
 
 
-def step_modes(run, acc, d, min_window: float = 1.5) -> list:
+#: the shortest stretch between two steps that :func:`step_modes` fits (s)
+MIN_WINDOW = 1.5
+
+
+def step_modes(run, acc, d, min_window: float = MIN_WINDOW) -> list:
     """:func:`base_excited_mode` with a lag fitted to every stretch of ``d`` from one
     reference step to the next (the first from the run's start), if at least
     ``min_window`` s long: whether the link answers the hub alike from step to step. Each
@@ -203,8 +210,8 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
     run = read_cuboulder_file(path)
     if not run.has_gauge:
         raise ValueError(f"{name}: no tip deflection logged")
-    theta = hub_acceleration(run)[0]
-    _, acc, d_lab = lab_series(run)
+    theta, acc = hub_acceleration(run)
+    d_lab = lab_deflection(run)
     sign, bias = run.gauge_sign(), run.gauge_bias()
     lab = base_excited_mode(run.t, acc, d_lab)
     lagged = base_excited_mode(run.t, acc, d_lab, delay=True)
@@ -402,7 +409,8 @@ def unit_lines(report: dict) -> list:
     """The markdown of the step-by-step modes and of the units' fixed modes."""
     lines = ["", "## From step to step", "",
              "The same mode, read late, fitted to each stretch from one step to the next "
-             f"(at least 1.5 s long, the hub turning at least {DRIVEN} rad in it).", "",
+             f"(at least {MIN_WINDOW:g} s long, the hub turning at least {DRIVEN} rad in "
+             "it).", "",
              "| run | from (s) | hub turns (rad) | frequency (Hz) | damping ratio | gain | "
              "lag (ms) | left (mm) |", "|---|---|---|---|---|---|---|---|"]
     for r in report["runs"]:
