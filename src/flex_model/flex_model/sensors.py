@@ -161,7 +161,7 @@ def with_tip_gauge(arm, link: str, **fields):
     ``fields`` (e.g. ``delay``, ``gain``); the declared one is replaced, not duplicated."""
     from dataclasses import replace
     prior = declared_tip_gauge(arm, link)
-    new = replace(prior or Sensor("tip_gauge", "tip_deflection", link), **fields)
+    new = replace(tip_gauge(arm, link), **fields)
     return replace(arm, sensors=tuple(s for s in arm.sensors if s is not prior) + (new,))
 
 

@@ -299,11 +299,11 @@ DRIVEN = 0.05
 def step_summary(rows, runs) -> dict:
     """Over the driven stretches (:data:`DRIVEN`) of ``runs``: the ranges of their own
     modes' frequency, gain and left RMS, the Spearman correlation of gain and frequency
-    (its p-value exact by permutation up to 8 stretches) and the exponent n of gain ~
+    (:func:`.stuck_holds.rank_correlation`) and the exponent n of gain ~
     frequency^n (least squares in logs). A tip mass on a beam behind a root spring that
     gives a little more or less from step to step changes both together, its gain as the
     frequency squared."""
-    from scipy.stats import permutation_test, spearmanr
+    from .stuck_holds import rank_correlation
     steps = [s for r in rows if r["run"] in runs for s in r["steps"]
              if abs(s["hub_change_rad"]) >= DRIVEN]
     if len(steps) < 3:
@@ -311,14 +311,10 @@ def step_summary(rows, runs) -> dict:
     f = [s["frequency_hz"] for s in steps]
     g = [abs(s["gain"]) for s in steps]
     left = [s["residual_rms_m"] for s in steps]
-    rank = spearmanr(g, f)
-    p = (permutation_test((g,), lambda x: spearmanr(x, f).statistic, n_resamples=np.inf,
-                          permutation_type="pairings").pvalue if len(g) <= 8
-         else rank.pvalue)   # exact where there are few; the t approximation above
+    rho, p = rank_correlation(g, f)
     return {"stretches": len(steps), "frequency_range_hz": [min(f), max(f)],
             "gain_range": [min(g), max(g)], "left_range_m": [min(left), max(left)],
-            "gain_frequency_spearman": float(rank.statistic),
-            "gain_frequency_p_value": float(p),
+            "gain_frequency_spearman": rho, "gain_frequency_p_value": p,
             "gain_frequency_exponent": float(np.polyfit(np.log(f), np.log(g), 1)[0])}
 
 

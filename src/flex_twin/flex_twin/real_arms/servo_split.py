@@ -98,12 +98,20 @@ def grid_starts(rigid, params: list, kt_tolerance: float) -> list:
     return out
 
 
+def stored_twins() -> dict:
+    """The stored calibrated twins, {"rigid": ..., "flexible": ...}."""
+    return {k: stored_calibrated_arm(k) for k in ("rigid", "flexible")}
+
+
 def joint_fit(runs: dict, make_policy: Callable, kt_tolerance: float = 0.05,
-              max_nfev: int = 10, progress: Callable | None = None) -> dict:
-    """The joint fit from the stored calibrated twins, started from the best point of
-    :func:`grid_starts`: the fitted values, the scaled RMS residual of the fit runs on the
-    stored twins, at every grid point and fitted, and the evaluations (all counted)."""
-    rigid, flexible = stored_calibrated_arm("rigid"), stored_calibrated_arm("flexible")
+              max_nfev: int = 10, progress: Callable | None = None,
+              twins: dict | None = None) -> dict:
+    """The joint fit from the stored calibrated twins (``twins``, default
+    :func:`stored_twins`), started from the best point of :func:`grid_starts`: the fitted
+    values, the scaled RMS residual of the fit runs on the stored twins, at every grid
+    point and fitted, and the evaluations (all counted)."""
+    twins = twins or stored_twins()
+    rigid, flexible = twins["rigid"], twins["flexible"]
     rigid_runs = [runs[n] for n in CUBOULDER_SPLIT["servo_fit"]]
     link_runs = [runs[n] for n in CUBOULDER_SPLIT["link_fit"]]
 
@@ -135,10 +143,10 @@ def study(runs: dict, make_policy: Callable, out, kt_tolerance: float = 0.05,
           max_nfev: int = 10, progress: Callable = print) -> dict:
     """:func:`joint_fit`, then the stored twins and the joint fit's on every held-out run;
     ``servo_split.md`` and ``.json`` in ``out``."""
+    stored = stored_twins()
     fit = joint_fit(runs, make_policy, kt_tolerance, max_nfev,
                     lambda k, c, v: progress(f"  evaluation {k or 'of the start grid'}: "
-                                             f"scaled RMS residual {c:.4f}"))
-    stored = {k: stored_calibrated_arm(k) for k in ("rigid", "flexible")}
+                                             f"scaled RMS residual {c:.4f}"), stored)
     joint = dict(zip(("rigid", "flexible"),
                      joint_arms(stored["rigid"], stored["flexible"], fit["values"])))
     rows = []

@@ -186,20 +186,31 @@ def fit_hold_link(runs: dict, make_policy, progress=None, max_nfev: int = 12) ->
                         for label, rows in held.items()}}
 
 
+def rank_correlation(x, y) -> tuple:
+    """Spearman's rank correlation of ``x`` and ``y`` and its two-sided p-value: exact by
+    permutation for up to 8 pairs, the t approximation above."""
+    from scipy.stats import permutation_test, spearmanr
+    r = spearmanr(x, y)
+    if len(x) > 8:
+        return float(r.statistic), float(r.pvalue)
+    p = permutation_test((x,), lambda xx: spearmanr(xx, y).statistic, n_resamples=np.inf,
+                         permutation_type="pairings").pvalue
+    return float(r.statistic), float(p)
+
+
 def frequency_rank_correlations(stretches) -> dict:
     """Spearman rank correlation (and its p-value) of the stretches' ringing frequency with
     the holding voltage |V| and with the stuck hub angle |theta|: does the clamped link
     ring faster under more holding torque, or at some hub positions? (Empty with fewer than
     three stretches.)"""
-    from scipy.stats import spearmanr
     if len(stretches) < 3:
         return {}
     f = [h.frequency_hz for h in stretches]
     out = {}
     for key, x in (("holding_voltage", [abs(h.voltage_V) for h in stretches]),
                    ("hub_angle", [abs(h.hub_rad) for h in stretches])):
-        r = spearmanr(x, f)
-        out[key] = {"spearman": float(r.statistic), "p_value": float(r.pvalue)}
+        rho, p = rank_correlation(x, f)
+        out[key] = {"spearman": rho, "p_value": p}
     return out
 
 
