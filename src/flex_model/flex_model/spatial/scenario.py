@@ -56,7 +56,8 @@ import numpy as np
 from ..config import ConfigError, Fields, read_yaml
 from ..inputs import JointPD
 from ..scenario import _is_inf, _joint_index
-from .description import SPATIAL_PRESET_DIR, SpatialArm, load_spatial_arm
+from .description import SPATIAL_PRESET_DIR, SpatialArm
+from .loader import load_spatial_arm
 from .dynamics import SpatialArmModel
 from .limits import joint_limits
 
@@ -487,7 +488,7 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     """Validate a spatial scenario mapping; errors name ``source``, the field, the value
     and what is allowed. ``arm``: a spatial preset name, a path (relative to
     ``base_dir``) or an inline spatial arm mapping."""
-    from .description import spatial_arm_from_dict
+    from .loader import spatial_arm_from_dict
     f = Fields(data, source, "")
     name = f.string("name", default_name)
     raw_arm = f.raw("arm")
@@ -600,8 +601,8 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
             raise cf.error("time", tc, f"a time in [0, {duration:g}) s, increasing")
         body = Fields({key: val for key, val in raw.items() if key != "time"}, source,
                       f"payload_changes[{k}]")
-        from .description import _body
-        rb = _body(body)
+        from .description import rigid_body
+        rb = rigid_body(body)
         if any(rb.offset):
             raise body.error("offset", list(rb.offset), "no offset (the payload sits at the "
                              "last link's end frame origin; move the frame or use the arm "

@@ -19,7 +19,7 @@ import numpy as np
 
 from flex_model.dynamics import FlexArmModel
 from .replay import _rms, replay
-from .stick_slip_study import with_stick_slip
+from .quanser_twin import with_stick_slip
 
 #: the lattice of Coulomb levels (N m at the hub) the start chooses from
 LEVELS = tuple(np.round(np.arange(0.02, 0.105, 0.01), 3))
