@@ -104,3 +104,20 @@ def test_packages_import_one_way(graph):
     wrong = [(m, t) for m, targets in graph.items() for t in targets
              if t.split(".")[0] not in ALLOWED[m.split(".")[0]]]
     assert wrong == []
+
+
+def private_imports(files: dict) -> list[tuple[str, str]]:
+    """(importer, module.name) for every ``from module import _name`` across modules."""
+    found = []
+    for name, path in files.items():
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom):
+                hidden = [a.name for a in node.names
+                          if a.name.startswith("_") and not a.name.startswith("__")]
+                found.extend((name, f"{node.module or '.'}.{h}") for h in hidden)
+    return found
+
+
+def test_no_private_names_imported_across_modules():
+    """A module's private helpers stay private: what another module needs is public."""
+    assert private_imports(module_files()) == []
