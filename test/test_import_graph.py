@@ -121,3 +121,21 @@ def private_imports(files: dict) -> list[tuple[str, str]]:
 def test_no_private_names_imported_across_modules():
     """A module's private helpers stay private: what another module needs is public."""
     assert private_imports(module_files()) == []
+
+
+def test_importing_the_numeric_core_changes_no_environment_variable():
+    """Only a process that starts ROS sets ROS_AUTOMATIC_DISCOVERY_RANGE (just before
+    rclpy.init); the core, used from plain Python, leaves the environment alone."""
+    import os
+    import subprocess
+    import sys
+    probe = ("import os; before = dict(os.environ)\n"
+             "import flex_model, flex_model.dynamics, flex_model.simulate, flex_model.spatial\n"
+             "import flex_control.laws, flex_planner.planning, flex_twin.diagnosis.engine\n"
+             "changed = sorted(k for k in set(before) | set(os.environ)\n"
+             "                 if before.get(k) != os.environ.get(k))\n"
+             "print(changed)")
+    env = {k: v for k, v in os.environ.items() if k != "ROS_AUTOMATIC_DISCOVERY_RANGE"}
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True,
+                         text=True, timeout=120, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]"
