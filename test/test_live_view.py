@@ -1,0 +1,276 @@
+"""Live view (issue 46): the Foxglove WebSocket server of flex_model.live_view, read by a
+client written here from the protocol spec (serverInfo, advertise, subscribe, binary
+message data), its protobuf messages decoded with the schema the server advertises and
+the JointState CDR with rclpy. Servers bind to 127.0.0.1 only."""
+import asyncio
+import base64
+import json
+import os
+import re
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+import uuid
+
+import numpy as np
+import pytest
+import websockets
+
+from flex_model import urdf
+from flex_model.arm import load_arm
+from flex_model.dynamics import FlexArmModel
+from flex_model.live_view import LiveView, joint_state_cdr, tip_in_base
+from flex_model.statics import static_equilibrium
+
+#: what a current Foxglove app offers; foxglove-sdk 0.30 accepts the first only
+SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
+MESSAGE_DATA = 0x01  # binary opcode of a message on a subscription
+TOPICS = {"/joint_states": ("sensor_msgs/msg/JointState", "cdr", "ros2msg"),
+          "/flex/tip_pose": ("foxglove.PoseInFrame", "protobuf", "protobuf"),
+          "/flex/shape": ("foxglove.SceneUpdate", "protobuf", "protobuf"),
+          "/tf": ("foxglove.FrameTransforms", "protobuf", "protobuf")}
+
+
+# ------------------------------------------------------------ the protocol client
+async def _session(port, topics, per_topic=None, timeout=20.0):
+    """Connect, read serverInfo and the advertisements of ``topics``, subscribe to them and
+    collect their binary messages: ``per_topic`` each, or (None) until the server closes.
+    Returns (subprotocol, serverInfo, {topic: channel}, {topic: [(log_time, payload)]})."""
+    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS,
+                                  open_timeout=timeout, max_size=None) as ws:
+        info = json.loads(await asyncio.wait_for(ws.recv(), timeout))
+        channels = {}
+        while not set(topics) <= channels.keys():
+            op = json.loads(await asyncio.wait_for(ws.recv(), timeout))
+            if op["op"] == "advertise":
+                channels.update({c["topic"]: c for c in op["channels"]})
+        by_subscription = dict(enumerate(topics))
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+            {"id": k, "channelId": channels[t]["id"]} for k, t in by_subscription.items()]}))
+        got = {t: [] for t in topics}
+        try:
+            while per_topic is None or min(len(v) for v in got.values()) < per_topic:
+                frame = await asyncio.wait_for(ws.recv(), timeout)
+                if isinstance(frame, str):
+                    continue  # e.g. status or more advertisements
+                opcode, subscription, log_time = struct.unpack_from("<BIQ", frame)
+                assert opcode == MESSAGE_DATA
+                got[by_subscription[subscription]].append((log_time, frame[13:]))
+        except websockets.ConnectionClosed:
+            assert per_topic is None, "the server closed early"
+        return ws.subprotocol, info, channels, got
+
+
+def collect(port, topics=tuple(TOPICS), per_topic=None, timeout=20.0):
+    return asyncio.run(_session(port, list(topics), per_topic, timeout))
+
+
+# ------------------------------------------------------------ protobuf, by the schema
+def _varint(data, i):
+    value = shift = 0
+    while True:
+        b = data[i]
+        i += 1
+        value |= (b & 0x7F) << shift
+        shift += 7
+        if b < 0x80:
+            return value, i
+
+
+def _fields(data):
+    """(field number, wire type, raw value) of a protobuf message, in order."""
+    i = 0
+    while i < len(data):
+        key, i = _varint(data, i)
+        number, wire = key >> 3, key & 7
+        if wire == 0:
+            value, i = _varint(data, i)
+        elif wire == 1:
+            value, i = data[i:i + 8], i + 8
+        elif wire == 2:
+            size, i = _varint(data, i)
+            value, i = data[i:i + size], i + size
+        elif wire == 5:
+            value, i = data[i:i + 4], i + 4
+        else:
+            raise ValueError(f"wire type {wire}")
+        yield number, wire, value
+
+
+def message_types(schema_b64):
+    """{'.package.Message': {number: (name, type, type_name, repeated)}} of a base64
+    google.protobuf.FileDescriptorSet (the protobuf schema a channel advertises)."""
+    types = {}
+
+    def message(data, scope):
+        name, fields = None, {}
+        nested = []
+        for number, _, value in _fields(data):
+            if number == 1:
+                name = value.decode()
+            elif number == 2:  # FieldDescriptorProto
+                f = {n: v for n, _, v in _fields(value)}
+                fields[f[3]] = (f[1].decode(), f[5], f.get(6, b"").decode(), f.get(4) == 3)
+            elif number == 3:
+                nested.append(value)
+        full = f"{scope}.{name}"
+        types[full] = fields
+        for n in nested:
+            message(n, full)
+
+    for number, _, file in _fields(base64.b64decode(schema_b64)):
+        assert number == 1
+        parts = {n: v for n, _, v in _fields(file) if n == 2}
+        package = parts.get(2, b"").decode()
+        for n, _, value in _fields(file):
+            if n == 4:
+                message(value, f".{package}" if package else "")
+    return types
+
+
+_SCALARS = {1: "<d", 2: "<f", 6: "<Q", 7: "<I", 15: "<i", 16: "<q"}
+
+
+def decode(data, name, types):
+    """A protobuf message as a dict (every field present: proto3 leaves defaults out)."""
+    spec = types[name]
+    out = {fname: [] if rep else (None if kind == 11 else 0)
+           for fname, kind, _, rep in spec.values()}
+    for number, wire, raw in _fields(data):
+        fname, kind, tname, rep = spec[number]
+        if kind == 11:
+            values = [decode(raw, tname, types)]
+        elif kind in (9, 12):
+            values = [raw.decode() if kind == 9 else raw]
+        elif kind in _SCALARS:
+            code = _SCALARS[kind]
+            values = list(struct.unpack(f"<{len(raw) // struct.calcsize(code)}{code[1]}",
+                                        raw))
+        else:  # varint kinds, packed (wire 2) or one
+            values, i = [], 0
+            if wire == 2:
+                while i < len(raw):
+                    v, i = _varint(raw, i)
+                    values.append(v)
+            else:
+                values = [raw]
+        if rep:
+            out[fname].extend(values)
+        else:
+            out[fname] = values[0]
+    return out
+
+
+def decoded(channels, got, topic):
+    """The messages on a protobuf topic, decoded by the schema of its advertisement."""
+    ch = channels[topic]
+    types = message_types(ch["schema"])
+    return [(t, decode(payload, "." + ch["schemaName"], types)) for t, payload in got[topic]]
+
+
+def point(p):
+    return np.array([p["x"], p["y"], p["z"]])
+
+
+def joint_state(payload):
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import JointState
+    return deserialize_message(payload, JointState)
+
+
+# ------------------------------------------------------------ the tests
+def deflected_state(model):
+    """The arm at rest under gravity with the joints held at 30 and -45 deg."""
+    return static_equilibrium(model, np.radians([30.0, -45.0]), joints="clamped").q
+
+
+def test_joint_state_cdr_is_what_rclpy_reads():
+    names = ["joint1", "joint2", "j3"]
+    msg = joint_state(joint_state_cdr(1_796_000_000_123_456_789, "base_link", names,
+                                      [0.1, -0.2, 0.3], [1.5, 2.5, -3.5], [10.0, 0.0, -7.25]))
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (1_796_000_000, 123_456_789)
+    assert msg.header.frame_id == "base_link" and list(msg.name) == names
+    assert list(msg.position) == [0.1, -0.2, 0.3]
+    assert list(msg.velocity) == [1.5, 2.5, -3.5]
+    assert list(msg.effort) == [10.0, 0.0, -7.25]
+
+
+def test_live_view_serves_the_deflected_arm():
+    model = FlexArmModel(load_arm("thesis_example1"))
+    q = deflected_state(model)
+    plane = urdf.plane_rotation(model.gravity)
+    rigid_tip, _ = tip_in_base(model, model.q_from_joint_angles(np.radians([30.0, -45.0])),
+                               plane)
+    tip, orientation = tip_in_base(model, q, plane)
+    assert np.linalg.norm(tip - rigid_tip) > 1e-3  # deflected: the check below can fail
+    view = LiveView(model, port=0, points_per_link=9)
+    try:
+        assert view.url == f"ws://localhost:{view.port}"
+        theta = model.joint_angles(q)
+
+        def publish():
+            view.publish(1.25, q, theta, [0.0, 0.0], [3.0, -4.0])
+
+        publish()  # before anyone listens: dropped, harmless
+        stop = threading.Event()
+
+        def keep_publishing():
+            while not stop.wait(0.02):
+                publish()
+        th = threading.Thread(target=keep_publishing, daemon=True)
+        th.start()
+        try:
+            sub, info, channels, got = collect(view.port, per_topic=2)
+        finally:
+            stop.set()
+            th.join()
+    finally:
+        view.close()
+    assert sub == "foxglove.sdk.v1"
+    assert info["op"] == "serverInfo" and info["name"] == "flex-twin"
+    for topic, (schema, encoding, schema_encoding) in TOPICS.items():
+        ch = channels[topic]
+        assert (ch["schemaName"], ch["encoding"], ch["schemaEncoding"]) == \
+            (schema, encoding, schema_encoding)
+    stamp = view.stamp_ns(1.25)
+    assert {t for v in got.values() for t, _ in v} == {stamp}
+    # the shape: one strip of 9 points per link, in base_link; the last point is the tip
+    (_, update), *_ = decoded(channels, got, "/flex/shape")
+    (entity,) = update["entities"]
+    assert (entity["id"], entity["frame_id"]) == ("arm", "base_link")
+    assert (entity["timestamp"]["seconds"], entity["timestamp"]["nanos"]) == \
+        divmod(stamp, 10**9)
+    lines = [np.array([point(p) for p in line["points"]]) for line in entity["lines"]]
+    assert [len(line) for line in lines] == [9, 9]
+    expected = [urdf.plane_to_base(plane, line) for line in model.shape(q, 9)]
+    for line, want in zip(lines, expected):
+        np.testing.assert_allclose(line, want, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lines[-1][-1], tip, rtol=0, atol=1e-9)
+    x, y = model.link_origins(q)[-1]
+    np.testing.assert_allclose(lines[-1][-1], plane @ [x, y, 0.0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(lines[1][0], lines[0][-1], rtol=0, atol=1e-12)  # joint 2
+    # the tip pose
+    (_, pose), *_ = decoded(channels, got, "/flex/tip_pose")
+    assert pose["frame_id"] == "base_link"
+    np.testing.assert_allclose(point(pose["pose"]["position"]), tip, rtol=0, atol=1e-9)
+    o = pose["pose"]["orientation"]
+    np.testing.assert_allclose([o["x"], o["y"], o["z"], o["w"]], orientation, atol=1e-12)
+    # the frames: base -> ... -> the last link's deflected tip lands on the same point
+    (_, tfs), *_ = decoded(channels, got, "/tf")
+    transforms = [urdf.Transform(f["parent_frame_id"], f["child_frame_id"],
+                                 tuple(point(f["translation"])),
+                                 tuple(f["rotation"][k] for k in "xyzw"))
+                  for f in tfs["transforms"]]
+    assert [t.child for t in transforms] == ["arm_plane", "link1", "link1_tip", "link2",
+                                             "link2_tip"]
+    _, tip_from_tf = urdf.compose(transforms, transforms[-1].child, "base_link")
+    np.testing.assert_allclose(tip_from_tf, tip, rtol=0, atol=1e-9)
+    # the joint states (CDR, read by rclpy)
+    msg = joint_state(got["/joint_states"][0][1])
+    assert list(msg.name) == model.arm.joint_names
+    np.testing.assert_array_equal(msg.position, theta)
+    assert list(msg.effort) == [3.0, -4.0]
+    assert msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == stamp
