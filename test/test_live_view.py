@@ -274,3 +274,69 @@ def test_live_view_serves_the_deflected_arm():
     np.testing.assert_array_equal(msg.position, theta)
     assert list(msg.effort) == [3.0, -4.0]
     assert msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == stamp
+
+
+def start_view(*args):
+    """``flex-twin view ... --port 0 --wait`` and the port it reports on stderr."""
+    proc = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "view", *args,
+                             "--port", "0", "--wait"], stderr=subprocess.PIPE, text=True)
+    lines = []
+    for line in proc.stderr:
+        lines.append(line)
+        found = re.search(r"serving ws://localhost:(\d+)", line)
+        if found:
+            return proc, int(found.group(1))
+    proc.wait()
+    raise AssertionError("no server line: " + "".join(lines))
+
+
+def test_view_command_streams_the_swinging_arm():
+    duration = 0.5
+    proc, port = start_view("thesis_example1", "--duration", str(duration),
+                            "--joint-angles-deg", "30", "-45", "--publish-rate", "20")
+    try:
+        sub, _, channels, got = collect(port, timeout=60.0)
+        rest = proc.stderr.read()
+        assert proc.wait(timeout=30) == 0, rest
+    finally:
+        proc.kill()
+    assert f"streamed {duration:g} s simulated" in rest
+    for topic, (schema, _, _) in TOPICS.items():
+        assert channels[topic]["schemaName"] == schema
+    times = sorted(t for t, _ in got["/flex/shape"])
+    assert len(times) >= 5
+    for topic in TOPICS:  # every frame on every channel
+        assert sorted(t for t, _ in got[topic]) == times, topic
+    assert times[-1] - times[0] == pytest.approx(duration * 1e9, abs=2)  # ns
+    shapes = dict(decoded(channels, got, "/flex/shape"))
+    poses = dict(decoded(channels, got, "/flex/tip_pose"))
+    states = {t: joint_state(p) for t, p in got["/joint_states"]}
+    model = FlexArmModel(load_arm("thesis_example1"))
+    plane = urdf.plane_rotation(model.gravity)
+    theta0 = np.radians([30.0, -45.0])
+    q0 = model.q_from_joint_angles(theta0)
+    # the first frame: the arm at rest, as released
+    first = [np.array([point(p) for p in line["points"]])
+             for line in shapes[times[0]]["entities"][0]["lines"]]
+    for line, want in zip(first, shape_lines(model, q0, plane)):
+        np.testing.assert_allclose(line, want, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(states[times[0]].position, theta0, rtol=0, atol=1e-12)
+    # every frame: the tip pose is the last point of the shape
+    for t in times:
+        last = point(shapes[t]["entities"][0]["lines"][-1]["points"][-1])
+        np.testing.assert_allclose(point(poses[t]["pose"]["position"]), last, rtol=0,
+                                   atol=1e-9)
+    # the last frame: where the core's stepper has the arm after the same time (frames
+    # every 0.05 s: whole 1 ms steps, the same as one advance over 0.5 s)
+    from flex_model.stepper import Stepper
+    st = Stepper(model, q0)
+    st.advance(duration)
+    tip, _ = tip_in_base(model, st.q, plane)
+    end = point(poses[times[-1]]["pose"]["position"])
+    start = point(poses[times[0]]["pose"]["position"])
+    assert np.linalg.norm(end - start) > 0.01  # it swung
+    np.testing.assert_allclose(end, tip, rtol=0, atol=1e-9)  # the same 1 ms steps
+
+
+def shape_lines(model, q, plane):
+    return [urdf.plane_to_base(plane, line) for line in model.shape(q, 15)]

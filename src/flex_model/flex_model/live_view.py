@@ -212,10 +212,17 @@ class LiveView:
         moving = urdf.arm_transforms(self.model, q, self.frames)
         self.tf.log(frame_transforms(self.static_tf + moving, stamp), log_time=stamp)
 
-    def wait_for_subscriber(self, timeout: float | None = None) -> bool:
-        """Block until a client subscribes to a channel (True) or ``timeout`` s pass."""
-        return self.listener.subscribed.wait(timeout)
+    def wait_for_subscriber(self, timeout: float | None = None,
+                            settle: float = 0.2) -> bool:
+        """Block until a client subscribes to a channel (True) or ``timeout`` s pass; then
+        ``settle`` s more, for the rest of the client's burst of subscriptions."""
+        subscribed = self.listener.subscribed.wait(timeout)
+        if subscribed:
+            time.sleep(settle)
+        return subscribed
 
-    def close(self) -> None:
-        """Stop the server (clients see the connection close)."""
+    def close(self, linger: float = 0.0) -> None:
+        """Stop the server after ``linger`` s (the last messages still in flight reach the
+        clients); clients see the connection close."""
+        time.sleep(linger)
         self.server.stop()
