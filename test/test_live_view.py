@@ -340,3 +340,108 @@ def test_view_command_streams_the_swinging_arm():
 
 def shape_lines(model, q, plane):
     return [urdf.plane_to_base(plane, line) for line in model.shape(q, 15)]
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Warnings:
+    def __init__(self):
+        self.lines = []
+
+    def warning(self, text):
+        self.lines.append(text)
+
+    info = warning
+
+
+def test_node_view_in_a_port_in_use_is_a_warning():
+    from flex_model.live_view import node_live_view
+    model = FlexArmModel(load_arm("thesis_example1"))
+    taken = LiveView(model, port=0)
+    try:
+        log = Warnings()
+        assert node_live_view(model, taken.port, "", "base_link", 15, log) is None
+        assert log.lines and f"foxglove_port {taken.port}: no live view" in log.lines[0]
+        assert node_live_view(model, 0, "", "base_link", 15, log) is None  # 0: off
+    finally:
+        taken.close()
+
+
+def ns_of(stamp):
+    return stamp.sec * 10**9 + stamp.nanosec
+
+
+def test_model_node_streams_what_it_publishes_over_ros():
+    """foxglove_port: the node's Foxglove frames (at shape_rate) carry the state of its ROS
+    publications at the same simulation time: the tip, and the joint states."""
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
+
+    from flex_model.model_node import ModelNode
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    ns = f"/lv{uuid.uuid4().hex[:8]}"
+    params = {"arm": "thesis_example1", "foxglove_port": free_port(), "shape_rate": 20.0,
+              "publish_rate": 100.0, "initial_joint_angles_deg": [30.0, -45.0]}
+    node = ModelNode(context=ctx, namespace=ns, parameter_overrides=[
+        Parameter(k, value=v) for k, v in params.items()])
+    probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=ctx, namespace=ns)
+    ros_tips, ros_states = {}, {}
+    probe.create_subscription(PoseStamped, "flex/tip_pose",
+                              lambda m: ros_tips.__setitem__(ns_of(m.header.stamp), m), 100)
+    probe.create_subscription(JointState, "joint_states",
+                              lambda m: ros_states.__setitem__(ns_of(m.header.stamp), m), 100)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    ex.add_node(probe)
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            ex.spin_once(timeout_sec=0.005)
+    spinner = threading.Thread(target=spin, daemon=True)
+    spinner.start()
+    try:
+        assert node.live_view is not None and node.live_view.port == params["foxglove_port"]
+        _, info, channels, got = collect(node.live_view.port, per_topic=20, timeout=30.0)
+        epoch = node.live_view.epoch_ns
+    finally:
+        stop.set()
+        spinner.join()
+        if node.live_view is not None:
+            node.live_view.close()
+        ex.shutdown()
+        node.destroy_node()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    assert info["name"] == "flex_model"
+    plane = urdf.plane_rotation(node.model.gravity)
+    poses = decoded(channels, got, "/flex/tip_pose")
+    shapes = dict(decoded(channels, got, "/flex/shape"))
+    states = dict(got["/joint_states"])
+    matched = 0
+    for log_time, pose in poses:
+        t_ns = log_time - epoch  # the node's simulation time
+        ros = [m for s, m in ros_tips.items() if abs(s - t_ns) <= 1000]
+        if not ros:
+            continue  # before the probe was discovered
+        matched += 1
+        p = ros[0].pose.position  # in arm_plane
+        tip = point(pose["pose"]["position"])
+        np.testing.assert_allclose(tip, plane @ [p.x, p.y, p.z], rtol=0, atol=1e-9)
+        last = point(shapes[log_time]["entities"][0]["lines"][-1]["points"][-1])
+        np.testing.assert_allclose(last, tip, rtol=0, atol=1e-9)
+        (ros_state,) = [m for s, m in ros_states.items() if abs(s - t_ns) <= 1000]
+        ours = joint_state(states[log_time])
+        np.testing.assert_array_equal(ours.position, ros_state.position)
+        np.testing.assert_array_equal(ours.effort, ros_state.effort)
+    assert matched >= 5
+    tips = [point(pose["pose"]["position"]) for _, pose in poses]
+    assert np.linalg.norm(tips[-1] - tips[0]) > 1e-3  # the arm moved: not one state

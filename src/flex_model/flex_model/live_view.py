@@ -226,3 +226,20 @@ class LiveView:
         clients); clients see the connection close."""
         time.sleep(linger)
         self.server.stop()
+
+
+def node_live_view(model: FlexArmModel, port: int, frame_prefix: str, frame_id: str,
+                   points_per_link: int, logger) -> LiveView | None:
+    """The model node's view (its parameter ``foxglove_port``; 0: none) on 127.0.0.1. A
+    port in use or foxglove-sdk missing is one warning on ``logger`` (``info``,
+    ``warning``): the node runs on without the view."""
+    if not port:
+        return None
+    try:
+        view = LiveView(model, port=port, points_per_link=points_per_link,
+                        frame_prefix=frame_prefix, frame_id=frame_id, name="flex_model")
+    except (RuntimeError, ImportError) as exc:
+        logger.warning(f"foxglove_port {port}: no live view ({exc})")
+        return None
+    logger.info(f"live view: {view.url} (Foxglove: Open connection > Foxglove WebSocket)")
+    return view
