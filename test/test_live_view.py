@@ -445,3 +445,56 @@ def test_model_node_streams_what_it_publishes_over_ros():
     assert matched >= 5
     tips = [point(pose["pose"]["position"]) for _, pose in poses]
     assert np.linalg.norm(tips[-1] - tips[0]) > 1e-3  # the arm moved: not one state
+
+
+class FakeView:
+    def __init__(self):
+        self.frames = []
+
+    def publish(self, t, q, angles, rates, torques):
+        self.frames.append(t)
+
+
+class FakeClock:
+    def __init__(self, step_cost):
+        self.now, self.step_cost, self.sleeps = 100.0, step_cost, []
+
+    def clock(self):
+        self.now += self.step_cost  # every look at the clock: some work done
+        return self.now
+
+    def sleep(self, s):
+        self.sleeps.append(s)
+        self.now += s
+
+
+class Source:
+    def at(self, t):
+        return t, None, None, None, None
+
+
+@pytest.mark.parametrize("cost", [0.001, 0.2])  # on time; slower than the frame period
+def test_stream_frames_on_the_simulation_grid(cost):
+    """Frame k at simulation time k F / HZ (F = 2, HZ = 10: every 0.2 s), the last at the
+    duration; on time, frame k leaves at wall k / HZ; behind, none is skipped."""
+    from flex_twin.view_cli import stream
+    view, clk, seen = FakeView(), FakeClock(cost), []
+    simulated, wall = stream(view, Source(), 1.3, 2.0, 10.0, seen.append, clk.clock,
+                             clk.sleep)
+    np.testing.assert_allclose(view.frames, [0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.3],
+                               rtol=0, atol=1e-12)
+    assert seen == view.frames and simulated == 1.3
+    if cost < 0.01:
+        assert wall == pytest.approx(0.7 + cost, abs=1e-9)  # 7 periods + the last look
+    else:  # one look a frame at 0.2 s: longer than the 0.1 s period, never a sleep
+        assert max(clk.sleeps) == 0.0 and wall == pytest.approx(8 * 0.2, abs=1e-9)
+
+
+def test_view_refuses_bad_input(capsys):
+    from flex_twin.cli import main
+    for argv, what in ((["view", "thesis_three_link_pd", "--joint-angles-deg", "10"],
+                        "--joint-angles-deg"),
+                       (["view", "thesis_example1", "--rate-factor", "0"], "--rate-factor"),
+                       (["view", "seed000_real_arm_3d"], "spatial")):
+        assert main(argv) == 2
+        assert what in capsys.readouterr().err

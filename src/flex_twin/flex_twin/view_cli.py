@@ -96,6 +96,8 @@ def _source(args):
     if is_spatial_arm(ref) or is_spatial_scenario(ref):
         raise ValueError(f"{ref}: a spatial arm; flex-twin view streams planar arms only")
     if ref in scenario_names() or _is_scenario_file(ref):
+        if args.joint_angles_deg is not None:
+            raise ValueError("--joint-angles-deg: for an arm; a scenario has its own start")
         sc = load_scenario(ref, args.vars_per_link)
         if args.duration is not None:
             sc.duration = args.duration
