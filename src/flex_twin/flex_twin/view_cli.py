@@ -8,8 +8,11 @@ Open connection > Foxglove WebSocket > ws://localhost:8765.
 """
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
 import sys
+import threading
 import time
 
 import numpy as np
@@ -64,11 +67,13 @@ class PlaybackSource:
 
 
 def stream(view, source, duration: float, rate_factor: float, publish_rate: float,
-           progress, clock=time.monotonic, sleep=time.sleep) -> tuple[float, float]:
+           progress, clock=time.monotonic, sleep=time.sleep,
+           stopped=lambda: False) -> tuple[float, float]:
     """Publish ``source`` on ``view`` at ``publish_rate`` (Hz, wall clock): frame k at
     simulation time k rate_factor / publish_rate (the last at ``duration``, s), sent at
     wall time k / publish_rate; returns (simulated, wall) seconds. A source slower than
-    that runs behind (frames come late, none is skipped)."""
+    that runs behind (frames come late, none is skipped). ``stopped()`` true: stop after
+    the frame."""
     period, frame = 1.0 / publish_rate, 0
     start = clock()
     view.epoch_ns = time.time_ns()  # stamps: now + simulation time
@@ -77,7 +82,7 @@ def stream(view, source, duration: float, rate_factor: float, publish_rate: floa
         t, q, angles, rates, torques = source.at(target)
         view.publish(t, q, angles, rates, torques)
         progress(t)
-        if target >= duration:
+        if target >= duration or stopped():
             return t, clock() - start
         frame += 1
         sleep(max(0.0, start + frame * period - clock()))
@@ -156,21 +161,39 @@ def cmd_view(args) -> int:
     view = LiveView(model, port=args.port, host=args.host, points_per_link=args.shape_points)
     print(f"flex-twin view: {label}; serving {view.url} (Foxglove: Open connection > "
           f"Foxglove WebSocket); Ctrl-C stops", file=sys.stderr, flush=True)
-    try:
-        if args.wait:
-            print("flex-twin view: waiting for a client to subscribe", file=sys.stderr,
-                  flush=True)
-            view.wait_for_subscriber()
-        simulated, wall = stream(view, source, duration, args.rate_factor,
-                                 args.publish_rate, _progress("view", duration))
-        print(f"flex-twin view: streamed {simulated:g} s simulated in {wall:.2f} s wall",
-              file=sys.stderr)
-        linger = LINGER
-    except KeyboardInterrupt:
-        print("\nflex-twin view: stopped", file=sys.stderr)
-    finally:
-        view.close(linger)
+    with _stop_on_signals() as stop:
+        try:
+            if args.wait:
+                print("flex-twin view: waiting for a client to subscribe", file=sys.stderr,
+                      flush=True)
+                while not (view.wait_for_subscriber(0.1) or stop.is_set()):
+                    pass
+            if not stop.is_set():
+                simulated, wall = stream(view, source, duration, args.rate_factor,
+                                         args.publish_rate, _progress("view", duration),
+                                         stopped=stop.is_set)
+                end = " (stopped)" if stop.is_set() else ""
+                print(("\n" if end and sys.stderr.isatty() else "") + f"flex-twin view: "
+                      f"streamed {simulated:g} s simulated in {wall:.2f} s wall{end}",
+                      file=sys.stderr)
+                linger = LINGER
+        finally:
+            view.close(linger)
     return 0
+
+
+@contextlib.contextmanager
+def _stop_on_signals():
+    """An Event set by Ctrl-C or SIGTERM while inside (the stream stops between frames: a
+    KeyboardInterrupt inside the compiled integrator would surface as a SystemError)."""
+    stop = threading.Event()
+    handlers = {sig: signal.signal(sig, lambda *_: stop.set())
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for sig, handler in handlers.items():
+            signal.signal(sig, handler)
 
 
 def add_view_parser(sub) -> None:
