@@ -147,14 +147,19 @@ def frame_transforms(transforms, stamp_ns: int):
 
 
 # ---------------------------------------------------------------- the server
-class _SubscriptionListener:
-    """foxglove ServerListener: sets ``subscribed`` at the first subscription."""
+def _subscription_listener():
+    """A foxglove ServerListener (its other callbacks: the protocol's no-ops) whose
+    ``subscribed`` Event is set at the first subscription."""
+    from foxglove.websocket import ServerListener
 
-    def __init__(self):
-        self.subscribed = threading.Event()
+    class SubscriptionListener(ServerListener):
+        def __init__(self):
+            self.subscribed = threading.Event()
 
-    def on_subscribe(self, client, channel) -> None:
-        self.subscribed.set()
+        def on_subscribe(self, client, channel) -> None:
+            self.subscribed.set()
+
+    return SubscriptionListener()
 
 
 class LiveView:
@@ -180,7 +185,7 @@ class LiveView:
         self.tip_pose = channels.PoseInFrameChannel("/flex/tip_pose", context=ctx)
         self.shape = channels.SceneUpdateChannel("/flex/shape", context=ctx)
         self.tf = channels.FrameTransformsChannel("/tf", context=ctx)
-        self.listener = _SubscriptionListener()
+        self.listener = _subscription_listener()
         self.server = foxglove.start_server(name=name, host=host, port=port, context=ctx,
                                             server_listener=self.listener)
 
