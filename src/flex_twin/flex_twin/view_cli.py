@@ -96,7 +96,7 @@ def _source(args):
     from flex_model.spatial.description import is_spatial_arm
     from flex_model.spatial.scenario import is_spatial_scenario
 
-    from .cli import Progress
+    from flex_model.command import Progress
     ref = args.arm_or_scenario
     if is_spatial_arm(ref) or is_spatial_scenario(ref):
         raise ValueError(f"{ref}: a spatial arm; flex-twin view streams planar arms only")
@@ -130,7 +130,7 @@ def _is_scenario_file(ref: str) -> bool:
 
 def _progress(label: str, duration: float):
     """cli.Progress for a finite run; else a line every 10 s of wall time."""
-    from .cli import Progress
+    from flex_model.command import Progress
     if math.isfinite(duration):
         bar = Progress(label)
         return lambda t: bar(t, duration)
