@@ -499,3 +499,23 @@ def test_view_refuses_bad_input(capsys):
                        (["view", "seed000_real_arm_3d"], "spatial")):
         assert main(argv) == 2
         assert what in capsys.readouterr().err
+
+
+def test_playback_holds_the_last_sample():
+    """A scenario plays back sample by sample: at t the last sample at or before t, with
+    the joint angles and rates of that sample's q and v."""
+    from flex_model.simulate import SimulationResult
+    from flex_twin.view_cli import PlaybackSource
+    model = FlexArmModel(load_arm("thesis_example1"))
+    t = np.array([0.0, 0.01, 0.02, 0.03])
+    q = np.array([model.q_from_joint_angles([0.1 * k, -0.2 * k]) for k in range(4)])
+    v = np.array([model.v_from_joint_rates([k, 2.0 * k]) for k in range(4)])
+    tau = np.arange(8.0).reshape(4, 2)
+    source = PlaybackSource(SimulationResult(model, t, q, v, tau))
+    assert source.duration == 0.03
+    for when, k in ((0.0, 0), (0.0149, 1), (0.02, 2), (0.5, 3)):
+        t_k, q_k, angles, rates, torques = source.at(when)
+        assert t_k == t[k] and np.array_equal(q_k, q[k])
+        np.testing.assert_allclose(angles, [0.1 * k, -0.2 * k], rtol=0, atol=1e-15)
+        np.testing.assert_allclose(rates, [k, 2.0 * k], rtol=0, atol=1e-12)
+        assert list(torques) == [2.0 * k, 2.0 * k + 1]
