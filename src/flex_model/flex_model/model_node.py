@@ -109,6 +109,7 @@ from .dynamics import FlexArmModel
 from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
                        guard_parameters, lean_node, run_node)
 from .stepper import Stepper
+from .trajectory_action import action_server
 
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
@@ -303,6 +304,8 @@ class ModelNode(Node):
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.loop = self._in_loop_controller(p) if p["controller"] else None
+        # control_msgs/FollowJointTrajectory for the in-loop controller (trajectory_action)
+        self.fjt = action_server(self) if self.loop is not None else None
         guard_parameters(self, PARAMETERS, self.p.update)
         self.last_wall = time.monotonic()
         # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog;
@@ -595,6 +598,8 @@ class ModelNode(Node):
             self.next_shape = t + 1.0 / self.p["shape_rate"]
         if full or (self.p["mode"] == "lockstep" and self.loop is None):
             self.publish_state(full=full, shape=shape)
+        if self.fjt is not None:  # the running FollowJointTrajectory goal's verdict
+            self.fjt.check()
 
     def apply_command_timeout(self, stalled: bool = False) -> None:
         """After command_timeout s (simulation time) without a valid command, or at once on
@@ -636,6 +641,8 @@ class ModelNode(Node):
         self.get_logger().error(self.diverged.message + f" ({exc})")
         self.publish_diagnostic(self.diverged)
         self.next_diagnostic = time.monotonic() + 1.0
+        if self.fjt is not None:
+            self.fjt.check()
 
     def publish_diagnostic(self, status) -> None:
         msg = DiagnosticArray(status=[status])
