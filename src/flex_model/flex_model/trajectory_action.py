@@ -315,7 +315,8 @@ class FollowJointTrajectoryServer:
 
     def _cancel(self, handle) -> None:
         """A cancel of the running goal holds the joints where they are."""
-        if self.active is not None and self.active[0].goal_id.uuid == handle.goal_id.uuid:
+        if self.active is not None and \
+                bytes(self.active[0].goal_id.uuid) == bytes(handle.goal_id.uuid):
             self.finish(CANCELED, "canceled")
 
     def finish(self, code, reason: str) -> None:
@@ -330,8 +331,10 @@ class FollowJointTrajectoryServer:
             self.node.loop.set_trajectory(hold(self.node.names, st.joint_state()[0]), st.t)
         future.set_result((code, reason))
         text = f"FollowJointTrajectory goal: {CODE_NAMES.get(code, code)} {reason}".rstrip()
-        (self.node.get_logger().info if code in (SUCCESSFUL, CANCELED)
-         else self.node.get_logger().warning)(text)
+        if code in (SUCCESSFUL, CANCELED):  # (rclpy: one severity per call site)
+            self.node.get_logger().info(text)
+        else:
+            self.node.get_logger().warning(text)
 
     def check(self) -> None:
         """After a step: the running goal's verdict, feedback every FEEDBACK_PERIOD s."""
