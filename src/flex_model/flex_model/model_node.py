@@ -17,7 +17,7 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
                         in the last link's tip frame
     robot_description   std_msgs/String          the URDF (transient local, depth 1)
     /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips; base ->
-                        arm_plane (only where tf2_msgs can be imported: not in the pip venv)
+                        arm_plane (where tf2_msgs imports: scripts/bootstrap.sh builds it)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
     /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a divergence (every
@@ -27,6 +27,8 @@ Subscriptions:
     flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
 Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; after a
 divergence it restarts the loop), ~/pause (std_srvs/SetBool).
+Action (with an in-loop controller, where control_msgs imports): joint_trajectory_controller/
+follow_joint_trajectory (control_msgs/FollowJointTrajectory, flex_model.trajectory_action).
 
 Parameters (:data:`PARAMETERS`: defaults, descriptions, checks): arm (default
 thesis_example1_motors: with its geared motors the default controller node, a sampled
