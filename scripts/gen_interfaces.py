@@ -7,7 +7,10 @@ gcc/g++ and installs it the way the ros-* wheels lay out their own packages:
   .venv/lib/lib<pkg>__<part>.so            (found through the wheels' LD_LIBRARY_PATH hook)
   .venv/lib/python3.11/site-packages/<pkg> (the Python package and its C extensions)
   .venv/share/<pkg>/...                    (.msg/.idl/.json, ament index entries)
-Build files stay in .venv/build-interfaces. Usage: python scripts/gen_interfaces.py [--venv DIR]
+Build files stay in .venv/build-interfaces. Usage, with that venv's python:
+  .venv/bin/python scripts/gen_interfaces.py [--venv DIR]
+The generator classes are called directly: the `rosidl generate` CLI refuses to start here
+(each generator wheel registers its entry points twice, egg-info and dist-info).
 """
 import argparse
 import concurrent.futures as cf
@@ -49,7 +52,7 @@ def run(cmd):
 
 
 def interface_files(pkg):
-    """'<prefix>:<relative path>' of every .msg/.srv/.action shipped for pkg."""
+    """(package folder, relative paths of every .msg/.srv/.action shipped for pkg)."""
     root = SOURCES / pkg
     files = [p for p in sorted(root.glob('*/*')) if p.suffix in ('.msg', '.srv', '.action')]
     return root, [p.relative_to(root) for p in files]
@@ -67,7 +70,8 @@ def to_idl(pkg, root, rel_files, out):
 
 
 def generate(pkg, share, build):
-    """Run every rosidl generator for pkg into build/<generator>/<pkg>; return idl tuples."""
+    """Run every rosidl generator for pkg into build/<generator>/<pkg>; return the .idl
+    tuples and the .json type descriptions (with the hashes)."""
     from rosidl_generator_c.cli import GenerateC
     from rosidl_generator_py.cli import GeneratePython
     from rosidl_generator_type_description.cli import HashTypeDescription
@@ -147,7 +151,8 @@ def build_python(pkg, venv, build, flags, site):
          '-o', str(lib / f'lib{pkg}__rosidl_generator_py.so'), *common])
 
     def ext(ts):
-        run(['gcc', *flags, str(src / f'_{pkg}_s.ep.{ts}.c'), '-o', str(dest / f'{pkg}_s__{ts}.so'),
+        run(['gcc', *flags, str(src / f'_{pkg}_s.ep.{ts}.c'),
+             '-o', str(dest / f'{pkg}_s__{ts}.so'),
              f'-l{pkg}__rosidl_generator_py', f'-l{pkg}__{ts}', *common, '-lrmw'])
     with cf.ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
         for f in [pool.submit(ext, ts) for ts in ['rosidl_typesupport_c'] + TYPESUPPORTS]:
@@ -180,7 +185,7 @@ def install_share(pkg, venv, idl, json_files):
 
 def build_package(pkg, venv, build):
     """Generate, compile and install one package; return its number of interfaces."""
-    site = pathlib.Path(sysconfig.get_paths()['purelib'])
+    site = venv / 'lib' / f'python{sys.version_info[0]}.{sys.version_info[1]}' / 'site-packages'
     idl, json_files = generate(pkg, venv / 'share', build)
     flags = compile_flags(venv, build)
     build_libs(pkg, venv, build, flags)
@@ -200,8 +205,11 @@ def main(argv=None):
         if shutil.which(tool) is None:
             sys.exit(f'[gen_interfaces] error: {tool} not found (apt-get install gcc g++)')
     if not (pathlib.Path(sysconfig.get_paths()['include']) / 'Python.h').exists():
-        sys.exit('[gen_interfaces] error: Python.h not found (Debian: apt-get install python3.11-dev)')
-    os.environ.setdefault('AMENT_PREFIX_PATH', str(venv))  # get_package_share_directory
+        sys.exit('[gen_interfaces] error: Python.h not found (Debian: apt-get install '
+                 'python3.11-dev)')
+    # the generators' templates and the dependencies' .idl/.json: the venv's, not a sourced
+    # ROS install's (get_package_share_directory)
+    os.environ['AMENT_PREFIX_PATH'] = str(venv)
     t0 = time.monotonic()
     # one process per package (the generators are single-threaded Python)
     with cf.ProcessPoolExecutor(max_workers=len(PACKAGES)) as pool:
@@ -209,6 +217,7 @@ def main(argv=None):
         for pkg, job in jobs.items():
             log(f'{pkg}: {job.result()} interfaces built')
     log(f'done in {time.monotonic() - t0:.1f} s')
+
 
 if __name__ == '__main__':
     main()

@@ -26,8 +26,8 @@ import rclpy
 from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from tf2_msgs.msg import TFMessage  # built into .venv by scripts/bootstrap.sh
 
-TFMessage = pytest.importorskip("tf2_msgs.msg").TFMessage
 
 JAZZY = {
     "tf2_msgs/msg/TFMessage":

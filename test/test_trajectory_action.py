@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 import rclpy
 from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory as FJT  # built by scripts/bootstrap.sh
+from control_msgs.msg import JointTolerance
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter as P
@@ -46,7 +48,6 @@ def test_goal_tolerances_resolve_as_jtc():
 
 
 def points(times, positions, names=NAMES, velocities=None, start=0.0):
-    n = len(names)
     return ta.GoalPoints(list(names), list(times), [list(p) for p in positions],
                          velocities or [[] for _ in times], [[] for _ in times],
                          [[] for _ in times], start)
@@ -117,8 +118,6 @@ def test_no_control_msgs_no_server_and_a_log_line(monkeypatch):
 
 
 # ------------------------------------------------------------------ live
-FJT = pytest.importorskip("control_msgs.action").FollowJointTrajectory
-JointTolerance = pytest.importorskip("control_msgs.msg").JointTolerance
 SUCCEEDED, CANCELED, ABORTED = 4, 5, 6  # action_msgs/GoalStatus
 
 
