@@ -8,7 +8,8 @@ here) and the rosidl_generator_c output of a public Jazzy-era colcon build
 control_msgs (saahu27/aprs, aprs_ws/build/control_msgs/rosidl_generator_c/control_msgs/
 action/detail/follow_joint_trajectory__description.c) and, for the messages, rosbags'
 hash of the shipped definitions. Live: /tf_static + /tf of a model node in another process
-rebuild the frame chain, which ends at the pose on /flex/tip_pose.
+rebuild the frame chain, which ends at the pose on /flex/tip_pose; the graph reports Jazzy's
+hash for /tf, and rosbags decodes the raw /tf bytes to the same numbers (the wire format).
 """
 import json
 import math
@@ -159,6 +160,8 @@ def test_tf_from_another_process_ends_at_the_tip_pose(repo_root):
         probe.create_subscription(TFMessage, "/tf_static", lambda m: on_tf(m, static),
                                   latched)
         probe.create_subscription(TFMessage, "/tf", lambda m: on_tf(m, tfs), 100)
+        raw = []  # the same messages as bytes, decoded by rosbags (Jazzy's wire format)
+        probe.create_subscription(TFMessage, "/tf", raw.append, 100, raw=True)
         probe.create_subscription(PoseStamped, f"{ns}/flex/tip_pose",
                                   lambda m: tips.__setitem__(stamp(m.header), m), 100)
         ex = SingleThreadedExecutor(context=ctx)
@@ -190,6 +193,18 @@ def test_tf_from_another_process_ends_at_the_tip_pose(repo_root):
             np.testing.assert_allclose(p, [x, 0.0, y], rtol=0, atol=1e-9)
             angles.append(phi)
         assert np.ptp(angles) > 1e-4  # the arm moved: the chain followed it
+        from rosbags.typesys import Stores, get_typestore
+        store, decoded = get_typestore(Stores.ROS2_JAZZY), 0
+        for data in raw:
+            msg = store.deserialize_cdr(data, "tf2_msgs/msg/TFMessage")
+            for t in msg.transforms:
+                s = t.header.stamp.sec * 10**9 + t.header.stamp.nanosec
+                if t.child_frame_id == tip and tip in tfs.get(s, {}):
+                    got = tfs[s][tip].transform
+                    assert (t.transform.translation.x, t.transform.rotation.w) == \
+                        (got.translation.x, got.rotation.w)
+                    decoded += 1
+        assert decoded >= 10
     finally:
         if probe is not None:
             probe.destroy_node()
