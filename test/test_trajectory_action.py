@@ -244,7 +244,7 @@ def test_goal_tolerance_violation_after_goal_time(rig):
     res = rig.result(handle)
     assert (res.status, res.result.error_code) == (ABORTED, FJT.Result.GOAL_TOLERANCE_VIOLATED)
     late = float(res.result.error_string.split(" s after")[0])
-    assert 0.3 < late < 0.35
+    assert 0.3 <= late < 0.35  # (printed to 0.1 ms; checked each 10 ms publication)
     assert rig.node.stepper.t > t_goal + 0.8
 
 
