@@ -240,12 +240,10 @@ def test_goal_tolerance_violation_after_goal_time(rig):
     once goal_time_tolerance (0.3 s) is over, not before."""
     start = rig.angles()
     handle = rig.send(ramp(start, start + [0.1, 0.1], 0.5, goal=1e-4, goal_time=0.3))
-    t_goal = rig.node.stepper.t
     res = rig.result(handle)
     assert (res.status, res.result.error_code) == (ABORTED, FJT.Result.GOAL_TOLERANCE_VIOLATED)
     late = float(res.result.error_string.split(" s after")[0])
     assert 0.3 <= late < 0.35  # (printed to 0.1 ms; checked each 10 ms publication)
-    assert rig.node.stepper.t > t_goal + 0.8
 
 
 def test_cancel_holds_the_joints(rig):
