@@ -303,7 +303,7 @@ class FollowJointTrajectoryServer:
         if why:
             node.get_logger().error(f"FollowJointTrajectory goal: {why}")
         self.finish(INVALID_GOAL, "preempted by a new goal")
-        position, velocity, _ = st.joint_state()
+        position, velocity = self.joints()
         data = trajectory_data(points, node.names, position, velocity)
         start = points.start if points.start > 0 else st.t
         node.loop.set_trajectory(data, start)
@@ -312,6 +312,11 @@ class FollowJointTrajectoryServer:
         node.get_logger().info(f"FollowJointTrajectory goal: {len(points.times)} points, "
                                f"{data.duration:.3f} s from t = {start:.3f} s")
         handle.execute()
+
+    def joints(self):
+        """Joint angles (rad) and rates (rad/s) now (Stepper.joint_state without torques)."""
+        st = self.node.stepper
+        return st.model.joint_angles(st.q), st.model.G @ st.v
 
     def _cancel(self, handle) -> None:
         """A cancel of the running goal holds the joints where they are."""
@@ -328,7 +333,7 @@ class FollowJointTrajectoryServer:
         self.active = None
         if code not in (SUCCESSFUL, INVALID_GOAL):
             st = self.node.stepper
-            self.node.loop.set_trajectory(hold(self.node.names, st.joint_state()[0]), st.t)
+            self.node.loop.set_trajectory(hold(self.node.names, self.joints()[0]), st.t)
         future.set_result((code, reason))
         text = f"FollowJointTrajectory goal: {CODE_NAMES.get(code, code)} {reason}".rstrip()
         if code in (SUCCESSFUL, CANCELED):  # (rclpy: one severity per call site)
@@ -346,7 +351,7 @@ class FollowJointTrajectoryServer:
         if node.loop.t0 != self.t0:  # a JointTrajectory on flex_planner/trajectory
             return self.finish(INVALID_GOAL, "replaced by a trajectory on "
                                "flex_planner/trajectory")
-        position, velocity, _ = st.joint_state()
+        position, velocity = self.joints()
         handle, monitor, _ = self.active
         verdict = monitor.check(st.t, position, velocity)
         if st.t >= self.next_feedback - 1e-12 or verdict is not None:
