@@ -17,7 +17,7 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
                         in the last link's tip frame
     robot_description   std_msgs/String          the URDF (transient local, depth 1)
     /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips; base ->
-                        arm_plane (only where tf2_msgs can be imported: not in the pip venv)
+                        arm_plane (where tf2_msgs imports: scripts/bootstrap.sh builds it)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
     /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a divergence (every
@@ -27,6 +27,8 @@ Subscriptions:
     flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
 Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; after a
 divergence it restarts the loop), ~/pause (std_srvs/SetBool).
+Action (with an in-loop controller, where control_msgs imports): joint_trajectory_controller/
+follow_joint_trajectory (control_msgs/FollowJointTrajectory, flex_model.trajectory_action).
 
 Parameters (:data:`PARAMETERS`: defaults, descriptions, checks): arm (default
 thesis_example1_motors: with its geared motors the default controller node, a sampled
@@ -109,6 +111,7 @@ from .dynamics import FlexArmModel
 from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
                        guard_parameters, lean_node, run_node)
 from .stepper import Stepper
+from .trajectory_action import action_server
 
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
@@ -310,6 +313,8 @@ class ModelNode(Node):
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.loop = self._in_loop_controller(p) if p["controller"] else None
+        # control_msgs/FollowJointTrajectory for the in-loop controller (trajectory_action)
+        self.fjt = action_server(self) if self.loop is not None else None
         guard_parameters(self, PARAMETERS, self.p.update)
         self.last_wall = time.monotonic()
         # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog;
@@ -602,6 +607,8 @@ class ModelNode(Node):
             self.next_shape = t + 1.0 / self.p["shape_rate"]
         if full or (self.p["mode"] == "lockstep" and self.loop is None):
             self.publish_state(full=full, shape=shape)
+        if self.fjt is not None:  # the running FollowJointTrajectory goal's verdict
+            self.fjt.check()
 
     def apply_command_timeout(self, stalled: bool = False) -> None:
         """After command_timeout s (simulation time) without a valid command, or at once on
@@ -643,6 +650,8 @@ class ModelNode(Node):
         self.get_logger().error(self.diverged.message + f" ({exc})")
         self.publish_diagnostic(self.diverged)
         self.next_diagnostic = time.monotonic() + 1.0
+        if self.fjt is not None:
+            self.fjt.check()
 
     def publish_diagnostic(self, status) -> None:
         msg = DiagnosticArray(status=[status])
