@@ -9,8 +9,9 @@ in the namespace, for two lockstep twins).
 Publications (simulation time in every header; frames: flex_model.urdf, REP 103 z up):
     joint_states        sensor_msgs/JointState   joint angles (encoder), rates, applied torques
     flex/deflections    sensor_msgs/JointState   link<i>/tip_deflection (m), tip_rotation (rad)
-    flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``arm_plane`` (the
-                        model's plane coordinates)
+    flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``frame_id`` (the
+                        base, z up, as flex/shape: its last point; the plane's (x, y, phi)
+                        turned by urdf.plane_rotation)
     flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords, in
                         ``frame_id`` (the base, z up)
     flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor,
@@ -272,7 +273,7 @@ class ModelNode(Node):
         self.cdr_js = conv.joint_state_cdr(self.names, n)
         self.cdr_defl = conv.joint_state_cdr(conv.deflection_names(self.links), 2 * n,
                                              effort=False)
-        self.cdr_tip = conv.tip_pose_cdr(self.frames.plane)
+        self.cdr_tip = conv.tip_pose_cdr(self.frames.base)  # the base, as flex/shape
         self.cdr_clock = conv.clock_cdr()
         self.cdr_imu = conv.imu_cdr(self.frames.tips[-1]) if self.has_imu else None
         self.msg_shape = conv.ShapeMarkers(n, int(p["shape_points"]), self.frames.base)
@@ -663,7 +664,8 @@ class ModelNode(Node):
         self.pub_defl.publish(self.cdr_defl.fill(t, values))
         x, y = self.model.link_origins(q)[-1]  # st.tip_pose()
         phi = float(q[self._last_alpha] + r[-1] @ q)
-        self.pub_tip.publish(self.cdr_tip.fill(t, conv.tip_pose_values(x, y, phi)))
+        self.pub_tip.publish(self.cdr_tip.fill(t, conv.tip_pose_values(x, y, phi,
+                                                                       self.plane)))
         # the costly two only when someone listens (volatile topics: a subscriber that is
         # not there gets nothing either way; get_subscription_count costs about 1 us)
         if shape and self.pub_shape.get_subscription_count():  # base frame, z up (REP 103)
