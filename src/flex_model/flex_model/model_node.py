@@ -21,8 +21,9 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
                         arm_plane (only where tf2_msgs can be imported: not in the pip venv)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
-    /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a divergence (every
-                        second until ~/reset), OK after the reset
+    /diagnostics        diagnostic_msgs/DiagnosticArray  OK (running or paused, mode,
+                        simulation time) every second of wall time in every mode; ERROR
+                        after a divergence (every second until ~/reset), OK after it
 Subscriptions:
     effort_controller/commands  std_msgs/Float64MultiArray  joint torques, joint order
     flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
@@ -90,6 +91,7 @@ from contextlib import ExitStack
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -107,7 +109,8 @@ from .arm import load_arm
 from .control_loop import ControlLoop
 from .controller_interface import load_controller
 from .dynamics import FlexArmModel
-from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
+from .ros_main import (FLOAT_MAX, INT_MAX, Param, ParameterError, ReasonLog,
+                       declare_parameters, fmt,
                        guard_parameters, lean_node, run_node)
 from .stepper import Stepper
 
@@ -223,13 +226,23 @@ PARAMETERS = (
     Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
 )
 
+#: ranges of the numeric parameters in their descriptors (ros_main.descriptor): the bounds
+#: of their checks (an open "> 0" is [0, max] there, the check refuses the 0)
+RANGES = {"vars_per_link": (0, INT_MAX, 2), "rate": (0.0, FLOAT_MAX),
+          "publish_rate": (0.0, FLOAT_MAX), "shape_rate": (0.0, FLOAT_MAX),
+          "max_step": (0.0, 0.1), "command_timeout": (0.0, FLOAT_MAX),
+          "lockstep_timeout": (0.0, FLOAT_MAX), "shape_points": (2, 10000),
+          "realtime_priority": (0, 99), "max_torque": (0.0, FLOAT_MAX),
+          "max_payload_mass": (0.0, FLOAT_MAX), "max_payload_inertia": (0.0, FLOAT_MAX),
+          "controller_rate": (0.0, FLOAT_MAX)}
+
 
 class ModelNode(Node):
     """The arm simulated at ``rate`` and published at ``publish_rate``."""
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
-        p = declare_parameters(self, PARAMETERS)
+        p = declare_parameters(self, PARAMETERS, RANGES)
         try:
             arm = load_arm(p["arm"], p["vars_per_link"] or None)
             if p["kinematics"]:
@@ -312,6 +325,8 @@ class ModelNode(Node):
         if self.loop is not None and p["mode"] == "lockstep":
             period = 1e-4
         self.timer = self.create_timer(period, self.on_tick)
+        self.create_timer(1.0, self.on_status,  # wall time: sim time may stand still
+                          clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
@@ -462,6 +477,16 @@ class ModelNode(Node):
         self.publish_state(full=True)
         response.success, response.message = True, "reset to the initial state at t = 0"
         return response
+
+    def on_status(self) -> None:
+        """The node's OK status on /diagnostics every second of wall time, in every mode
+        (a diagnostic aggregator marks a node stale without one); after a divergence
+        on_tick repeats the ERROR instead."""
+        if self.diverged is None:
+            self.publish_diagnostic(conv.diagnostic_status(
+                self.get_fully_qualified_name(), self.model.arm.name, "ok",
+                f"{'paused' if self.paused else 'running'} ({self.p['mode']})",
+                t=fmt(self.stepper.t)))
 
     def on_pause(self, request, response):
         was_paused, self.paused = self.paused, bool(request.data)

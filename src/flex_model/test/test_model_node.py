@@ -308,9 +308,9 @@ def test_runtime_parameters_refused_with_a_reason_or_applied(lockstep):
     integer is taken for a float."""
     node = lockstep.node
     res = node.set_parameters([Parameter("rate", value=10.0)])[0]
-    assert not res.successful and "parameter rate is read-only at run time" in res.reason
+    assert not res.successful and "read-only parameter: rate" in res.reason  # descriptor
     res = node.set_parameters([Parameter("command_timeout", value=-1.0)])[0]
-    assert not res.successful and "command_timeout: got -1; expected a time >= 0" in res.reason
+    assert not res.successful and "command_timeout out of range" in res.reason  # its range
     res = node.set_parameters([Parameter("timeout_action", value="brake")])[0]
     assert not res.successful and "expected one of hold, zero" in res.reason
     res = node.set_parameters([Parameter("max_torque", value=50)])[0]
