@@ -162,3 +162,95 @@ def test_up_runs_the_docs_two_arm_file_in_its_namespaces():
     a, b = (np.degrees(running[k].model.joint_angles(running[k].stepper.q))
             for k in ("/robot1/flex_model", "/robot2/flex_model"))
     assert abs(a[0] - b[0]) > 80.0  # two different arms, not one twice
+
+
+LAUNCH = Path(__file__).resolve().parents[1] / "ros2_ws" / "launch" / "suite.launch.py"
+
+
+def _launch_with_stubs(monkeypatch, path):
+    """The launch file's module, with stand-ins for the launch and launch_ros packages
+    (not among the pip wheels): each records what the file gives it."""
+    import importlib.util
+    import types
+
+    class Record:
+        def __init__(self, *args, **kwargs):
+            self.args, self.kwargs = args, kwargs
+
+    class Config(Record):
+        def perform(self, context):
+            return context[self.args[0]]
+    mods = {"launch": {"LaunchDescription": Record},
+            "launch.actions": {"DeclareLaunchArgument": Record, "OpaqueFunction": Record},
+            "launch.substitutions": {"LaunchConfiguration": Config},
+            "launch_ros": {}, "launch_ros.actions": {"Node": Record}}
+    for name, attrs in mods.items():
+        mod = types.ModuleType(name)
+        mod.__dict__.update(attrs)
+        monkeypatch.setitem(sys.modules, name, mod)
+    spec = importlib.util.spec_from_file_location("suite_launch", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _launched(module, **arguments):
+    """(package, executable, namespace, name) and parameters of the launched nodes."""
+    import yaml
+    (entities,) = module.generate_launch_description().args
+    context = {e.args[0]: e.kwargs["default_value"] for e in entities
+               if "default_value" in e.kwargs}
+    context.update(arguments)
+    (opaque,) = [e for e in entities if "function" in e.kwargs]
+    out = []
+    for node in opaque.kwargs["function"](context):
+        kw = node.kwargs
+        params = yaml.safe_load(Path(kw["parameters"][0]).read_text())
+        out.append(((kw["package"], kw["executable"], kw.get("namespace", ""), kw["name"]),
+                    params))
+    return out
+
+
+@pytest.mark.parametrize("topic_loop", [False, True])
+def test_launch_file_starts_the_nodes_of_up(monkeypatch, topic_loop):
+    """Issue 46 item 10a: ros2_ws/launch/suite.launch.py (installed by flex_twin) starts
+    up's nodes: by default the model with the controller in its loop and the planner (on
+    main: the controller node over topics); topic_loop:=true the three nodes as ``up
+    --topic-loop``; the two-arm file in its namespaces."""
+    from flex_twin.ros_suite import suite_nodes
+    module = _launch_with_stubs(monkeypatch, LAUNCH)
+    assert Path(module.PARAMS).resolve() == PARAMS.resolve()
+    got = _launched(module, topic_loop=str(topic_loop).lower())
+    want_params, want_nodes = suite_nodes(node_parameters(PARAMS), topic_loop)
+    assert [n for n, _ in got] == want_nodes
+    assert [n[1] for n in want_nodes] == (
+        ["model_node", "controller_node", "planner_node"] if topic_loop
+        else ["model_node", "planner_node"])
+    model = got[0][1]["flex_model"]["ros__parameters"]
+    assert model == want_params["flex_model"]
+    assert ("controller" in model) is not topic_loop
+    got = _launched(module, params=str(TWO_ARMS), topic_loop="false")
+    assert [n for n, _ in got] == [("flex_model", "model_node", "/robot1", "flex_model"),
+                                   ("flex_model", "model_node", "/robot2", "flex_model")]
+
+
+def test_launch_file_and_parameters_are_installed(monkeypatch):
+    """flex_twin's setup.py installs the launch file and its default parameter file under
+    share/flex_twin (where ``ros2 launch flex_twin suite.launch.py`` finds them)."""
+    import os
+    import runpy
+
+    import setuptools
+    captured = {}
+    monkeypatch.setattr(setuptools, "setup", lambda **kw: captured.update(kw))
+    setup_py = Path(__file__).resolve().parents[1] / "src" / "flex_twin" / "setup.py"
+    cwd = os.getcwd()
+    try:
+        runpy.run_path(str(setup_py))
+    finally:
+        os.chdir(cwd)
+    files = dict(captured["data_files"])
+    assert files["share/flex_twin/launch"] == ["launch/suite.launch.py"]
+    assert files["share/flex_twin/params"] == ["params/suite.yaml"]
+    assert (setup_py.parent / "launch" / "suite.launch.py").resolve() == LAUNCH.resolve()
+    assert (setup_py.parent / "params" / "suite.yaml").resolve() == PARAMS.resolve()
