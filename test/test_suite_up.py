@@ -254,3 +254,83 @@ def test_launch_file_and_parameters_are_installed(monkeypatch):
     assert files["share/flex_twin/params"] == ["params/suite.yaml"]
     assert (setup_py.parent / "launch" / "suite.launch.py").resolve() == LAUNCH.resolve()
     assert (setup_py.parent / "params" / "suite.yaml").resolve() == PARAMS.resolve()
+
+
+def test_record_during_up_is_complete_and_in_sim_time(tmp_path):
+    """Issue 46 item 7, the README's flow: ``flex-twin record /joint_states
+    /flex/deflections`` during ``flex-twin up`` (lockstep, the controller in the loop, many
+    times faster than real time). On main the log times spanned the wall clock (5.1 s
+    against 133.8 s of header stamps) and 6.5 % of the messages were lost. Now the
+    recorder logs in simulation time because /clock is published, and takes every
+    message: read back with the mcap reader, every header stamp of the run is there once
+    (the first step's 0.002 s, then every 0.01 s to the end, publish_rate 100 Hz; the model
+    starts paused until the recorder listens), and log times equal header stamps within one publication period (a
+    /joint_states goes out just before the /clock of its step)."""
+    import os
+    import rclpy
+    from mcap.reader import make_reader
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import JointState
+    from std_srvs.srv import SetBool
+    import yaml
+
+    params = node_parameters(PARAMS)
+    params["flex_model"].update(start_paused=True, parameter_services=True)
+    del params["flex_planner"]
+    path = tmp_path / "params.yaml"
+    path.write_text(yaml.safe_dump({k: {"ros__parameters": v} for k, v in params.items()}))
+    duration, period = 20.0, 1.0 / params["flex_model"]["publish_rate"]
+    up = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "up", str(path),
+                           "--duration", str(duration)])
+    rec = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "record", "/joint_states",
+                            "/flex/deflections", "-o", str(tmp_path / "bag"),
+                            "--discovery-timeout", "120"], stderr=subprocess.PIPE, text=True)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = rclpy.create_node("record_probe", context=ctx)
+        pause = node.create_client(SetBool, "/flex_model/pause")
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        end = time.monotonic() + 180.0
+        while not (pause.service_is_ready() and node.count_subscribers("/clock")
+                   and node.count_subscribers("/joint_states")
+                   and node.count_subscribers("/flex/deflections")):
+            assert time.monotonic() < end and up.poll() is None and rec.poll() is None
+            ex.spin_once(timeout_sec=0.05)
+        time.sleep(1.0)  # the recorder's subscriptions matched on its side too
+        future = pause.call_async(SetBool.Request(data=False))
+        while not future.done():
+            assert time.monotonic() < end, "no answer from ~/pause"
+            ex.spin_once(timeout_sec=0.05)
+        assert up.wait(timeout=180) == 0
+        time.sleep(1.0)
+        rec.send_signal(signal.SIGINT)
+        _, err = rec.communicate(timeout=60)
+        assert rec.returncode == 0, err
+        assert "log time = sim time (/clock)" in err
+        ex.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+        for p in (up, rec):
+            if p.poll() is None:
+                p.kill()
+    (mcap,) = [os.path.join(tmp_path / "bag", f) for f in os.listdir(tmp_path / "bag")
+               if f.endswith(".mcap")]
+    got = {"/joint_states": [], "/flex/deflections": []}
+    with open(mcap, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            stamp = deserialize_message(message.data, JointState).header.stamp
+            got[channel.topic].append((message.log_time * 1e-9,
+                                       stamp.sec + 1e-9 * stamp.nanosec))
+    for topic, rows in got.items():
+        log, stamps = np.array(rows).T
+        n = len(stamps)
+        assert n >= duration / period  # up ran to the end
+        assert 0.0 < stamps[0] <= period  # the first step after the pause: none lost
+        np.testing.assert_allclose(stamps, stamps[0] + period * np.arange(n), rtol=0,
+                                   atol=1e-9)  # each publication once, none lost
+        assert np.all(stamps - log >= -1e-9) and np.all(stamps - log <= period + 1e-9)
+        assert abs((log[-1] - log[0]) - (stamps[-1] - stamps[0])) <= period + 1e-9
