@@ -56,7 +56,8 @@ of the SingleThreadedExecutor, a faster lockstep loop, see flex_model.ros_main).
 parameter takes an integer (``rate:=500``); a bad value at start is one line naming the
 parameter, the value and what is allowed (exit status 2). At run time publish_rate,
 shape_rate, command_timeout, timeout_action, lockstep_timeout and the plausibility limits
-may be set (checked); the others are refused with a reason.
+may be set (checked); the others are read_only in their descriptors (rclpy refuses them),
+and the bounded numbers carry ranges (:data:`RANGES`).
 
 Bad inputs are dropped with a reason logged at most once a second per reason (not per
 call site: a wrong length does not hide a NaN). A divergence of the integration (Newton
