@@ -265,8 +265,9 @@ def test_record_during_up_is_complete_and_in_sim_time(tmp_path):
     recorder logs in simulation time because /clock is published, and takes every
     message: read back with the mcap reader, every header stamp of the run is there once
     (the first step's 0.002 s, then every 0.01 s to the end, publish_rate 100 Hz; the model
-    starts paused until the recorder listens), and log times equal header stamps within one publication period (a
-    /joint_states goes out just before the /clock of its step)."""
+    starts paused until the recorder listens), and log times equal header stamps within
+    one publication period (a /joint_states goes out just before the /clock of its
+    step)."""
     import os
     import rclpy
     from mcap.reader import make_reader

@@ -206,6 +206,12 @@ def plane_to_base(rotation, points) -> np.ndarray:
     return np.column_stack([p, np.zeros(len(p))]) @ rotation.T
 
 
+def base_to_plane(rotation, points) -> np.ndarray:
+    """Base-frame points (N, 3) in plane coordinates (N, 2): the inverse of
+    :func:`plane_to_base` (the model node's flex/tip_pose and flex/shape -> the plane)."""
+    return (np.atleast_2d(np.asarray(points, float)) @ rotation)[:, :2]
+
+
 def compose(transforms, child: str, root: str) -> tuple[np.ndarray, np.ndarray]:
     """(R, p) of frame ``child`` in ``root`` by chaining ``transforms`` (a tree)."""
     by_child = {t.child: t for t in transforms}
