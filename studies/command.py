@@ -1,9 +1,11 @@
-"""What the studies' command lines share: a ``python -m studies.<name>`` parser and the
-package's exit codes (:func:`flex_model.command.run_command`: 0 done, 2 bad input, 1 a
-failed computation)."""
+"""What the studies share: a ``python -m studies.<name>`` parser with the package's exit
+codes (:func:`flex_model.command.run_command`: 0 done, 2 bad input, 1 a failed
+computation) and their outputs (:func:`write_study`: markdown and JSON)."""
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 
 from flex_model.command import run_command
 
@@ -27,3 +29,13 @@ def add_batch_options(parser, out: str) -> None:
 def run_study(parser: argparse.ArgumentParser, argv=None) -> int:
     """Parse ``argv`` (default: the command line) and run the study's ``func``."""
     return run_command(parser.parse_args(argv))
+
+
+def write_study(out, stem: str, report: dict, lines: list) -> Path:
+    """``<stem>.json`` (the report) and ``<stem>.md`` (the markdown ``lines``) in ``out``
+    (created); returns the markdown's path."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{stem}.json").write_text(json.dumps(report, indent=1, default=float))
+    (out / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    return out / f"{stem}.md"

@@ -365,7 +365,7 @@ def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
 
 def write_report(report: dict, out) -> None:
     """``link_response.json`` and ``link_response.md`` in ``out``."""
-    from flex_twin.real_arms.report import write_study
+    from .command import write_study
     s = report["summary"]
     lines = ["# The lab's link against its own hub angle", "",
              "One linear mode d'' + 2 zeta w d' + w^2 d = -gain theta'' driven by the encoder's "

@@ -173,7 +173,7 @@ def change_cells(before: dict, after: dict) -> str:
 
 def write_report(report: dict, out) -> None:
     """``run_floor.json`` and ``run_floor.md`` (per-run table and medians) in ``out``."""
-    from flex_twin.real_arms.report import write_study
+    from .command import write_study
     s = report["summary"]
     lines = ["# The model's floor: every fitted parameter chosen per held-out run", "",
              "Least squares from the better of the shared calibrated twin and the run's "

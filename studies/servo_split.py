@@ -33,7 +33,8 @@ from flex_twin.real_arms.calibration import (CUBOULDER_SPLIT, SERVO_WINDOW, FitP
 from flex_twin.real_arms.quanser_twin import (hub_inertia, nominal_arm_for,
                                               stored_calibrated_arm)
 from flex_twin.real_arms.replay import replay
-from flex_twin.real_arms.report import metrics_row, write_study
+from flex_twin.real_arms.report import metrics_row
+from .command import write_study
 from .run_floor import HELD_OUT, change_cells, summarize, summary_lines
 
 #: the servo's parameters both setups share

@@ -276,7 +276,7 @@ def plot(report: dict, path) -> None:
 
 def write_report(report: dict, out) -> None:
     """``stuck_holds.json``, ``stuck_holds.md`` and ``stuck_holds.png`` in ``out``."""
-    from flex_twin.real_arms.report import write_study
+    from .command import write_study
     lines = ["# The link's ringing while the hub sticks", "",
              "| run | stuck (s) | reference (rad) | hub (rad) | mean V | frequency (Hz) | "
              "damping ratio | amplitude (mm) | fit residual (mm) |",
