@@ -1,5 +1,7 @@
 """CLI of the real arms: ``flex-twin replay``, ``flex-twin import quanser`` and
 ``flex-twin real-arm calibrate|report|diagnose`` (hooked into flex_twin.cli when present).
+The one-off studies that were ``real-arm`` sub-commands run from the repository root as
+``python -m studies.<name>`` (:data:`MOVED_STUDIES`; their old names say so).
 
 The lab's control law comes from flex_control (imported here only, lazily): flex_model's
 core never depends on it.
@@ -7,6 +9,7 @@ core never depends on it.
 from __future__ import annotations
 
 import json
+import shlex
 import sys
 from pathlib import Path
 
@@ -182,7 +185,7 @@ def cmd_diagnose(args) -> int:
 def moved_study(args) -> int:
     """A sub-command that moved to ``studies/``: one line saying where to run it now."""
     module = MOVED_STUDIES[args.action]
-    given = " ".join(args.study_args)
+    given = shlex.join(args.study_args)
     raise ValueError(f"real-arm {args.action} moved out of the package (issue 43): from the "
                      f"repository root run python -m studies.{module}"
                      f"{' ' + given if given else ''} (studies/README.md)")
@@ -198,6 +201,7 @@ def add_moved_studies(rsub) -> None:
 
 
 def add_data_option(parser) -> None:
+    """``--data DIR``: where the labs' data are."""
     parser.add_argument("--data", default=None, help="folder of the real data (default "
                         "../shared/data/real)")
 
