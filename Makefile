@@ -6,8 +6,9 @@ SHELL := /bin/bash
 
 ROOT := $(patsubst %/,%,$(dir $(abspath $(lastword $(MAKEFILE_LIST)))))
 ENV := source $(ROOT)/scripts/env.sh
-# Test roots that exist right now (src/*/test are optional per package).
-TEST_DIRS = $(wildcard test src/*/test)
+# Test roots that exist right now (src/*/test are optional per package; studies/test: the
+# one-off studies beside the packages).
+TEST_DIRS = $(wildcard test src/*/test studies/test)
 PYTEST_ARGS ?=
 DEMO_ARGS ?=
 

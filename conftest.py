@@ -42,6 +42,8 @@ if "rclpy" in sys.modules:  # e.g. a pytest plugin imported it before this conft
                   RuntimeWarning, stacklevel=1)
 
 REPO_ROOT = Path(__file__).resolve().parent
+if str(REPO_ROOT) not in sys.path:   # studies/ (python -m studies.X from the root) for its tests
+    sys.path.insert(0, str(REPO_ROOT))
 
 
 @pytest.fixture(scope="session")

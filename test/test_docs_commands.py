@@ -13,7 +13,11 @@ For each command line in a ```bash block of those pages:
   parameter the node declares (read from the node modules without starting ROS); an ``arm``
   is a preset;
 * ``make TARGET``: the target is in the Makefile;
-* ``python bench/... | test/...``: the script exists.
+* ``python bench/... | test/...``: the script exists;
+* ``python -m studies.NAME ...``: the study exists (studies/NAME.py) and the line parses
+  with its ``build_parser()`` as a ``flex-twin`` line does with its sub-parser; ``python -m``
+  of a package module: the module exists. A sub-command that ``--help`` does not list (the
+  moved studies' old names, which only point at ``studies/``) is no command to show.
 
 Repository paths used as arguments (``ros2_ws/params/suite.yaml``) must exist, and so must
 the pages' relative links, their anchors and the README's picture (under 200 KB). Lines
@@ -26,6 +30,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
+import importlib
+import importlib.util
 import inspect
 import io
 import re
@@ -36,13 +42,15 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
+         ROOT / "studies" / "README.md"]
 NODE_PACKAGES = {"flex-model-node": "flex_model", "model_node": "flex_model",
                  "flex-controller-node": "flex_control", "controller_node": "flex_control",
                  "flex-planner-node": "flex_planner", "planner_node": "flex_planner"}
 #: parameters rclpy declares on every node
 ROS_NODE_PARAMETERS = {"use_sim_time", "start_type_description_service"}
-REPO_DIRS = ("ros2_ws/", "bench/", "test/", "src/", "docs/", "scripts/", "docker/")
+REPO_DIRS = ("ros2_ws/", "bench/", "test/", "src/", "docs/", "scripts/", "docker/",
+             "studies/")
 NUMBER = re.compile(r"^-\d|^-\.\d")
 
 
@@ -115,6 +123,15 @@ def flex_twin_parser() -> argparse.ArgumentParser:
 
 
 @functools.lru_cache(maxsize=None)
+def study_parser(name: str) -> argparse.ArgumentParser | None:
+    """The parser of ``python -m studies.<name>`` (None: no such study or no parser)."""
+    if not re.fullmatch(r"[a-z_]+", name) or not (ROOT / "studies" / f"{name}.py").is_file():
+        return None
+    module = importlib.import_module(f"studies.{name}")
+    return module.build_parser() if hasattr(module, "build_parser") else None
+
+
+@functools.lru_cache(maxsize=None)
 def presets() -> tuple[set, set]:
     from flex_model.arm import preset_names
     from flex_model.scenario import scenario_names
@@ -180,6 +197,16 @@ def check_flex_twin(args) -> list[str]:
                     f"{', '.join(subs[0].choices)})"]
         path.append(rest.pop(0))
         node = subs[0].choices[path[-1]]
+        listed = {a.dest for a in subs[0]._choices_actions}
+        if path[-1] not in listed:
+            return [f"flex-twin {' '.join(path)}: not listed by --help (the old name of a "
+                    "moved study?)"]
+    return check_parser(parser, path, node, rest, f"flex-twin {' '.join(path)}")
+
+
+def check_parser(parser, path, node, rest, label) -> list[str]:
+    """``label --help`` works, every option in ``rest`` is one of ``node`` (the sub-parser
+    of ``path``), the line parses, arms and scenarios named are presets, paths exist."""
     errors = []
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -189,21 +216,21 @@ def check_flex_twin(args) -> list[str]:
         except SystemExit as exc:
             code = exc.code
     if code != 0 or "usage:" not in out.getvalue():
-        errors.append(f"flex-twin {' '.join(path)} --help failed: {err.getvalue().strip()}")
+        errors.append(f"{label} --help failed: {err.getvalue().strip()}")
     for tok in rest:
         if tok.startswith("-") and tok != "-" and not NUMBER.match(tok):
             opt = tok.split("=", 1)[0]
             if opt not in node._option_string_actions:
-                errors.append(f"flex-twin {' '.join(path)}: no option {opt} (has "
+                errors.append(f"{label}: no option {opt} (has "
                               f"{', '.join(sorted(node._option_string_actions))})")
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         try:
             ns, extra = parser.parse_known_args([*path, *rest])
         except SystemExit:
-            return errors + [f"flex-twin {' '.join(path)}: {err.getvalue().strip()}"]
+            return errors + [f"{label}: {err.getvalue().strip()}"]
     if extra:
-        errors.append(f"flex-twin {' '.join(path)}: unrecognized arguments {extra}")
+        errors.append(f"{label}: unrecognized arguments {extra}")
     arms, scenarios = presets()
     for attr, known, what in (("arm", arms, "arm preset"), ("scenario", scenarios, "scenario")):
         values = getattr(ns, attr, None)
@@ -237,6 +264,26 @@ def check_node(exe, args, package=None) -> list[str]:
     return errors + check_repo_paths(args)
 
 
+def check_python_module(module: str, rest: list) -> list[str]:
+    """``python -m MODULE ...``: a study parses ``rest``; a package module exists."""
+    if module.startswith("studies."):
+        name = module.split(".", 1)[1]
+        parser = study_parser(name)
+        if parser is None:
+            have = sorted(p.stem for p in (ROOT / "studies").glob("*.py")
+                          if study_parser(p.stem) is not None)
+            return [f"python -m {module}: no such study (have {', '.join(have)})"]
+        return check_parser(parser, [], parser, rest, f"python -m {module}")
+    if module.split(".")[0] in ("flex_model", "flex_control", "flex_planner", "flex_twin"):
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except ModuleNotFoundError:
+            found = False
+        if not found:
+            return [f"python -m {module}: no such module"]
+    return []
+
+
 def check(argv) -> list[str]:
     cmd, args = argv[0], list(argv[1:])
     if cmd == "flex-twin":
@@ -248,8 +295,10 @@ def check(argv) -> list[str]:
                and a not in make_targets()]
         return [f"make {a}: no such target in the Makefile" for a in bad]
     if cmd in ("python", "python3"):
+        errors = check_python_module(args[1], args[2:]) \
+            if args[:1] == ["-m"] and len(args) >= 2 else []
         scripts = [a for a in args if a.endswith(".py")]
-        return [f"{a}: no such script" for a in scripts if not (ROOT / a).is_file()]
+        return errors + [f"{a}: no such script" for a in scripts if not (ROOT / a).is_file()]
     if cmd == "ros2" and args[:1] == ["run"] and len(args) >= 3:
         package, exe, rest = args[1], args[2], args[3:]
         if not (ROOT / "src" / package / "setup.py").is_file():
@@ -268,6 +317,9 @@ def check(argv) -> list[str]:
 
 def test_the_pages_show_commands():
     assert (ROOT / "docs").is_dir()
+    studies = {c.argv[2] for c in COMMANDS if c.argv[1:2] == ("-m",)
+               and c.argv[2].startswith("studies.")}
+    assert len(studies) == 10
     shown = {c.argv[0] for c in COMMANDS}
     assert {"flex-twin", "make", "flex-model-node", "flex-controller-node",
             "flex-planner-node"} <= shown
@@ -330,6 +382,14 @@ def test_readme_is_short():
     ("ros2 run flex_model modle_node", "not an entry point"),
     ("make tset", "no such target"),
     ("python bench/bench_section_F.py", "no such script"),
+    ("python -m studies.servo_splt", "no such study"),
+    ("python -m studies.command", "no such study"),                      # no parser
+    ("python -m studies.servo_split --kt-tolernce 0.3", "no option --kt-tolernce"),
+    ("python -m studies.servo_split --kt-tolerance x", "invalid float value"),
+    ("python -m studies.transfer", "required"),
+    ("python -m studies.stuck_holds --out studies/nowhere/x", "no such file"),
+    ("python -m flex_twin.real_arms.servo_split", "no such module"),
+    ("flex-twin real-arm servo-split", "not listed by --help"),
 ])
 def test_a_typo_fails(line, message):
     (argv,) = split_commands(line)

@@ -139,3 +139,31 @@ def test_importing_the_numeric_core_changes_no_environment_variable():
     out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True,
                          text=True, timeout=120, check=True).stdout
     assert out.strip().splitlines()[-1] == "[]"
+
+
+def imports_of(path: Path, top: str) -> list[str]:
+    """The absolute imports of ``top`` or its modules anywhere in one file."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found += [a.name for a in node.names if a.name.split(".")[0] == top]
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module and \
+                node.module.split(".")[0] == top:
+            found.append(node.module)
+    return found
+
+
+def test_no_package_module_imports_the_studies():
+    """The one-off studies (studies/, issue 43) use the packages, never the other way."""
+    wrong = {name: imports_of(path, "studies") for name, path in module_files().items()}
+    assert {name: found for name, found in wrong.items() if found} == {}
+
+
+def test_imports_of_the_studies_are_found(tmp_path):
+    """The check above finds each form of the import, lazy ones too."""
+    source = tmp_path / "m.py"
+    source.write_text("import studies.servo_split\nfrom studies import run_floor\n"
+                      "def f():\n    from studies.transfer import transfer\n"
+                      "from .studies import x\nimport studiesx\n")
+    assert sorted(imports_of(source, "studies")) == ["studies", "studies.servo_split",
+                                                     "studies.transfer"]

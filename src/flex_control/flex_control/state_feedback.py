@@ -9,8 +9,8 @@ is a constant the motor receives on top of the law: an amplifier offset, or any 
 torque at the hub (K_g K_m V_0 / R_m), such as a cable's pull. The reference is a recorded square
 wave held between its samples (zero-order hold, as the lab's 1 kHz loop). The gauge's
 reading may lag the tip by ``gauge_delay`` (s): the law then acts on d(t - gauge_delay)
-and its rate, as the lab's loop received them (the CU Boulder logs: about 60 ms, flex-twin
-real-arm link-response).
+and its rate, as the lab's loop received them (the CU Boulder logs: about 60 ms, python -m
+studies.link_response).
 """
 from __future__ import annotations
 

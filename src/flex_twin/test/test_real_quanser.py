@@ -292,32 +292,6 @@ def test_a_fitted_gauge_gain_is_a_tip_deflection_sensor_of_the_preset():
     assert (gauge.gain, gauge.delay) == (0.5, 0.06123)
 
 
-def test_a_unit_refit_from_its_stored_twin_starts_from_and_keeps_its_gauge(tmp_path):
-    """The stored Hagenau twin's gauge lags 34.06 ms: a fit from it starts the lag there,
-    and a preset written from it with new link values only keeps that lag (and the
-    link values); written from the shared twin, it has the shared twin's 37.41 ms; a fit
-    from the handout (no gauge) starts at 60 ms."""
-    from flex_model.arm import load_arm
-    from flex_model.sensors import tip_gauge
-    from flex_twin.real_arms.calibration import GAUGE, CalibrationResult, started_from
-    from flex_twin.real_arms.unit_calibration import UNITS, write_unit_preset
-    stored = load_arm(UNITS["hagenau"]["preset"])
-    assert tip_gauge(stored).delay == pytest.approx(0.03406)
-    assert started_from(stored, [GAUGE["gauge_delay"]])[0].start == pytest.approx(0.03406)
-    assert started_from(load_arm("quanser_cuboulder_calibrated"),
-                        [GAUGE["gauge_delay"]])[0].start == pytest.approx(0.03741)
-    assert started_from(load_arm("quanser_cuboulder_flexible"),
-                        [GAUGE["gauge_delay"]])[0].start == 0.06
-    result = CalibrationResult("link@hagenau", {"EI": 0.4}, stored, 1.0, 0.9, 3, ("r",))
-    for from_unit, delay in ((True, 0.03406), (False, 0.03741)):
-        path = write_unit_preset("hagenau", result, tmp_path / str(from_unit), " --x",
-                                 from_unit)
-        arm = load_arm(str(path))
-        assert tip_gauge(arm).delay == pytest.approx(delay)
-        assert arm.links[0].segments[0].dims["EI"][0] == 0.4
-        assert ("started from the stored" in path.read_text()) == from_unit
-
-
 def test_a_fitted_gauge_frees_the_link_and_names_itself_in_the_preset(tmp_path):
     """with_gauge: the gauge's fields join the link stage, EI and tip mass then within
     x0.5-2 (from -50/+20 % and +-50 %), an unknown name is an error naming the allowed
@@ -349,9 +323,9 @@ def test_a_link_stage_from_the_stored_twin_keeps_its_friction_on_the_new_servo(m
     """calibrate_cuboulder(link_start=...): the link stage starts from the start's link
     values, its hub friction too (F_c 0.0459, Rayleigh 0.8405, lag 37.41 ms of the stored
     twin), on stage 1's rotor inertia; from the handout, friction starts at stage 1's. Not
-    fitted, the start's lag is kept in the values the preset is written from. A unit's fit
-    starts its gauge's lag from its start twin's (Hagenau's 34.06 ms)."""
-    from flex_twin.real_arms import calibration as cal, unit_calibration
+    fitted, the start's lag is kept in the values the preset is written from (a unit's fit:
+    studies/test/test_real_quanser_units.py)."""
+    from flex_twin.real_arms import calibration as cal
     seen = []
 
     def fake(arm, runs, params, make_policy, **kw):
@@ -377,11 +351,6 @@ def test_a_link_stage_from_the_stored_twin_keeps_its_friction_on_the_new_servo(m
                                       load_arm("quanser_cuboulder_flexible"), runs, None,
                                       link_start=stored)
     assert "gauge_delay" not in seen[-1][1] and link.values["gauge_delay"] == 0.03741
-    monkeypatch.setattr(unit_calibration, "calibrate", fake)
-    for from_unit, lag in ((True, 0.03406), (False, 0.03741)):   # Hagenau's, the shared
-        unit_calibration.calibrate_unit("hagenau", runs, None, gauge=("gauge_delay",),
-                                        from_unit=from_unit)
-        assert seen[-1][1]["gauge_delay"].start == pytest.approx(lag)
 
 
 def test_calibrate_flags_reach_the_fit_and_the_preset_header(monkeypatch, tmp_path):
@@ -450,83 +419,6 @@ def test_a_twin_with_a_gauge_gain_starts_where_the_lab_reads(cuboulder_root):
     assert d[0.5] == pytest.approx(2.0 * d[1.0], rel=1e-9) and abs(d[1.0]) > 1e-3
 
 
-def test_the_joint_servo_fit_shares_the_servo_and_frees_the_bar():
-    """``real-arm servo-split``: the unknowns start from the stored twins (rotor inertia
-    3.1666e-6, the rigid runs' friction, EI 0.33651 N m^2, lag 37.41 ms; K_t from the
-    handout's, within the tolerance); the two twins share rotor inertia and K_t; moving
-    inertia from the rotor (x Kg^2) to the bar leaves the rigid twin's mass matrix as it is,
-    so only the flexible runs can tell the two apart."""
-    from flex_twin.real_arms.servo_split import joint_arms, joint_parameters
-    rigid, flexible = (calibrated_arm_for("cuboulder", k) for k in ("rigid", "flexible"))
-    p = {x.name: x for x in joint_parameters(rigid, flexible, 0.3)}
-    assert (p["rotor_inertia"].start, p["rotor_inertia"].lower) == pytest.approx(
-        (3.1666e-6, 0.3 * 8.5377e-7))
-    kt = p["torque_constant"]
-    assert kt.start is None and (kt.nominal, kt.lower, kt.upper) == pytest.approx(
-        (0.0107, 0.7 * 0.0107, 1.3 * 0.0107))
-    fr = rigid.effect("joint_friction", "joint1")
-    assert p["rigid_coulomb"].start == pytest.approx(fr["coulomb"])
-    assert (p["bar_inertia"].start, p["bar_inertia"].upper) == pytest.approx((0.0015, 0.012))
-    assert p["EI"].start is None and p["EI"].nominal == pytest.approx(0.33651)
-    assert p["gauge_delay"].start == pytest.approx(0.03741)
-    values = {"rotor_inertia": 2e-6, "torque_constant": 0.0112, "bar_inertia": 0.003,
-              "rigid_coulomb": 0.02, "coulomb": 0.05, "EI": 0.36}
-    r, f = joint_arms(rigid, flexible, values)
-    for arm in (r, f):
-        assert arm.effect("gear", "joint1")["rotor_inertia"] == 2e-6
-        assert arm.effect("dc_motor", "joint1")["torque_constant"] == 0.0112
-    assert r.links[0].J_minus == 0.003 and f.links[0].J_minus == flexible.links[0].J_minus
-    assert r.effect("joint_friction", "joint1")["coulomb"] == 0.02
-    assert f.effect("joint_friction", "joint1")["coulomb"] == 0.05
-    assert r.links[0].segments[0].dims["EI"][0] == 100.0
-    n2 = 48.4 ** 2
-    moved = joint_arms(rigid, flexible, {**values, "rotor_inertia": 2e-6 - 1e-3 / n2,
-                                         "bar_inertia": 0.004})[0]
-    heavier = joint_arms(rigid, flexible, {**values, "bar_inertia": 0.004})[0]
-    q = np.zeros(FlexArmModel(r).nq)
-    m0, m1, m2 = (FlexArmModel(a).mass_matrix(q) for a in (r, moved, heavier))
-    np.testing.assert_allclose(m1, m0, rtol=1e-12, atol=1e-15)
-    assert m2[0, 0] - m0[0, 0] == pytest.approx(1e-3, rel=1e-9)
-
-
-def test_servo_split_flags_reach_the_study(monkeypatch, tmp_path):
-    """``real-arm servo-split --kt-tolerance 0.3 --max-evaluations 4``: the study gets both
-    and the output folder; the command prints its markdown."""
-    from flex_twin.cli import main
-    from flex_twin.real_arms import quanser_data, servo_split
-    got = {}
-
-    def fake(runs, make_policy, out, kt_tolerance, max_nfev, progress):
-        got.update(kt=kt_tolerance, nfev=max_nfev, out=out)
-        (out / "servo_split.md").parent.mkdir(parents=True, exist_ok=True)
-        (out / "servo_split.md").write_text("# stub\n")
-        return {}
-    monkeypatch.setattr(servo_split, "study", fake)
-    monkeypatch.setattr(quanser_data, "read_cuboulder", lambda root: {})
-    (tmp_path / quanser_data.CUBOULDER).mkdir(parents=True)
-    assert main(["real-arm", "servo-split", "--data", str(tmp_path), "--out",
-                 str(tmp_path / "o"), "--kt-tolerance", "0.3", "--max-evaluations", "4"]) == 0
-    assert got == {"kt": 0.3, "nfev": 4, "out": tmp_path / "o"}
-
-
-def test_the_joint_fits_start_grid_keeps_the_rigid_runs_torque_per_inertia():
-    """Every start of the grid gives the rigid twin the stored one's K_t / (Kg^2 J_r +
-    J_bar) where the bar's bounds allow: at the stored K_t (-5 %) and rotor, the handout's
-    bar 0.0015 kg m^2."""
-    from flex_twin.real_arms.quanser_twin import hub_inertia
-    from flex_twin.real_arms.servo_split import grid_starts, joint_arms, joint_parameters
-    rigid, flexible = (calibrated_arm_for("cuboulder", k) for k in ("rigid", "flexible"))
-    ratio = rigid.effect("dc_motor", "joint1")["torque_constant"] / hub_inertia(rigid)
-    grid = grid_starts(rigid, joint_parameters(rigid, flexible, 0.05), 0.05)
-    assert len(grid) == 15
-    for g in grid:
-        r = joint_arms(rigid, flexible, g)[0]
-        assert g["torque_constant"] / hub_inertia(r) == pytest.approx(ratio, rel=1e-9)
-    low = next(g for g in grid if g["torque_constant"] < 0.0107 and g["rotor_inertia"]
-               == pytest.approx(3.1666e-6))
-    assert low["bar_inertia"] == pytest.approx(0.0015, rel=2e-3)   # K_t stored to 5 digits
-
-
 def test_fit_values_finds_a_quadratics_minimum_and_keeps_the_best_point():
     """calibration.fit_values on r = (x - 2, 3 (y + 1)) from (0, 0) within bounds
     [-5, 5] x [0, 5]: x = 2, y at its bound 0, cost sqrt(9 / 2); the values it returns are
@@ -543,42 +435,6 @@ def test_fit_values_finds_a_quadratics_minimum_and_keeps_the_best_point():
     assert (values["x"], values["y"]) == pytest.approx((2.0, 0.0), abs=1e-6)
     assert cost == pytest.approx(np.sqrt(4.5), rel=1e-5) == min(c for c, _ in seen)
     assert count == len(seen)
-
-
-def test_the_joint_fit_starts_from_its_grids_best_point(monkeypatch):
-    """servo_split.joint_fit with a stand-in replay: the rigid runs see only K_t / hub
-    inertia, the flexible ones want a rotor of 1.5e-6 and K_t 0.0112: of the 15 grid
-    points the fit starts at K_t +5 % and 0.45x the stored rotor; the stored twins' cost
-    and every evaluation are reported."""
-    from types import SimpleNamespace
-    from flex_twin.real_arms import servo_split
-    from flex_twin.real_arms.quanser_twin import hub_inertia
-    rigid = calibrated_arm_for("cuboulder", "rigid")
-    ratio = rigid.effect("dc_motor", "joint1")["torque_constant"] / hub_inertia(rigid)
-
-    def fake_replay(arm, runs, make_policy, t_final=None):
-        kt = arm.effect("dc_motor", "joint1")["torque_constant"]
-        if arm.links[0].length < 0.2:   # the rigid bar
-            return np.array([1e3 * (kt / hub_inertia(arm) / ratio - 1.0)])
-        jr = arm.effect("gear", "joint1")["rotor_inertia"]
-        return np.array([(jr - 1.5e-6) / 1e-7, (kt - 0.0112) / 1e-4])
-    got = {}
-
-    def fake_fit(params, residual, max_nfev, progress):
-        got.update({p.name: p.start for p in params})
-        return {"rotor_inertia": 1.0}, 0.5, 7
-    monkeypatch.setattr(servo_split, "replay_residual", fake_replay)
-    monkeypatch.setattr(servo_split, "fit_values", fake_fit)
-    names = CUBOULDER_SPLIT["servo_fit"] + CUBOULDER_SPLIT["link_fit"]
-    fit = servo_split.joint_fit({n: SimpleNamespace(name=n) for n in names}, None, 0.05)
-    assert len(fit["grid"]) == 15 and fit["evaluations"] == 7 + 15 + 1
-    assert got["torque_constant"] == pytest.approx(1.05 * 0.0107)
-    assert got["rotor_inertia"] == pytest.approx(0.45 * 3.1666e-6)
-    assert fit["cost_grid"] == min(g["cost"] for g in fit["grid"])
-    stored = np.array([1e3 * (0.010167 / hub_inertia(rigid) / ratio - 1.0),
-                       (3.1666e-6 - 1.5e-6) / 1e-7, (0.010167 - 0.0112) / 1e-4])
-    assert fit["cost_stored"] == pytest.approx(np.sqrt(np.mean(stored ** 2)), rel=1e-9)
-    assert (fit["values"], fit["cost_fitted"]) == ({"rotor_inertia": 1.0}, 0.5)
 
 
 def test_a_missing_calibrated_preset_is_named_with_the_command_that_writes_it(monkeypatch):
@@ -618,3 +474,24 @@ def test_report_summarizes_the_labs_ring_down_spread_over_held_out_runs():
     assert "frequency by a median 8.0 % (at most 25.0 %)" in text
     assert "by a factor 1.50 (at most 10.00)" in text
     assert "rings near its clamped 1.81 Hz" in text
+
+
+def test_real_arm_lists_what_it_keeps_and_points_moved_studies_at_studies(capsys):
+    """``flex-twin real-arm --help`` lists calibrate, report and diagnose only; a study that
+    moved out of the package (issue 43) exits 2 with one line naming its new command, its
+    arguments kept."""
+    from flex_twin.cli import main
+    from flex_twin.real_arms.cli import MOVED_STUDIES
+    with pytest.raises(SystemExit) as done:
+        main(["real-arm", "--help"])
+    assert done.value.code == 0
+    listed = capsys.readouterr().out
+    assert "{calibrate,report,diagnose}" in listed
+    assert not any(f" {old} " in listed for old in MOVED_STUDIES)
+    assert len(MOVED_STUDIES) == 8
+    assert main(["real-arm", "servo-split", "--kt-tolerance", "0.3", "--help"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1
+    assert "python -m studies.servo_split --kt-tolerance 0.3 --help" in err[0]
+    assert main(["real-arm", "two-mass"]) == 2
+    assert "python -m studies.two_mass_study (" in capsys.readouterr().err

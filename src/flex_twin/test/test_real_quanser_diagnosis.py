@@ -136,8 +136,8 @@ def test_the_issue_run_names_stick_slip_friction_by_default(real, tmp_path):
 
 def test_the_gauges_lag_is_fitted_but_not_named_on_the_handout_twin(real, tmp_path):
     """Covington's flexibleArm_test_3 -> test_4 on the handout twin: the diagnosis fits the
-    declared gauge's lag to 50 ms (the link's own fit: 57-64 ms on these runs, flex-twin
-    real-arm link-response) but it explains 9.7 % of the held-out excess, under the gate:
+    declared gauge's lag to 50 ms (the link's own fit: 57-64 ms on these runs, python -m
+    studies.link_response) but it explains 9.7 % of the held-out excess, under the gate:
     nothing is named (the handout link's other errors dominate); ~15 s on 2 workers."""
     import json
     parser = argparse.ArgumentParser()

@@ -1,6 +1,7 @@
 """The FdiTools two-mass motor bench (issue 22) against its twin ``two_mass_bench``:
 the lab's period FRFs (record A fitted, B held out), 1-s replay windows started from the
-measured state, and the frequency-domain diagnosis of the rigid nominal twin.
+measured state, and the engine's export of the case (the frequency-domain diagnosis:
+studies/test/test_two_mass_study.py).
 
 Reads ../shared/data/real/two_mass_motor_bench_fditools (skipped when absent)."""
 from pathlib import Path
@@ -12,7 +13,6 @@ from flex_model.arm import arm_from_dict, load_arm
 from flex_model.dynamics import FlexArmModel
 from flex_twin.real_arms.two_mass_data import TWO_MASS, period_frf, read_two_mass
 from flex_twin.real_arms.two_mass_replay import frf_gap, peak_levels, twin_frf, window_errors
-from flex_twin.real_arms.two_mass_study import fd_diagnosis
 from flex_twin.real_arms.two_mass_twin import arm_dict, fit_frf, parameters_from_arm
 
 ROOT = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"
@@ -77,21 +77,6 @@ def test_held_out_speed_windows(bench):
     rigid = FlexArmModel(arm_from_dict(arm_dict(bench["p"], elastic=False)))
     wr = window_errors(rigid, bench["recs"]["B"], windows=(10,))
     assert wr["median_rms_m"] > 2.0 * w["median_rms_m"]
-
-
-def test_diagnosis_names_the_coupling_elasticity(bench):
-    """From the rigid nominal twin (inertias summed), fitted on A's motor FRF: the joint
-    elasticity is named, its stiffness within 2 % of the two-inertia fit of both FRFs
-    (539 N m/rad per N m/A of K_t), and it removes > 80 % of B's held-out gap."""
-    nominal = arm_from_dict(arm_dict(bench["p"], elastic=False))
-    d = fd_diagnosis(nominal, bench["labs"]["A"], bench["labs"]["B"])
-    assert [h["hypothesis"] for h in d["named"]] == ["joint_elasticity@coupling"]
-    best = d["named"][0]
-    assert best["values"]["stiffness"] == pytest.approx(bench["p"].k, rel=0.02)
-    assert 0.0 < best["values"]["damping"] < 0.2
-    assert best["share"] > 0.8
-    others = [h["share"] for h in d["hypotheses"][1:]]
-    assert max(others) < 0.3
 
 
 def test_engine_export_restarts_the_coupling_twisted_as_measured(bench, tmp_path):

@@ -87,7 +87,7 @@ ELASTIC_FRACTION = 0.5
 SLIP_BREAKAWAY = (1.0, 1.5, 2.0)
 SLIP_SLIDING = 0.6
 #: gauge_delay's step in control periods (a strain gauge's chain lags tens of ms: the
-#: Quanser lab's 45-80 ms, flex-twin real-arm link-response)
+#: Quanser lab's 45-80 ms, python -m studies.link_response)
 GAUGE_DELAY_STEP = 10
 
 

@@ -65,8 +65,8 @@ class FitParameter:
 #: the lab's tip gauge's fields, bounds and starts when they are fitted (``--gauge-gain``,
 #: ``--gauge-delay``; a twin with a gauge starts from its values): the lab's gauge answers
 #: the hub with 0.36-0.80 of the twins' link as logged, and read 45-80 ms late like one
-#: mode with the twins' gain on three units, 0.25-0.45 of it on Hagenau's (flex-twin
-#: real-arm link-response)
+#: mode with the twins' gain on three units, 0.25-0.45 of it on Hagenau's (python -m
+#: studies.link_response)
 GAUGE = {"gauge_gain": FitParameter("gauge_gain", 1.0, 0.3, 1.2, 0.7),
          "gauge_delay": FitParameter("gauge_delay", 0.0, 0.0, 0.15, 0.06)}
 

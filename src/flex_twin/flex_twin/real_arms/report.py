@@ -153,16 +153,6 @@ def ucmerced_validation(data, make_policy: Callable, out: Path) -> dict:
             "notes": run.notes, **metrics_row(r)}
 
 
-def write_study(out, stem: str, report: dict, lines: list) -> Path:
-    """``<stem>.json`` (the report) and ``<stem>.md`` (the markdown ``lines``) in ``out``
-    (created); returns the markdown's path."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / f"{stem}.json").write_text(json.dumps(report, indent=1, default=float))
-    (out / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    return out / f"{stem}.md"
-
-
 def fmt(x, scale=1.0, digits=4):
     return "-" if x is None else f"{x * scale:.{digits}g}"
 

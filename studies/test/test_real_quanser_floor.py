@@ -3,7 +3,7 @@ itself (../shared; skips with a reason when absent)."""
 import pytest
 
 from flex_twin.real_arms.quanser_twin import calibrated_arm_for
-from flex_twin.real_arms.run_floor import fit_run, run_parameters, starts
+from studies.run_floor import fit_run, run_parameters, starts
 
 pytest.importorskip("flex_control.state_feedback")
 

@@ -9,7 +9,7 @@ from flex_twin.diagnosis.recording import validate
 from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.quanser_diagnosis import recording_columns
 from flex_twin.real_arms.quanser_twin import diagnosis_case
-from flex_twin.real_arms.stick_slip_study import hold_evidence, hold_stick_spread
+from studies.stick_slip_study import hold_evidence, hold_stick_spread
 
 
 def _path(root, name):
@@ -71,7 +71,7 @@ def test_the_level_search_grows_past_an_edge_and_stops_where_the_cost_is_flat(mo
     below the start grid's corner (0.05-0.07 x 0.10-0.12); the search must walk there and
     end within the half step. On a cost flat in F_s (1e-3 relative) it must not walk in
     F_s: a level the runs do not resolve stays near where it started."""
-    from flex_twin.real_arms import stick_slip_study as ss
+    from studies import stick_slip_study as ss
 
     def bowl(arm, runs, policy, fc, fs):
         return 1.0 + ((fc - 0.025) / 0.01) ** 2 + ((fs - 0.055) / 0.02) ** 2

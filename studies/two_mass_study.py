@@ -1,5 +1,5 @@
 """The two-mass bench study (issue 22): identification, replay on the twin, and the
-diagnosis of the rigid nominal twin - ``flex-twin real-arm two-mass``.
+diagnosis of the rigid nominal twin - ``python -m studies.two_mass_study``.
 
 The diagnosis here is a frequency-domain one (``fd_diagnosis``): the time-domain engine
 (``flex_twin.diagnosis``) replays the open-loop bench with restarts every second, where the
@@ -23,9 +23,11 @@ from scipy.optimize import least_squares
 from flex_model.arm import arm_from_dict, load_arm
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import EFFECT_TYPES
-from .two_mass_data import PeriodFRF, TwoMassRecord, period_frf, read_two_mass
-from .two_mass_replay import frf_gap, peak_levels, twin_frf, window_errors, replay_window
-from .two_mass_twin import arm_dict, fit_frf, parameters_from_arm
+from flex_twin.real_arms.two_mass_data import (PeriodFRF, TwoMassRecord, period_frf,
+                                               read_two_mass)
+from flex_twin.real_arms.two_mass_replay import (frf_gap, peak_levels, twin_frf, window_errors,
+                                                 replay_window)
+from flex_twin.real_arms.two_mass_twin import arm_dict, fit_frf, parameters_from_arm
 
 PRESET = "two_mass_bench"
 #: a hypothesis is named when it removes at least this share of the held-out FRF gap
@@ -244,3 +246,66 @@ def write_markdown(report: dict, path) -> None:
     named = d["named"][0]["hypothesis"] if d["named"] else "nothing (unexplained)"
     lines += ["", f"Named: **{named}**.", ""]
     Path(path).write_text("\n".join(lines))
+
+
+def run_engine(data, out: Path, report: dict, duration, workers) -> None:
+    """``--engine``: ``flex-twin diagnose`` on the rigid nominal twin (its summary into
+    ``report["engine"]`` and two_mass.json)."""
+    from flex_twin.real_arms.two_mass_data import data_dir
+    from flex_twin.real_arms.two_mass_diagnosis import export_case, run_diagnosis
+    root = data_dir(data)
+    paths = export_case(read_two_mass("A", root), read_two_mass("B", root),
+                        parameters_from_arm(load_arm("two_mass_bench")),
+                        out / "engine" / "inputs", duration)
+    s = run_diagnosis(paths, out / "engine", workers=workers)
+    report["engine"] = {k: s.get(k) for k in ("verdict", "named", "holdout_error_reduction")}
+    (out / "two_mass.json").write_text(json.dumps(report, indent=1, default=float))
+
+
+def cmd_two_mass(args) -> int:
+    """The two-mass motor bench (issue 22): replay of records A and B on the
+    ``two_mass_bench`` twin, FRF and time overlays, the frequency-domain diagnosis of the
+    rigid nominal twin; ``--engine`` also runs ``flex-twin diagnose`` on it (minutes)."""
+    from flex_twin.real_arms.cli import print_progress
+    from flex_twin.real_arms.two_mass_data import data_dir
+    out = Path(args.out)
+    report = study(data_dir(args.data), out, print_progress)
+    if args.engine:
+        run_engine(args.data, out, report, args.duration, args.workers)
+    if args.json:
+        print(json.dumps(report, indent=1, default=float))
+    else:
+        print((out / "two_mass.md").read_text())
+        if args.engine:
+            print(f"engine: {report['engine']['verdict']}; report {out / 'engine'}/report.md")
+    return 0
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import study_parser
+    parser = study_parser("two_mass_study", "the FdiTools two-mass motor bench: twin replay "
+                          "of records A (fit) and B (held out), FRF and time overlays, the "
+                          "diagnosis of the rigid nominal twin (markdown, PNG, JSON)")
+    add_data_option(parser)
+    parser.add_argument("--out", default="runs/two-mass", help="output directory")
+    parser.add_argument("--engine", action="store_true", help="also run flex-twin diagnose "
+                        "(time domain, restarts every 0.1 s from the motor and load "
+                        "encoders) on the rigid nominal twin (minutes; the full 20 s: ~12 "
+                        "CPU-min)")
+    parser.add_argument("--duration", type=float, default=None, help="with --engine: only "
+                        "the first seconds of each record")
+    parser.add_argument("--workers", type=int, default=None, help="with --engine: processes")
+    parser.add_argument("--json", action="store_true")
+    parser.set_defaults(func=cmd_two_mass)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.two_mass_study [--engine [--duration S]] [--out DIR] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,20 +1,21 @@
 """One servo for the rigid-bar and the flexible-link runs (issue 22).
 
-The calibration fits the servo on the rigid-bar runs alone (:data:`.calibration.
-CUBOULDER_SPLIT`): rotor inertia 3.7x the handout and K_t at -5 %, its tolerance; fitted to
-the flexible runs themselves, the servo takes K_t at the top of its bound (+5 % over
-the calibrated value: the handout's) and less rotor inertia (``real-arm floor``). The
-rigid bar's inertia (handout J_load 0.0015 kg m^2) adds to the rotor's reflected inertia
-Kg^2 J_r in those runs, and only there: if the bar were heavier than the handout says,
-the rigid runs would put its excess on the rotor.
+The calibration fits the servo on the rigid-bar runs alone
+(:data:`real_arms.calibration.CUBOULDER_SPLIT`): rotor inertia 3.7x the handout and K_t at
+-5 %, its tolerance; fitted to the flexible runs themselves, the servo takes K_t at the top
+of its bound (+5 % over the calibrated value: the handout's) and less rotor inertia
+(``studies.run_floor``). The rigid bar's inertia (handout J_load 0.0015 kg m^2) adds to the
+rotor's reflected inertia Kg^2 J_r in those runs, and only there: if the bar were heavier
+than the handout says, the rigid runs would put its excess on the rotor.
 
-:func:`joint_fit` tests that: one least-squares fit (:func:`.calibration.fit_values`) of
-the rigid fit runs (first :data:`.calibration.SERVO_WINDOW` s) and the link fit runs
-together, the rotor inertia and K_t shared, the bar's inertia free (x0.5-8 of the handout)
-with the rigid runs' friction, the link stage (:func:`.calibration.link_parameters`, EI and
-tip mass x0.5-2) with the gauge's lag on the flexible ones; started from the stored twins
-at the best point of a grid of K_t (within ``kt_tolerance`` of the handout's) and rotor
-inertia (:func:`grid_starts`). :func:`study` scores the two twins it gives against the stored ones
+:func:`joint_fit` tests that: one least-squares fit
+(:func:`real_arms.calibration.fit_values`) of the rigid fit runs (first
+:data:`real_arms.calibration.SERVO_WINDOW` s) and the link fit runs together, the rotor
+inertia and K_t shared, the bar's inertia free (x0.5-8 of the handout) with the rigid runs'
+friction, the link stage (:func:`real_arms.calibration.link_parameters`, EI and tip mass
+x0.5-2) with the gauge's lag on the flexible ones; started from the stored twins at the
+best point of a grid of K_t (within ``kt_tolerance`` of the handout's) and rotor inertia
+(:func:`grid_starts`). :func:`study` scores the two twins it gives against the stored ones
 on the 17 held-out runs.
 """
 from __future__ import annotations
@@ -25,12 +26,15 @@ from typing import Callable
 import numpy as np
 
 from flex_model.dynamics import FlexArmModel
-from .calibration import (CUBOULDER_SPLIT, SERVO_WINDOW, FitParameter, apply_parameters,
-                          fit_values, link_parameters, replay_residual, servo_parameters,
-                          started_from, with_gauge)
-from .quanser_twin import hub_inertia, nominal_arm_for, stored_calibrated_arm
-from .replay import replay
-from .report import metrics_row, write_study
+from flex_twin.real_arms.calibration import (CUBOULDER_SPLIT, SERVO_WINDOW, FitParameter,
+                                             apply_parameters, fit_values, link_parameters,
+                                             replay_residual, servo_parameters, started_from,
+                                             with_gauge)
+from flex_twin.real_arms.quanser_twin import (hub_inertia, nominal_arm_for,
+                                              stored_calibrated_arm)
+from flex_twin.real_arms.replay import replay
+from flex_twin.real_arms.report import metrics_row
+from .command import write_study
 from .run_floor import HELD_OUT, change_cells, summarize, summary_lines
 
 #: the servo's parameters both setups share
@@ -81,7 +85,7 @@ def grid_starts(rigid, params: list, kt_tolerance: float) -> list:
     """The start grid: K_t at the handout's and at both ends of its tolerance, the rotor
     inertia at :data:`ROTOR_SCAN` times its start, each with the bar's inertia that keeps
     the rigid twin's torque per hub inertia K_t / (Kg^2 J_r + J_bar)
-    (:func:`.quanser_twin.hub_inertia`) where the bar's bounds allow (clipped into them).
+    (:func:`real_arms.quanser_twin.hub_inertia`) where the bar's bounds allow (clipped into them).
     Along such a line the rigid-bar runs replay alike, so the grid scans what the flexible
     runs say about the split of the inertia between rotor and bar."""
     p = {x.name: x for x in params}
@@ -201,3 +205,40 @@ def write_report(report: dict, out) -> None:
     lines += [f"| {r['run']} | {change_cells(r['calibrated'], r['joint_servo'])} |"
               for r in report["held_out"]]
     write_study(out, "servo_split", report, lines)
+
+
+def cmd_servo_split(args) -> int:
+    from pathlib import Path
+    from flex_twin.real_arms.cli import lab_policy, print_progress, print_report
+    from flex_twin.real_arms.quanser_data import CUBOULDER, read_cuboulder
+    from flex_twin.real_arms.quanser_twin import data_root
+    out = Path(args.out)
+    report = study(read_cuboulder(data_root(args.data) / CUBOULDER), lab_policy(), out,
+                   args.kt_tolerance, args.max_evaluations, print_progress)
+    return print_report(args, report, out / "servo_split.md")
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import study_parser
+    parser = study_parser("servo_split", "one servo fitted to the rigid-bar and the "
+                          "flexible fit runs together, the rigid bar's inertia free, scored "
+                          "on the held-out runs (markdown, JSON; ~5-10 CPU-min)")
+    add_data_option(parser)
+    parser.add_argument("--kt-tolerance", type=float, default=0.05, help="K_t free within "
+                        "this fraction of the handout's (default 0.05, its tolerance)")
+    parser.add_argument("--max-evaluations", type=int, default=10)
+    parser.add_argument("--out", default="runs/quanser-servo-split", help="output directory")
+    parser.add_argument("--json", action="store_true")
+    parser.set_defaults(func=cmd_servo_split)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.servo_split [--kt-tolerance F] [--max-evaluations N] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -3,7 +3,7 @@ fitted to that run itself.
 
 A twin fitted elsewhere (the split's fit runs, another session, another unit) cannot do
 better on a run than the same model with every parameter the calibration fits chosen for
-that run. Per held-out run this fits (:func:`.calibration.calibrate`) the servo stage on a
+that run. Per held-out run this fits (:func:`real_arms.calibration.calibrate`) the servo stage on a
 rigid-bar run and, on a flexible run, the link and the servo stage together (its unit's
 servo may differ) and the lag of its tip gauge if it logs one, from the better of the
 shared and the unit's twin, within bounds wider than the calibration's
@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .calibration import (CUBOULDER_SPLIT, GAUGE, FitParameter, calibrate, link_parameters,
-                          servo_parameters, started_from, widened)
+from flex_twin.real_arms.calibration import (CUBOULDER_SPLIT, GAUGE, FitParameter, calibrate,
+                                             link_parameters, servo_parameters, started_from,
+                                             widened)
 
 #: the held-out runs of the calibration's split (7 rigid-bar, 10 flexible)
 HELD_OUT = CUBOULDER_SPLIT["servo_holdout"] + CUBOULDER_SPLIT["link_holdout"] + (
@@ -35,7 +36,8 @@ def run_parameters(arm, kind: str, gauge: bool = False) -> list:
     than the calibration's: the servo stage (rigid bar: friction, rotor inertia x0.3-6,
     K_t +-5 %), or on a flexible run the link stage (EI and tip mass within x0.5-2) with
     the servo stage and, with ``gauge`` (a run that logs the tip), the gauge's lag
-    (:data:`.calibration.GAUGE`); F_s - F_c and the Rayleigh damping up to :data:`UPPER`."""
+    (:data:`real_arms.calibration.GAUGE`); F_s - F_c and the Rayleigh damping up to
+    :data:`UPPER`."""
     servo = servo_parameters(arm)
     params = servo if kind == "rigid" else link_parameters(arm) + [
         p for p in servo if p.name not in ("coulomb", "static_excess")] + (
@@ -49,7 +51,7 @@ def starts(name: str, kind: str) -> dict:
     """The twins a run's fit may start from: the shared calibrated twin and, for a run of
     a unit with its own twin (:data:`.unit_calibration.UNITS`), that unit's."""
     from flex_model.arm import load_arm
-    from .quanser_twin import calibrated_arm_for
+    from flex_twin.real_arms.quanser_twin import calibrated_arm_for
     from .unit_calibration import UNITS
     out = {"shared": calibrated_arm_for("cuboulder", kind)}
     for unit, spec in UNITS.items():
@@ -65,10 +67,11 @@ def fit_run(data_root: str, name: str, max_nfev: int = 12, out: str | None = Non
     ``floor_<run>.png`` is written there."""
     from flex_control.state_feedback import lab_policy_factory
     from flex_model.dynamics import FlexArmModel
-    from .calibration import replay_residual
-    from .quanser_data import CUBOULDER, read_cuboulder_file, cuboulder_files
-    from .replay import plot_replay, replay
-    from .report import metrics_row
+    from flex_twin.real_arms.calibration import replay_residual
+    from flex_twin.real_arms.quanser_data import (CUBOULDER, read_cuboulder_file,
+                                                  cuboulder_files)
+    from flex_twin.real_arms.replay import plot_replay, replay
+    from flex_twin.real_arms.report import metrics_row
     path = next((p for p in cuboulder_files(Path(data_root) / CUBOULDER) if p.name == name),
                 None)
     if path is None:
@@ -161,8 +164,8 @@ def summary_lines(summary: dict, labels) -> list:
 
 
 def change_cells(before: dict, after: dict) -> str:
-    """``hub a -> b | tip a -> b`` table cells of two :func:`.report.metrics_row` (rad, mm;
-    ``-`` for a run without a gauge)."""
+    """``hub a -> b | tip a -> b`` table cells of two :func:`real_arms.report.metrics_row`
+    (rad, mm; ``-`` for a run without a gauge)."""
     tip = (f"{1e3 * before['tip_rms_m']:.2f} -> {1e3 * after['tip_rms_m']:.2f}"
            if after["tip_rms_m"] is not None else "-")
     return f"{before['hub_rms_rad']:.4f} -> {after['hub_rms_rad']:.4f} | {tip}"
@@ -170,7 +173,7 @@ def change_cells(before: dict, after: dict) -> str:
 
 def write_report(report: dict, out) -> None:
     """``run_floor.json`` and ``run_floor.md`` (per-run table and medians) in ``out``."""
-    from .report import write_study
+    from .command import write_study
     s = report["summary"]
     lines = ["# The model's floor: every fitted parameter chosen per held-out run", "",
              "Least squares from the better of the shared calibrated twin and the run's "
@@ -185,3 +188,38 @@ def write_report(report: dict, out) -> None:
         lines.append(f"| {r['run']} | {change_cells(r['calibrated'], r['run_fit'])} | "
                      f"{r['start']} | {vals} |")
     write_study(out, "run_floor", report, lines)
+
+
+def cmd_floor(args) -> int:
+    from flex_twin.cluster import batch_executor
+    from flex_twin.real_arms.cli import print_progress, print_report
+    from flex_twin.real_arms.quanser_twin import data_root
+    out = Path(args.out)
+    with batch_executor(args.scheduler, args.workers) as executor:
+        report = study(data_root(args.data), executor, print_progress, args.max_evaluations,
+                       out=out)
+    write_report(report, out)
+    return print_report(args, report, out / "run_floor.md")
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import add_batch_options, study_parser
+    parser = study_parser("run_floor", "the model's floor: the calibration's parameters "
+                          "fitted to each held-out run itself (markdown, JSON, PNG; ~15 "
+                          "CPU-min)")
+    add_data_option(parser)
+    parser.add_argument("--max-evaluations", type=int, default=12)
+    add_batch_options(parser, "runs/quanser-floor")
+    parser.set_defaults(func=cmd_floor)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.run_floor [--workers N] [--max-evaluations N] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .quanser_twin import PRESLIDING, with_stick_slip
-from .replay import TRANSIENT, plot_replay, replay
+from flex_twin.real_arms.quanser_twin import PRESLIDING, with_stick_slip
+from flex_twin.real_arms.replay import TRANSIENT, plot_replay, replay
 
 
 def hold_evidence(run, gear=48.4, km=0.0107, rm=3.29, last: float = 1.0) -> list:
@@ -37,17 +37,17 @@ def hold_evidence(run, gear=48.4, km=0.0107, rm=3.29, last: float = 1.0) -> list
 
 
 def replay_metrics(arm, run, make_policy) -> dict:
-    """One replay (:func:`.replay.replay`, states [q; v; z]) and its
-    :func:`.report.metrics_row`."""
+    """One replay (:func:`real_arms.replay.replay`, states [q; v; z]) and its
+    :func:`real_arms.report.metrics_row`."""
     from flex_model.dynamics import FlexArmModel
-    from .report import metrics_row
+    from flex_twin.real_arms.report import metrics_row
     r = replay(FlexArmModel(arm), run, make_policy)
     return r, metrics_row(r)
 
 
 def level_cost(arm, runs, make_policy, coulomb: float, static: float) -> float:
     """Mean replay cost of the arm with stick-slip levels (F_c, F_s) on ``runs``: hub /
-    10 mrad and tip / 2 mm squared, as :mod:`.calibration`."""
+    10 mrad and tip / 2 mm squared, as :mod:`real_arms.calibration`."""
     a = with_stick_slip(arm, coulomb=coulomb, static=static)
     cost = []
     for run in runs:
@@ -133,9 +133,9 @@ def study(data, make_policy, out, progress=print, session: bool = False) -> dict
     from the first step, and F_c with a voltage offset from the first period."""
     import json
     from pathlib import Path
-    from .calibration import CUBOULDER_SPLIT
-    from .quanser_data import CUBOULDER, read_cuboulder
-    from .quanser_twin import calibrated_arm_for
+    from flex_twin.real_arms.calibration import CUBOULDER_SPLIT
+    from flex_twin.real_arms.quanser_data import CUBOULDER, read_cuboulder
+    from flex_twin.real_arms.quanser_twin import calibrated_arm_for
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runs = read_cuboulder(Path(data) / CUBOULDER)
@@ -271,3 +271,41 @@ def write_markdown(report: dict, path) -> None:
                              f"{1e3 * m[label]['tip_rms_median_m']:.2f} |")
     from pathlib import Path
     Path(path).write_text("\n".join(lines) + "\n")
+
+
+def cmd_stick_slip(args) -> int:
+    from pathlib import Path
+    from flex_twin.real_arms.cli import lab_policy, print_progress, print_report
+    from flex_twin.real_arms.quanser_twin import data_root
+    out = Path(args.out)
+    report = study(data_root(args.data), lab_policy(), out, print_progress,
+                   session=args.session)
+    write_markdown(report, out / "stick_slip.md")
+    return print_report(args, report, out / "stick_slip.md")
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import study_parser
+    parser = study_parser("stick_slip_study", "the calibrated twins with stick-slip friction "
+                          "(levels refitted on the fit runs) on every CU Boulder run, and "
+                          "the holds' evidence for stiction against backlash (minutes)")
+    add_data_option(parser)
+    parser.add_argument("--out", default="runs/quanser-stick-slip", help="output directory")
+    parser.add_argument("--session", action="store_true",
+                        help="also twins with F_c from each held-out run's first step, and "
+                        "with F_c and a voltage offset from its first period, every twin "
+                        "scored after that (about 10 more CPU-minutes)")
+    parser.add_argument("--json", action="store_true")
+    parser.set_defaults(func=cmd_stick_slip)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.stick_slip_study [--session] [--out DIR] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

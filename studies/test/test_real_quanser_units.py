@@ -1,4 +1,4 @@
-"""Issue 22: the Quanser twin per hardware unit (flex_twin.real_arms.unit_calibration). The
+"""Issue 22: the Quanser twin per hardware unit (studies.unit_calibration). The
 presets are checked without data; the held-out replays read ../shared (skipped with a
 reason when it is absent)."""
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 from flex_model.arm import load_arm
 from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.calibration import CUBOULDER_SPLIT
-from flex_twin.real_arms.unit_calibration import SINGLE_RUN_UNITS, UNITS, compare
+from studies.unit_calibration import SINGLE_RUN_UNITS, UNITS, compare
 
 state_feedback = pytest.importorskip("flex_control.state_feedback")
 
@@ -82,3 +82,46 @@ def test_each_unit_twin_beats_the_shared_twin_on_its_held_out_tips(cub):
     assert s["ring_freq_error_pct_shared"] == pytest.approx(5.8, abs=0.3)
     assert s["hold_freq_error_pct_shared"] == pytest.approx(4.8, abs=0.3)
     assert s["hold_freq_error_pct_unit_twin"] == pytest.approx(2.5, abs=0.3)
+
+
+def test_a_unit_refit_from_its_stored_twin_starts_from_and_keeps_its_gauge(tmp_path):
+    """The stored Hagenau twin's gauge lags 34.06 ms: a fit from it starts the lag there,
+    and a preset written from it with new link values only keeps that lag (and the
+    link values); written from the shared twin, it has the shared twin's 37.41 ms; a fit
+    from the handout (no gauge) starts at 60 ms."""
+    from flex_model.sensors import tip_gauge
+    from flex_twin.real_arms.calibration import GAUGE, CalibrationResult, started_from
+    from studies.unit_calibration import UNITS, write_unit_preset
+    stored = load_arm(UNITS["hagenau"]["preset"])
+    assert tip_gauge(stored).delay == pytest.approx(0.03406)
+    assert started_from(stored, [GAUGE["gauge_delay"]])[0].start == pytest.approx(0.03406)
+    assert started_from(load_arm("quanser_cuboulder_calibrated"),
+                        [GAUGE["gauge_delay"]])[0].start == pytest.approx(0.03741)
+    assert started_from(load_arm("quanser_cuboulder_flexible"),
+                        [GAUGE["gauge_delay"]])[0].start == 0.06
+    result = CalibrationResult("link@hagenau", {"EI": 0.4}, stored, 1.0, 0.9, 3, ("r",))
+    for from_unit, delay in ((True, 0.03406), (False, 0.03741)):
+        path = write_unit_preset("hagenau", result, tmp_path / str(from_unit), " --x",
+                                 from_unit)
+        arm = load_arm(str(path))
+        assert tip_gauge(arm).delay == pytest.approx(delay)
+        assert arm.links[0].segments[0].dims["EI"][0] == 0.4
+        assert ("started from the stored" in path.read_text()) == from_unit
+
+
+def test_a_units_fit_starts_its_gauges_lag_from_its_start_twins(monkeypatch):
+    """calibrate_unit with a stand-in fit: from the unit's stored twin (``--from-units``)
+    the gauge's lag starts at Hagenau's 34.06 ms, from the shared twin at its 37.41 ms."""
+    from flex_twin.real_arms import calibration as cal
+    from studies import unit_calibration
+    seen = []
+
+    def fake(arm, runs, params, make_policy, **kw):
+        seen.append((arm, {p.name: p for p in params}))
+        return cal.CalibrationResult(kw["stage"], {}, arm, 1.0, 1.0, 1, ())
+    monkeypatch.setattr(unit_calibration, "calibrate", fake)
+    runs = dict.fromkeys(CUBOULDER_SPLIT["servo_fit"] + CUBOULDER_SPLIT["link_fit"])
+    for from_unit, lag in ((True, 0.03406), (False, 0.03741)):   # Hagenau's, the shared
+        unit_calibration.calibrate_unit("hagenau", runs, None, gauge=("gauge_delay",),
+                                        from_unit=from_unit)
+        assert seen[-1][1]["gauge_delay"].start == pytest.approx(lag)

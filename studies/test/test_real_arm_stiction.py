@@ -1,5 +1,5 @@
 """Issue 22: does the Quanser hub stick during the holds of the three diagnosis pairs
-(flex_twin.real_arms.stiction_evidence)? The lab data are read from ../shared (the tests
+(studies.stiction_evidence)? The lab data are read from ../shared (the tests
 skip with a reason when they are absent)."""
 import dataclasses
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from flex_twin.real_arms import quanser_data as qd
-from flex_twin.real_arms.stiction_evidence import (STUCK_WINDOW, TORQUE_PER_VOLT,
-                                                   hold_statistics, stuck_mask)
+from studies.stiction_evidence import (STUCK_WINDOW, TORQUE_PER_VOLT, hold_statistics,
+                                       stuck_mask)
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +78,7 @@ def test_the_k1k2k3_pairs_stick_slip_transfers_to_runs_it_did_not_see(cub, share
     flexarm_K1K2K3_6_-3_213 --holdout flexarm_K1K2K3k4_6_-3_213_2 --segment 1`` names
     (F_c = F_s = 0.0423 N m; the rest of the handout twin kept) replays the K1-only run,
     which the diagnosis did not see (whole run, closed loop): its hub RMS error falls from
-    28.1 to 17.1 mrad (flex_twin.real_arms.transfer; on flexarm_K1K2K3_6_-5_213 16.3 ->
+    28.1 to 17.1 mrad (studies.transfer; on flexarm_K1K2K3_6_-5_213 16.3 ->
     4.4 mrad)."""
     import json
 
@@ -86,8 +86,8 @@ def test_the_k1k2k3_pairs_stick_slip_transfers_to_runs_it_did_not_see(cub, share
 
     from flex_model.arm import resolve_preset
     from flex_model.config import read_yaml
-    from flex_twin.real_arms.cli import _policy_factory
-    from flex_twin.real_arms.transfer import transfer
+    from flex_twin.real_arms.cli import lab_policy
+    from studies.transfer import transfer
     pytest.importorskip("flex_control.state_feedback")
     raw = read_yaml(resolve_preset("quanser_cuboulder_flexible"))
     raw["effects"] = list(raw["effects"]) + [{
@@ -98,7 +98,7 @@ def test_the_k1k2k3_pairs_stick_slip_transfers_to_runs_it_did_not_see(cub, share
     (diag / "diagnosed_arm.yaml").write_text(yaml.safe_dump(raw, sort_keys=False))
     (diag / "inputs" / "runs.json").write_text(json.dumps(
         {"fit": "flexarm_K1K2K3_6_-3_213", "holdout": "flexarm_K1K2K3k4_6_-3_213_2"}))
-    res = transfer(diag, shared_dir / "data" / "real", _policy_factory(), tmp_path / "out",
+    res = transfer(diag, shared_dir / "data" / "real", lab_policy(), tmp_path / "out",
                    progress=lambda s: None, runs=("flexarm_K1_6",))
     (row,) = res["runs"]
     assert row["role"] == "other" and res["other_hub_better"] == 1

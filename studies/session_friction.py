@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from flex_model.dynamics import FlexArmModel
-from .replay import rms, replay
-from .quanser_twin import with_stick_slip
+from flex_twin.real_arms.replay import rms, replay
+from flex_twin.real_arms.quanser_twin import with_stick_slip
 
 #: the lattice of Coulomb levels (N m at the hub) the start chooses from
 LEVELS = tuple(np.round(np.arange(0.02, 0.105, 0.01), 3))

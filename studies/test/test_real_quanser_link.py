@@ -1,5 +1,5 @@
-"""Issue 22: the lab's link while its hub sticks (flex_twin.real_arms.stuck_holds) and
-against its own hub angle (flex_twin.real_arms.link_response). Synthetic signals of known
+"""Issue 22: the lab's link while its hub sticks (studies.stuck_holds) and
+against its own hub angle (studies.link_response). Synthetic signals of known
 frequency, damping and gain; the lab figures on ../shared (skips with a reason when it is
 absent)."""
 import numpy as np
@@ -8,8 +8,8 @@ import pytest
 from flex_model.arm import load_arm
 from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.replay import GAUGE_RESOLUTION
-from flex_twin.real_arms.stuck_holds import (frequency_rank_correlations, hold_link,
-                                             one_frequency_floor, stuck_holds, twin_link)
+from studies.stuck_holds import (frequency_rank_correlations, hold_link, one_frequency_floor,
+                                 stuck_holds, twin_link)
 
 
 def _synthetic_run(freqs, zeta=0.006, amplitude=0.006):
@@ -51,7 +51,7 @@ def test_stuck_stretches_give_the_links_frequency_and_damping():
 def test_rank_correlations_of_the_stretches_frequency():
     """Frequencies rising with |V| and falling with |theta| rank +1 and -1 (signs of V and
     theta ignored); fewer than three stretches give none."""
-    from flex_twin.real_arms.stuck_holds import StuckHold
+    from studies.stuck_holds import StuckHold
 
     def hold(v, hub, f):
         return StuckHold("r", 0.0, 1.0, 0.1, hub, v, f, 0.005, 1e-3, 1e-4)
@@ -122,7 +122,7 @@ def test_one_mode_fit_recovers_a_driven_mode():
     0.5 mm, and leaves the log's 0.29 mm. Logged 60 ms late, the fit with a lag gives the
     lag back within 2 ms, the mode as before."""
     from scipy.integrate import solve_ivp
-    from flex_twin.real_arms.link_response import base_excited_mode
+    from studies.link_response import base_excited_mode
     t = np.arange(0.0, 10.0, 1e-3)
     w, zeta, gain = 2 * np.pi * 1.8, 0.014, 0.46
 
@@ -158,7 +158,7 @@ def test_the_lab_link_answers_its_hub_angle_as_one_mode_read_late(cuboulder_root
     (0.0176 V RMS; 68 ms either way: 2.5-3.1 mV more). The unit twin's link driven by the same
     hub angle (tracked to 0.3 mrad) gives that fit back to the log's 0.29 mm with its
     clamped 1.844 Hz, a gain 0.460 and its gauge's 34.06 ms lag; its tip RMS is 6.8 mm."""
-    from flex_twin.real_arms.link_response import check_run
+    from studies.link_response import check_run
     row = check_run(str(cuboulder_root.parent), "flexarm_k1k2_6_-3")
     lab, twin = row["lab"], row["twin_driven"]
     assert lab["residual_rms_m"] == pytest.approx(2.26e-3, abs=0.05e-3)
@@ -213,7 +213,7 @@ def test_one_mode_for_several_runs_gives_their_common_link_back():
     start (3 mm at 20 mm/s; -2 mm at rest) and gauge offset (0; +31 mm), logged 60 ms late
     at 1 mm: unit_mode gives frequency, damping ratio, gain and lag back within 0.1 %,
     0.001, 0.5 % and 1 ms, and leaves each run the log's 0.29 mm (within 5 %)."""
-    from flex_twin.real_arms.link_response import unit_mode
+    from studies.link_response import unit_mode
     t = np.arange(0.0, 10.0, 1e-3)
     series = []
     for times, x0, offset in (([1.0, 6.0], [0.003, 0.02], 0.0),
@@ -238,7 +238,7 @@ def test_step_modes_see_a_link_that_changes_between_steps():
     frequency within 0.5 % and gain within 3 %; the stretch before the first step (the hub
     at rest) comes out undriven."""
     from types import SimpleNamespace
-    from flex_twin.real_arms.link_response import DRIVEN, step_modes
+    from studies.link_response import DRIVEN, step_modes
     t = np.arange(0.0, 10.0, 1e-3)
     times = [2.5, 5.0, 7.5]
     acc = _hub_steps(times, height=0.2)
@@ -263,7 +263,7 @@ def test_the_lab_link_changes_from_step_to_step(cuboulder_root):
     One mode for it and flexarm_k1k2_6_-3 together (the K1K2 pair of Hagenau's unit) takes
     1.913 Hz, gain 0.284 and leaves 1.32 and 2.24 mm where their own modes leave 1.00 and
     2.02: a link fixed for the unit misses what changes between steps."""
-    from flex_twin.real_arms.link_response import lab_series, step_modes, unit_mode
+    from studies.link_response import lab_series, step_modes, unit_mode
     runs = [qd.read_cuboulder_file(next(p for p in qd.cuboulder_files(cuboulder_root)
                                         if p.name == name))
             for name in ("flexarm_k1k2_6_-3", "flexarm_K1K2_6_-5")]
@@ -285,7 +285,7 @@ def test_step_summary_counts_the_driven_stretches_and_the_gains_exponent():
     """Stretches whose gain is 0.11 f^2 (a root spring's signature) give the exponent 2 and
     a rank correlation 1; an undriven stretch (the hub turning 0.01 rad) is left out of the
     summary and of the report's step table, and the unit's table lists each of its runs."""
-    from flex_twin.real_arms.link_response import step_summary, unit_lines
+    from studies.link_response import step_summary, unit_lines
 
     def stretch(f, turn=0.2):
         return {"start_s": 1.0, "hub_change_rad": turn, "frequency_hz": f,

@@ -8,7 +8,7 @@ it through its clamped-hub modal analysis (:func:`twin_link`).
 
 - :func:`stuck_holds`: per hold, its longest stuck stretch of at least :data:`MIN_STUCK` s
   that rings at least 2.5 gauge steps peak to peak, fitted with a damped cosine
-  (:func:`.replay.fit_damped_cosine`): frequency, damping ratio, amplitude; with the
+  (:func:`real_arms.replay.fit_damped_cosine`): frequency, damping ratio, amplitude; with the
   hub angle, the reference and the mean voltage (the motor's holding torque).
 - :func:`one_frequency_floor`: how close any twin with one clamped frequency can come to a
   run's stuck stretches: all stretches fitted together with one common frequency and, per
@@ -29,7 +29,7 @@ from scipy.optimize import least_squares
 from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
-from .replay import GAUGE_RESOLUTION, fit_damped_cosine
+from flex_twin.real_arms.replay import GAUGE_RESOLUTION, fit_damped_cosine
 from .stiction_evidence import TORQUE_PER_VOLT, intervals, stuck_mask
 
 #: shortest stuck stretch measured (s)
@@ -133,8 +133,8 @@ def hold_link(arm: ArmDescription, frequency_hz: float, damping_ratio: float) ->
     Rayleigh damping that gives the first clamped mode ``damping_ratio`` (its ratio is
     linear in the coefficient; measured by the modal analysis, since the Rayleigh mass
     matrix leaves a payload out)."""
-    from .calibration import apply_parameters
-    from .quanser_twin import stiffness_for_frequency
+    from flex_twin.real_arms.calibration import apply_parameters
+    from flex_twin.real_arms.quanser_twin import stiffness_for_frequency
     out = apply_parameters(arm, {"EI": stiffness_for_frequency(arm, frequency_hz),
                                  "rayleigh_mass": 1.0})
     return apply_parameters(out, {"rayleigh_mass": damping_ratio / twin_link(out)[1]})
@@ -151,10 +151,10 @@ def fit_hold_link(runs: dict, make_policy, progress=None, max_nfev: int = 12) ->
     (EI follows it to keep the frequency), F_c, F_s - F_c, F_v and the rotor inertia.
     Its held-out replays against the unit twin's."""
     from flex_model.arm import load_arm
-    from .calibration import (apply_parameters, calibrate, link_parameters,
-                              servo_parameters, started_from)
-    from .report import metrics_row
-    from .replay import replay
+    from flex_twin.real_arms.calibration import (apply_parameters, calibrate, link_parameters,
+                                                 servo_parameters, started_from)
+    from flex_twin.real_arms.report import metrics_row
+    from flex_twin.real_arms.replay import replay
     from .unit_calibration import UNITS
     spec = UNITS["hagenau"]
     stretches = [h for n in spec["fit"] for h in stuck_holds(runs[n])]
@@ -276,7 +276,7 @@ def plot(report: dict, path) -> None:
 
 def write_report(report: dict, out) -> None:
     """``stuck_holds.json``, ``stuck_holds.md`` and ``stuck_holds.png`` in ``out``."""
-    from .report import write_study
+    from .command import write_study
     lines = ["# The link's ringing while the hub sticks", "",
              "| run | stuck (s) | reference (rad) | hub (rad) | mean V | frequency (Hz) | "
              "damping ratio | amplitude (mm) | fit residual (mm) |",
@@ -322,3 +322,43 @@ def write_report(report: dict, out) -> None:
                      f"{1e3 * m['unit']['tip_rms_m']:.2f} | {m['hold_link']['hub_rms_rad']:.4f}"
                      f" / {1e3 * m['hold_link']['tip_rms_m']:.2f} |")
     plot(report, write_study(out, "stuck_holds", report, lines).parent / "stuck_holds.png")
+
+
+def cmd_holds(args) -> int:
+    from pathlib import Path
+    from flex_twin.real_arms.cli import lab_policy, print_progress, print_report
+    from flex_twin.real_arms.quanser_data import CUBOULDER, read_cuboulder
+    from flex_twin.real_arms.quanser_twin import data_root
+    out = Path(args.out)
+    report = study(read_cuboulder(data_root(args.data) / CUBOULDER), lab_policy(),
+                   print_progress, fit_link=args.fit, max_nfev=args.max_evaluations)
+    write_report(report, out)
+    return print_report(args, report, out / "stuck_holds.md")
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import study_parser
+    parser = study_parser("stuck_holds", "the link's ringing while the lab hub sticks: "
+                          "frequency and damping per stuck stretch, the floor of a twin of "
+                          "one link frequency, the twins' clamped links (markdown, PNG, "
+                          "JSON; --fit: a twin with that link, ~2 CPU-min)")
+    add_data_option(parser)
+    parser.add_argument("--out", default="runs/quanser-holds", help="output directory")
+    parser.add_argument("--fit", action="store_true", help="refit Hagenau's twin around "
+                        "the link of its fit runs' stuck stretches and replay its held-out "
+                        "runs")
+    parser.add_argument("--max-evaluations", type=int, default=12)
+    parser.add_argument("--json", action="store_true")
+    parser.set_defaults(func=cmd_holds)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.stuck_holds [--fit] [--out DIR] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -19,11 +19,12 @@ import numpy as np
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from .calibration import (calibrate, calibrated_dict, gauge_options, link_parameters,
-                          started_from, with_gauge, write_preset)
-from .quanser_twin import stored_calibrated_arm
-from .replay import plot_replay, replay
-from .report import fmt, metrics_row
+from flex_twin.real_arms.calibration import (calibrate, calibrated_dict, gauge_options,
+                                             link_parameters, started_from, with_gauge,
+                                             write_preset)
+from flex_twin.real_arms.quanser_twin import stored_calibrated_arm
+from flex_twin.real_arms.replay import plot_replay, replay
+from flex_twin.real_arms.report import fmt, metrics_row
 
 #: per unit: its preset, the link-fit runs and the held-out runs (of that unit only)
 UNITS = {
@@ -70,8 +71,8 @@ def write_unit_preset(unit: str, result, out_dir, options: str = "",
                            "calibrated twin with its own link stage (issue 22)")
     start = f", started from the stored {name}" if from_unit else ""
     return write_preset(data, Path(out_dir) / f"{name}.yaml", "quanser_cuboulder_calibrated "
-                        f"with the link refitted by flex-twin real-arm units --fit{options}"
-                        f"{start} (issue 22)", result)
+                        "with the link refitted by python -m studies.unit_calibration "
+                        f"--fit{options}{start} (issue 22)", result)
 
 
 def compare(runs: dict, make_policy: Callable, out=None, presets: dict | None = None,
@@ -181,3 +182,47 @@ def study(runs: dict, make_policy: Callable, out, fit: bool = False,
     write_markdown(report, out / "units.md")
     return report
 
+
+
+def cmd_units(args) -> int:
+    from flex_twin.real_arms.cli import gauge_flags, lab_policy, print_progress, print_report
+    from flex_twin.real_arms.quanser_data import CUBOULDER, read_cuboulder
+    from flex_twin.real_arms.quanser_twin import data_root
+    out = Path(args.out)
+    gauge = gauge_flags(args)
+    if (gauge or args.from_units) and not args.fit:
+        raise ValueError("--gauge-gain/--gauge-delay/--from-units refit the units' links: "
+                         "give --fit too")
+    report = study(read_cuboulder(data_root(args.data) / CUBOULDER), lab_policy(), out,
+                   fit=args.fit, progress=print_progress, max_nfev=args.max_evaluations,
+                   gauge=gauge, from_unit=args.from_units)
+    return print_report(args, report, out / "units.md")
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option, add_gauge_options
+    from .command import study_parser
+    parser = study_parser("unit_calibration", "the twin per hardware unit: each unit's own "
+                          "link stage against the shared calibrated twin on its held-out "
+                          "runs (markdown, PNG, JSON; --fit refits the links first, minutes)")
+    add_data_option(parser)
+    parser.add_argument("--out", default="runs/quanser-units", help="output directory")
+    parser.add_argument("--fit", action="store_true", help="refit every unit's link stage "
+                        "and write its preset into --out (~2 CPU-min per unit)")
+    add_gauge_options(parser, "with --fit: ")
+    parser.add_argument("--from-units", action="store_true", help="with --fit: start each "
+                        "unit's fit from its stored preset (default: from the shared twin)")
+    parser.add_argument("--max-evaluations", type=int, default=12)
+    parser.add_argument("--json", action="store_true")
+    parser.set_defaults(func=cmd_units)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.unit_calibration [--fit [--gauge-delay] ...] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

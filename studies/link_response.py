@@ -154,7 +154,7 @@ def law_voltage_error(run, shift: int) -> float:
     """RMS (V) of the logged voltage minus the lab's law (its logged gains) on the logged
     hub and the gauge read ``shift`` samples later: least at 0 where the loop read the
     gauge as it was logged."""
-    from .quanser_data import law_regressors
+    from flex_twin.real_arms.quanser_data import law_regressors
     X, k = law_regressors(run, shift)
     return float(np.sqrt(np.mean((X @ run.gains - run.voltage[k]) ** 2)))
 
@@ -189,7 +189,7 @@ def driven_link_policy(run, model, bandwidth_hz: float = TRACKING, theta=None):
 def run_twin(name: str):
     """The twin of a flexible run's unit (:func:`.run_floor.starts`), else the shared one."""
     from .run_floor import starts
-    from .quanser_twin import stored_calibrated_arm
+    from flex_twin.real_arms.quanser_twin import stored_calibrated_arm
     unit = next((arm for unit, arm in starts(name, "flexible").items() if unit != "shared"),
                 None)
     return unit if unit is not None else stored_calibrated_arm("flexible")
@@ -201,8 +201,9 @@ def check_run(data_root: str, name: str, out: str | None = None) -> dict:
     and the same fit to its gauge output (a top-level function of picklable arguments: it
     runs on a pool or a Dask worker). With ``out``, ``link_<run>.png`` is written there."""
     from flex_model.dynamics import FlexArmModel
-    from .quanser_data import CUBOULDER, cuboulder_files, read_cuboulder_file
-    from .replay import replay
+    from flex_twin.real_arms.quanser_data import (CUBOULDER, cuboulder_files,
+                                                  read_cuboulder_file)
+    from flex_twin.real_arms.replay import replay
     path = next((p for p in cuboulder_files(Path(data_root) / CUBOULDER) if p.name == name),
                 None)
     if path is None:
@@ -265,14 +266,15 @@ def plot_run(run, d_lab, d_mode, d_lagged, d_twin, path) -> None:
 
 def gauge_runs(data_root) -> list:
     """The CU Boulder runs with a tip deflection logged."""
-    from .quanser_data import CUBOULDER, read_cuboulder
+    from flex_twin.real_arms.quanser_data import CUBOULDER, read_cuboulder
     return [n for n, r in read_cuboulder(Path(data_root) / CUBOULDER).items() if r.has_gauge]
 
 
 def unit_modes(data_root, rows) -> dict:
     """:func:`unit_mode` for every unit of :data:`.unit_calibration.UNITS` with at least
     two of the ``rows``' runs, started from the median of their own lagged fits."""
-    from .quanser_data import CUBOULDER, cuboulder_files, read_cuboulder_file
+    from flex_twin.real_arms.quanser_data import (CUBOULDER, cuboulder_files,
+                                                  read_cuboulder_file)
     from .unit_calibration import UNITS
     files = {p.name: p for p in cuboulder_files(Path(data_root) / CUBOULDER)}
     by_run = {r["run"]: r for r in rows}
@@ -363,7 +365,7 @@ def study(data_root, executor, progress=print, runs=None, out=None) -> dict:
 
 def write_report(report: dict, out) -> None:
     """``link_response.json`` and ``link_response.md`` in ``out``."""
-    from .report import write_study
+    from .command import write_study
     s = report["summary"]
     lines = ["# The lab's link against its own hub angle", "",
              "One linear mode d'' + 2 zeta w d' + w^2 d = -gain theta'' driven by the encoder's "
@@ -438,3 +440,40 @@ def unit_lines(report: dict) -> list:
                       f"{1e3 * st['left_range_m'][0]:.2f}-{1e3 * st['left_range_m'][1]:.2f} "
                       "mm."]
     return lines + notes
+
+
+def cmd_link_response(args) -> int:
+    from flex_twin.cluster import batch_executor
+    from flex_twin.real_arms.cli import print_progress, print_report
+    from flex_twin.real_arms.quanser_twin import data_root
+    out = Path(args.out)
+    with batch_executor(args.scheduler, args.workers) as executor:
+        report = study(data_root(args.data), executor, print_progress, args.runs or None,
+                       out=out)
+    write_report(report, out)
+    return print_report(args, report, out / "link_response.md")
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import add_batch_options, study_parser
+    parser = study_parser("link_response", "the lab's link against its own hub angle: one "
+                          "linear mode fitted to each run and to each step, one for each "
+                          "unit, the twin's link driven by the lab's hub (markdown, JSON, "
+                          "PNG per run; ~10 CPU-min)")
+    add_data_option(parser)
+    parser.add_argument("runs", nargs="*", help="run names (default: every run with a "
+                        "gauge)")
+    add_batch_options(parser, "runs/quanser-link")
+    parser.set_defaults(func=cmd_link_response)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.link_response [RUN ...] [--workers N] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -12,12 +12,11 @@ coherence, fitted by one link mode; twin: its linearization (``flex_model.modes.
 hub hinged). (Driving the twin's alpha / theta with the measured theta is no replay either:
 the twin's link mode is undamped and amplifies whatever theta holds at its frequency.)
 
-``python -m flex_twin.real_arms.ucmerced_long [DATA]`` prints the figures.
+``python -m studies.ucmerced_long [DATA]`` (from the repository root) prints the figures.
 """
 from __future__ import annotations
 
 import dataclasses
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +24,7 @@ import scipy.signal as sg
 
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import linearize
-from .quanser_data import UCMERCED, load_mat_file
+from flex_twin.real_arms.quanser_data import UCMERCED, load_mat_file
 
 
 def read_60s(root) -> dict:
@@ -136,13 +135,28 @@ def study(root, arm) -> dict:
     return out
 
 
-def main(argv=None) -> int:
+def cmd_ucmerced_long(args) -> int:
     import json
-    from .quanser_twin import nominal_arm_for
-    argv = sys.argv[1:] if argv is None else argv
-    root = Path(argv[0]) if argv else Path.cwd().parent / "shared" / "data" / "real"
+    from flex_twin.real_arms.quanser_twin import nominal_arm_for
+    root = Path(args.data) if args.data else Path.cwd().parent / "shared" / "data" / "real"
     print(json.dumps(study(root, nominal_arm_for("ucmerced", "flexible")), indent=1))
     return 0
+
+
+def build_parser():
+    from .command import study_parser
+    parser = study_parser("ucmerced_long", "the UC Merced link mode (alpha / theta) of the "
+                          "5 s and the 60 s record against the manual-value twin (JSON)")
+    parser.add_argument("data", nargs="?", default=None, help="folder of the real data "
+                        "(default ../shared/data/real)")
+    parser.set_defaults(func=cmd_ucmerced_long)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.ucmerced_long [DATA]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@
 The diagnosed arm (``diagnosed_arm.yaml`` of a diagnosis, the handout twin with the named
 effects and the recalibrated scales) and the handout twin replay every CU Boulder
 flexible-link run of the lab (closed loop, each run's own gains, whole run from its first
-sample: :func:`.replay.replay`, as ``flex-twin replay``); the table gives the hub and tip
+sample: :func:`real_arms.replay.replay`, as ``flex-twin replay``); the table gives the hub and tip
 RMS errors of both and an overlay PNG per run. A run that the diagnosis did not see and
 whose error falls is one the effect transfers to.
 """
@@ -17,9 +17,9 @@ import numpy as np
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from .quanser_data import CUBOULDER, read_cuboulder
-from .quanser_twin import nominal_arm_for
-from .replay import plot_replay, replay
+from flex_twin.real_arms.quanser_data import CUBOULDER, read_cuboulder
+from flex_twin.real_arms.quanser_twin import nominal_arm_for
+from flex_twin.real_arms.replay import plot_replay, replay
 
 
 def transfer(diagnosis_dir, data_root, make_policy, out, progress=print,
@@ -91,3 +91,42 @@ def markdown(result: dict) -> list:
                   f"{result['other_hub_median_nominal']:.4f} -> "
                   f"{result['other_hub_median_diagnosed']:.4f} rad."]
     return lines
+
+
+def cmd_transfer(args) -> int:
+    """Replay the flexible-link runs on the handout twin and on a diagnosis's
+    diagnosed_arm.yaml (issue 22: does the named effect transfer to the other runs?)."""
+    from flex_twin.real_arms.cli import lab_policy, print_progress, print_report
+    from flex_twin.real_arms.quanser_twin import data_root
+    out = Path(args.out or Path(args.diagnosis) / "transfer")
+    result = transfer(args.diagnosis, data_root(args.data), lab_policy(), out,
+                      print_progress, runs=tuple(args.runs) if args.runs else None)
+    return print_report(args, result, out / "transfer.md")
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import study_parser
+    parser = study_parser("transfer", "replay the CU Boulder flexible-link runs on the "
+                          "handout twin and on a real-arm diagnose output's diagnosed arm "
+                          "(before/after table, overlay PNG per run)")
+    parser.add_argument("diagnosis", help="output directory of flex-twin real-arm diagnose "
+                        "(with diagnosed_arm.yaml)")
+    parser.add_argument("--runs", nargs="*", default=None, help="run names (default: every "
+                        "flexible-link run with a gauge)")
+    add_data_option(parser)
+    parser.add_argument("--out", default=None, help="output directory (default "
+                        "DIAGNOSIS/transfer)")
+    parser.add_argument("--json", action="store_true")
+    parser.set_defaults(func=cmd_transfer)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.transfer DIAGNOSIS_DIR [--runs RUN ...] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

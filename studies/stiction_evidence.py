@@ -115,11 +115,32 @@ def markdown_rows(stats: list) -> list:
     return rows
 
 
-if __name__ == "__main__":   # python -m flex_twin.real_arms.stiction_evidence [RUN ...]
-    import sys
-
-    from .quanser_data import CUBOULDER, read_cuboulder
-    from .quanser_twin import data_root
-    runs = read_cuboulder(data_root() / CUBOULDER)
-    names = sys.argv[1:] or [n for n, r in runs.items() if r.kind == "flexible"]
+def cmd_holds_table(args) -> int:
+    from flex_twin.real_arms.quanser_data import CUBOULDER, read_cuboulder
+    from flex_twin.real_arms.quanser_twin import data_root
+    runs = read_cuboulder(data_root(args.data) / CUBOULDER)
+    names = args.runs or [n for n, r in runs.items() if r.kind == "flexible"]
     print("\n".join(markdown_rows([run_statistics(runs[n]) for n in names])))
+    return 0
+
+
+def build_parser():
+    from flex_twin.real_arms.cli import add_data_option
+    from .command import study_parser
+    parser = study_parser("stiction_evidence", "per hold of each CU Boulder run: stuck "
+                          "share, hold error, voltage, torques, slips (a markdown table)")
+    parser.add_argument("runs", nargs="*", help="run names (default: every flexible-link "
+                        "run)")
+    add_data_option(parser)
+    parser.set_defaults(func=cmd_holds_table)
+    return parser
+
+
+def main(argv=None) -> int:
+    """``python -m studies.stiction_evidence [RUN ...]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
