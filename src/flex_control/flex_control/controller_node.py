@@ -55,6 +55,13 @@ def parameter_specs() -> tuple:
     return tuple(specs)
 
 
+def stand_in_joints(values: dict) -> tuple:
+    """Joint names to check the parameters with until joint_states names the joints: as
+    many as the longest of h, a, torque_limits."""
+    k = max(len(values[f]) for f in ("h", "a", "torque_limits"))
+    return tuple(f"joint{i + 1}" for i in range(k))
+
+
 class ControllerNode(Node):
     """Joint torque controller.
 
@@ -103,8 +110,7 @@ class ControllerNode(Node):
         clock_topic = values.pop("clock_topic")
         names = tuple(values["joint_names"])
         if not names:  # checked with stand-in joints now, with the model's when they come
-            k = max(len(values[f]) for f in ("h", "a", "torque_limits"))
-            values["joint_names"] = tuple(f"joint{i + 1}" for i in range(k))
+            values["joint_names"] = stand_in_joints(values)
         try:
             self.params = ControllerParams.from_mapping(values)
             self.controller = build_controller(self.params)
@@ -323,9 +329,13 @@ class ControllerNode(Node):
         controller before it is swapped in (raises ValueError with the reason)."""
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()
                   if k not in dict(NODE_PARAMETERS)}
+        reference = self.controller.reference
+        if self.names is None:  # no joints yet: as many stand-ins as the longest list
+            values["joint_names"] = stand_in_joints({**vars(self.params), **values})
+            reference = None
         params = replace(self.params, **values)
         try:
-            controller = build_controller(params, reference=self.controller.reference)
+            controller = build_controller(params, reference=reference)
         except OSError as exc:
             raise ValueError(f"schedule_file: {exc}") from None
         self.params, self.controller = params, controller

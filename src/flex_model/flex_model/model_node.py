@@ -85,10 +85,12 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections import deque
 from contextlib import ExitStack
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -117,6 +119,8 @@ LOCKSTEP_SLICE = 0.02
 #: periods one timer callback runs on a wait set of its own (ModelNode._realtime_slice)
 #: before it returns to the executor (0: one period a callback)
 REALTIME_SLICE = 0.05
+#: commands remembered for the divergence diagnostic (the largest of the last second)
+COMMAND_MEMORY = 4096
 #: QoS of robot_description and /tf_static (as robot_state_publisher: latched, depth 1)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -152,6 +156,17 @@ def plausibility_limits(model: FlexArmModel) -> dict:
     return {"max_torque": max(100.0, 10.0 * gravity, 100.0 * inertia),
             "max_payload_mass": 10.0 * float(model.total_mass),
             "max_payload_inertia": 10.0 * inertia}
+
+
+def _refuse_controller_params(changes) -> SetParametersResult:
+    """controller_params.* are read when the in-loop controller is built: a change at run
+    time is refused with the reason (it would be accepted and do nothing)."""
+    for p in changes:
+        if p.name.startswith("controller_params."):
+            return SetParametersResult(successful=False, reason=(
+                f"parameter {p.name} is read-only at run time (the in-loop controller is "
+                f"built from it); restart the node with -p {p.name}:=..."))
+    return SetParametersResult(successful=True)
 
 
 def _choice(*options):
@@ -262,6 +277,8 @@ class ModelNode(Node):
         self.diverged = None  # after a divergence: its DiagnosticStatus (stepping stops)
         self.diverged_at = 0.0  # simulation time of the divergence (s)
         self.next_diagnostic = 0.0  # wall time of the next repeat of that status
+        self.next_held_state = 0.0  # diverged: wall time of the next held-state publication
+        self.recent_commands = deque(maxlen=COMMAND_MEMORY)  # (t, command): the diagnostic
         self.warned = set()
         self.drops = ReasonLog(self)
         # REP 103/105 frames (flex_model.urdf): the plane's coordinates in the base frame
@@ -358,6 +375,7 @@ class ModelNode(Node):
             ctl = load_controller(p["controller"], self.names, params)
         except ValueError as exc:
             raise ParameterError(f"parameter {exc}") from None
+        self.add_on_set_parameters_callback(_refuse_controller_params)
         self.create_subscription(JointTrajectory, "flex_planner/trajectory",
                                  self.on_trajectory, 1)
         self.get_logger().info(f"in-loop controller {p['controller']} at "
@@ -416,6 +434,7 @@ class ModelNode(Node):
             return
         self.stepper.set_command(u)
         self.command_time, self.commanded = self.stepper.t, True
+        self.recent_commands.append((self.command_time, u))
         if self.p["mode"] == "lockstep" and not self.paused:
             self.last_wall = time.monotonic()
             self.step(1.0 / self.p["rate"])
@@ -448,6 +467,9 @@ class ModelNode(Node):
         was_diverged = self.diverged is not None
         self.stepper.model.set_payload(*self.payload0)
         self.stepper.reset()
+        self.recent_commands.clear()
+        if self.loop is not None:  # the old task must not replay: zero until a trajectory
+            self.loop.drop_trajectory()
         self.command_time = self.next_publish = self.next_shape = self.behind = 0.0
         self.last_wall = time.monotonic()
         self.diverged = None
@@ -479,6 +501,9 @@ class ModelNode(Node):
             if now >= self.next_diagnostic:
                 self.next_diagnostic = now + 1.0
                 self.publish_diagnostic(self.diverged)
+            if now >= self.next_held_state:  # the last good state, its effort zero
+                self.next_held_state = now + 1.0 / self.p["publish_rate"]
+                self.publish_state(full=True, shape=False)
             return
         if self.paused:
             return
@@ -580,7 +605,11 @@ class ModelNode(Node):
         self.apply_command_timeout()
         try:
             if self.loop is None:
-                self.stepper.advance(dt)
+                refined = self.stepper.advance_refining(dt)
+                if refined > 1:
+                    self.drops.warning(f"integration failed at t = {fmt(self.stepper.t - dt)}"
+                                       f" s with the step {fmt(self.stepper.max_step)} s; "
+                                       f"integrated again in steps {refined} x shorter")
             else:
                 self.loop.advance(max(1, int(round(dt / self.loop.period))))
         except Exception as exc:  # a diverged model stops stepping, loudly, and stays up
@@ -620,11 +649,12 @@ class ModelNode(Node):
         u = st.u.copy()
         k = int(np.argmax(np.abs(u))) if u.size else 0
         mass, inertia = st.model.payload
-        cause = (f"the arm's state ran away under the held joint command {fmt(u)} "
-                 f"(largest {fmt(abs(u[k]))} at {self.names[k]}) with the payload "
-                 f"{fmt(mass)} kg, {fmt(inertia)} kg m^2: likely a command or payload beyond "
-                 "what this arm can follow, or an unstable control loop (a sampled joint "
-                 "controller too stiff for the arm)")
+        peak = self._largest_recent_command(st.t, u)
+        cause = (f"the arm's state ran away under the joint command {fmt(u)} applied when it "
+                 f"failed (largest {fmt(abs(u[k]))} at {self.names[k]}){peak} with the "
+                 f"payload {fmt(mass)} kg, {fmt(inertia)} kg m^2: likely a command or payload "
+                 "beyond what this arm can follow, or an unstable control loop (a sampled "
+                 "joint controller too stiff for the arm)")
         self.diverged_at = st.t
         self.diverged = conv.diagnostic_status(
             self.get_fully_qualified_name(), self.model.arm.name, "error",
@@ -636,6 +666,18 @@ class ModelNode(Node):
         self.get_logger().error(self.diverged.message + f" ({exc})")
         self.publish_diagnostic(self.diverged)
         self.next_diagnostic = time.monotonic() + 1.0
+        self.next_held_state = 0.0  # the held state from the next tick on, effort zero
+
+    def _largest_recent_command(self, t: float, applied) -> str:
+        """'; the largest command of the second before: [..] at t = .. s' if it is not
+        the applied one (a pulse that left the arm running away), else ''."""
+        recent = [(tc, u) for tc, u in self.recent_commands if tc >= t - 1.0]
+        if not recent:
+            return ""
+        tc, u = max(recent, key=lambda item: float(np.max(np.abs(item[1]))))
+        if np.max(np.abs(u)) <= np.max(np.abs(applied)):
+            return ""
+        return f"; the largest command of the second before: {fmt(u)} at t = {fmt(tc)} s"
 
     def publish_diagnostic(self, status) -> None:
         msg = DiagnosticArray(status=[status])
