@@ -25,8 +25,9 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
 Subscriptions:
     effort_controller/commands  std_msgs/Float64MultiArray  joint torques, joint order
     flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
-Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; after a
-divergence it restarts the loop), ~/pause (std_srvs/SetBool).
+Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; an
+in-loop controller's trajectory is dropped: zero until the next one; after a divergence it
+restarts the loop), ~/pause (std_srvs/SetBool).
 
 Parameters (:data:`PARAMETERS`: defaults, descriptions, checks): arm (default
 thesis_example1_motors: with its geared motors the default controller node, a sampled
@@ -35,7 +36,10 @@ sampled rate feedback acts on the tiny root inertia of a flexible link and diver
 0.1 s), vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz, model loop),
 publish_rate (Hz), shape_rate (Hz, /flex/shape, at most publish_rate), max_step (s),
 initial_joint_angles_deg (one per joint, or one for all), start_static (start deflected at
-rest under gravity), start_paused (until ~/pause false), command_timeout (s of simulation
+rest under gravity), start_paused (until ~/pause false), hold_until_command (default true:
+from the start and after ~/reset the initial state is held, time running, until the first
+valid command, or with an in-loop controller after ~/reset the next trajectory: the arm
+does not fall before its controller connects), command_timeout (s of simulation
 time, default 0.5, 0 = never; lockstep: a watchdog step applies it at once; not with an
 in-loop controller), timeout_action (zero, the default, | hold), lockstep_timeout (s,
 wall), frame_id (the base frame, root of the URDF and TF), frame_prefix, publish_tf,
@@ -57,10 +61,13 @@ shape_rate, command_timeout, timeout_action, lockstep_timeout and the plausibili
 may be set (checked); the others are refused with a reason.
 
 Bad inputs are dropped with a reason logged at most once a second per reason (not per
-call site: a wrong length does not hide a NaN). A divergence of the integration (Newton
-fails, the state runs away) logs one error naming the held command and payload, publishes
-the ERROR diagnostic, sets the command to zero and stops stepping; the node stays up
-(commands are answered with a reason) and ~/reset restarts it.
+call site: a wrong length does not hide a NaN). A failed integration step (Newton fails,
+the state runs away) under external commands is done again in steps 4, then 16 x
+shorter (Stepper.advance_refining; a warning line). If that fails too, the model diverged:
+one error names the command applied then, the largest command of the second before and
+the payload, publishes the ERROR diagnostic, sets the command to zero and stops stepping;
+the node stays up (commands are answered with a reason), publishes the last good state
+with zero effort (at publish_rate, at most the timer's rate) and ~/reset restarts it.
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several
@@ -216,6 +223,10 @@ PARAMETERS = (
     Param("publish_clock", False, "publish /clock in realtime mode too"),
     Param("start_static", False, "start at rest, deflected under gravity"),
     Param("start_paused", False, "start paused (until ~/pause false)"),
+    Param("hold_until_command", True, "hold the arm at its initial state (brakes on: time "
+          "runs, joints and links stay) from the start and after ~/reset until the first "
+          "valid command (an in-loop controller: from ~/reset until the next trajectory); "
+          "false: the arm moves under zero torque (falls under gravity) until then"),
     Param("realtime_priority", 0, "SCHED_FIFO priority of the node's thread (0: off)",
           check=lambda v: None if 0 <= v <= 99 else "0 (off) or 1-99"),
     Param("max_torque", 0.0, "plausibility limit of a joint command (N m, or V for "
@@ -270,6 +281,9 @@ class ModelNode(Node):
         self.links = [lk.name for lk in arm.links]
         self.has_imu = any(s.kind == "tip_accelerometer" for s in arm.sensors)
         self.paused = bool(p["start_paused"])
+        # hold_until_command: the initial state held until a command (an in-loop controller
+        # commands from the start)
+        self.braked = bool(p["hold_until_command"]) and not p["controller"]
         self.command_time = 0.0
         self.commanded = False  # a valid command has arrived (lockstep: the loop runs)
         self.next_publish = self.next_shape = 0.0
@@ -340,7 +354,9 @@ class ModelNode(Node):
                                f"publishing at {p['publish_rate']:g} Hz; plausibility "
                                f"limits {self.limit('max_torque'):.4g} N m, payload "
                                f"{self.limit('max_payload_mass'):.4g} kg, "
-                               f"{self.limit('max_payload_inertia'):.4g} kg m^2")
+                               f"{self.limit('max_payload_inertia'):.4g} kg m^2"
+                               + ("; the initial state is held until the first command "
+                                  "(hold_until_command)" if self.braked else ""))
 
     def _tf_setup(self, p) -> None:
         """/tf_static (base -> arm_plane, latched) once and /tf publishers, if tf2_msgs can
@@ -390,6 +406,7 @@ class ModelNode(Node):
         except ValueError as exc:
             self.drops.warning(f"dropped flex_planner/trajectory: {exc}")
             return
+        self.braked = False
         self.get_logger().info(f"trajectory: {len(data.t)} points, {data.duration:.3f} s")
 
     def _set_realtime_priority(self, priority: int) -> None:
@@ -433,7 +450,7 @@ class ModelNode(Node):
                                "valid command")
             return
         self.stepper.set_command(u)
-        self.command_time, self.commanded = self.stepper.t, True
+        self.command_time, self.commanded, self.braked = self.stepper.t, True, False
         self.recent_commands.append((self.command_time, u))
         if self.p["mode"] == "lockstep" and not self.paused:
             self.last_wall = time.monotonic()
@@ -470,6 +487,7 @@ class ModelNode(Node):
         self.recent_commands.clear()
         if self.loop is not None:  # the old task must not replay: zero until a trajectory
             self.loop.drop_trajectory()
+        self.braked = bool(self.p["hold_until_command"])  # (then held until the next one)
         self.command_time = self.next_publish = self.next_shape = self.behind = 0.0
         self.last_wall = time.monotonic()
         self.diverged = None
@@ -604,7 +622,9 @@ class ModelNode(Node):
             return
         self.apply_command_timeout()
         try:
-            if self.loop is None:
+            if self.braked:  # hold_until_command: the initial state until a command
+                self.stepper.hold(dt)
+            elif self.loop is None:
                 refined = self.stepper.advance_refining(dt)
                 if refined > 1:
                     self.drops.warning(f"integration failed at t = {fmt(self.stepper.t - dt)}"

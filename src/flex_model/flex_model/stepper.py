@@ -90,6 +90,12 @@ class Stepper:
             raise newton_failed(t_end, h, RUNAWAY)
         self.t, self.x, self.a, self.abar = self.t + duration, x_end, a, abar
 
+    def hold(self, duration: float) -> None:
+        """Let ``duration`` (s) pass with the state held where it is (the arm's brakes on:
+        joints and links do not move)."""
+        if duration > 0:
+            self.t += duration
+
     def advance_refining(self, duration: float, refinements=REFINEMENTS) -> int:
         """:meth:`advance`; if it fails (Newton or a run-away state), the same duration
         again from the same state in steps of max_step / k for each k of ``refinements``
