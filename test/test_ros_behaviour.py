@@ -399,7 +399,7 @@ def test_model_node_survives_a_pulse_within_the_limits(graph):
 def test_divergence_names_the_pulse_and_the_node_keeps_publishing(graph, monkeypatch):
     """Issue 46.5: when the integration fails after a pulse (here forced at t = 0.05 s,
     every step size failing), the diagnostic names the command applied then ([0, 0]) and
-    the pulse of the second before ([0, 300] at t = 0.02 s); /joint_states goes on with the
+    the largest before, the pulse ([0, 300] at t = 0.02 s); /joint_states goes on with the
     last good state and zero effort until ~/reset (before: it stopped)."""
     g = graph
     model = g.add(ModelNode(context=g.ctx, namespace=g.ns, parameter_overrides=[
@@ -430,7 +430,7 @@ def test_divergence_names_the_pulse_and_the_node_keeps_publishing(graph, monkeyp
                              for s in d.status), "the diagnostic")
     text = model.diverged.message
     assert "under the joint command [0, 0] applied when it failed" in text, text
-    assert "the largest command of the second before: [0, 300] at t = 0.02 s" in text, text
+    assert "the largest command before: [0, 300] at t = 0.02 s" in text, text
     n = len(states)
     g.spin_until(lambda: len(states) >= n + 5, "states after the divergence", 10.0)
     held = states[n:]

@@ -64,8 +64,8 @@ Bad inputs are dropped with a reason logged at most once a second per reason (no
 call site: a wrong length does not hide a NaN). A failed integration step (Newton fails,
 the state runs away) under external commands is done again in steps 4, then 16 x
 shorter (Stepper.advance_refining; a warning line). If that fails too, the model diverged:
-one error names the command applied then, the largest command of the second before and
-the payload, publishes the ERROR diagnostic, sets the command to zero and stops stepping;
+one error names the command applied then, the largest command before (of the last
+COMMAND_MEMORY) and the payload, publishes the ERROR diagnostic, sets the command to zero and stops stepping;
 the node stays up (commands are answered with a reason), publishes the last good state
 with zero effort (at publish_rate, at most the timer's rate) and ~/reset restarts it.
 
@@ -126,7 +126,7 @@ LOCKSTEP_SLICE = 0.02
 #: periods one timer callback runs on a wait set of its own (ModelNode._realtime_slice)
 #: before it returns to the executor (0: one period a callback)
 REALTIME_SLICE = 0.05
-#: commands remembered for the divergence diagnostic (the largest of the last second)
+#: commands remembered for the divergence diagnostic (it names the largest of them)
 COMMAND_MEMORY = 4096
 #: QoS of robot_description and /tf_static (as robot_state_publisher: latched, depth 1)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -669,7 +669,7 @@ class ModelNode(Node):
         u = st.u.copy()
         k = int(np.argmax(np.abs(u))) if u.size else 0
         mass, inertia = st.model.payload
-        peak = self._largest_recent_command(st.t, u)
+        peak = self._largest_recent_command(u)
         cause = (f"the arm's state ran away under the joint command {fmt(u)} applied when it "
                  f"failed (largest {fmt(abs(u[k]))} at {self.names[k]}){peak} with the "
                  f"payload {fmt(mass)} kg, {fmt(inertia)} kg m^2: likely a command or payload "
@@ -688,16 +688,16 @@ class ModelNode(Node):
         self.next_diagnostic = time.monotonic() + 1.0
         self.next_held_state = 0.0  # the held state from the next tick on, effort zero
 
-    def _largest_recent_command(self, t: float, applied) -> str:
-        """'; the largest command of the second before: [..] at t = .. s' if it is not
-        the applied one (a pulse that left the arm running away), else ''."""
-        recent = [(tc, u) for tc, u in self.recent_commands if tc >= t - 1.0]
-        if not recent:
+    def _largest_recent_command(self, applied) -> str:
+        """'; the largest command before: [..] at t = .. s' (of the last COMMAND_MEMORY
+        since the start or ~/reset) if it exceeds the applied one (a pulse that left the
+        arm running away, a command timed out to zero), else ''."""
+        if not self.recent_commands:
             return ""
-        tc, u = max(recent, key=lambda item: float(np.max(np.abs(item[1]))))
+        tc, u = max(self.recent_commands, key=lambda item: float(np.max(np.abs(item[1]))))
         if np.max(np.abs(u)) <= np.max(np.abs(applied)):
             return ""
-        return f"; the largest command of the second before: {fmt(u)} at t = {fmt(tc)} s"
+        return f"; the largest command before: {fmt(u)} at t = {fmt(tc)} s"
 
     def publish_diagnostic(self, status) -> None:
         msg = DiagnosticArray(status=[status])
