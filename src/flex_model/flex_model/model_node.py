@@ -65,9 +65,10 @@ call site: a wrong length does not hide a NaN). A failed integration step (Newto
 the state runs away) under external commands is done again in steps 4, then 16 x
 shorter (Stepper.advance_refining; a warning line). If that fails too, the model diverged:
 one error names the command applied then, the largest command before (of the last
-COMMAND_MEMORY) and the payload, publishes the ERROR diagnostic, sets the command to zero and stops stepping;
-the node stays up (commands are answered with a reason), publishes the last good state
-with zero effort (at publish_rate, at most the timer's rate) and ~/reset restarts it.
+COMMAND_MEMORY) and the payload, publishes the ERROR diagnostic, sets the command to zero
+and stops stepping; the node stays up (commands are answered with a reason), publishes the
+last good state with zero effort (at publish_rate, at most the timer's rate) and ~/reset
+restarts it.
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several

@@ -21,8 +21,8 @@ from .ros_messages import (deflections_msg, nominal_path_msg, path_request,
 READ_ONLY = ("arm", "vars_per_link")
 #: default bound on the samples of a plan (200 s at the default 1 ms)
 MAX_SAMPLES = 200_000
-#: default bound on the waypoints of a request (planning costs about half a millisecond a
-#: waypoint, taking a message from DDS ~46 us a pose: 1000 keep a request near a second)
+#: default bound on the waypoints of a request (planning and building the message cost
+#: time in proportion: 1000 keep a request near a second on the dev machine)
 MAX_WAYPOINTS = 1000
 #: the planner's topics: relative names, not private ones (~/...), so that they do not
 #: follow the node's name (a renamed planner still feeds the model and the controller,
