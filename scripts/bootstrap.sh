@@ -23,6 +23,7 @@ REQUIREMENTS=(
   mcap mcap-ros2-support rosbags
   distributed
   pytest
+  foxglove-sdk websockets  # live view (flex-twin view), its tests' WebSocket client
 )
 
 log() { printf '[bootstrap] %s\n' "$*" >&2; }

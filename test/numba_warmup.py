@@ -72,7 +72,7 @@ def structured_newton() -> None:
 
 
 def spatial() -> None:
-    from flex_model.spatial.description import load_spatial_arm
+    from flex_model.spatial.loader import load_spatial_arm
     from flex_model.spatial.dynamics import SpatialArmModel
     from flex_model.spatial.integrate import simulate_fixed_compiled
     model = SpatialArmModel(load_spatial_arm("seed000_real_arm_3d"))

@@ -14,17 +14,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 
-
-def _out_dir(args, name: str) -> Path:
-    path = Path(args.out) if args.out else \
-        Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-control-{name}"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+from flex_model.command import run_dir
 
 
 def _model(args):
@@ -76,7 +70,7 @@ def _gain_function(args, model):
 def cmd_step(args) -> int:
     from .step_response import step_response
 
-    out_dir = None if args.no_plot else _out_dir(args, "step")
+    out_dir = None if args.no_plot else run_dir(args.out, "control-step")
     results = []
     for arm in args.arm:
         r = step_response(arm, start_deg=args.start_deg, end_deg=args.end_deg, kpp=args.kpp,
@@ -122,7 +116,7 @@ def cmd_design(args) -> int:
                               per_joint=not args.shared_gains,
                               deflection_weight=args.deflection_weight)
     result = design_schedule(model, data, settings)
-    out_dir = _out_dir(args, "design")
+    out_dir = run_dir(args.out, "control-design")
     path = result.schedule.save(out_dir / "schedule.yaml")
     out = result.as_dict()
     out["schedule"] = str(path)
@@ -186,7 +180,7 @@ def cmd_check(args) -> int:
                 *(run.tip_xy - ref).T)))
     if not args.no_plot:
         from .plots import plot_frozen, plot_ltv
-        out_dir = _out_dir(args, "check")
+        out_dir = run_dir(args.out, "control-check")
         plot_ltv(report, model, out_dir / "ltv.png", title=f"{model.arm.name}: LTV check")
         plot_frozen(frozen, out_dir / "frozen.png")
         out["png"] = [str(out_dir / "ltv.png"), str(out_dir / "frozen.png")]

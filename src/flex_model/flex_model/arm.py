@@ -44,7 +44,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from .config import _MISSING, ConfigError, Fields, read_yaml
+from .config import MISSING, ConfigError, Fields, read_yaml
 from .sections import SHAPE_DIMENSIONS, Segment, SectionProfile
 
 PRESET_DIR = Path(__file__).resolve().parent / "presets"
@@ -202,7 +202,7 @@ def _link(f: Fields, index: int) -> LinkDescription:
     length = f.number("length", positive=True, unit="m")
     mat = _material(f.mapping("material")) if f.has("material") else {}
     if f.has("segments") == f.has("section"):
-        raise f.error("section", f.data.get("section", _MISSING),
+        raise f.error("section", f.data.get("section", MISSING),
                       "exactly one of 'section' or 'segments'")
     if f.has("section"):
         segments = (_segment(f.mapping("section"), mat, length),)

@@ -1,11 +1,43 @@
-"""The command-line exit convention shared by every package's entry point (flex-twin,
-flex-control, flex-planner): 0 success, 2 bad input (one line on stderr), 1 a failed
-computation."""
+"""What every package's entry point (flex-twin, flex-control, flex-planner) shares: the
+output directory, the progress line and the exit convention: 0 success, 2 bad input (one
+line on stderr), 1 a failed computation."""
 from __future__ import annotations
 
 import sys
+import time
+from datetime import datetime
+from pathlib import Path
 
 import numpy as np
+
+
+def run_dir(base: str | None, name: str) -> Path:
+    """The output directory (created): ``base``, or ``runs/YYYYmmdd-HHMMSS-<name>``."""
+    path = Path(base) if base else Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-{name}"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+class Progress:
+    """Progress of a long run on stderr: a live line on a terminal, else every 10 %."""
+
+    def __init__(self, label: str, enabled: bool = True):
+        self.label, self.enabled = label, enabled
+        self.tty = sys.stderr.isatty()
+        self.start = time.perf_counter()
+        self.next_mark = 0.1
+
+    def __call__(self, t: float, total: float) -> None:
+        if not self.enabled:
+            return
+        frac = t / total
+        wall = time.perf_counter() - self.start
+        msg = f"{self.label}: t = {t:7.3f} / {total:g} s ({100 * frac:5.1f} %, {wall:6.2f} s wall)"
+        if self.tty:
+            print("\r" + msg, end="" if frac < 1 else "\n", file=sys.stderr, flush=True)
+        elif frac >= self.next_mark - 1e-9 or frac >= 1:
+            print(msg, file=sys.stderr, flush=True)
+            self.next_mark = np.floor(frac * 10 + 1e-9) / 10 + 0.1
 
 
 def run_command(args) -> int:

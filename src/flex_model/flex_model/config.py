@@ -15,7 +15,7 @@ class ConfigError(ValueError):
 
     def __init__(self, source: str, path: str, value, allowed: str):
         self.source, self.path, self.value, self.allowed = source, path, value, allowed
-        shown = "<missing>" if value is _MISSING else repr(value)
+        shown = "<missing>" if value is MISSING else repr(value)
         super().__init__(f"{source}: {path}: got {shown}; expected {allowed}")
 
 
@@ -24,7 +24,7 @@ class _Missing:
         return "<missing>"
 
 
-_MISSING = _Missing()
+MISSING = _Missing()
 
 
 def read_yaml(path) -> dict:
@@ -58,25 +58,25 @@ class Fields:
     def error(self, key: str, value, allowed: str) -> ConfigError:
         return ConfigError(self.source, self.sub(key), value, allowed)
 
-    def raw(self, key: str, default=_MISSING):
+    def raw(self, key: str, default=MISSING):
         self.used.add(key)
         if key not in self.data:
-            if default is _MISSING:
-                raise self.error(key, _MISSING, "this required field")
+            if default is MISSING:
+                raise self.error(key, MISSING, "this required field")
             return default
         return self.data[key]
 
     def has(self, key: str) -> bool:
         return key in self.data
 
-    def number(self, key: str, default=_MISSING, *, min_value=None, max_value=None,
+    def number(self, key: str, default=MISSING, *, min_value=None, max_value=None,
                positive=False, nonnegative=False, unit: str = "") -> float:
         value = self.raw(key, default)
         return check_number(value, self.source, self.sub(key), min_value=min_value,
                             max_value=max_value, positive=positive, nonnegative=nonnegative,
                             unit=unit)
 
-    def integer(self, key: str, default=_MISSING, *, min_value=None, max_value=None,
+    def integer(self, key: str, default=MISSING, *, min_value=None, max_value=None,
                 even=False) -> int:
         value = self.raw(key, default)
         what = "an integer"
@@ -93,7 +93,7 @@ class Fields:
             raise self.error(key, value, what)
         return value
 
-    def string(self, key: str, default=_MISSING, *, choices=None) -> str:
+    def string(self, key: str, default=MISSING, *, choices=None) -> str:
         value = self.raw(key, default)
         if not isinstance(value, str):
             raise self.error(key, value, "a string" if not choices else f"one of {choices}")
@@ -101,13 +101,13 @@ class Fields:
             raise self.error(key, value, f"one of {', '.join(choices)}")
         return value
 
-    def boolean(self, key: str, default=_MISSING) -> bool:
+    def boolean(self, key: str, default=MISSING) -> bool:
         value = self.raw(key, default)
         if not isinstance(value, bool):
             raise self.error(key, value, "true or false")
         return value
 
-    def vector(self, key: str, length: int | None = None, default=_MISSING,
+    def vector(self, key: str, length: int | None = None, default=MISSING,
                unit: str = "") -> list[float]:
         value = self.raw(key, default)
         want = f"a list of {length} numbers" if length else "a list of numbers"
@@ -118,11 +118,11 @@ class Fields:
         return [check_number(v, self.source, f"{self.sub(key)}[{i}]", unit=unit)
                 for i, v in enumerate(value)]
 
-    def mapping(self, key: str, default=_MISSING) -> "Fields":
+    def mapping(self, key: str, default=MISSING) -> "Fields":
         value = self.raw(key, default)
         return Fields(value, self.source, self.sub(key))
 
-    def items(self, key: str, default=_MISSING, *, min_len=0) -> list:
+    def items(self, key: str, default=MISSING, *, min_len=0) -> list:
         value = self.raw(key, default)
         if not isinstance(value, list) or len(value) < min_len:
             raise self.error(key, value, f"a list with at least {min_len} entries")

@@ -17,7 +17,7 @@ import numpy as np
 
 from .control_kernel import run_periods
 from .controller_interface import SensedState
-from .simulate import RUNAWAY, DIVERGENCE_LIMIT, _diverged, newton_failed
+from .simulate import RUNAWAY, DIVERGENCE_LIMIT, diverged, newton_failed
 from .stepper import Stepper
 
 
@@ -101,7 +101,7 @@ class ControlLoop:
             raise ValueError(f"in-loop controller: got the command {x_fail.tolist()}; "
                              f"expected {m.n_links} finite values")
         if status == 1:
-            raise _diverged(m, t_fail, x_fail)
+            raise diverged(m, t_fail, x_fail)
         if status == 2:
             raise newton_failed(
                 t_fail, self.period / max(1, int(np.ceil(self.period / st.max_step - 1e-9))),

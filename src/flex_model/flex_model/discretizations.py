@@ -76,7 +76,7 @@ class FunctionBasis(LinkBasis):
         return np.linalg.solve(self.tip_transform, np.asarray(q_hat, float))
 
 
-def _quadrature(profile: SectionProfile, cuts):
+def quadrature(profile: SectionProfile, cuts):
     """Gauss points z, weights and EI(z), m(z) on [0, L] split at ``cuts`` and the breaks."""
     cuts = np.unique(np.concatenate([np.asarray(cuts, float), profile.breaks]))
     z, w = [], []
@@ -109,7 +109,7 @@ def function_basis(profile: SectionProfile, functions, cuts, *, kind: str,
                    tip_rotation_scale: float = 1.0) -> FunctionBasis:
     """Integrate the link matrices of thesis Eqs. (8)-(14) for ``functions`` (raw
     variables) and express them in the tip form of thesis Eq. (84) if ``tip_form``."""
-    cuts, z, w, ei, m = _quadrature(profile, cuts)
+    cuts, z, w, ei, m = quadrature(profile, cuts)
     W, dW, ddW = functions(z)
     wm = w * m
     raw = {"Bw": (W * wm[:, None]).T @ W, "K": (ddW * (w * ei)[:, None]).T @ ddW,
@@ -165,7 +165,7 @@ def assumed_modes_basis(profile: SectionProfile, count: int, mode_type: str = "c
 def link_modes(profile: SectionProfile, count: int, mode_type: str, tip_mass: float = 0.0,
                tip_inertia: float = 0.0):
     """Mode shapes of the uniform link with the link's length and mean mass per length."""
-    q = _quadrature(profile, [0.0, profile.length])
+    q = quadrature(profile, [0.0, profile.length])
     m_mean = float(np.sum(q[2] * q[4])) / profile.length
     return mode_shapes(profile.length, count, mode_type, mass_per_length=m_mean,
                        tip_mass=tip_mass, tip_inertia=tip_inertia)

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .integrators import _joint_tangent, galpha_parameters, joint_passive_forces, joint_torques
+from .integrators import joint_tangent, galpha_parameters, joint_passive_forces, joint_torques
 from .kernels import solve_spd
 
 _CACHE = True
@@ -480,7 +480,7 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
         res, B, v1 = _residual(a1, a, abar, q, v, tm, h, af, am, gam, beta, X, E)
         norm = np.sqrt(np.sum(res * res))
         for it in range(50):
-            Kj, Cj = _joint_tangent(v1, E)
+            Kj, Cj = joint_tangent(v1, E)
             da = solve_spd(B + gp * (D + Cj) + bp * (K + Kj), -res)
             lam = 1.0
             for ls in range(30):

@@ -272,7 +272,7 @@ def applied_force(t, q, v, z, zd, P, E):
 
 
 @njit(cache=_CACHE)
-def _joint_tangent(v, E):
+def joint_tangent(v, E):
     """Stiffness and damping of the joint laws and effects for the Newton matrix."""
     G, kp, kd, Ga, jd = E[2], E[5], E[6], E[16], E[17]
     n = G.shape[1]
@@ -484,7 +484,7 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
         return ac, ac.copy(), 0.0, 0.0
     am, af, gam, beta = galpha_parameters(rho_inf)
     ratio = (1.0 - af) / (1.0 - am)
-    Kj, Cj = _joint_tangent(x[n:2 * n], E)
+    Kj, Cj = joint_tangent(x[n:2 * n], E)
     S = B + h * gam * ratio * (E[1] + Cj) + h * h * beta * ratio * (E[0] + Kj)
     da = np.linalg.solve(S, Bj)
     e = jump - da
@@ -539,7 +539,7 @@ def _iteration_factor(q1, v1, gp, bp, P, E):
         F = structured_factor(q1, v1, gp, bp, P, E)
         if F[0].shape[0] > 0:
             return F
-    Kj, Cj = _joint_tangent(v1, E)
+    Kj, Cj = joint_tangent(v1, E)
     Lc = cholesky(mass_matrix(q1, P) + gp * (E[1] + Cj) + bp * (E[0] + Kj))
     z2 = np.zeros((0, 0))
     return Lc, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, 0
@@ -645,7 +645,7 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
                                                 am, gam, beta, P, E)
         norm = np.sqrt(np.sum(res * res))
         for it in range(50):
-            Kj, Cj = _joint_tangent(v1, E)
+            Kj, Cj = joint_tangent(v1, E)
             if nz > 0:
                 _stick_slip_tangent(Kj, Cj, v1, z, z1, g, h, E)
             da = solve_spd(B + gp * (D + Cj) + bp * (K + Kj), -res)

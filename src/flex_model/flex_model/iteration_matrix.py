@@ -133,7 +133,7 @@ def empty_factor():
 @njit(cache=_CACHE)
 def joint_coefficients(v, E):
     """Stiffness and damping of each joint's law along its actuator row Ga_i (PD gains,
-    DC motor gain and back-EMF, friction slope), as in integrators._joint_tangent."""
+    DC motor gain and back-EMF, friction slope), as in integrators.joint_tangent."""
     kp, kd, Ga, jd = E[5], E[6], E[16], E[17]
     nl = jd.shape[0]
     kk = np.zeros(nl)

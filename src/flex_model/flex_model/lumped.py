@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .discretizations import _quadrature, basis_from_matrices, link_modes
+from .discretizations import quadrature, basis_from_matrices, link_modes
 from .sections import SectionProfile
 
 
@@ -44,7 +44,7 @@ def lumped_parameters(profile: SectionProfile, masses: int, mode_type: str = "cl
     length = profile.length
     ell = length / masses
     edges = np.linspace(0.0, length, masses + 1)
-    _, z, w, ei, m = _quadrature(profile, edges)
+    _, z, w, ei, m = quadrature(profile, edges)
     phi, _, ddphi = (a[:, 0] for a in shapes.evaluate(z))
     f_e = shapes.evaluate(edges)[0][:, 0]
     piece = np.clip(np.searchsorted(edges, z, side="right") - 1, 0, masses - 1)
@@ -69,7 +69,7 @@ def lumped_basis(profile: SectionProfile, masses: int, mode_type: str = "clamped
     def functions(z):
         return tuple(a / f_tip for a in mode.evaluate(np.atleast_1d(np.asarray(z, float))))
     y = mode.evaluate(nodes[1:])[0][:, 0] / f_tip        # mass displacements per unit delta
-    _, z, w, _, m = _quadrature(profile, nodes)
+    _, z, w, _, m = quadrature(profile, nodes)
     slope = functions(z)[1][:, 0]
     raw = {"Bw": np.array([[m_e @ y ** 2]]), "h": np.array([m_e @ y]),
            "k": np.array([m_e @ (nodes[1:] * y)]),

@@ -222,6 +222,9 @@ PARAMETERS = (
     Param("shape_points", 15, "points per link of flex/shape",
           check=lambda v: None if 2 <= v <= 10000 else "an integer in [2, 10000]"),
     Param("publish_clock", False, "publish /clock in realtime mode too"),
+    Param("foxglove_port", 0, "port of a Foxglove WebSocket live view on 127.0.0.1 "
+          "(flex_model.live_view, at shape_rate); 0: off",
+          check=lambda v: None if 0 <= v <= 65535 else "0 (off) or a port 1-65535"),
     Param("start_static", False, "start at rest, deflected under gravity"),
     Param("start_paused", False, "start paused (until ~/pause false)"),
     Param("hold_until_command", True, "hold the arm at its initial state (brakes on: time "
@@ -308,6 +311,10 @@ class ModelNode(Node):
         self.cdr_clock = conv.clock_cdr()
         self.cdr_imu = conv.imu_cdr(self.frames.tips[-1]) if self.has_imu else None
         self.msg_shape = conv.ShapeMarkers(n, int(p["shape_points"]), self.frames.base)
+        from .live_view import node_live_view  # Foxglove WebSocket (issue 46); 0: None
+        self.live_view = node_live_view(self.model, p["foxglove_port"], p["frame_prefix"],
+                                        p["frame_id"], p["shape_points"],
+                                        self.get_logger())
         self._values = np.empty(4 * n)  # the float64 fields of one message
         # what Stepper.deflections and FlexArmModel.tip_pose compute, with their index and
         # selection matrices built once (the same arithmetic: test_ros_model_node_bytes.py)
@@ -734,6 +741,8 @@ class ModelNode(Node):
                       for line in self.model.shape(st.q, int(self.p["shape_points"]))]
             # serialized in place: the same message, 0.03 instead of 0.4 ms (conversions)
             self.pub_shape.publish(self.msg_shape.serialized(t, shapes))
+        if shape and self.live_view is not None:
+            self.live_view.publish(t, st.q, position, velocity, effort)
         if self.pub_imu is not None and self.pub_imu.get_subscription_count():
             # in the last link's tip frame
             rate = float(self.model.tip_torque_vector() @ st.v)  # tip frame rotation rate

@@ -93,11 +93,11 @@ def linearize(model: FlexArmModel, joint_angles=None, *, joints: str = "clamped"
     Kt = 0.5 * (Kt + Kt.T)
     Mz = (T.T @ model.mass_matrix(q0) @ T)[np.ix_(free, free)]
     # damping: structural, PD (through the actuator coordinates), joint springs, friction
-    # slope and back-EMF at rest (flex_model.integrators._joint_tangent)
-    from .integrators import _joint_tangent
+    # slope and back-EMF at rest (flex_model.integrators.joint_tangent)
+    from .integrators import joint_tangent
     from .inputs import JointPD, input_data
     pd = JointPD(kp, kd if joints == "pd" else np.zeros(nl), theta_set)
-    Cj = _joint_tangent(np.zeros(nq), input_data(model, pd, (), np.zeros(nl)))[1]
+    Cj = joint_tangent(np.zeros(nq), input_data(model, pd, (), np.zeros(nl)))[1]
     Cz = (T.T @ (model.damping_matrix() + Cj) @ T)[np.ix_(free, free)]
     # inputs: actuator torques, tip force, tip torque
     Bq_tau = model.Ga.T

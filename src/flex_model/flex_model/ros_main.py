@@ -22,6 +22,8 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
+from flex_model import ros_environment
+
 
 PARAMETER_SERVICES = ("describe_parameters", "get_parameter_types", "get_parameters",
                       "list_parameters", "set_parameters", "set_parameters_atomically")
@@ -283,6 +285,7 @@ def run_node(factory, args=None, on_stop=None) -> None:
     factory (a bad parameter) is one line on stderr and exit status 2. The ROS environment
     (LOCALHOST discovery; the user's ROS_DOMAIN_ID is kept) is set when flex_model is
     imported, before rclpy."""
+    ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = executor = None
     try:

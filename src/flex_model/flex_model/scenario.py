@@ -186,7 +186,7 @@ def scenario_names() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
 
 
-def _joint_index(f: Fields, key: str, arm: ArmDescription) -> int:
+def joint_index(f: Fields, key: str, arm: ArmDescription) -> int:
     value = f.raw(key)
     names = arm.joint_names
     if isinstance(value, str) and value in names:
@@ -235,7 +235,7 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
     if not f.boolean("gravity", True):
         arm = arm.without_gravity()
     nl = arm.n_links
-    if _is_inf(f.raw("duration", 1.0)):
+    if is_inf(f.raw("duration", 1.0)):
         raise f.error("duration", f.raw("duration"), "a finite time > 0 s (a simulation "
                       "ends; for an open-ended run start the model node: flex-twin up)")
     duration = f.number("duration", positive=True, unit="s")
@@ -291,7 +291,7 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
     pulses = []
     for k, raw in enumerate(f.items("pulses", [])):
         pf = Fields(raw, src, f"pulses[{k}]")
-        j = _joint_index(pf, "joint", arm)
+        j = joint_index(pf, "joint", arm)
         tau = np.zeros(nl)
         tau[j] = pf.number("torque", unit="N m")
         start, end = pf.number("start", nonnegative=True), _end(pf)
@@ -329,7 +329,7 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
                     setpoint_schedule=tuple(schedule), rho_inf=rho_inf)
 
 
-def _is_inf(value) -> bool:
+def is_inf(value) -> bool:
     if isinstance(value, str):
         value = value.strip().lower()
         return value in (".inf", "inf", "+.inf", "+inf", "infinity")
@@ -338,6 +338,6 @@ def _is_inf(value) -> bool:
 
 def _end(f: Fields) -> float:
     """``end`` of a pulse or tip load: a time >= 0 s, or .inf (to the end of the run)."""
-    if _is_inf(f.raw("end")):
+    if is_inf(f.raw("end")):
         return math.inf
     return f.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")

@@ -137,7 +137,7 @@ class SimulationResult:
                    fmt="%.17g")
 
 
-def _diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:
+def diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:
     names = model.coordinate_names()
     names = names + [n + "_rate" for n in names] + [
         f"{model.arm.joint_names[i]}/bristle" for i in model.stick_slip_joints]
@@ -248,7 +248,7 @@ def _delayed(policy, delays, nl):
     return delayed
 
 
-def _apply_payload_change(model, x, mass, inertia):
+def apply_payload_change(model, x, mass, inertia):
     """Change the payload at state x; a heavier payload is picked up at rest (B v kept)."""
     n = model.nq
     q, v = x[:n], x[n:2 * n]
@@ -289,7 +289,7 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
             continue
         for c in changes:
             if abs(c[0] - t) < 1e-12:
-                x = _apply_payload_change(model, x, c[1], c[2])
+                x = apply_payload_change(model, x, c[1], c[2])
         if policy is not None and np.any(np.isclose(instants, t)):
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
             if t == 0.0:
@@ -303,7 +303,7 @@ def _run_variable(model, x, E, u, t_samples, policy, control_period, pulses, *, 
         stats["steps"] += steps
         stats["rejected"] += rej
         if status == 1:
-            raise _diverged(model, t_stop, x_stop)
+            raise diverged(model, t_stop, x_stop)
         if status != 0:
             raise SimulationDivergedError(
                 f"integration stopped at t = {t_stop:.6g} s (step size underflow or step "
@@ -361,7 +361,7 @@ def _run_exact(model, x, E, u, t_samples, policy, control_period, pulses, *, rto
             continue
         for c in changes:
             if abs(c[0] - t) < 1e-12:
-                x = _apply_payload_change(model, x, c[1], c[2])
+                x = apply_payload_change(model, x, c[1], c[2])
                 X_exact = model._exact.data
         if policy is not None and np.any(np.isclose(instants, t)):
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
@@ -381,7 +381,7 @@ def _run_exact(model, x, E, u, t_samples, policy, control_period, pulses, *, rto
                                           f"{sol.message} (kinematics: exact)")
         x_end = sol.y[:, -1].copy()
         if not np.all(np.isfinite(x_end)) or np.max(np.abs(x_end)) > DIVERGENCE_LIMIT:
-            raise _diverged(model, t_end, x_end)
+            raise diverged(model, t_end, x_end)
         X[sel] = sol.sol(outs[:int(sel.sum())]).T
         U[sel] = u
         x = x_end
@@ -426,7 +426,7 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
                 min([r - step for r in restarts if r > step], default=n_total))
         t = step * h
         if step in pick:
-            x = _apply_payload_change(model, x, pick[step][1], pick[step][2])
+            x = apply_payload_change(model, x, pick[step][1], pick[step][2])
         if step % chunk == 0 and policy is not None:
             u[:] = np.asarray(policy(t, x.copy()), float).reshape(len(u))
             if step == 0:
@@ -446,7 +446,7 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
             t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, P, E)
         iters += it
         if status == 1:
-            raise _diverged(model, t_stop, x_stop)
+            raise diverged(model, t_stop, x_stop)
         if status == 2:
             raise newton_failed(t_stop, h, "reduce the step")
         idx = step + np.arange(1, m + 1)

@@ -207,7 +207,7 @@ PARAMETERS = (
 
 def load_arm_parameter(arm: str, planar: bool):
     """The SpatialArm named by the ``arm`` parameter (ParameterError naming it)."""
-    from .spatial.description import load_spatial_arm
+    from .spatial.loader import load_spatial_arm
     try:
         if planar:
             from .arm import load_arm

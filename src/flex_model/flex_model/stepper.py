@@ -18,7 +18,7 @@ from .inputs import input_data
 from .integrators import (consistent_acceleration, generalized_alpha, joint_torques,
                           restart_acceleration)
 from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, SimulationDivergedError,
-                       _apply_payload_change, _diverged, newton_failed)
+                       apply_payload_change, diverged, newton_failed)
 
 #: finer steps (max_step / k) that :meth:`Stepper.advance_refining` tries, in turn, over a
 #: duration whose integration failed
@@ -72,7 +72,7 @@ class Stepper:
 
     def set_payload(self, mass: float, inertia: float) -> None:
         """Change the tip payload now (a pick keeps B v, a place keeps v)."""
-        self.x = _apply_payload_change(self.model, self.x, mass, inertia)
+        self.x = apply_payload_change(self.model, self.x, mass, inertia)
         self._restart()
 
     def advance(self, duration: float) -> None:
@@ -85,7 +85,7 @@ class Stepper:
             self.t, self.x, self.a, self.abar, h, n, n, self.rho_inf, 1e-10, DIVERGENCE_LIMIT,
             self.model.P, self.E)
         if status == 1:
-            raise _diverged(self.model, t_end, x_end)
+            raise diverged(self.model, t_end, x_end)
         if status == 2:
             raise newton_failed(t_end, h, RUNAWAY)
         self.t, self.x, self.a, self.abar = self.t + duration, x_end, a, abar

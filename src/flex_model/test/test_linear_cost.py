@@ -9,7 +9,7 @@ from flex_model import kernels
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
 from flex_model.inputs import JointPD, input_data
-from flex_model.integrators import _joint_tangent
+from flex_model.integrators import joint_tangent
 from flex_model.iteration_matrix import factor_solve, structured_factor
 from flex_model.simulate import Pulse, simulate
 
@@ -76,7 +76,7 @@ def test_structured_factor_solves_the_iteration_matrix():
     for scale, tol in ((0.0, 1e-10), (1e-3, 1e-5)):
         q, v = _state(m, rng, scale)
         F = structured_factor(q, v, gp, bp, m.P, E)
-        Kj, Cj = _joint_tangent(v, E)
+        Kj, Cj = joint_tangent(v, E)
         M = m.mass_matrix(q) + gp * (m.D + Cj) + bp * (m.K + Kj)
         b = rng.normal(size=m.nq)
         x = factor_solve(F, b)

@@ -14,8 +14,8 @@ from flex_model.dynamics import FlexArmModel
 from flex_model.scenario import scenario_from_dict
 from flex_model.spatial.analysis import static_equilibrium
 from flex_model.spatial.compiled import pack, tip_point
-from flex_model.spatial.description import (SPATIAL_PRESET_DIR, from_planar,
-                                            spatial_arm_from_dict)
+from flex_model.spatial.description import SPATIAL_PRESET_DIR, from_planar
+from flex_model.spatial.loader import spatial_arm_from_dict
 from flex_model.spatial.dynamics import SpatialArmModel
 from flex_model.spatial.integrate import (simulate_fixed, simulate_fixed_compiled,
                                           simulate_variable)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from flex_model.config import ConfigError, read_yaml
-from flex_model.spatial.description import (SPATIAL_PRESET_DIR, JointStops,
-                                            load_spatial_arm, spatial_arm_from_dict)
+from flex_model.spatial.description import SPATIAL_PRESET_DIR, JointStops
+from flex_model.spatial.loader import load_spatial_arm, spatial_arm_from_dict
 from flex_model.spatial.dynamics import SpatialArmModel
 from flex_model.spatial.integrate import (joint_input_matrix, simulate_fixed,
                                           simulate_fixed_compiled, simulate_variable)

@@ -12,7 +12,8 @@ from flex_model.arm import load_arm
 from flex_model.config import ConfigError
 from flex_model.scenario import scenario_from_dict
 from flex_model.spatial.analysis import static_equilibrium
-from flex_model.spatial.description import from_planar, spatial_arm_from_dict
+from flex_model.spatial.description import from_planar
+from flex_model.spatial.loader import spatial_arm_from_dict
 from flex_model.spatial.scenario import (SpatialPD, SpatialPulse, SpatialScenario,
                                          is_spatial_scenario, load_spatial_scenario,
                                          pd_static_equilibrium, spatial_scenario_from_dict,

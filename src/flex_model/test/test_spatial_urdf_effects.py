@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from flex_model.config import ConfigError, read_yaml
-from flex_model.spatial.description import SPATIAL_PRESET_DIR, spatial_arm_from_dict
+from flex_model.spatial.description import SPATIAL_PRESET_DIR
+from flex_model.spatial.loader import spatial_arm_from_dict
 from flex_model.spatial.dynamics import SpatialArmModel
 from flex_model.spatial.integrate import simulate_fixed, simulate_fixed_compiled
 

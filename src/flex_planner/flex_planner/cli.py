@@ -13,10 +13,11 @@ import argparse
 import json
 import sys
 import time
-from datetime import datetime
 from pathlib import Path
 
 import numpy as np
+
+from flex_model.command import run_dir
 
 from .config import DESCRIPTIONS, TASKS, PlannerConfig, load_waypoint_file, named_task
 
@@ -37,12 +38,6 @@ def trajectory_table(model, traj) -> tuple[list[str], np.ndarray]:
         cols.append(traj.q_nominal[:, [model.tip_deflection_index(i),
                                        model.tip_rotation_index(i)]])
     return names, np.hstack(cols)
-
-
-def _out_dir(base, name: str) -> Path:
-    path = Path(base) if base else Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-plan-{name}"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def cmd_plan(args) -> int:
@@ -81,7 +76,7 @@ def cmd_plan(args) -> int:
                        "static_tip_error_m": float(np.linalg.norm(
                            np.asarray(forward.tip_position) - p)),
                        "nominal_tip_error_mm": float(1e3 * np.linalg.norm(traj.tip[j] - p))})
-    out = _out_dir(args.out, task.name)
+    out = run_dir(args.out, f"plan-{task.name}")
     csv = out / "plan.csv"
     names, data = trajectory_table(model, traj)
     np.savetxt(csv, data, delimiter=",", header=",".join(names), comments="", fmt="%.17g")

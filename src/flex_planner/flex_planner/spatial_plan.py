@@ -79,7 +79,7 @@ def quintic_path(times, values, sample_period: float):
 
 def cmd_spatial_plan(args) -> int:
     from flex_model.spatial.analysis import static_equilibrium
-    from flex_model.spatial.description import load_spatial_arm
+    from flex_model.spatial.loader import load_spatial_arm
     from flex_model.spatial.dynamics import SpatialArmModel
 
     for attr, flag in (("task", "--task"), ("elbow", "--elbow"),
@@ -132,8 +132,8 @@ def cmd_spatial_plan(args) -> int:
     except (RuntimeError, np.linalg.LinAlgError) as exc:     # the path is still written
         effort, note = None, f"failed: {exc}"
     wall = time.perf_counter() - t0
-    from .cli import _out_dir
-    out = _out_dir(args.out, Path(args.waypoints).stem)
+    from flex_model.command import run_dir
+    out = run_dir(args.out, f"plan-{Path(args.waypoints).stem}")
     csv = out / "plan.csv"
     fields = ("position", "velocity", "acceleration") + (("effort",) if note is None else ())
     names = ["t"] + [f"{j}_{f}" for f in fields for j in model.arm.joint_names]

@@ -20,6 +20,8 @@ from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 
+from flex_model import ros_environment
+
 
 @contextmanager
 def _ros_node(name: str):
@@ -33,6 +35,7 @@ def _ros_node(name: str):
         for sig in (signal.SIGINT, signal.SIGTERM):
             previous[sig] = signal.signal(sig, lambda *_: stop.set())
     ctx = rclpy.Context()
+    ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(context=ctx)
     node = executor = None
     try:
@@ -230,8 +233,6 @@ def add_bag_parsers(subparsers) -> None:
 
 def main(argv=None) -> int:
     """``python -m flex_twin.bag_cli record|play|bag info`` (same as in flex-twin)."""
-    from flex_model import ros_environment
-    ros_environment()
     parser = argparse.ArgumentParser(prog="flex-twin")
     add_bag_parsers(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)

@@ -13,31 +13,7 @@ import time
 import numpy as np
 
 from flex_model import ros_environment
-from flex_model.command import run_command  # noqa: F401  (the suite's exit codes)
-
-from .run_dir import run_dir
-
-
-class Progress:
-    """Progress of a long run on stderr: a live line on a terminal, else every 10 %."""
-
-    def __init__(self, label: str, enabled: bool = True):
-        self.label, self.enabled = label, enabled
-        self.tty = sys.stderr.isatty()
-        self.start = time.perf_counter()
-        self.next_mark = 0.1
-
-    def __call__(self, t: float, total: float) -> None:
-        if not self.enabled:
-            return
-        frac = t / total
-        wall = time.perf_counter() - self.start
-        msg = f"{self.label}: t = {t:7.3f} / {total:g} s ({100 * frac:5.1f} %, {wall:6.2f} s wall)"
-        if self.tty:
-            print("\r" + msg, end="" if frac < 1 else "\n", file=sys.stderr, flush=True)
-        elif frac >= self.next_mark - 1e-9 or frac >= 1:
-            print(msg, file=sys.stderr, flush=True)
-            self.next_mark = np.floor(frac * 10 + 1e-9) / 10 + 0.1
+from flex_model.command import Progress, run_command, run_dir  # noqa: F401 (exit codes)
 
 
 def _model(args):
@@ -130,8 +106,6 @@ def cmd_static(args) -> int:
             print(f"  {lk.name}: tip deflection {1e3 * d['tip_deflection_m']:9.3f} mm, "
                   f"tip rotation {np.degrees(d['tip_rotation_rad']):8.4f} deg")
     return 0
-
-
 
 
 def _simulate(scenario_ref, args, label: str):
@@ -311,7 +285,8 @@ def cmd_presets(args) -> int:
     from flex_model.arm import load_arm, preset_names
     from flex_model.scenario import scenario_names
 
-    from flex_model.spatial.description import SPATIAL_PRESET_DIR, load_spatial_arm
+    from flex_model.spatial.description import SPATIAL_PRESET_DIR
+    from flex_model.spatial.loader import load_spatial_arm
     from flex_model.spatial.scenario import spatial_scenario_names
 
     arms = {n: load_arm(n).description for n in preset_names()}
@@ -438,8 +413,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .real_arms.cli import add_real_arm_parsers
     from .real_arms.modal_cli import add_modal_parsers
     from .sweep import add_sweep_parser
+    from .view_cli import add_view_parser
     for add in (add_compare_parser, add_diagnose_parser, add_real_arm_parsers,
-                add_modal_parsers, add_sweep_parser, add_plan_parser, add_control_parser):
+                add_modal_parsers, add_sweep_parser, add_plan_parser, add_control_parser,
+                add_view_parser):
         add(sub)
     return p
 

@@ -22,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from flex_model import ros_environment
 from flex_model.config import ConfigError, read_yaml
 
 NODES = {"flex_model": ("flex_model.model_node", "ModelNode"),
@@ -93,6 +94,7 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
     from flex_model.ros_main import stop_on_signals
 
     ctx = rclpy.Context()
+    ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(context=ctx)
     nodes, ex = {}, None
     try:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flex_model import ros_environment
 from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS
 
 WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
@@ -77,6 +78,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     out_dir.mkdir(parents=True, exist_ok=True)
     arm = "thesis_example1_motors"
     ctx = rclpy.Context()
+    ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(context=ctx)
     P = Parameter
     # lean nodes (flex_model.ros_main.lean_node, as ros2_ws/params/suite.yaml): a faster loop

@@ -31,7 +31,7 @@ def _refuse(args, unsupported: dict) -> None:
 
 
 def _model_and_joints(args):
-    from flex_model.spatial.description import load_spatial_arm
+    from flex_model.spatial.loader import load_spatial_arm
     from flex_model.spatial.dynamics import SpatialArmModel
     arm = load_spatial_arm(args.arm)
     model = SpatialArmModel(arm)
@@ -160,8 +160,7 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
 
     from flex_model.spatial.scenario import load_spatial_scenario
 
-    from .cli import Progress
-    from .run_dir import run_dir
+    from flex_model.command import Progress, run_dir
     for attr, (default, flag) in _SIM_PLANAR_ONLY.items():
         if getattr(args, attr, default) != default:
             raise ValueError(f"{flag}: not available for a spatial scenario ({args.scenario}); "

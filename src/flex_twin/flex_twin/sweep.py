@@ -280,7 +280,7 @@ def add_sweep_parser(sub) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .run_dir import run_dir
+    from flex_model.command import run_dir
     from .cluster import batch_executor
     out = run_dir(args.out, "sweep")
     with batch_executor(args.scheduler, args.workers) as ex:

@@ -10,7 +10,8 @@ from flex_twin.real_arms import quanser_data as qd
 from flex_twin.real_arms.quanser_twin import calibrated_arm_for
 from flex_twin.real_arms.replay import replay
 from flex_twin.real_arms.session_friction import choice_end, compare
-from flex_twin.real_arms.stick_slip_study import hold_stick_spread, with_stick_slip
+from flex_twin.real_arms.quanser_twin import with_stick_slip
+from flex_twin.real_arms.stick_slip_study import hold_stick_spread
 
 state_feedback = pytest.importorskip("flex_control.state_feedback")
 

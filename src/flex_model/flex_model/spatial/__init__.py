@@ -3,7 +3,8 @@ reference and compiled), modes, stepping.
 
 No ROS; the planar model (flex_model.dynamics) is untouched.
 """
-from .description import SpatialArm, from_planar, load_spatial_arm, spatial_arm_from_dict
+from .description import SpatialArm, from_planar
+from .loader import load_spatial_arm, spatial_arm_from_dict
 from .dynamics import SpatialArmModel
 from .urdf import load_urdf_arm, spatial_arm_from_urdf
 

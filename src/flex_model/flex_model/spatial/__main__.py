@@ -20,7 +20,8 @@ import sys
 import numpy as np
 
 from .analysis import natural_modes, static_equilibrium
-from .description import from_planar, load_spatial_arm
+from .description import from_planar
+from .loader import load_spatial_arm
 from .dynamics import SpatialArmModel
 from .integrate import simulate_fixed, simulate_fixed_compiled
 

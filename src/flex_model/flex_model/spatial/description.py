@@ -283,7 +283,7 @@ def explicit_profile(length: float, stiffness, mass) -> SectionProfile:
     return SectionProfile([Segment(length=length, shape="explicit", dims={"EI": s, "m": m})])
 
 
-def _body(f: Fields) -> RigidBody:
+def rigid_body(f: Fields) -> RigidBody:
     mass = f.number("mass", 0.0, nonnegative=True, unit="kg")
     offset = tuple(f.vector("offset", 3, [0.0, 0.0, 0.0], unit="m"))
     raw = f.raw("inertia", [0.0, 0.0, 0.0])
@@ -345,7 +345,7 @@ def parse_joint_stops(f: Fields, links, source: str) -> "JointStops | None":
     return stops
 
 
-def _joint_effects(f: Fields, links: list, source: str) -> tuple:
+def joint_effects(f: Fields, links: list, source: str) -> tuple:
     """The ``effects:`` list of a spatial arm (the planar effect classes and YAML names,
     flex_model.effects; only SPATIAL_EFFECTS) and seed 003's ``motor``/``gear`` options
     of every joint checked against it. Returns (effects, links with ``gear`` resolved)."""
@@ -508,12 +508,9 @@ def _rot_x(t: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
-    """Validate a parsed spatial arm description; errors name ``source`` and the field.
-    A description with a ``urdf`` key is a URDF side file (spatial/urdf.py)."""
-    if isinstance(data, dict) and "urdf" in data:
-        from .urdf import spatial_arm_from_side_file
-        return spatial_arm_from_side_file(data, source)
+def dh_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
+    """Validate a parsed DH-table arm description; errors name ``source`` and the field.
+    (:func:`flex_model.spatial.loader.spatial_arm_from_dict` reads URDF side files too.)"""
     f = Fields(data, source, "")
     name = f.string("name")
     description = f.string("description", "")
@@ -529,16 +526,16 @@ def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     for i, (lf, joint, origin) in enumerate(zip(fields, joints, origins)):
         lname = lf.string("name", f"link{i + 1}")
         flex = _flexible(lf.mapping("flexible"), joint) if lf.has("flexible") else None
-        root = _body(lf.mapping("root_body")) if lf.has("root_body") else RigidBody()
-        end = _body(lf.mapping("end_body")) if lf.has("end_body") else RigidBody()
+        root = rigid_body(lf.mapping("root_body")) if lf.has("root_body") else RigidBody()
+        end = rigid_body(lf.mapping("end_body")) if lf.has("end_body") else RigidBody()
         lf.done(["name", "joint", "flexible", "root_body", "end_body"])
         links.append(SpatialLink(name=lname, joint=joint, flexible=flex, root_body=root,
                                  end_body=end, origin=origin))
     names = [lk.joint.name for lk in links]
     if len(set(names)) != len(names):
         raise f.error("links", names, "unique joint names")
-    effects, links = _joint_effects(f, links, source)
-    payload = _body(f.mapping("payload")) if f.has("payload") else RigidBody()
+    effects, links = joint_effects(f, links, source)
+    payload = rigid_body(f.mapping("payload")) if f.has("payload") else RigidBody()
     from .sensors import parse_sensors
     sensors = parse_sensors(f.items("sensors", []), source, names,
                             [lk.name for lk in links]) if f.has("sensors") else ()
@@ -549,13 +546,6 @@ def spatial_arm_from_dict(data: dict, source: str = "<memory>") -> SpatialArm:
     return SpatialArm(name=name, links=tuple(links), gravity=gravity, description=description,
                       source=source, convention=convention, effects=effects, payload=payload,
                       sensors=sensors, joint_stops=stops, kinematics=kinematics)
-
-
-def load_spatial_arm(name_or_path) -> SpatialArm:
-    """Load a spatial arm by path or preset name (flex_model/presets/spatial/<name>.yaml)."""
-    from ..arm import resolve_preset
-    path = resolve_preset(name_or_path, SPATIAL_PRESET_DIR)
-    return spatial_arm_from_dict(read_yaml(path), str(path))
 
 
 # ---------------------------------------------------------------- planar embedding

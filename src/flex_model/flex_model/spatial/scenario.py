@@ -55,8 +55,9 @@ import numpy as np
 
 from ..config import ConfigError, Fields, read_yaml
 from ..inputs import JointPD
-from ..scenario import _is_inf, _joint_index
-from .description import SPATIAL_PRESET_DIR, SpatialArm, load_spatial_arm
+from ..scenario import is_inf, joint_index
+from .description import SPATIAL_PRESET_DIR, SpatialArm
+from .loader import load_spatial_arm
 from .dynamics import SpatialArmModel
 from .limits import joint_limits
 
@@ -474,7 +475,7 @@ def load_spatial_scenario(name_or_path) -> SpatialScenario:
 def _interval(f: Fields) -> tuple:
     """(start, end) of a pulse or a tip load: end after start, ``.inf`` to the run's end."""
     start = f.number("start", nonnegative=True, unit="s")
-    end = math.inf if _is_inf(f.raw("end")) else \
+    end = math.inf if is_inf(f.raw("end")) else \
         f.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
     if end <= start:
         raise f.error("end", end, f"a time after start ({start} s)")
@@ -487,7 +488,7 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     """Validate a spatial scenario mapping; errors name ``source``, the field, the value
     and what is allowed. ``arm``: a spatial preset name, a path (relative to
     ``base_dir``) or an inline spatial arm mapping."""
-    from .description import spatial_arm_from_dict
+    from .loader import spatial_arm_from_dict
     f = Fields(data, source, "")
     name = f.string("name", default_name)
     raw_arm = f.raw("arm")
@@ -512,7 +513,7 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     if not f.boolean("gravity", True):
         arm = arm.without_gravity()
     n = arm.n_links
-    if _is_inf(f.raw("duration", 1.0)):
+    if is_inf(f.raw("duration", 1.0)):
         raise f.error("duration", f.raw("duration"), "a finite time > 0 s")
     duration = f.number("duration", positive=True, unit="s")
     step = f.number("step", 1e-3, positive=True, unit="s")
@@ -570,7 +571,7 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     pulses = []
     for k, raw in enumerate(f.items("pulses", [])):
         pf = Fields(raw, source, f"pulses[{k}]")
-        j = _joint_index(pf, "joint", arm)
+        j = joint_index(pf, "joint", arm)
         if arm.links[j].joint.motor == "locked":
             raise pf.error("joint", pf.raw("joint"), "a joint with an active motor (a "
                            "locked motor takes no torque)")
@@ -600,8 +601,8 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
             raise cf.error("time", tc, f"a time in [0, {duration:g}) s, increasing")
         body = Fields({key: val for key, val in raw.items() if key != "time"}, source,
                       f"payload_changes[{k}]")
-        from .description import _body
-        rb = _body(body)
+        from .description import rigid_body
+        rb = rigid_body(body)
         if any(rb.offset):
             raise body.error("offset", list(rb.offset), "no offset (the payload sits at the "
                              "last link's end frame origin; move the frame or use the arm "

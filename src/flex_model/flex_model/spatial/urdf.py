@@ -80,8 +80,8 @@ from pathlib import Path
 import numpy as np
 
 from ..config import ConfigError, Fields
-from .description import (RigidBody, SpatialArm, SpatialJoint, SpatialLink, _body,
-                          _joint_effects, flexible_beam, lump_bodies, parse_joint_stops)
+from .description import (RigidBody, SpatialArm, SpatialJoint, SpatialLink, rigid_body,
+                          joint_effects, flexible_beam, lump_bodies, parse_joint_stops)
 from .kinematics import rpy_matrix
 
 #: XML namespace of the flexible-link extension element ``<flex:flexible>`` in a <link>
@@ -173,8 +173,8 @@ def _flexible(f: Fields, default_length, link_name: str, u: _Urdf):
                               "whose origin x gives it")
         length = float(default_length)
     beam = flexible_beam(f, length, "link_x")
-    root = _body(f.mapping("root_body")) if f.has("root_body") else RigidBody()
-    end = _body(f.mapping("end_body")) if f.has("end_body") else RigidBody()
+    root = rigid_body(f.mapping("root_body")) if f.has("root_body") else RigidBody()
+    end = rigid_body(f.mapping("end_body")) if f.has("end_body") else RigidBody()
     f.done(["length", "section", "variables", "torsion_variables", "root_body", "end_body"])
     return beam, root, end
 
@@ -479,8 +479,8 @@ def spatial_arm_from_side_file(data: dict, source: str) -> SpatialArm:
     # no gear option: an elastic gear is a joint_elasticity effect on it
     links = [dataclasses.replace(lk, joint=dataclasses.replace(lk.joint, gear=""))
              for lk in arm.links]
-    effects, links = _joint_effects(f, links, source)
-    payload = _body(f.mapping("payload")) if f.has("payload") else RigidBody()
+    effects, links = joint_effects(f, links, source)
+    payload = rigid_body(f.mapping("payload")) if f.has("payload") else RigidBody()
     from .sensors import parse_sensors
     sensors = parse_sensors(f.items("sensors", []), source, arm.joint_names,
                             [lk.name for lk in links]) if f.has("sensors") else ()

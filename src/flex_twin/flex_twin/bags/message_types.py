@@ -46,7 +46,7 @@ def jazzy_typestore():
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def _qos_to_rosbags(qos):
+def qos_to_rosbags(qos):
     """rclpy ``QoSProfile`` -> ``rosbags.interfaces.Qos`` (same enum values as rmw)."""
     from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
                                     QosReliability, QosTime)
@@ -60,7 +60,7 @@ def _qos_to_rosbags(qos):
                t(qos.liveliness_lease_duration), bool(qos.avoid_ros_namespace_conventions))
 
 
-def _exact_cdr(data: bytes, type_str: str) -> bytes:
+def exact_cdr(data: bytes, type_str: str) -> bytes:
     """``data`` cut to the end of its CDR payload.
 
     ``rclpy.serialization.serialize_message`` (rmw_fastrtps) returns a buffer of the

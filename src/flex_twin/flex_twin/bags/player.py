@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from .message_types import BagError, get_message
-from .reader import _mixed_time_bases, iter_raw
+from .reader import mixed_time_bases, iter_raw
 
 
 def _playback_qos(offered_yaml: str | None, depth: int | None):
@@ -64,7 +64,7 @@ class Player:
             channels.setdefault(topic, (type_str, meta.get("offered_qos_profiles")))
         if not self._messages:
             raise BagError(f"play {path}: no messages on {self.topics or 'any topic'}")
-        mixed = _mixed_time_bases(stamps)
+        mixed = mixed_time_bases(stamps)
         if mixed:
             raise BagError(f"play {path}: {mixed}; select the topics of one time base "
                            "with --topics")

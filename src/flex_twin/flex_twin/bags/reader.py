@@ -9,7 +9,7 @@ metadata.yaml or the MCAP statistics); a bag with nothing readable raises
 :class:`BagError` (one line, rc 2 in the CLI). rclpy deserializes the CDR bytes.
 
 Time bases: a bag has one; ``bag info`` warns about a bag that mixes sim-time and
-wall-clock log times (:func:`_mixed_time_bases`) and ``play`` refuses it.
+wall-clock log times (:func:`mixed_time_bases`) and ``play`` refuses it.
 """
 from __future__ import annotations
 
@@ -330,7 +330,7 @@ def _mcap_files(path: Path, meta: dict | None, problems: list) -> list[Path]:
     return files
 
 
-def _metadata(path: Path, problems: list | None = None) -> dict | None:
+def bag_metadata(path: Path, problems: list | None = None) -> dict | None:
     """``rosbag2_bagfile_information`` of ``path/metadata.yaml`` or None when absent (or,
     with a ``problems`` list to note it in, unreadable)."""
     import yaml
@@ -364,7 +364,7 @@ class _Bag:
         problems = []
         if not path.is_dir():
             raise BagError(f"bag {path}: no such directory")
-        self.meta = _metadata(path, problems)
+        self.meta = bag_metadata(path, problems)
         if self.meta is None and not problems:
             problems.append("no metadata.yaml; read the .mcap alone")
         files = _mcap_files(path, self.meta, problems)
@@ -512,7 +512,7 @@ def bag_info(path) -> dict:
         topics.append({"name": name, "type": type_str, "count": len(ts),
                        "frequency_hz": (len(ts) - 1) / (span * 1e-9) if span else None})
     warnings_ = list(bag.warnings)
-    mixed = _mixed_time_bases(stamps)
+    mixed = mixed_time_bases(stamps)
     if mixed:
         warnings_.append(f"bag {path}: {mixed}")
     return {"path": str(path), "version": meta.get("version"),
@@ -525,7 +525,7 @@ def bag_info(path) -> dict:
 SIM_TIME_LIMIT_NS = 10**9 * 86400 * 365 * 10  # log times below 10 years: not the wall clock
 
 
-def _mixed_time_bases(stamps: dict) -> str | None:
+def mixed_time_bases(stamps: dict) -> str | None:
     """A sentence when some topics' log times are sim time (from ~0) and others wall-clock
     time (since 1970), else None."""
     sim = sorted(t for t, ts in stamps.items() if ts and max(ts) < SIM_TIME_LIMIT_NS)

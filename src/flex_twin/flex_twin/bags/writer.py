@@ -14,7 +14,7 @@ import threading
 import time
 from pathlib import Path
 
-from .message_types import (BagError, _exact_cdr, _qos_to_rosbags, get_message, jazzy_typestore,
+from .message_types import (BagError, exact_cdr, qos_to_rosbags, get_message, jazzy_typestore,
                             type_string)
 
 
@@ -100,7 +100,7 @@ class BagWriter:
             self._connections[name] = self._writer.add_connection(
                 name, msg_type_str, msgdef=msgdef,
                 rihs01=type_hash or store.hash_rihs01(msg_type_str),
-                offered_qos_profiles=[_qos_to_rosbags(q) for q in profiles])
+                offered_qos_profiles=[qos_to_rosbags(q) for q in profiles])
             self.counts[name] = 0
 
     def write(self, topic: str, msg_or_bytes, t_ns: int) -> None:
@@ -113,7 +113,7 @@ class BagWriter:
             from rclpy.serialization import serialize_message
             if topic not in self._connections:
                 self.add_topic(topic, type_string(msg_or_bytes))
-            data = _exact_cdr(serialize_message(msg_or_bytes), type_string(msg_or_bytes))
+            data = exact_cdr(serialize_message(msg_or_bytes), type_string(msg_or_bytes))
         if topic not in self._connections:
             raise BagError(f"bag {self.path}: topic {topic} not added (add_topic first)")
         with self._lock:

@@ -39,8 +39,8 @@ from flex_model.simulate import SimulationDivergedError
 from flex_model.statics import StaticConvergenceError
 from .baseline import apply_scales
 from .controller import ControllerDescription
-from .replay import (START_WINDOW, _held, initial_state, measured_link_start, measured_start,
-                     replay)
+from .replay import (START_WINDOW, initial_state, measured_link_start, measured_start,
+                     replay, zero_order_hold)
 
 #: absolute noise floors per channel kind (rad, rad/s, N m, m)
 FLOORS = {"q": 1e-6, "v": 1e-5, "tau": 1e-4, "w": 1e-6, "tip": 1e-6}
@@ -119,8 +119,8 @@ class Context:
         period = controller.instant_period(rec.dt)
         t_rel = rec.t - rec.t[0]
         instants = np.arange(int(round(t_rel[-1] / period)) + 1) * period
-        qset = _held(t_rel, rec.stack("qset"), instants)
-        recorded = _held(t_rel, rec.stack("tau_ff"), instants) \
+        qset = zero_order_hold(t_rel, rec.stack("qset"), instants)
+        recorded = zero_order_hold(t_rel, rec.stack("tau_ff"), instants) \
             if controller.feedforward_mode == "recorded" else None
         ff = controller.feedforward(model, qset, recorded)
         return cls(nominal, controller, rec, sigma or noise_levels(rec), ff,

@@ -320,7 +320,7 @@ def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
     return X, controller.command(model, X, ref, ff, bias)
 
 
-def _held(t_rec, values, instants):
+def zero_order_hold(t_rec, values, instants):
     """Zero-order hold of sampled values at the given instants (latest sample <= t)."""
     k = np.clip(np.searchsorted(t_rec, instants + 1e-9, side="right") - 1, 0, len(t_rec) - 1)
     return values[k]
@@ -362,9 +362,9 @@ def replay(model: FlexArmModel, controller: ControllerDescription, rec, *,
     t_rel = rec.t - rec.t[0]
     t_final = t_rel[-1]
     instants = np.arange(int(round(t_final / period)) + 1) * period
-    qset = _held(t_rel, rec.stack("qset"), instants)
+    qset = zero_order_hold(t_rel, rec.stack("qset"), instants)
     if ff is None:
-        recorded = _held(t_rel, rec.stack("tau_ff"), instants) \
+        recorded = zero_order_hold(t_rel, rec.stack("tau_ff"), instants) \
             if controller.feedforward_mode == "recorded" else None
         ff = controller.feedforward(nominal_model or model, qset, recorded)
     if x0 is None:

@@ -120,9 +120,9 @@ def load_bag(path, n_joints: int, link_topic: str | None = None):
 def _settings(path) -> dict:
     """:data:`~.recording.DIRECTIVES` from the ``custom_data`` of metadata.yaml, checked."""
     from ..bags import BagError
-    from ..bags.reader import _metadata
+    from ..bags.reader import bag_metadata
     try:
-        meta = _metadata(path if path.is_dir() else path.parent) or {}
+        meta = bag_metadata(path if path.is_dir() else path.parent) or {}
     except BagError:
         return {}      # read_bag has warned; the .mcap alone carries no settings
     custom = meta.get("custom_data") or {}

@@ -47,7 +47,7 @@ def _tol(fit) -> str:
 # ----------------------------------------------------------------------------- cantilever
 def cmd_cantilever(args) -> int:
     from flex_model.arm import load_arm
-    from ..run_dir import run_dir
+    from flex_model.command import run_dir
     from .cantilever import DATA_SET, cantilever_study, read_data_set
 
     say = _say(args)
@@ -233,7 +233,7 @@ def _plot_cantilever(st, path) -> None:
 # ----------------------------------------------------------------------------- frequency gap
 def cmd_frequency_gap(args) -> int:
     from flex_model.arm import load_arm
-    from ..run_dir import run_dir
+    from flex_model.command import run_dir
     from .modal_diagnosis import ModalSetup, frequency_gap, modal_frequencies, reach_hz
     from .modal_diagnosis import standard_candidates
 

@@ -227,7 +227,7 @@ def read_cuboulder(root) -> dict[str, LabRun]:
     return {p.name: read_cuboulder_file(p) for p in cuboulder_files(root)}
 
 
-def _loadmat(path: Path, name: str) -> np.ndarray:
+def load_mat_file(path: Path, name: str) -> np.ndarray:
     from scipy.io import loadmat
     try:
         return np.asarray(loadmat(path)[name], float)
@@ -242,9 +242,9 @@ def read_ucmerced(root, link_length: float) -> LabRun:
     (:func:`identify_gains`) and stored in ``gains``; rates are central differences.
     """
     root = Path(root)
-    a = _loadmat(root / "data_alpha.mat", "data_alpha")
-    th = _loadmat(root / "data_theta.mat", "data_theta")
-    vm = _loadmat(root / "data_vm.mat", "data_vm")
+    a = load_mat_file(root / "data_alpha.mat", "data_alpha")
+    th = load_mat_file(root / "data_theta.mat", "data_theta")
+    vm = load_mat_file(root / "data_vm.mat", "data_vm")
     t = th[:, 0] - th[0, 0]
     theta = np.radians(th[:, 2])
     defl = link_length * np.radians(a[:, 1])

@@ -201,7 +201,7 @@ def _lab_ringing(run: LabRun, n: int, steps) -> tuple:
     return cache[n]
 
 
-def _rms(x) -> float:
+def rms(x) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
 
 
@@ -260,14 +260,14 @@ def replay(model: FlexArmModel, run: LabRun, make_policy: Callable | None = None
                        twin_deflection=defl, twin_voltage=res.u[:n, 0])
     e_th = theta - run.theta[:n]
     steps = run.step_indices()
-    out.metrics = {"hub_rms_rad": _rms(e_th), "hub_peak_rad": float(np.max(np.abs(e_th))),
+    out.metrics = {"hub_rms_rad": rms(e_th), "hub_peak_rad": float(np.max(np.abs(e_th))),
                    "hub_transient_share": transient_share(
                        e_th, steps, int(round(TRANSIENT / run.dt))),
-                   "voltage_rms_V": _rms(out.twin_voltage - run.voltage[:n]),
+                   "voltage_rms_V": rms(out.twin_voltage - run.voltage[:n]),
                    "gauge_sign": sign, "gauge_bias_m": bias, "duration_s": float(t[-1])}
     if run.has_gauge:
         e_d = defl - run.deflection[:n]
-        out.metrics.update(tip_rms_m=_rms(e_d), tip_peak_m=float(np.max(np.abs(e_d))),
+        out.metrics.update(tip_rms_m=rms(e_d), tip_peak_m=float(np.max(np.abs(e_d))),
                            tip_transient_share=transient_share(
                                e_d, steps, int(round(TRANSIENT / run.dt))))
         steps = steps[steps < n - 100]

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from flex_model.dynamics import FlexArmModel
-from .replay import _rms, replay
-from .stick_slip_study import with_stick_slip
+from .replay import rms, replay
+from .quanser_twin import with_stick_slip
 
 #: the lattice of Coulomb levels (N m at the hub) the start chooses from
 LEVELS = tuple(np.round(np.arange(0.02, 0.105, 0.01), 3))
@@ -47,10 +47,10 @@ def choice_end(run, steps: int = 1) -> int:
 def window_errors(result, start: int) -> tuple:
     """Hub RMS (rad) and tip RMS (m, None without a gauge) of a replay from ``start`` on."""
     run, n = result.run, len(result.t)
-    hub = _rms(result.twin_theta[start:] - run.theta[start:n])
+    hub = rms(result.twin_theta[start:] - run.theta[start:n])
     if not run.has_gauge:
         return hub, None
-    return hub, _rms(result.twin_deflection[start:] - run.deflection[start:n])
+    return hub, rms(result.twin_deflection[start:] - run.deflection[start:n])
 
 
 def lab_policy(voltage_offset: float = 0.0):

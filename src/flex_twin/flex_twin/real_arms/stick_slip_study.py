@@ -12,39 +12,10 @@ give the torque the joint holds, tau = K_g K_m V / R_m (at rest, no back-EMF).
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from flex_model.arm import ArmDescription
-from flex_model.effects import StickSlipFriction
+from .quanser_twin import PRESLIDING, with_stick_slip
 from .replay import TRANSIENT, plot_replay, replay
-
-#: pre-sliding displacement F_s / sigma_0 at the hub (rad): one encoder count
-#: (2 pi / 4096) of the SRV02's output-shaft encoder
-PRESLIDING = 2 * np.pi / 4096
-STRIBECK_VELOCITY = 0.01     # rad/s, as the calibrated joint_friction
-ELASTIC_FRACTION = 0.5
-
-
-def with_stick_slip(arm: ArmDescription, coulomb=None, static=None, viscous=None,
-                    presliding: float = PRESLIDING) -> ArmDescription:
-    """The arm with its joint_friction (or given levels) as stick_slip_friction; the
-    bristles critically damped for the hub's inertia n^2 J_r + J_hub + link."""
-    from flex_twin.diagnosis.hypotheses import joint_inertias
-    j = arm.joint_names[0]
-    fr = arm.effect("joint_friction", j)
-    fv = viscous if viscous is not None else (fr["viscous"] if fr else 0.0)
-    fc = coulomb if coulomb is not None else (fr["coulomb"] if fr else 0.0)
-    fs = static if static is not None else (fr["static"] if fr else 0.0)
-    fs = max(fs, fc)
-    base = dataclasses.replace(arm, effects=tuple(e for e in arm.effects
-                                                  if e.TYPE != "joint_friction"))
-    inertia = float(joint_inertias(base, [0.0])[0])
-    sigma0 = max(fs, 1e-6) / presliding
-    return base.with_effects(StickSlipFriction(j, (
-        fv, fc, fs, STRIBECK_VELOCITY, sigma0, 2.0 * np.sqrt(sigma0 * inertia),
-        ELASTIC_FRACTION)))
 
 
 def hold_evidence(run, gear=48.4, km=0.0107, rm=3.29, last: float = 1.0) -> list:

@@ -25,14 +25,14 @@ import scipy.signal as sg
 
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import linearize
-from .quanser_data import UCMERCED, _loadmat
+from .quanser_data import UCMERCED, load_mat_file
 
 
 def read_60s(root) -> dict:
     """t (s), theta (rad, row 3), alpha (rad, row 2 of alpha), the undocumented row 2."""
     d = Path(root) / UCMERCED if (Path(root) / UCMERCED).is_dir() else Path(root)
-    a = _loadmat(d / "alpha_exp_1k_60s_p1_use.mat", "alpha")
-    th = _loadmat(d / "theta_exp_1k_60s_p1_use.mat", "theta")
+    a = load_mat_file(d / "alpha_exp_1k_60s_p1_use.mat", "alpha")
+    th = load_mat_file(d / "theta_exp_1k_60s_p1_use.mat", "theta")
     if not np.allclose(a[0], th[0]):
         raise ValueError(f"{d}: alpha and theta records do not share their time")
     return {"name": "ucmerced_60s", "t": th[0] - th[0, 0], "theta": th[2], "alpha": a[1],
@@ -42,8 +42,8 @@ def read_60s(root) -> dict:
 def read_5s(root) -> dict:
     """The 5 s record (degrees -> rad)."""
     d = Path(root) / UCMERCED if (Path(root) / UCMERCED).is_dir() else Path(root)
-    a = _loadmat(d / "data_alpha.mat", "data_alpha")
-    th = _loadmat(d / "data_theta.mat", "data_theta")
+    a = load_mat_file(d / "data_alpha.mat", "data_alpha")
+    th = load_mat_file(d / "data_theta.mat", "data_theta")
     return {"name": "ucmerced_5s", "t": th[:, 0] - th[0, 0], "theta": np.radians(th[:, 2]),
             "alpha": np.radians(a[:, 1])}
 

@@ -1,0 +1,141 @@
+"""The four packages import one way and without rings (issue 43): every ``import`` statement
+of the package sources, lazy ones inside functions included, read with :mod:`ast`."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parent.parent / "src"
+PACKAGES = ("flex_model", "flex_control", "flex_planner", "flex_twin")
+#: which package may import which (the README's package layout)
+ALLOWED = {"flex_model": {"flex_model"},
+           "flex_control": {"flex_control", "flex_model"},
+           "flex_planner": {"flex_planner", "flex_model"},
+           "flex_twin": set(PACKAGES)}
+
+
+def module_files() -> dict[str, Path]:
+    """Dotted module name -> source file, for every module of the four packages."""
+    out = {}
+    for package in PACKAGES:
+        root = SRC / package
+        for path in (root / package).rglob("*.py"):
+            parts = path.relative_to(root).with_suffix("").parts
+            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+            out[name] = path
+    return out
+
+
+def imported_modules(name: str, path: Path, known: dict) -> set[str]:
+    """The package modules that ``name`` imports anywhere in its file."""
+    is_package = path.name == "__init__.py"
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = name.split(".") if is_package else name.split(".")[:-1]
+                parts = parts[:len(parts) - node.level + 1]
+                base = ".".join(parts + ([node.module] if node.module else []))
+            targets = [base] + [f"{base}.{alias.name}" for alias in node.names]
+        else:
+            continue
+        found.update(t for t in targets if t in known and t != name)
+    return found
+
+
+def import_rings(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on_stack, rings = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            ring = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                ring.append(w)
+                if w == v:
+                    break
+            if len(ring) > 1:
+                rings.append(sorted(ring))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return rings
+
+
+@pytest.fixture(scope="module")
+def graph():
+    files = module_files()
+    return {name: imported_modules(name, path, files) for name, path in files.items()}
+
+
+def test_the_graph_is_read(graph):
+    """A reader that found nothing would pass the tests below: it finds the known edges."""
+    assert len(graph) > 150
+    assert "flex_model.spatial.description" in graph["flex_model.spatial.urdf"]
+    assert "flex_model.command" in graph["flex_twin.cli"]
+
+
+def test_no_import_rings(graph):
+    assert import_rings(graph) == []
+
+
+def test_rings_are_found():
+    assert import_rings({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_packages_import_one_way(graph):
+    wrong = [(m, t) for m, targets in graph.items() for t in targets
+             if t.split(".")[0] not in ALLOWED[m.split(".")[0]]]
+    assert wrong == []
+
+
+def private_imports(files: dict) -> list[tuple[str, str]]:
+    """(importer, module.name) for every ``from module import _name`` across modules."""
+    found = []
+    for name, path in files.items():
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom):
+                hidden = [a.name for a in node.names
+                          if a.name.startswith("_") and not a.name.startswith("__")]
+                found.extend((name, f"{node.module or '.'}.{h}") for h in hidden)
+    return found
+
+
+def test_no_private_names_imported_across_modules():
+    """A module's private helpers stay private: what another module needs is public."""
+    assert private_imports(module_files()) == []
+
+
+def test_importing_the_numeric_core_changes_no_environment_variable():
+    """Only a process that starts ROS sets ROS_AUTOMATIC_DISCOVERY_RANGE (just before
+    rclpy.init); the core, used from plain Python, leaves the environment alone."""
+    import os
+    import subprocess
+    import sys
+    probe = ("import os; before = dict(os.environ)\n"
+             "import flex_model, flex_model.dynamics, flex_model.simulate, flex_model.spatial\n"
+             "import flex_control.laws, flex_planner.planning, flex_twin.diagnosis.engine\n"
+             "changed = sorted(k for k in set(before) | set(os.environ)\n"
+             "                 if before.get(k) != os.environ.get(k))\n"
+             "print(changed)")
+    env = {k: v for k, v in os.environ.items() if k != "ROS_AUTOMATIC_DISCOVERY_RANGE"}
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True,
+                         text=True, timeout=120, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]"
