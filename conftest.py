@@ -82,6 +82,22 @@ def pytest_collection_finish(session):
         start_new_session=True)
 
 
+#: "on": the acceptance tier runs too (bench/bench_acceptance.py); "full": with its costliest
+ACCEPTANCE_ENV = "FLEX_TWIN_ACCEPTANCE"
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``acceptance`` (minutes of diagnosis each) run only with
+    FLEX_TWIN_ACCEPTANCE=on|full: ``python bench/bench_acceptance.py`` runs and prints them."""
+    if os.environ.get(ACCEPTANCE_ENV) in ("on", "full"):
+        return
+    skip = pytest.mark.skip(reason=f"acceptance tier: python bench/bench_acceptance.py "
+                                   f"({ACCEPTANCE_ENV}=on)")
+    for item in items:
+        if "acceptance" in item.keywords:
+            item.add_marker(skip)
+
+
 def pytest_sessionfinish(session):
     proc = getattr(session.config, "_numba_warmup", None)
     if proc is not None and proc.poll() is None:

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Create/refresh .venv (python3.11) with every dependency pinned by constraints.txt, then
 # install src/flex_model, src/flex_control, src/flex_planner and src/flex_twin as editable
-# packages.
+# packages, then build tf2_msgs and control_msgs into it (step 5; needs gcc and g++).
 #
-# Fast path: a stamp file (.venv/.bootstrap-stamp) holds a hash of constraints.txt, the three
-# setup.py files, this script and the interpreter version; if it matches, nothing is done.
+# Fast path: a stamp file (.venv/.bootstrap-stamp) holds a hash of constraints.txt, the four
+# setup.py files, this script, the interface generator (scripts/gen_interfaces.py and the
+# definitions in scripts/interfaces) and the interpreter version; if it matches, nothing is done.
 # If it does not match, .venv is rebuilt from scratch (so no unpinned leftovers survive).
 #
 # Env: PYTHON=/path/to/python3.11 to choose the interpreter; FORCE=1 to rebuild regardless.
@@ -52,6 +53,7 @@ stamp_value() {
   {
     echo "python=$PYVER"
     cat "$CONSTRAINTS" "$ROOT/scripts/bootstrap.sh"
+    cat "$ROOT/scripts/gen_interfaces.py" "$ROOT"/scripts/interfaces/*/*/*  # step 5's inputs
     local p
     for p in "${PACKAGES[@]}"; do cat "$ROOT/$p/setup.py"; done
   } | sha256sum | cut -d' ' -f1
@@ -109,6 +111,23 @@ for p in "${PACKAGES[@]}"; do
 done
 # flex_model's presets (linked even before the directory exists, so it goes live when it does)
 ln -sfn "$ROOT/src/flex_model/flex_model/presets" "$VENV/share/flex_model/presets"
+
+# 5) tf2_msgs and control_msgs, which no PyPI wheel carries (issue 46): generated from the
+#    definitions in scripts/interfaces by the rosidl generator wheels installed above, compiled
+#    with gcc/g++ (on every machine of this project; installed here if missing and apt-get can),
+#    installed into .venv only (lib/, site-packages/, share/; build files in build-interfaces/).
+if ! command -v gcc >/dev/null 2>&1 || ! command -v g++ >/dev/null 2>&1; then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    log "installing gcc g++ (apt-get) for the interface build"
+    apt-get install -y -q gcc g++ >/dev/null || { apt-get update -q >/dev/null && apt-get install -y -q gcc g++ >/dev/null; }
+  else
+    log "error: gcc and g++ are needed to build tf2_msgs/control_msgs (apt-get install gcc g++)"
+    exit 1
+  fi
+fi
+gen_start=$(date +%s)
+"$VENV/bin/python" "$ROOT/scripts/gen_interfaces.py" --venv "$VENV"
+log "interfaces (tf2_msgs, control_msgs) built in $(( $(date +%s) - gen_start )) s"
 
 echo "$WANT" > "$STAMP"
 log "done in $(( $(date +%s) - start )) s"

@@ -4,8 +4,9 @@ Generator: the nominal closed loop tracks its reference; the noise has the stati
 for; a hidden effect of known size changes the recording by the closed-form amount;
 the files the diagnosis reads hold no truth. Acceptance: the diagnosis on a fixed-seed
 subset meets the issue's targets and shows its mechanisms (pair check, stop rule, later
-round under the gate, backlash refinement); ACCEPTANCE_ENV=skip leaves it out of a quick
-local run, ACCEPTANCE_ENV=full adds the costliest three (:data:`EXTENDED`).
+round under the gate, backlash refinement): the acceptance tier, which ``make test`` skips
+and ``python bench/bench_acceptance.py`` runs (FLEX_TWIN_ACCEPTANCE=on; =full adds the
+costliest five, :data:`EXTENDED`).
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from flex_twin.diagnosis.synthetic_signals import NoiseSpec, ar1, channel_noise
 G = 9.81
 RATE = 500.0
 SEED = 8            # its references hold still for 2.7 s (fit) and 4.3 s (held out)
-ACCEPTANCE_ENV = "FLEX_TWIN_DIAGNOSIS_ACCEPTANCE"   # "skip": leave the subset out
+ACCEPTANCE_ENV = "FLEX_TWIN_ACCEPTANCE"             # "on": the subset; "full": all of it
 TIMINGS_ENV = "FLEX_TWIN_DIAGNOSIS_TIMINGS"         # a path: the subset's timings, JSON
 COLUMNS = ["t", "q1", "q2", "v1", "v2", "tau1", "tau2", "qset1", "qset2", "w1", "w2",
            "tip_x", "tip_y"]
@@ -250,10 +251,8 @@ EXTENDED = {("two:sensor_bias+joint_elasticity", 1004),
             ("backlash", 1007), ("two:gear+torque_saturation", 1002)}
 FULL = os.environ.get(ACCEPTANCE_ENV) == "full"
 RUN = tuple(a for a in ACCEPTANCE if FULL or (a[0], a[1]) not in EXTENDED)
-skip_acceptance = pytest.mark.skipif(
-    os.environ.get(ACCEPTANCE_ENV) == "skip",
-    reason=f"{ACCEPTANCE_ENV}=skip (the acceptance subset: {len(RUN)} diagnoses, "
-           "about 4 minutes on 2 cores)")
+#: the acceptance tier (conftest.py): {len(RUN)} diagnoses, about 4 minutes on 2 cores
+acceptance_tier = pytest.mark.acceptance
 skip_extended = pytest.mark.skipif(
     not FULL, reason=f"one of the costliest acceptance diagnoses: {ACCEPTANCE_ENV}=full "
                      "runs it (about 2 minutes of CPU each)")
@@ -294,7 +293,7 @@ def acceptance(tmp_path_factory):
     return runs
 
 
-@skip_acceptance
+@acceptance_tier
 def test_acceptance_subset(acceptance):
     """Fixed seeds: healthy -> none; cogging -> unexplained or none; payload, friction and
     encoder bias named with their parameters within 20 % and the held-out error reduced
@@ -310,7 +309,7 @@ def test_acceptance_subset(acceptance):
         assert r["holdout_reduction"] >= 0.7
 
 
-@skip_acceptance
+@acceptance_tier
 @skip_extended
 def test_acceptance_two_effects_that_a_single_compensates(acceptance):
     """Encoder bias and gear elasticity on joint 2 (seed 1004): alone, joint 1's elasticity
@@ -322,7 +321,7 @@ def test_acceptance_two_effects_that_a_single_compensates(acceptance):
     assert max(r["param_errors"]) < 0.05 and r["holdout_reduction"] >= 0.9
 
 
-@skip_acceptance
+@acceptance_tier
 @skip_extended
 def test_acceptance_two_effects_that_mask_each_other_are_screened_as_a_pair(acceptance):
     """Encoder bias of -11.9 mrad and a soft gear spring (393 N m/rad) on joint 2 (seed
@@ -336,7 +335,7 @@ def test_acceptance_two_effects_that_mask_each_other_are_screened_as_a_pair(acce
     assert max(r["param_errors"]) < 0.05 and r["holdout_reduction"] >= 0.9
 
 
-@skip_acceptance
+@acceptance_tier
 @skip_extended
 def test_acceptance_a_lighter_rotor_next_to_a_saturation(acceptance):
     """Rotor inertia x0.59 on joint 2 and the drive of joint 2 saturated (seed 1008): the
@@ -351,7 +350,7 @@ def test_acceptance_a_lighter_rotor_next_to_a_saturation(acceptance):
     assert max(r["param_errors"]) < 0.05 and r["holdout_reduction"] >= 0.99
 
 
-@skip_acceptance
+@acceptance_tier
 def test_acceptance_nothing_is_named_for_what_only_the_held_out_run_shows(acceptance):
     """Contact floor (seed 1005): the fitted contact explains the fit recording to its noise
     level (J - 1 = 0.06) and leaves a held-out excess (the held-out run presses harder).
@@ -365,7 +364,7 @@ def test_acceptance_nothing_is_named_for_what_only_the_held_out_run_shows(accept
     assert max(r["param_errors"]) < 0.1 and r["holdout_reduction"] >= 0.99
 
 
-@skip_acceptance
+@acceptance_tier
 @skip_extended
 def test_acceptance_a_second_effect_below_the_gate_on_the_fit_recording(acceptance):
     """Gear on joint 2 (rotor inertia x1.6) and drive saturation on joint 1 (seed 1002):
@@ -379,7 +378,7 @@ def test_acceptance_a_second_effect_below_the_gate_on_the_fit_recording(acceptan
     assert max(r["param_errors"]) < 0.05 and r["holdout_reduction"] >= 0.99
 
 
-@skip_acceptance
+@acceptance_tier
 @skip_extended
 def test_acceptance_backlash_is_named_not_its_spring(acceptance):
     """Backlash of 6.85 mrad in joint 1's gear spring (3000 N m/rad, damping 6.9 N m s/rad;

@@ -17,7 +17,7 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
                         in the last link's tip frame
     robot_description   std_msgs/String          the URDF (transient local, depth 1)
     /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips; base ->
-                        arm_plane (only where tf2_msgs can be imported: not in the pip venv)
+                        arm_plane (where tf2_msgs imports: scripts/bootstrap.sh builds it)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
     /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a divergence (every
@@ -28,6 +28,8 @@ Subscriptions:
 Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; an
 in-loop controller's trajectory is dropped: zero until the next one; after a divergence it
 restarts the loop), ~/pause (std_srvs/SetBool).
+Action (with an in-loop controller, where control_msgs imports): joint_trajectory_controller/
+follow_joint_trajectory (control_msgs/FollowJointTrajectory, flex_model.trajectory_action).
 
 Parameters (:data:`PARAMETERS`: defaults, descriptions, checks): arm (default
 thesis_example1_motors: with its geared motors the default controller node, a sampled
@@ -119,6 +121,7 @@ from .dynamics import FlexArmModel
 from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
                        guard_parameters, lean_node, run_node)
 from .stepper import Stepper
+from .trajectory_action import INVALID_GOAL, action_server
 
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
@@ -342,6 +345,8 @@ class ModelNode(Node):
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
         self.loop = self._in_loop_controller(p) if p["controller"] else None
+        # control_msgs/FollowJointTrajectory for the in-loop controller (trajectory_action)
+        self.fjt = action_server(self) if self.loop is not None else None
         guard_parameters(self, PARAMETERS, self.p.update)
         self.last_wall = time.monotonic()
         # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog;
@@ -414,7 +419,6 @@ class ModelNode(Node):
         except ValueError as exc:
             self.drops.warning(f"dropped flex_planner/trajectory: {exc}")
             return
-        self.braked = False
         self.get_logger().info(f"trajectory: {len(data.t)} points, {data.duration:.3f} s")
 
     def _set_realtime_priority(self, priority: int) -> None:
@@ -493,9 +497,11 @@ class ModelNode(Node):
         self.stepper.model.set_payload(*self.payload0)
         self.stepper.reset()
         self.recent_commands.clear()
+        if self.fjt is not None:  # a running FollowJointTrajectory goal ends here
+            self.fjt.finish(INVALID_GOAL, "ended by ~/reset")
         if self.loop is not None:  # the old task must not replay: zero until a trajectory
             self.loop.drop_trajectory()
-        self.braked = bool(self.p["hold_until_command"])  # (then held until the next one)
+        self.braked = bool(self.p["hold_until_command"]) and self.loop is None
         self.command_time = self.next_publish = self.next_shape = self.behind = 0.0
         self.last_wall = time.monotonic()
         self.diverged = None
@@ -630,7 +636,8 @@ class ModelNode(Node):
             return
         self.apply_command_timeout()
         try:
-            if self.braked:  # hold_until_command: the initial state until a command
+            if self.braked or (self.loop is not None and self.loop.idle and
+                               self.p["hold_until_command"]):  # until a command/trajectory
                 self.stepper.hold(dt)
             elif self.loop is None:
                 refined = self.stepper.advance_refining(dt)
@@ -652,6 +659,8 @@ class ModelNode(Node):
             self.next_shape = t + 1.0 / self.p["shape_rate"]
         if full or (self.p["mode"] == "lockstep" and self.loop is None):
             self.publish_state(full=full, shape=shape)
+        if self.fjt is not None:  # the running FollowJointTrajectory goal's verdict
+            self.fjt.check()
 
     def apply_command_timeout(self, stalled: bool = False) -> None:
         """After command_timeout s (simulation time) without a valid command, or at once on
@@ -695,6 +704,8 @@ class ModelNode(Node):
         self.publish_diagnostic(self.diverged)
         self.next_diagnostic = time.monotonic() + 1.0
         self.next_held_state = 0.0  # the held state from the next tick on, effort zero
+        if self.fjt is not None:
+            self.fjt.check()
 
     def _largest_recent_command(self, applied) -> str:
         """'; the largest command before: [..] at t = .. s' (of the last COMMAND_MEMORY

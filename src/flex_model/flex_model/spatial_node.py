@@ -15,8 +15,8 @@ Publications (simulation time in every header):
     flex/shape          visualization_msgs/MarkerArray  per flexible link the deformed centre
                         line and its chord in the base frame, z up (only while
                         subscribed)
-    /tf                 tf2_msgs/TFMessage       link roots, deflected tips, link ends (only
-                        where tf2_msgs can be imported: not in the pip venv; one log line)
+    /tf                 tf2_msgs/TFMessage       link roots, deflected tips, link ends (where
+                        tf2_msgs imports: scripts/bootstrap.sh builds it; else one log line)
     robot_description   std_msgs/String          the rigid skeleton's URDF (latched)
     /clock              rosgraph_msgs/Clock      lockstep mode (or publish_clock), on
                         ``clock_topic``
@@ -377,8 +377,8 @@ class SpatialModelNode(Node):
             from geometry_msgs.msg import Quaternion, Transform, TransformStamped, Vector3
             from std_msgs.msg import Header
         except ImportError as exc:
-            self.get_logger().info(f"TF off: tf2_msgs cannot be imported ({exc}; the pip "
-                                   "ROS wheels have none, a ROS install has it); "
+            self.get_logger().info(f"TF off: tf2_msgs cannot be imported ({exc}; "
+                                   "scripts/bootstrap.sh builds it into .venv); "
                                    "robot_description is published, /tf not")
             return
         self.tf_types = SimpleNamespace(TFMessage=TFMessage, Time=Time, Header=Header,

@@ -112,6 +112,7 @@ def test_held_out_run_with_another_law_is_refused(real, tmp_path, capsys):
     assert "differ from the fit run's" in capsys.readouterr().err
 
 
+@pytest.mark.acceptance
 def test_the_issue_run_names_stick_slip_friction_by_default(real, tmp_path):
     """Issue 22's run (flexarm_k1k2_6_-3, held out: its last 40 %), the default settings
     (restarts every 0.5 s): the stick-slip friction is named, sliding = break-away level
