@@ -319,8 +319,10 @@ def test_reset_drops_the_in_loop_trajectory(graph):
     reset = g.probe.create_client(Trigger, f"{g.ns}/flex_model/reset")
     g.spin_until(lambda: trajectory.get_subscription_count(), "discovery")
     trajectory.publish(ramp_trajectory(model.names))
-    g.spin_until(lambda: model.stepper.t > 0.6, "the task under way")
-    assert model.stepper.joint_state()[0][0] > 0.1  # joint 1 follows the ramp
+    g.spin_until(lambda: model.loop.t0 > 0.0, "the trajectory")  # (starts on arrival)
+    t_task = model.loop.t0
+    g.spin_until(lambda: model.stepper.t > t_task + 0.6, "the task under way")
+    assert model.stepper.joint_state()[0][0] > 0.15  # joint 1 follows the ramp (0.3 rad)
     assert g.call(reset, Trigger.Request()).success
     states.clear()
     commands = set()  # the command at every return of the executor (lockstep: 20 ms slices)
