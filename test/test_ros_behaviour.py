@@ -497,3 +497,50 @@ def test_controller_restarts_hold_the_declared_pose_without_creeping(graph):
     np.testing.assert_allclose(settled, np.broadcast_to(settled[0], settled.shape),
                                atol=1.0)  # no creep (1.5 s: within 0.3 deg of rest)
     np.testing.assert_allclose(held, [[151.0, 10.0]] * 3, rtol=0, atol=1e-12)
+
+
+def test_reset_ends_a_running_follow_joint_trajectory_goal(graph):
+    """Issue 46.4 with the FollowJointTrajectory action (control_msgs, built by
+    scripts/bootstrap.sh): ~/reset ends the running goal (INVALID_GOAL, "ended by
+    ~/reset"; before, it went on from the reset state), the arm then holds with zero
+    command, and a new goal drives it again."""
+    pytest.importorskip("control_msgs.action")
+    from builtin_interfaces.msg import Duration
+    from control_msgs.action import FollowJointTrajectory as FJT
+    from rclpy.action import ActionClient
+    g = graph
+    model = g.add(ModelNode(context=g.ctx, namespace=g.ns, parameter_overrides=[
+        Parameter("mode", value="lockstep"), Parameter("controller", value="eq95"),
+        Parameter("controller_params.h", value=[25.0]),
+        Parameter("publish_rate", value=100.0)]))
+    client = ActionClient(g.probe, FJT, "joint_trajectory_controller/follow_joint_trajectory")
+    reset = g.probe.create_client(Trigger, f"{g.ns}/flex_model/reset")
+    g.spin_until(client.server_is_ready, "the action server", 120.0)
+
+    def goal(target, duration):
+        msg = FJT.Goal()
+        msg.trajectory.joint_names = list(model.names)
+        msg.trajectory.points.append(JointTrajectoryPoint(
+            positions=list(target), time_from_start=Duration(sec=int(duration))))
+        return msg
+
+    def send(msg):
+        future = client.send_goal_async(msg)
+        g.spin_until(future.done, "the goal response")
+        return future.result()
+    handle = send(goal([0.5, 0.0], 3))
+    result = handle.get_result_async()
+    t_goal = model.stepper.t
+    g.spin_until(lambda: model.stepper.t > t_goal + 0.5, "the goal under way")
+    assert g.call(reset, Trigger.Request()).success
+    g.spin_until(result.done, "the goal's result")
+    assert result.result().result.error_code == FJT.Result.INVALID_GOAL
+    assert result.result().result.error_string == "ended by ~/reset"
+    g.spin_until(lambda: model.stepper.t > 1.0, "1 s after the reset")
+    assert list(model.stepper.u) == [0.0, 0.0]
+    np.testing.assert_array_equal(model.stepper.q, model.stepper.q0)  # held
+    handle = send(goal([0.3, 0.0], 1))
+    result = handle.get_result_async()
+    g.spin_until(result.done, "the new goal's result", 120.0)
+    assert result.result().result.error_code == FJT.Result.SUCCESSFUL
+    assert model.stepper.joint_state()[0][0] == pytest.approx(0.3, abs=0.05)
