@@ -248,17 +248,17 @@ def test_bad_input_is_logged_and_the_node_keeps_publishing(suite, node, topic, m
 
 
 RUNTIME = [  # (node, parameter, value, expected text of the refusal)
-    ("model", "mode", "realtime", "parameter mode is read-only at run time"),
-    ("model", "arm", "thesis_example2", "parameter arm is read-only at run time"),
-    ("model", "command_timeout", -1.0, "parameter command_timeout: got -1; expected a time"),
+    ("model", "mode", "realtime", "read-only parameter: mode"),  # descriptor.read_only
+    ("model", "arm", "thesis_example2", "read-only parameter: arm"),
+    ("model", "command_timeout", -1.0, "Parameter command_timeout out of range"),  # range
     ("model", "publish_rate", 0.0, "parameter publish_rate: got 0; expected a number > 0"),
     ("model", "max_torque", "big", "parameter max_torque: got 'big'; expected a finite number"),
-    ("ctrl", "law", "eq45", "parameter law is read-only at run time"),
-    ("ctrl", "joint_names", ["a", "b"], "parameter joint_names is read-only at run time"),
+    ("ctrl", "law", "eq45", "read-only parameter: law"),
+    ("ctrl", "joint_names", ["a", "b"], "read-only parameter: joint_names"),
     ("ctrl", "h", [-1.0], "h: got [-1.0]; expected 1 or 2 finite gains > 0"),
     ("ctrl", "torque_limits", [1.0, 2.0, 3.0], "torque_limits"),
     ("ctrl", "state_timeout", math.nan, "parameter state_timeout: got nan; expected a finite"),
-    ("plan", "arm", "thesis_example2", "parameter arm is read-only at run time"),
+    ("plan", "arm", "thesis_example2", "read-only parameter: arm"),
     ("plan", "elbow", "sideways", "elbow: got 'sideways'; expected one of up, down"),
     ("plan", "sample_period", 5.0, "sample_period: got 5.0; expected a time in [1e-5, 1] s"),
     ("plan", "max_samples", 0, "parameter max_samples: got 0; expected an integer >= 2"),

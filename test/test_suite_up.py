@@ -134,3 +134,204 @@ def test_a_killed_up_leaves_no_node_running():
               Path(f"/proc/{p}/stat").read_text().split()[2] != "Z" for p in nodes):
         assert time.monotonic() < end, f"node processes {nodes} outlived flex-twin up"
         time.sleep(0.1)
+
+
+TWO_ARMS = Path(__file__).resolve().parents[1] / "docs" / "examples" / "two_arms.yaml"
+
+
+def test_up_runs_the_docs_two_arm_file_in_its_namespaces():
+    """Issue 46 item 10b: ``flex-twin up docs/examples/two_arms.yaml`` (fully qualified
+    node names) was refused ("expected one of flex_model, ..."). Now each twin starts in
+    its namespace with its controller in its model's loop; after 1 s of simulation time
+    both arms hold their own set-points (30, 0 and -60, 20 deg) within the sag of the PD,
+    and each ran on its own clock."""
+    raw = node_parameters(TWO_ARMS)  # main: "expected one of flex_model, ..."
+    from flex_twin.ros_suite import run_in_one_process, suite_nodes
+    params, nodes = suite_nodes(raw)
+    assert sorted(nodes) == [("flex_model", "model_node", "/robot1", "flex_model"),
+                             ("flex_model", "model_node", "/robot2", "flex_model")]
+    assert params["/robot1/flex_model"]["controller"] == "eq95"
+    assert params["/robot2/flex_model"]["controller_params.h"] == [25.0, 25.0]
+    running = run_in_one_process(params, duration=1.0)
+    for key, set_deg in (("/robot1/flex_model", [30.0, 0.0]),
+                         ("/robot2/flex_model", [-60.0, 20.0])):
+        node = running[key]
+        assert node.frames.base == key[1:7] + "/base_link"  # its frame_prefix
+        assert node.stepper.t >= 1.0
+        theta = np.degrees(node.model.joint_angles(node.stepper.q))
+        np.testing.assert_allclose(theta, set_deg, atol=3.0)
+    a, b = (np.degrees(running[k].model.joint_angles(running[k].stepper.q))
+            for k in ("/robot1/flex_model", "/robot2/flex_model"))
+    assert abs(a[0] - b[0]) > 80.0  # two different arms, not one twice
+
+
+LAUNCH = Path(__file__).resolve().parents[1] / "ros2_ws" / "launch" / "suite.launch.py"
+
+
+def _launch_with_stubs(monkeypatch, path):
+    """The launch file's module, with stand-ins for the launch and launch_ros packages
+    (not among the pip wheels): each records what the file gives it."""
+    import importlib.util
+    import types
+
+    class Record:
+        def __init__(self, *args, **kwargs):
+            self.args, self.kwargs = args, kwargs
+
+    class Config(Record):
+        def perform(self, context):
+            return context[self.args[0]]
+    mods = {"launch": {"LaunchDescription": Record},
+            "launch.actions": {"DeclareLaunchArgument": Record, "OpaqueFunction": Record},
+            "launch.substitutions": {"LaunchConfiguration": Config},
+            "launch_ros": {}, "launch_ros.actions": {"Node": Record}}
+    for name, attrs in mods.items():
+        mod = types.ModuleType(name)
+        mod.__dict__.update(attrs)
+        monkeypatch.setitem(sys.modules, name, mod)
+    spec = importlib.util.spec_from_file_location("suite_launch", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _launched(module, **arguments):
+    """(package, executable, namespace, name) and parameters of the launched nodes."""
+    import yaml
+    (entities,) = module.generate_launch_description().args
+    context = {e.args[0]: e.kwargs["default_value"] for e in entities
+               if "default_value" in e.kwargs}
+    context.update(arguments)
+    (opaque,) = [e for e in entities if "function" in e.kwargs]
+    out = []
+    for node in opaque.kwargs["function"](context):
+        kw = node.kwargs
+        params = yaml.safe_load(Path(kw["parameters"][0]).read_text())
+        out.append(((kw["package"], kw["executable"], kw.get("namespace", ""), kw["name"]),
+                    params))
+    return out
+
+
+@pytest.mark.parametrize("topic_loop", [False, True])
+def test_launch_file_starts_the_nodes_of_up(monkeypatch, topic_loop):
+    """Issue 46 item 10a: ros2_ws/launch/suite.launch.py (installed by flex_twin) starts
+    up's nodes: by default the model with the controller in its loop and the planner (on
+    main: the controller node over topics); topic_loop:=true the three nodes as ``up
+    --topic-loop``; the two-arm file in its namespaces."""
+    module = _launch_with_stubs(monkeypatch, LAUNCH)
+    assert Path(module.PARAMS).resolve() == PARAMS.resolve()
+    got = _launched(module, topic_loop=str(topic_loop).lower())
+    from flex_twin.ros_suite import suite_nodes
+    want_params, want_nodes = suite_nodes(node_parameters(PARAMS), topic_loop)
+    assert [n for n, _ in got] == want_nodes
+    assert [n[1] for n in want_nodes] == (
+        ["model_node", "controller_node", "planner_node"] if topic_loop
+        else ["model_node", "planner_node"])
+    model = got[0][1]["flex_model"]["ros__parameters"]
+    assert model == want_params["flex_model"]
+    assert ("controller" in model) is not topic_loop
+    got = _launched(module, params=str(TWO_ARMS), topic_loop="false")
+    assert [n for n, _ in got] == [("flex_model", "model_node", "/robot1", "flex_model"),
+                                   ("flex_model", "model_node", "/robot2", "flex_model")]
+
+
+def test_launch_file_and_parameters_are_installed(monkeypatch):
+    """flex_twin's setup.py installs the launch file and its default parameter file under
+    share/flex_twin (where ``ros2 launch flex_twin suite.launch.py`` finds them)."""
+    import os
+    import runpy
+
+    import setuptools
+    captured = {}
+    monkeypatch.setattr(setuptools, "setup", lambda **kw: captured.update(kw))
+    setup_py = Path(__file__).resolve().parents[1] / "src" / "flex_twin" / "setup.py"
+    cwd = os.getcwd()
+    try:
+        runpy.run_path(str(setup_py))
+    finally:
+        os.chdir(cwd)
+    files = dict(captured["data_files"])
+    assert files["share/flex_twin/launch"] == ["launch/suite.launch.py"]
+    assert files["share/flex_twin/params"] == ["params/suite.yaml"]
+    assert (setup_py.parent / "launch" / "suite.launch.py").resolve() == LAUNCH.resolve()
+    assert (setup_py.parent / "params" / "suite.yaml").resolve() == PARAMS.resolve()
+
+
+def test_record_during_up_is_complete_and_in_sim_time(tmp_path):
+    """Issue 46 item 7, the README's flow: ``flex-twin record /joint_states
+    /flex/deflections`` during ``flex-twin up`` (lockstep, the controller in the loop, many
+    times faster than real time). On main the log times spanned the wall clock (5.1 s
+    against 133.8 s of header stamps) and 6.5 % of the messages were lost. Now the
+    recorder logs in simulation time because /clock is published, and takes every
+    message: read back with the mcap reader, every header stamp of the run is there once
+    (the first step's 0.002 s, then every 0.01 s to the end, publish_rate 100 Hz; the model
+    starts paused until the recorder listens), and log times equal header stamps within
+    one publication period (a /joint_states goes out just before the /clock of its
+    step)."""
+    import os
+    import rclpy
+    from mcap.reader import make_reader
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import JointState
+    from std_srvs.srv import SetBool
+    import yaml
+
+    params = node_parameters(PARAMS)
+    params["flex_model"].update(start_paused=True, parameter_services=True)
+    del params["flex_planner"]
+    path = tmp_path / "params.yaml"
+    path.write_text(yaml.safe_dump({k: {"ros__parameters": v} for k, v in params.items()}))
+    duration, period = 20.0, 1.0 / params["flex_model"]["publish_rate"]
+    up = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "up", str(path),
+                           "--duration", str(duration)])
+    rec = subprocess.Popen([sys.executable, "-m", "flex_twin.cli", "record", "/joint_states",
+                            "/flex/deflections", "-o", str(tmp_path / "bag"),
+                            "--discovery-timeout", "120"], stderr=subprocess.PIPE, text=True)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = rclpy.create_node("record_probe", context=ctx)
+        pause = node.create_client(SetBool, "/flex_model/pause")
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        end = time.monotonic() + 180.0
+        while not (pause.service_is_ready() and node.count_subscribers("/joint_states")
+                   and node.count_subscribers("/flex/deflections")):
+            assert time.monotonic() < end and up.poll() is None and rec.poll() is None
+            ex.spin_once(timeout_sec=0.05)
+        time.sleep(1.0)  # the recorder's subscriptions matched on its side too
+        future = pause.call_async(SetBool.Request(data=False))
+        while not future.done():
+            assert time.monotonic() < end, "no answer from ~/pause"
+            ex.spin_once(timeout_sec=0.05)
+        assert up.wait(timeout=180) == 0
+        time.sleep(1.0)
+        rec.send_signal(signal.SIGINT)
+        _, err = rec.communicate(timeout=60)
+        assert rec.returncode == 0, err
+        ex.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+        for p in (up, rec):
+            if p.poll() is None:
+                p.kill()
+    (mcap,) = [os.path.join(tmp_path / "bag", f) for f in os.listdir(tmp_path / "bag")
+               if f.endswith(".mcap")]
+    got = {"/joint_states": [], "/flex/deflections": []}
+    with open(mcap, "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            stamp = deserialize_message(message.data, JointState).header.stamp
+            got[channel.topic].append((message.log_time * 1e-9,
+                                       stamp.sec + 1e-9 * stamp.nanosec))
+    for topic, rows in got.items():
+        log, stamps = np.array(rows).T
+        n = len(stamps)
+        assert n >= duration / period  # up ran to the end
+        assert 0.0 < stamps[0] <= period  # the first step after the pause: none lost
+        np.testing.assert_allclose(stamps, stamps[0] + period * np.arange(n), rtol=0,
+                                   atol=1e-9)  # each publication once, none lost
+        assert np.all(stamps - log >= -1e-9) and np.all(stamps - log <= period + 1e-9)
+        assert abs((log[-1] - log[0]) - (stamps[-1] - stamps[0])) <= period + 1e-9
+    assert "log time = sim time (/clock)" in err

@@ -19,7 +19,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray, String
 from visualization_msgs.msg import MarkerArray
 
@@ -47,15 +47,15 @@ def test_urdf_joints_and_masses_equal_the_model(three_link):
     model = three_link
     root = ET.fromstring(urdf.robot_description(model, effort_limits=[50.0, 40.0, 30.0]))
     assert root.tag == "robot" and root.get("name") == "thesis_three_link"
-    revolute = [j for j in root.iter("joint") if j.get("type") == "revolute"]
-    assert [j.get("name") for j in revolute] == model.arm.joint_names
+    revolute = [j for j in root.iter("joint") if j.get("type") == "continuous"]
+    assert [j.get("name") for j in revolute] == model.arm.joint_names  # no rotors here
     links = {lk.get("name"): lk for lk in root.iter("link")}
     names = [lk.name for lk in model.arm.links]
     for i, j in enumerate(revolute):
         assert [float(v) for v in j.find("axis").get("xyz").split()] == [0.0, 0.0, 1.0]
         lim = j.find("limit")
         assert float(lim.get("effort")) == [50.0, 40.0, 30.0][i]
-        assert float(lim.get("lower")) == -math.pi and float(lim.get("upper")) == math.pi
+        assert lim.get("lower") is None and lim.get("upper") is None  # no stops
         assert j.find("parent").get("link") == ("arm_plane" if i == 0 else
                                                 f"{names[i - 1]}_tip")
         assert j.find("child").get("link") == names[i]
@@ -83,6 +83,71 @@ def test_urdf_joints_and_masses_equal_the_model(three_link):
         assert izz + m * x * x + izz_tip + m_tip * L * L == pytest.approx(jrot[i], rel=1e-12)
     assert m_tip == pytest.approx(1.0 + 0.7) and izz_tip == pytest.approx(1.0 + 0.05)
     assert total == pytest.approx(model.total_mass, rel=1e-12)
+
+
+def _frame_angle(model, q, frames, frame):
+    """The rotation (rad) about the plane's z of ``frame`` in arm_plane (TF chain)."""
+    r, _ = urdf.compose(urdf.arm_transforms(model, q, frames), frame, frames.plane)
+    return math.atan2(r[1, 0], r[0, 0])
+
+
+def test_urdf_motors_are_the_gear_of_the_arm_file():
+    """Issue 46 item 6: thesis_example1_motors' geared motors (ratio 100, rotor 5e-5 kg m^2
+    in its arm file) are in the URDF: a SimpleTransmission with mechanicalReduction 100
+    per joint, and per joint a massless rotor link (Izz = J_r) on the joint's parent
+    frame, mimicking the joint with multiplier 100 (n^2 J_r = 0.5 kg m^2 at the joint).
+    Its kinetic energy, from the URDF's numbers and the rotor frames' rates (TF chain),
+    equals the energy the gear adds to the model's mass matrix, at a deflected state and
+    random rates, to 1e-12 relative; joint1 at 3.25 rad (where the demo ends) is inside
+    the URDF (continuous joints, no stops)."""
+    import dataclasses
+    arm = load_arm("thesis_example1_motors")
+    gear_yaml = {e.target: (e["ratio"], e["rotor_inertia"]) for e in arm.effects
+                 if e.TYPE == "gear"}
+    assert gear_yaml == {"joint1": (100.0, 5e-5), "joint2": (100.0, 5e-5)}
+    model = FlexArmModel(arm)
+    bare = FlexArmModel(dataclasses.replace(arm, effects=()))
+    frames = urdf.Frames.of(model, "robot1/")
+    root = ET.fromstring(urdf.robot_description(model, "robot1/", effort_limits=[1.0, 1.0]))
+    joints = {j.get("name"): j for j in root.findall("joint")}  # not transmissions
+    links = {lk.get("name"): lk for lk in root.iter("link")}
+    reductions = {t.find("joint").get("name"):
+                  float(t.find("actuator").find("mechanicalReduction").text)
+                  for t in root.iter("transmission")}
+    assert reductions == {"joint1": 100.0, "joint2": 100.0}
+    rotors = []
+    for name in ("joint1", "joint2"):
+        assert joints[name].get("type") == "continuous"
+        assert joints[name].find("limit").get("upper") is None
+        rj = next(j for j in joints.values() if j.find("mimic") is not None
+                  and j.find("mimic").get("joint") == name)
+        assert rj.find("parent").get("link") == joints[name].find("parent").get("link")
+        child = rj.find("child").get("link")
+        inertial = links[child].find("inertial")
+        assert float(inertial.find("mass").get("value")) == 0.0
+        izz = float(inertial.find("inertia").get("izz"))
+        n = float(rj.find("mimic").get("multiplier"))
+        rotors.append((name, rj.find("parent").get("link"), n, izz))
+    assert [n * n * izz for _, _, n, izz in rotors] == pytest.approx([0.5, 0.5], rel=1e-12)
+    rng = np.random.default_rng(7)
+    q = deflected_state(model)
+    q[model.alpha_index(0)] += 3.25 - model.joint_angles(q)[0]  # joint1 = 3.25 rad
+    assert model.joint_angles(q)[0] == pytest.approx(3.25)
+    for _ in range(3):
+        v = rng.standard_normal(model.nq)
+        dB = model.mass_matrix(q) - bare.mass_matrix(q)
+        energy_model = 0.5 * v @ dB @ v
+        eps = 1e-6
+        theta_dot = (model.joint_angles(q + eps * v) - model.joint_angles(q - eps * v)) / (
+            2 * eps)
+        energy_urdf = 0.0
+        for i, (name, stator, n, izz) in enumerate(rotors):
+            omega = 0.0 if stator == frames.plane else (
+                _frame_angle(model, q + eps * v, frames, stator)
+                - _frame_angle(model, q - eps * v, frames, stator)) / (2 * eps)
+            energy_urdf += 0.5 * izz * (n * theta_dot[i] + omega) ** 2
+        assert energy_urdf == pytest.approx(energy_model, rel=1e-7)
+        assert energy_model > 0.01
 
 
 def test_plane_is_vertical_under_gravity_and_horizontal_without():
@@ -115,7 +180,7 @@ def test_tip_frames_are_the_deflected_tips(arm):
     q = deflected_state(model)
     frames = urdf.Frames.of(model, "r1/")
     tfs = urdf.static_transforms(model, frames) + urdf.arm_transforms(model, q, frames)
-    assert len(tfs) == 1 + 2 * model.n_links
+    assert len(tfs) == 1 + 2 * model.n_links + len(urdf.rotors(model))
     org = model.link_origins(q)
     assert np.max(np.abs(model.tip_deflections(q))) > 1e-3  # really deflected
     for i in range(model.n_links):
@@ -134,10 +199,14 @@ def test_tip_frames_are_the_deflected_tips(arm):
 
 def test_late_subscriber_gets_the_description_and_outputs_are_z_up(tmp_path):
     """robot_description is latched (transient local, depth 1, as robot_state_publisher):
-    a subscriber created after the node published it still receives it. /flex/shape is in
-    the base frame with z up (its last point is the tip (x, 0, y)), /flex/tip_pose in
-    arm_plane (the model's plane coordinates), /flex/tip_imu in link2_tip, its orientation
-    that frame's in the base (R_plane Rz(phi))."""
+    a subscriber created after the node published it still receives it. With
+    ``frame_prefix: robot1/`` (the two-arm file) its links are prefixed and its joints are
+    the names of the received /joint_states (issue 46 item 3: on main the URDF said
+    robot1/joint1, /joint_states joint1). /flex/shape is in the base frame with z up (its
+    last point is the tip (x, 0, y)), /flex/tip_pose in that same frame (issue 46 item
+    10e: it was in arm_plane): its position is the shape's last point, its orientation
+    R_plane Rz(phi); /flex/tip_imu in link2_tip, its orientation that frame's in the
+    base."""
     arm = tmp_path / "imu_arm.yaml"
     arm.write_text(resolve_preset("thesis_example1_motors").read_text()
                    + "sensors:\n  - {kind: tip_accelerometer}\n")
@@ -151,18 +220,20 @@ def test_late_subscriber_gets_the_description_and_outputs_are_z_up(tmp_path):
             Parameter("arm", value=str(arm)),
             Parameter("mode", value="lockstep"), Parameter("lockstep_timeout", value=300.0),
             Parameter("publish_rate", value=1000.0), Parameter("shape_rate", value=1000.0),
-            Parameter("initial_joint_angles_deg", value=[40.0, -30.0])])
+            Parameter("initial_joint_angles_deg", value=[40.0, -30.0]),
+            Parameter("frame_prefix", value="robot1/")])
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         for _ in range(5):
             ex.spin_once(timeout_sec=0.01)
         probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=ctx, namespace=ns)
-        got = {"description": [], "shape": [], "tip": [], "imu": []}
+        got = {"description": [], "shape": [], "tip": [], "imu": [], "js": []}
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         probe.create_subscription(String, "robot_description", got["description"].append,
                                   latched)
         probe.create_subscription(MarkerArray, "flex/shape", got["shape"].append, 10)
+        probe.create_subscription(JointState, "joint_states", got["js"].append, 10)
         probe.create_subscription(PoseStamped, "flex/tip_pose", got["tip"].append, 10)
         probe.create_subscription(Imu, "flex/tip_imu", got["imu"].append, 10)
         cmd = probe.create_publisher(Float64MultiArray, "effort_controller/commands", 10)
@@ -172,27 +243,35 @@ def test_late_subscriber_gets_the_description_and_outputs_are_z_up(tmp_path):
             assert time.monotonic() < end, "timed out waiting for robot_description"
             ex.spin_once(timeout_sec=0.01)
         root = ET.fromstring(got["description"][0].data)
-        assert [j.get("name") for j in root.iter("joint") if j.get("type") == "revolute"] \
-            == ["joint1", "joint2"]
+        movable = [j.get("name") for j in root.findall("joint")
+                   if j.get("type") != "fixed" and j.find("mimic") is None]
+        assert all(lk.get("name").startswith("robot1/") for lk in root.iter("link"))
         got["shape"].clear(), got["tip"].clear(), got["imu"].clear()
         cmd.publish(Float64MultiArray(data=[5.0, -3.0]))
         end = time.monotonic() + 120.0  # a first step may compile the kernels (numba)
-        while not (got["shape"] and got["tip"] and got["imu"] and node.stepper.t > 0):
+        while not (got["shape"] and got["tip"] and got["imu"] and got["js"]
+                   and node.stepper.t > 0):
             assert time.monotonic() < end, "timed out waiting for shape and tip pose"
             ex.spin_once(timeout_sec=0.01)
         assert node.stepper.t == pytest.approx(1e-3)  # the one step: no watchdog step
+        assert movable == list(got["js"][-1].name) == ["joint1", "joint2"]
         x, y, phi = node.model.tip_pose(node.stepper.q)
         last = got["shape"][-1].markers[2]  # link2's centre line
-        assert last.header.frame_id == "base_link"
+        assert last.header.frame_id == "robot1/base_link"
         tip = got["tip"][-1]
         assert tip.header.stamp.nanosec == last.header.stamp.nanosec == 1_000_000
-        assert tip.header.frame_id == "arm_plane"
-        assert (tip.pose.position.x, tip.pose.position.y) == pytest.approx((x, y), abs=1e-12)
-        p = last.points[-1]
+        assert tip.header.frame_id == last.header.frame_id
+        p, tp = last.points[-1], tip.pose.position
         assert (p.x, p.y, p.z) == pytest.approx((x, 0.0, y), abs=1e-9)
+        assert (tp.x, tp.y, tp.z) == pytest.approx((p.x, p.y, p.z), abs=1e-9)
+        o = tip.pose.orientation
+        np.testing.assert_allclose(
+            urdf.matrix_from_quaternion((o.x, o.y, o.z, o.w)),
+            [[math.cos(phi), -math.sin(phi), 0.0], [0.0, 0.0, -1.0],
+             [math.sin(phi), math.cos(phi), 0.0]], rtol=0, atol=1e-9)
         assert y > 0.5  # the arm raised 40 deg: above the base, along +z
         imu = got["imu"][-1]
-        assert imu.header.frame_id == "link2_tip"
+        assert imu.header.frame_id == "robot1/link2_tip"
         o = imu.orientation
         np.testing.assert_allclose(
             urdf.matrix_from_quaternion((o.x, o.y, o.z, o.w)),
@@ -219,7 +298,7 @@ def test_transform_messages_carry_the_chain():
     out = msgs.update(1.25, tfs)
     assert [(m.header.frame_id, m.child_frame_id) for m in out] == [
         ("arm_plane", "link1"), ("link1", "link1_tip"), ("link1_tip", "link2"),
-        ("link2", "link2_tip")]
+        ("link2", "link2_tip"), ("arm_plane", "link1_rotor"), ("link1_tip", "link2_rotor")]
     for m, tr in zip(out, tfs):
         assert (m.header.stamp.sec, m.header.stamp.nanosec) == (1, 250_000_000)
         t, r = m.transform.translation, m.transform.rotation

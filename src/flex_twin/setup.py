@@ -13,6 +13,9 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        # ros2 launch flex_twin suite.launch.py (ros2_ws/launch and ros2_ws/params link here)
+        ('share/' + package_name + '/launch', ['launch/suite.launch.py']),
+        ('share/' + package_name + '/params', ['params/suite.yaml']),
     ],
     install_requires=['flex_model', 'flex_control', 'flex_planner', 'numpy', 'scipy',
                       'pyyaml', 'matplotlib', 'mcap', 'mcap-ros2-support', 'rosbags',

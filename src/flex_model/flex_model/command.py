@@ -43,14 +43,13 @@ class Progress:
 def run_command(args) -> int:
     """Run a parsed subcommand (``args.func(args)``) with the suite's exit codes."""
     from .config import ConfigError
-    from .simulate import SimulationDivergedError
-    from .statics import StaticConvergenceError
+    from .errors import SolverError
 
     try:
         return args.func(args)
     except (ConfigError, ValueError, FileNotFoundError) as exc:
         print(f"flex-twin: error: {exc}", file=sys.stderr)
         return 2
-    except (StaticConvergenceError, SimulationDivergedError, np.linalg.LinAlgError) as exc:
+    except (SolverError, np.linalg.LinAlgError) as exc:
         print(f"flex-twin: failed: {exc}", file=sys.stderr)
         return 1

@@ -9,8 +9,9 @@ in the namespace, for two lockstep twins).
 Publications (simulation time in every header; frames: flex_model.urdf, REP 103 z up):
     joint_states        sensor_msgs/JointState   joint angles (encoder), rates, applied torques
     flex/deflections    sensor_msgs/JointState   link<i>/tip_deflection (m), tip_rotation (rad)
-    flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``arm_plane`` (the
-                        model's plane coordinates)
+    flex/tip_pose       geometry_msgs/PoseStamped  tip of the arm in ``frame_id`` (the
+                        base, z up, as flex/shape: its last point; the plane's (x, y, phi)
+                        turned by urdf.plane_rotation)
     flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords, in
                         ``frame_id`` (the base, z up)
     flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor,
@@ -20,8 +21,9 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
                         arm_plane (where tf2_msgs imports: scripts/bootstrap.sh builds it)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
-    /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a divergence (every
-                        second until ~/reset), OK after the reset
+    /diagnostics        diagnostic_msgs/DiagnosticArray  OK (running or paused, mode,
+                        simulation time) every second of wall time in every mode; ERROR
+                        after a divergence (every second until ~/reset), OK after it
 Subscriptions:
     effort_controller/commands  std_msgs/Float64MultiArray  joint torques, joint order
     flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
@@ -60,7 +62,8 @@ of the SingleThreadedExecutor, a faster lockstep loop, see flex_model.ros_main).
 parameter takes an integer (``rate:=500``); a bad value at start is one line naming the
 parameter, the value and what is allowed (exit status 2). At run time publish_rate,
 shape_rate, command_timeout, timeout_action, lockstep_timeout and the plausibility limits
-may be set (checked); the others are refused with a reason.
+may be set (checked); the others are read_only in their descriptors (rclpy refuses them),
+and the bounded numbers carry ranges (:data:`RANGES`).
 
 Bad inputs are dropped with a reason logged at most once a second per reason (not per
 call site: a wrong length does not hide a NaN). A failed integration step (Newton fails,
@@ -101,6 +104,7 @@ from contextlib import ExitStack
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -118,7 +122,8 @@ from .arm import load_arm
 from .control_loop import ControlLoop
 from .controller_interface import load_controller
 from .dynamics import FlexArmModel
-from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
+from .ros_main import (FLOAT_MAX, INT_MAX, Param, ParameterError, ReasonLog,
+                       declare_parameters, fmt,
                        guard_parameters, lean_node, run_node)
 from .stepper import Stepper
 from .trajectory_action import INVALID_GOAL, action_server
@@ -255,13 +260,23 @@ PARAMETERS = (
     Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
 )
 
+#: ranges of the numeric parameters in their descriptors (ros_main.descriptor): the bounds
+#: of their checks (an open "> 0" is [0, max] there, the check refuses the 0)
+RANGES = {"vars_per_link": (0, INT_MAX, 2), "rate": (0.0, FLOAT_MAX),
+          "publish_rate": (0.0, FLOAT_MAX), "shape_rate": (0.0, FLOAT_MAX),
+          "max_step": (0.0, 0.1), "command_timeout": (0.0, FLOAT_MAX),
+          "lockstep_timeout": (0.0, FLOAT_MAX), "shape_points": (2, 10000),
+          "realtime_priority": (0, 99), "max_torque": (0.0, FLOAT_MAX),
+          "max_payload_mass": (0.0, FLOAT_MAX), "max_payload_inertia": (0.0, FLOAT_MAX),
+          "controller_rate": (0.0, FLOAT_MAX)}
+
 
 class ModelNode(Node):
     """The arm simulated at ``rate`` and published at ``publish_rate``."""
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
-        p = declare_parameters(self, PARAMETERS)
+        p = declare_parameters(self, PARAMETERS, RANGES)
         try:
             arm = load_arm(p["arm"], p["vars_per_link"] or None)
             if p["kinematics"]:
@@ -310,7 +325,7 @@ class ModelNode(Node):
         self.cdr_js = conv.joint_state_cdr(self.names, n)
         self.cdr_defl = conv.joint_state_cdr(conv.deflection_names(self.links), 2 * n,
                                              effort=False)
-        self.cdr_tip = conv.tip_pose_cdr(self.frames.plane)
+        self.cdr_tip = conv.tip_pose_cdr(self.frames.base)  # the base, as flex/shape
         self.cdr_clock = conv.clock_cdr()
         self.cdr_imu = conv.imu_cdr(self.frames.tips[-1]) if self.has_imu else None
         self.msg_shape = conv.ShapeMarkers(n, int(p["shape_points"]), self.frames.base)
@@ -355,6 +370,8 @@ class ModelNode(Node):
         if self.loop is not None and p["mode"] == "lockstep":
             period = 1e-4
         self.timer = self.create_timer(period, self.on_tick)
+        self.create_timer(1.0, self.on_status,  # wall time: sim time may stand still
+                          clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
@@ -515,6 +532,16 @@ class ModelNode(Node):
         self.publish_state(full=True)
         response.success, response.message = True, "reset to the initial state at t = 0"
         return response
+
+    def on_status(self) -> None:
+        """The node's OK status on /diagnostics every second of wall time, in every mode
+        (a diagnostic aggregator marks a node stale without one); after a divergence
+        on_tick repeats the ERROR instead."""
+        if self.diverged is None:
+            self.publish_diagnostic(conv.diagnostic_status(
+                self.get_fully_qualified_name(), self.model.arm.name, "ok",
+                f"{'paused' if self.paused else 'running'} ({self.p['mode']})",
+                t=fmt(self.stepper.t)))
 
     def on_pause(self, request, response):
         was_paused, self.paused = self.paused, bool(request.data)
@@ -744,7 +771,8 @@ class ModelNode(Node):
         self.pub_defl.publish(self.cdr_defl.fill(t, values))
         x, y = self.model.link_origins(q)[-1]  # st.tip_pose()
         phi = float(q[self._last_alpha] + r[-1] @ q)
-        self.pub_tip.publish(self.cdr_tip.fill(t, conv.tip_pose_values(x, y, phi)))
+        self.pub_tip.publish(self.cdr_tip.fill(t, conv.tip_pose_values(x, y, phi,
+                                                                       self.plane)))
         # the costly two only when someone listens (volatile topics: a subscriber that is
         # not there gets nothing either way; get_subscription_count costs about 1 us)
         if shape and self.pub_shape.get_subscription_count():  # base frame, z up (REP 103)

@@ -65,10 +65,12 @@ def fill_deflection_state(msg: JointState, t, deflection, rotation, d_rate, r_ra
                             np.column_stack([d_rate, r_rate]).ravel())
 
 
-def fill_tip_pose(msg: PoseStamped, t, x, y, phi) -> PoseStamped:
+def fill_tip_pose(msg: PoseStamped, t, x, y, phi, rotation=None) -> PoseStamped:
+    """The tip pose (x, y, phi in the arm's plane) in place; with ``rotation``
+    (flex_model.urdf.plane_rotation) in the base frame (:func:`tip_pose_values`)."""
     set_time(msg.header.stamp, t)
-    msg.pose.position.x, msg.pose.position.y = float(x), float(y)
-    msg.pose.orientation.z, msg.pose.orientation.w = math.sin(phi / 2), math.cos(phi / 2)
+    p, o = msg.pose.position, msg.pose.orientation
+    p.x, p.y, p.z, o.x, o.y, o.z, o.w = tip_pose_values(x, y, phi, rotation)
     return msg
 
 
@@ -137,16 +139,28 @@ def joint_state_cdr(names, n_values: int, effort: bool = True) -> CdrTemplate:
 
 
 def tip_pose_cdr(frame: str) -> CdrTemplate:
-    """The tip pose (PoseStamped in ``frame``) as a CDR template: stamp; position x, y and
-    orientation z, w, in that order (:func:`tip_pose_values`)."""
+    """The tip pose (PoseStamped in ``frame``) as a CDR template: stamp; position x, y, z
+    and orientation x, y, z, w, in that order (:func:`tip_pose_values`)."""
     return CdrTemplate(PoseStamped(header=Header(frame_id=frame)), ["header.stamp"],
-                       ["pose.position.x", "pose.position.y", "pose.orientation.z",
+                       ["pose.position.x", "pose.position.y", "pose.position.z",
+                        "pose.orientation.x", "pose.orientation.y", "pose.orientation.z",
                         "pose.orientation.w"])
 
 
-def tip_pose_values(x, y, phi) -> list[float]:
-    """The values of :func:`tip_pose_cdr`: what :func:`fill_tip_pose` writes."""
-    return [float(x), float(y), math.sin(phi / 2), math.cos(phi / 2)]
+def tip_pose_values(x, y, phi, rotation=None) -> list[float]:
+    """The values of :func:`tip_pose_cdr` (what :func:`fill_tip_pose` writes): the tip at
+    (x, y) turned by phi about z in the arm's plane; with ``rotation`` (R, the plane's axes
+    in the base frame, flex_model.urdf.plane_rotation) in the base frame: position
+    R (x, y, 0), orientation R Rz(phi) (the quaternion product q_R q_z(phi))."""
+    s, c = math.sin(phi / 2), math.cos(phi / 2)
+    if rotation is None:
+        return [float(x), float(y), 0.0, 0.0, 0.0, s, c]
+    from .urdf import quaternion_from_matrix
+    r = rotation
+    qx, qy, qz, qw = quaternion_from_matrix(r)
+    return [float(r[0, 0] * x + r[0, 1] * y), float(r[1, 0] * x + r[1, 1] * y),
+            float(r[2, 0] * x + r[2, 1] * y),
+            qx * c + qy * s, qy * c - qx * s, qz * c + qw * s, qw * c - qz * s]
 
 
 def clock_cdr() -> CdrTemplate:

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 from typing import Callable
 
 import rclpy
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
@@ -178,16 +179,42 @@ def coerce_parameter(spec: Param, value):
     return value
 
 
-def declare_parameters(node, specs) -> dict:
+#: the upper end of an open range (a FloatingPointRange / IntegerRange needs one)
+FLOAT_MAX, INT_MAX = sys.float_info.max, 2 ** 63 - 1
+
+
+def descriptor(spec: Param, bounds=None) -> ParameterDescriptor:
+    """The ROS descriptor of ``spec``: read_only unless it may change at run time,
+    ``bounds`` (lo, hi[, integer step]) as its floating-point or integer range (the range
+    a tool such as rqt_reconfigure shows; the spec's check stays the full rule)."""
+    desc = ParameterDescriptor(description=spec.doc, dynamic_typing=True,
+                               read_only=not spec.runtime)
+    if bounds is not None:
+        lo, hi, *step = bounds
+        if isinstance(spec.default, float):
+            desc.floating_point_range = [FloatingPointRange(
+                from_value=float(lo), to_value=float(hi), step=0.0)]
+        else:
+            desc.integer_range = [IntegerRange(from_value=int(lo), to_value=int(hi),
+                                               step=int(step[0]) if step else 1)]
+    return desc
+
+
+def declare_parameters(node, specs, ranges=None) -> dict:
     """Declare ``specs`` (:class:`Param`) with dynamic typing (so ``rate:=500`` reaches
     the check as an integer instead of being refused by rclpy) and return their checked
-    values; raises :class:`ParameterError` naming the first bad one."""
+    values; raises :class:`ParameterError` naming the first bad one. Then each gets its
+    full :func:`descriptor` (read_only, ``ranges[name]``), after the check, so that a bad
+    start value is still the check's one line."""
     values = {}
+    ranges = ranges or {}
     for spec in specs:
         desc = ParameterDescriptor(description=spec.doc, dynamic_typing=True)
         default = list(spec.default) if isinstance(spec.default, tuple) else spec.default
         value = node.declare_parameter(spec.name, default, desc).value
         values[spec.name] = coerce_parameter(spec, value)
+    for spec in specs:
+        node.set_descriptor(spec.name, descriptor(spec, ranges.get(spec.name)))
     return values
 
 

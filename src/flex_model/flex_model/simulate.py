@@ -39,6 +39,7 @@ from typing import Callable
 import numpy as np
 
 from .dynamics import FlexArmModel
+from .errors import SimulationDivergedError  # noqa: F401 (raised here; public here)
 from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: public here)
 from .integrators import (consistent_acceleration, dopri5, generalized_alpha,
                           generalized_alpha_simplified, joint_torques,
@@ -46,12 +47,6 @@ from .integrators import (consistent_acceleration, dopri5, generalized_alpha,
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
-
-
-class SimulationDivergedError(RuntimeError):
-    """The state became non-finite or diverged; the message says when and which variable."""
-
-
 
 
 @dataclass

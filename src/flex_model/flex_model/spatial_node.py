@@ -20,8 +20,9 @@ Publications (simulation time in every header):
     robot_description   std_msgs/String          the rigid skeleton's URDF (latched)
     /clock              rosgraph_msgs/Clock      lockstep mode (or publish_clock), on
                         ``clock_topic``
-    /diagnostics        diagnostic_msgs/DiagnosticArray  ERROR after a Newton failure (every
-                        second until ~/reset), OK after the reset
+    /diagnostics        diagnostic_msgs/DiagnosticArray  OK every second of wall time in every
+                        mode; ERROR after a Newton failure (every second until ~/reset),
+                        OK after the reset
 Subscriptions:
     effort_controller/commands  std_msgs/Float64MultiArray  joint torques/forces, joint
                                 order (with eq95: feed-forward added to the PD)
@@ -89,6 +90,7 @@ from types import SimpleNamespace
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
+from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -314,6 +316,8 @@ class SpatialModelNode(Node):
         # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog
         self.timer = self.create_timer(self.period if p["mode"] == "realtime"
                                        else WATCHDOG_PERIOD, self.on_tick)
+        self.create_timer(1.0, self.on_status,  # wall time: sim time may stand still
+                          clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.base = sr.frame_name("base_link", p["frame_prefix"], p["frame_id"])
         self.pub_description.publish(String(data=sr.skeleton_urdf(
@@ -618,6 +622,16 @@ class SpatialModelNode(Node):
         msg = DiagnosticArray(status=[status])
         msg.header.stamp = self.get_clock().now().to_msg()
         self.pub_diag.publish(msg)
+
+    def on_status(self) -> None:
+        """The OK status on /diagnostics every second of wall time, in every mode (an
+        aggregator marks a silent node stale); after a Newton failure on_tick repeats the
+        ERROR instead."""
+        if self.diverged is None:
+            self.publish_diagnostic(diagnostic_status(
+                self.get_fully_qualified_name(), self.arm.name, "ok",
+                f"{'paused' if self.paused else 'running'} ({self.p['mode']})",
+                t=fmt(self.t)))
 
     def on_tick(self) -> None:
         now = time.monotonic()

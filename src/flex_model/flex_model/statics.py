@@ -24,12 +24,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .dynamics import FlexArmModel
+from .errors import StaticConvergenceError  # noqa: F401 (raised here; public here)
 
 JOINT_MODES = ("clamped", "pd", "hinged")
-
-
-class StaticConvergenceError(RuntimeError):
-    """Newton's method did not converge to a static equilibrium."""
 
 
 @dataclass(frozen=True)

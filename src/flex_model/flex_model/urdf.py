@@ -6,9 +6,12 @@ joint axes along its z). With gravity the plane is vertical: ``arm_plane`` is tu
 y -> base z, joint axes along base -y; the arm moves in the base's x-z plane). Without
 gravity the plane is the base's x-y plane (horizontal arm, joint axes along +z).
 
-Frames (``prefix`` before every name): ``base_link`` (the root, REP 105's robot base) ->
-``arm_plane`` (fixed) -> per link i: ``<link>`` (root frame: origin at joint i, x along the
-link's root tangent; revolute joint ``<joint>`` about z at the joint angle theta_i) ->
+Frames (``prefix`` before every frame, i.e. link, name; joint names stay as in the arm
+file, as robot_state_publisher's frame_prefix leaves them, so that the URDF's joints are
+those of /joint_states; a namespace per arm keeps two arms apart): ``base_link`` (the
+root, REP 105's robot base) -> ``arm_plane`` (fixed) -> per link i: ``<link>`` (root
+frame: origin at joint i, x along the link's root tangent; continuous joint ``<joint>``
+about z at the joint angle theta_i: the model has no end stops) ->
 ``<link>_tip`` (the deflected tip: origin at the tip point, x along the tip tangent; a fixed
 joint in the URDF at the undeformed tip (L_i, 0, 0)) -> the next link's joint. The joint
 angle of link i+1 is measured from link i's tip tangent (thesis Eq. 12,
@@ -20,8 +23,17 @@ Inertial data (thesis Eqs. 7, 26): the URDF link ``<link>`` carries the beam and
 body (M-, J-: mass M- + int m dz, centre of mass at int z m dz / mass, Izz about it from
 J- + int z^2 m dz), ``<link>_tip`` the tip body (M+, J+; the last also the payload). Their
 masses add up to :attr:`FlexArmModel.total_mass`. Iyy = Izz (a beam bending about either
-axis), Ixx that of a solid box of the section's outer size; geared motors' rotor inertia is
-not a body of the chain and is left out.
+axis), Ixx that of a solid box of the section's outer size.
+
+Geared motors (``gear`` effect: ratio n, rotor inertia J_r; seed 000 Eq. 35): a
+``<transmission>`` (SimpleTransmission, actuator ``<joint>_motor`` with
+``mechanicalReduction`` n) and, on a rigid joint, the rotor as a link ``<link>_rotor``
+(massless, Izz = J_r) on a continuous joint ``<joint>_rotor_joint`` that mimics the joint
+with multiplier n, on the joint's parent frame (the stator): its kinetic energy
+1/2 J_r (n theta_i' + Omega_stator)^2 is the gear's term J_r c c^T of B(q) exactly
+(n^2 J_r reflected to the joint: 0.5 kg m^2 on thesis_example1_motors). An elastic joint's
+rotor turns with its motor coordinate, which a URDF cannot express: there only the
+transmission.
 """
 from __future__ import annotations
 
@@ -46,7 +58,7 @@ class Transform:
 
 @dataclass(frozen=True)
 class Frames:
-    """Frame names of an arm (``prefix`` applied)."""
+    """Frame names of an arm (``prefix`` applied) and its joint names (without)."""
 
     base: str
     plane: str
@@ -60,7 +72,7 @@ class Frames:
         return cls(base=prefix + base, plane=prefix + "arm_plane",
                    links=tuple(prefix + lk.name for lk in arm.links),
                    tips=tuple(prefix + lk.name + "_tip" for lk in arm.links),
-                   joints=tuple(prefix + j for j in arm.joint_names))
+                   joints=tuple(arm.joint_names))
 
 
 def plane_rotation(gravity) -> np.ndarray:
@@ -127,6 +139,33 @@ def yaw_quaternion(angle: float) -> tuple:
     return 0.0, 0.0, math.sin(angle / 2.0), math.cos(angle / 2.0)
 
 
+@dataclass(frozen=True)
+class Rotor:
+    """A geared motor's rotor on a rigid joint (module docstring): joint index, ratio n,
+    rotor inertia J_r (kg m^2)."""
+
+    joint: int
+    ratio: float
+    inertia: float
+
+
+def gears(model: FlexArmModel) -> list:
+    """Per joint the ``gear`` effect (ratio, rotor inertia, rigid joint) or None."""
+    out = []
+    for i, name in enumerate(model.arm.joint_names):
+        e = model.arm.effect("gear", name)
+        elastic = model.arm.effect("joint_elasticity", name)
+        out.append(None if e is None else (float(e["ratio"]), float(e["rotor_inertia"]),
+                                           elastic is None or elastic.is_off))
+    return out
+
+
+def rotors(model: FlexArmModel) -> list[Rotor]:
+    """The rotors a URDF can carry: geared rigid joints with a rotor inertia."""
+    return [Rotor(i, g[0], g[1]) for i, g in enumerate(gears(model))
+            if g is not None and g[2] and g[1] > 0.0]
+
+
 def static_transforms(model: FlexArmModel, frames: Frames) -> list[Transform]:
     """The fixed base -> arm_plane transform (/tf_static)."""
     return [Transform(frames.base, frames.plane, (0.0, 0.0, 0.0),
@@ -136,7 +175,8 @@ def static_transforms(model: FlexArmModel, frames: Frames) -> list[Transform]:
 def arm_transforms(model: FlexArmModel, q, frames: Frames) -> list[Transform]:
     """The moving transforms at state q (/tf): per link i, its joint (previous tip or
     arm_plane -> link root: rotation theta_i about z) and its deflected tip (root -> tip:
-    the tip point in the root frame, rotation gamma_i)."""
+    the tip point in the root frame, rotation gamma_i); then the motors' rotors
+    (:func:`rotors`: the joint's parent -> ``<link>_rotor``, rotation n theta_i)."""
     q = np.asarray(q, float)
     org = model.link_origins(q)
     theta = model.joint_angles(q)
@@ -152,6 +192,10 @@ def arm_transforms(model: FlexArmModel, q, frames: Frames) -> list[Transform]:
         out.append(Transform(frames.links[i], frames.tips[i],
                              (c * dx + s * dy, -s * dx + c * dy, 0.0),
                              yaw_quaternion(float(gamma[i]))))
+    for r in rotors(model):  # on the stator (the joint's parent) at n theta_i
+        parent = frames.plane if r.joint == 0 else frames.tips[r.joint - 1]
+        out.append(Transform(parent, frames.links[r.joint] + "_rotor", (0.0, 0.0, 0.0),
+                             yaw_quaternion(r.ratio * float(theta[r.joint]))))
     return out
 
 
@@ -160,6 +204,12 @@ def plane_to_base(rotation, points) -> np.ndarray:
     ``rotation`` is :func:`plane_rotation` of the arm's gravity."""
     p = np.asarray(points, float)
     return np.column_stack([p, np.zeros(len(p))]) @ rotation.T
+
+
+def base_to_plane(rotation, points) -> np.ndarray:
+    """Base-frame points (N, 3) in plane coordinates (N, 2): the inverse of
+    :func:`plane_to_base` (the model node's flex/tip_pose and flex/shape -> the plane)."""
+    return (np.atleast_2d(np.asarray(points, float)) @ rotation)[:, :2]
 
 
 def compose(transforms, child: str, root: str) -> tuple[np.ndarray, np.ndarray]:
@@ -210,8 +260,11 @@ def _fmt(*values) -> str:
 
 
 def _inertial(parent, mass, xc, ixx, iyy, izz) -> None:
-    if mass <= 0.0:
-        return
+    if mass > 0.0:
+        _inertia(parent, mass, xc, ixx, iyy, izz)
+
+
+def _inertia(parent, mass, xc, ixx, iyy, izz) -> None:
     el = ET.SubElement(parent, "inertial")
     ET.SubElement(el, "origin", xyz=_fmt(xc, 0, 0), rpy=_fmt(0, 0, 0))
     ET.SubElement(el, "mass", value=_fmt(mass))
@@ -220,53 +273,81 @@ def _inertial(parent, mass, xc, ixx, iyy, izz) -> None:
 
 
 def robot_description(model: FlexArmModel, prefix: str = "", base: str = "base_link",
-                      effort_limits=None, joint_range: float = math.pi,
-                      velocity_limit: float = 100.0) -> str:
-    """The URDF (XML text) of the arm: frames, joints and inertials as in the module
-    docstring. Joint limits: position +-``joint_range`` (rad; the model has no stops),
-    ``effort`` the arm's torque limit (a torque_saturation effect) or else
-    ``effort_limits[i]`` (the model node passes its max_torque), ``velocity`` (rad/s)."""
+                      effort_limits=None, velocity_limit: float = 100.0) -> str:
+    """The URDF (XML text) of the arm: frames, joints, inertials, transmissions and rotors
+    as in the module docstring. Joints are continuous (the model has no stops); their
+    ``effort`` is the arm's torque limit (a torque_saturation effect) or else
+    ``effort_limits[i]`` (the model node passes its max_torque), ``velocity`` (rad/s) a
+    nominal value the model does not enforce."""
     frames = Frames.of(model, prefix, base)
     robot = ET.Element("robot", name=model.arm.name)
     ET.SubElement(robot, "link", name=frames.base)
     ET.SubElement(robot, "link", name=frames.plane)
-    j = ET.SubElement(robot, "joint", name=prefix + "arm_plane_joint", type="fixed")
-    ET.SubElement(j, "parent", link=frames.base)
-    ET.SubElement(j, "child", link=frames.plane)
-    ET.SubElement(j, "origin", xyz=_fmt(0, 0, 0), rpy=_fmt(*plane_rpy(model.gravity)))
+    _joint(robot, "arm_plane_joint", "fixed", frames.base, frames.plane,
+           rpy=plane_rpy(model.gravity))
     inertials = link_inertials(model)
     for i, lk in enumerate(model.arm.links):
-        shape, w, h = _section_size(lk)
-        link = ET.SubElement(robot, "link", name=frames.links[i])
-        mass, xc, izz = inertials[i]["link"]
-        _inertial(link, mass, xc, mass * (w * w + h * h) / 12.0, izz, izz)
-        for tag in ("visual", "collision"):
-            el = ET.SubElement(link, tag)
-            if shape == "box":
-                ET.SubElement(el, "origin", xyz=_fmt(lk.length / 2, 0, 0), rpy=_fmt(0, 0, 0))
-                ET.SubElement(ET.SubElement(el, "geometry"), "box",
-                              size=_fmt(lk.length, w, h))
-            else:
-                ET.SubElement(el, "origin", xyz=_fmt(lk.length / 2, 0, 0),
-                              rpy=_fmt(0, math.pi / 2, 0))
-                ET.SubElement(ET.SubElement(el, "geometry"), "cylinder",
-                              radius=_fmt(w / 2), length=_fmt(lk.length))
+        _beam_link(robot, frames.links[i], lk, inertials[i]["link"])
         tip = ET.SubElement(robot, "link", name=frames.tips[i])
         m_tip, j_tip = inertials[i]["tip"]
         _inertial(tip, m_tip, 0.0, j_tip, j_tip, j_tip)
-        joint = ET.SubElement(robot, "joint", name=frames.joints[i], type="revolute")
-        ET.SubElement(joint, "parent", link=frames.plane if i == 0 else frames.tips[i - 1])
-        ET.SubElement(joint, "child", link=frames.links[i])
-        ET.SubElement(joint, "origin", xyz=_fmt(0, 0, 0), rpy=_fmt(0, 0, 0))
-        ET.SubElement(joint, "axis", xyz=_fmt(0, 0, 1))
+        parent = frames.plane if i == 0 else frames.tips[i - 1]
+        joint = _joint(robot, frames.joints[i], "continuous", parent, frames.links[i])
         limit = float(model.torque_limit[i])
         if not math.isfinite(limit):
             limit = float(effort_limits[i]) if effort_limits is not None else 0.0
-        ET.SubElement(joint, "limit", lower=_fmt(-joint_range), upper=_fmt(joint_range),
-                      effort=_fmt(limit), velocity=_fmt(velocity_limit))
-        fixed = ET.SubElement(robot, "joint", name=frames.tips[i] + "_joint", type="fixed")
-        ET.SubElement(fixed, "parent", link=frames.links[i])
-        ET.SubElement(fixed, "child", link=frames.tips[i])
-        ET.SubElement(fixed, "origin", xyz=_fmt(lk.length, 0, 0), rpy=_fmt(0, 0, 0))
+        ET.SubElement(joint, "limit", effort=_fmt(limit), velocity=_fmt(velocity_limit))
+        _joint(robot, lk.name + "_tip_joint", "fixed", frames.links[i], frames.tips[i],
+               xyz=(lk.length, 0.0, 0.0))
+    for r in rotors(model):
+        name = frames.joints[r.joint]
+        rotor = ET.SubElement(robot, "link", name=frames.links[r.joint] + "_rotor")
+        _inertia(rotor, 0.0, 0.0, r.inertia / 2, r.inertia / 2, r.inertia)
+        parent = frames.plane if r.joint == 0 else frames.tips[r.joint - 1]
+        j = _joint(robot, name + "_rotor_joint", "continuous", parent,
+                   frames.links[r.joint] + "_rotor")
+        ET.SubElement(j, "mimic", joint=name, multiplier=_fmt(r.ratio), offset="0.0")
+    for i, g in enumerate(gears(model)):
+        if g is not None:
+            _transmission(robot, frames.joints[i], g[0])
     ET.indent(robot)
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def _joint(robot, name, kind, parent, child, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)):
+    """A URDF joint (axis z unless fixed)."""
+    joint = ET.SubElement(robot, "joint", name=name, type=kind)
+    ET.SubElement(joint, "parent", link=parent)
+    ET.SubElement(joint, "child", link=child)
+    ET.SubElement(joint, "origin", xyz=_fmt(*xyz), rpy=_fmt(*rpy))
+    if kind != "fixed":
+        ET.SubElement(joint, "axis", xyz=_fmt(0, 0, 1))
+    return joint
+
+
+def _beam_link(robot, name, lk, inertial) -> None:
+    """A link's URDF link: the beam and root body's inertial, a box (or cylinder)."""
+    shape, w, h = _section_size(lk)
+    link = ET.SubElement(robot, "link", name=name)
+    mass, xc, izz = inertial
+    _inertial(link, mass, xc, mass * (w * w + h * h) / 12.0, izz, izz)
+    for tag in ("visual", "collision"):
+        el = ET.SubElement(link, tag)
+        if shape == "box":
+            ET.SubElement(el, "origin", xyz=_fmt(lk.length / 2, 0, 0), rpy=_fmt(0, 0, 0))
+            ET.SubElement(ET.SubElement(el, "geometry"), "box", size=_fmt(lk.length, w, h))
+        else:
+            ET.SubElement(el, "origin", xyz=_fmt(lk.length / 2, 0, 0),
+                          rpy=_fmt(0, math.pi / 2, 0))
+            ET.SubElement(ET.SubElement(el, "geometry"), "cylinder",
+                          radius=_fmt(w / 2), length=_fmt(lk.length))
+
+
+def _transmission(robot, joint: str, ratio: float) -> None:
+    """A SimpleTransmission: joint <- actuator ``<joint>_motor`` through ``ratio``."""
+    tr = ET.SubElement(robot, "transmission", name=joint + "_transmission")
+    ET.SubElement(tr, "type").text = "transmission_interface/SimpleTransmission"
+    j = ET.SubElement(tr, "joint", name=joint)
+    ET.SubElement(j, "hardwareInterface").text = "hardware_interface/EffortJointInterface"
+    act = ET.SubElement(tr, "actuator", name=joint + "_motor")
+    ET.SubElement(act, "mechanicalReduction").text = _fmt(ratio)

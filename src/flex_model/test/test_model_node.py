@@ -253,7 +253,8 @@ def test_divergence_reports_diagnostic_zero_torque_and_reset_restarts():
                      "the diagnostics probe and a state")
         h.cmd.publish(Float64MultiArray(data=[1e4, 0.0]))
         h.spin_until(lambda: h.node.diverged is not None, "the divergence", timeout=60.0)
-        h.spin_until(lambda: h.diagnostics, "the diagnostic")
+        h.spin_until(lambda: h.diagnostics and h.diagnostics[-1].status[0].level ==
+                     DiagnosticStatus.ERROR, "the diagnostic")  # (OK ones every second)
         status = h.diagnostics[-1].status[0]
         assert status.level == DiagnosticStatus.ERROR
         assert "diverged" in status.message and "10000" in status.message
@@ -312,9 +313,9 @@ def test_runtime_parameters_refused_with_a_reason_or_applied(lockstep):
     integer is taken for a float."""
     node = lockstep.node
     res = node.set_parameters([Parameter("rate", value=10.0)])[0]
-    assert not res.successful and "parameter rate is read-only at run time" in res.reason
+    assert not res.successful and "read-only parameter: rate" in res.reason  # descriptor
     res = node.set_parameters([Parameter("command_timeout", value=-1.0)])[0]
-    assert not res.successful and "command_timeout: got -1; expected a time >= 0" in res.reason
+    assert not res.successful and "command_timeout out of range" in res.reason  # its range
     res = node.set_parameters([Parameter("timeout_action", value="brake")])[0]
     assert not res.successful and "expected one of hold, zero" in res.reason
     res = node.set_parameters([Parameter("max_torque", value=50)])[0]

@@ -36,8 +36,8 @@ def reference(node, topic):
             JointState(name=conv.deflection_names(node.links)), t, *st.deflections())
     x, y, phi = st.tip_pose()
     if topic == "flex/tip_pose":
-        return conv.fill_tip_pose(PoseStamped(header=Header(frame_id=node.frames.plane)),
-                                  t, x, y, phi)
+        return conv.fill_tip_pose(PoseStamped(header=Header(frame_id=node.frames.base)),
+                                  t, x, y, phi, node.plane)
     rate = float(node.model.tip_torque_vector() @ st.v)
     orientation = urdf.quaternion_from_matrix(
         node.plane @ urdf.matrix_from_quaternion(urdf.yaw_quaternion(phi)))

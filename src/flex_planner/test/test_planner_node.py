@@ -184,7 +184,7 @@ def test_runtime_parameters_refused_with_a_reason_and_ints_taken_for_floats(harn
     """Issue 23 defect 10: node parameters are read-only at run time (refused with a
     reason, not accepted and ignored); an integer is taken where a float is expected."""
     res = harness.node.set_parameters([Parameter("parameter_services", value=False)])[0]
-    assert not res.successful and "read-only at run time" in res.reason
+    assert not res.successful and "read-only parameter: parameter_services" in res.reason
     res = harness.node.set_parameters([Parameter("max_samples", value=1)])[0]
     assert not res.successful and "parameter max_samples: got 1; expected an integer >= 2" \
         in res.reason

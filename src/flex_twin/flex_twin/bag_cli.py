@@ -72,6 +72,17 @@ def _topic_specs(specs):
     return names, typed
 
 
+def _clock_published(node, executor, stop, wait_s: float) -> bool:
+    """Whether /clock has a publisher, watching the graph up to ``wait_s`` (a node's
+    publishers appear one by one)."""
+    deadline = time.monotonic() + wait_s
+    while not node.get_publishers_info_by_topic("/clock"):
+        if time.monotonic() > deadline or stop.is_set():
+            return False
+        executor.spin_once(timeout_sec=0.05)
+    return True
+
+
 def cmd_record(args) -> int:
     """Record topics into a new bag until Ctrl-C/SIGTERM or ``--duration``."""
     from .bags import BagError, BagWriter, Recorder, discover_types, get_message
@@ -92,7 +103,9 @@ def cmd_record(args) -> int:
         for type_str in types.values():
             get_message(type_str)  # refuse unknown types before creating the bag
         sim_time = getattr(args, "use_sim_time", None)
-        sim_time = "/clock" in types if sim_time is None else sim_time
+        if sim_time is None:  # /clock recorded or published (a lockstep suite): its time
+            sim_time = "/clock" in types or _clock_published(node, executor, stop,
+                                                             args.discovery_time)
         writer = BagWriter(out)
         recorder = None
         try:
@@ -202,9 +215,9 @@ def add_bag_parsers(subparsers) -> None:
     sim = sp.add_mutually_exclusive_group()
     sim.add_argument("--use-sim-time", dest="use_sim_time", action="store_true",
                      default=None, help="log time = the latest /clock (default when /clock "
-                     "is among the recorded topics)")
+                     "is published or among the recorded topics)")
     sim.add_argument("--no-sim-time", dest="use_sim_time", action="store_false",
-                     help="log time = wall-clock receive time even when /clock is recorded")
+                     help="log time = wall-clock receive time even when /clock is published")
     sp.add_argument("--discovery-time", type=float, default=0.5,
                     help="--all: seconds to watch the graph before the first subscriptions "
                     "(topics seen later are added every 0.5 s while recording)")

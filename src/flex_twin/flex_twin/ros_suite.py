@@ -2,10 +2,13 @@
 
 The file has the usual form ``<node name>: {ros__parameters: {...}}`` for the nodes
 ``flex_model``, ``flex_controller`` and ``flex_planner`` (the ones present are started),
-as ``ros2 launch`` would pass it with ``--params-file``. One SingleThreadedExecutor runs
-them all (``--processes`` starts one process per node with the same file instead, each
-spinning its own). The run ends on Ctrl-C, or when the model's simulation time reaches
-``--duration`` (one process).
+as ``ros2 launch`` would pass it with ``--params-file``; a fully qualified name
+(``/robot1/flex_model``, as in docs/examples/two_arms.yaml) starts that node in its
+namespace. One SingleThreadedExecutor runs them all (``--processes`` starts one process
+per node with the same file instead, each spinning its own). The run ends on Ctrl-C, or
+when every model's simulation time reaches ``--duration`` (one process).
+ros2_ws/launch/suite.launch.py (installed as share/flex_twin/launch) starts the same
+nodes (:func:`suite_nodes`).
 
 By default the controller runs inside the model node's loop (:func:`in_loop_parameters`:
 the ``flex_controller`` section becomes the model's ``controller``, ``controller_rate``
@@ -30,13 +33,22 @@ NODES = {"flex_model": ("flex_model.model_node", "ModelNode"),
          "flex_planner": ("flex_planner.planner_node", "PlannerNode")}
 
 
+def split_name(key: str) -> tuple[str, str]:
+    """(namespace, node name) of a parameter file's node key: ``flex_model`` -> ("",
+    "flex_model"), ``/robot1/flex_model`` -> ("/robot1", "flex_model")."""
+    ns, _, name = str(key).rpartition("/")
+    return ("/" + ns.strip("/") if ns.strip("/") else ""), name
+
+
 def node_parameters(path) -> dict:
-    """{node name: {parameter: value}} of a parameter file; unknown node names are errors."""
+    """{node key: {parameter: value}} of a parameter file (keys as in the file: a node
+    name, or a fully qualified one); unknown node names are errors."""
     data = read_yaml(path)
     out = {}
     for name, body in data.items():
-        if name not in NODES:
-            raise ConfigError(str(path), name, name, f"one of {', '.join(NODES)}")
+        if split_name(name)[1] not in NODES:
+            raise ConfigError(str(path), name, name, f"one of {', '.join(NODES)} (a "
+                              "namespace may stand before: /robot1/flex_model)")
         if not isinstance(body, dict) or not isinstance(body.get("ros__parameters", {}), dict):
             raise ConfigError(str(path), f"{name}.ros__parameters", body,
                               "a mapping of parameters")
@@ -53,22 +65,54 @@ CONTROLLER_NODE_ONLY = ("rate_hz", "state_timeout", "stale_action", "use_sim_tim
 
 
 def in_loop_parameters(params: dict) -> dict:
-    """The suite with its ``flex_controller`` run in the model's loop: the model gets
-    ``controller`` (the law, default eq95), ``controller_rate`` (rate_hz, default 500 Hz)
-    and ``controller_params.<name>`` for the law's parameters; the controller node is left
-    out. Unchanged if there is no controller or no model, or the model has a controller."""
-    if "flex_controller" not in params or "flex_model" not in params \
-            or params["flex_model"].get("controller"):
-        return params
+    """The suite with each ``flex_controller`` run in the loop of the ``flex_model`` of its
+    namespace: the model gets ``controller`` (the law, default eq95), ``controller_rate``
+    (rate_hz, default 500 Hz) and ``controller_params.<name>`` for the law's parameters;
+    the controller node is left out. A namespace without a controller or a model, or
+    whose model has a controller, is unchanged."""
+    keys = {split_name(k): k for k in params}
+    out = {}
+    for key, body in params.items():
+        ns, name = split_name(key)
+        model, ctl = keys.get((ns, "flex_model")), keys.get((ns, "flex_controller"))
+        if model is None or ctl is None or params[model].get("controller"):
+            out[key] = body
+        elif name == "flex_model":
+            out[key] = _with_controller(body, params[ctl])
+        elif name != "flex_controller":
+            out[key] = body
+    return out
+
+
+def _with_controller(model: dict, controller: dict) -> dict:
+    """A model's parameters with the controller's law in its loop."""
     from flex_control.controller_node import NODE_DEFAULTS
-    ctl = dict(NODE_DEFAULTS, **params["flex_controller"])
-    model = dict(params["flex_model"], controller=str(ctl.get("law", "eq95")),
+    ctl = dict(NODE_DEFAULTS, **controller)
+    model = dict(model, controller=str(ctl.get("law", "eq95")),
                  controller_rate=float(ctl.get("rate_hz", 500.0)))
     for name, value in ctl.items():
         if name not in CONTROLLER_NODE_ONLY:
             model[f"controller_params.{name}"] = value
-    return {name: (model if name == "flex_model" else body)
-            for name, body in params.items() if name != "flex_controller"}
+    return model
+
+
+#: package and executable of each node (ament: ros2 run / launch)
+EXECUTABLES = {"flex_model": ("flex_model", "model_node"),
+               "flex_controller": ("flex_control", "controller_node"),
+               "flex_planner": ("flex_planner", "planner_node")}
+
+
+def suite_nodes(params: dict, topic_loop: bool = False) -> tuple[dict, list]:
+    """What ``up`` (and the launch file) starts from a parameter file's ``params``: the
+    parameters (the controller folded into the model unless ``topic_loop``) and per node
+    (package, executable, namespace, name)."""
+    if not topic_loop:
+        params = in_loop_parameters(params)
+    nodes = []
+    for key in params:
+        ns, name = split_name(key)
+        nodes.append((*EXECUTABLES[name], ns, name))
+    return params, nodes
 
 
 def write_parameter_file(params: dict, path) -> Path:
@@ -99,23 +143,25 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
     nodes, ex = {}, None
     try:
         with stop_on_signals() as stop:
-            for name, values in params.items():
+            for key, values in params.items():
+                ns, name = split_name(key)
                 module, cls = NODES[name]
                 node_cls = getattr(importlib.import_module(module), cls)
-                nodes[name] = node_cls(context=ctx, parameter_overrides=[
+                nodes[key] = node_cls(context=ctx, namespace=ns or None, parameter_overrides=[
                     Parameter(k, value=v) for k, v in values.items()])
             ex = SingleThreadedExecutor(context=ctx)
             for n in nodes.values():
                 ex.add_node(n)
-            model = nodes.get("flex_model")
+            models = [n for k, n in nodes.items() if split_name(k)[1] == "flex_model"]
             next_mark = 0.0
             while ctx.ok() and not stop:
                 ex.spin_once(timeout_sec=0.01)
-                if model is not None and duration is not None:
-                    if progress is not None and model.stepper.t >= next_mark:
-                        progress(model.stepper.t, duration)
+                if models and duration is not None:
+                    t = min(m.stepper.t for m in models)
+                    if progress is not None and t >= next_mark:
+                        progress(t, duration)
                         next_mark += duration / 10
-                    if model.stepper.t >= duration:
+                    if t >= duration:
                         break
             for n in nodes.values():
                 if hasattr(n, "stop") and ctx.ok():
@@ -147,10 +193,13 @@ def run_in_processes(path, names) -> int:
     (SIGINT) stops them even where it was inherited ignored (a background job of a
     non-interactive shell, as in CI)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)
-    procs = [subprocess.Popen([sys.executable, "-m", NODES[n][0], "--ros-args",
-                               "--params-file", str(path)],
-                              preexec_fn=_die_with_parent if sys.platform == "linux" else None)
-             for n in names]
+    procs = []
+    for key in names:
+        ns, name = split_name(key)
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", NODES[name][0], "--ros-args"]
+            + (["-r", f"__ns:={ns}"] if ns else []) + ["--params-file", str(path)],
+            preexec_fn=_die_with_parent if sys.platform == "linux" else None))
     try:
         while all(p.poll() is None for p in procs):
             time.sleep(0.2)
@@ -171,9 +220,7 @@ def run_in_processes(path, names) -> int:
 
 
 def cmd_up(args) -> int:
-    params = node_parameters(args.config)
-    if not args.topic_loop:
-        params = in_loop_parameters(params)
+    params, _ = suite_nodes(node_parameters(args.config), args.topic_loop)
     if args.processes:
         with tempfile.TemporaryDirectory(prefix="flex-twin-up-") as tmp:
             path = write_parameter_file(params, Path(tmp) / "params.yaml")

@@ -180,7 +180,10 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         for n in nodes:
             n.destroy_node()
         rclpy.try_shutdown(context=ctx)
-    summary = _summarize(tips, states, defl, commands, plans[-1], wall, duration, out_dir)
+    from flex_model.urdf import plane_rotation
+    plane = plane_rotation(model.model.gravity)  # flex/tip_pose is in the base frame
+    summary = _summarize(tips, states, defl, commands, plans[-1], wall, duration, out_dir,
+                         plane)
     summary.update(controller="in the model's loop (eq95)" if in_loop
                    else "controller node over topics",
                    loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall)
@@ -214,11 +217,14 @@ def _by_time(msgs):
     return [seen[t] for t in sorted(seen)]
 
 
-def _summarize(tips, states, defl, commands, plan, wall, duration, out_dir) -> dict:
+def _summarize(tips, states, defl, commands, plan, wall, duration, out_dir,
+               plane) -> dict:
     from flex_model.plots import finish_figure, plt
+    from flex_model.urdf import base_to_plane
     tips, states, defl = _by_time(tips), _by_time(states), _by_time(defl)
     t_tip = np.array([_stamp_s(m) for m in tips])
-    xy = np.array([[m.pose.position.x, m.pose.position.y] for m in tips])
+    xy = base_to_plane(plane, [[m.pose.position.x, m.pose.position.y, m.pose.position.z]
+                               for m in tips])  # the plane, as the waypoints
     errors = []
     for (x, y), t in zip(WAYPOINTS, TIMES):
         if t > duration + 1e-9:

@@ -138,3 +138,18 @@ def test_planar_only_options_refused(tmp_path, capsys):
     assert main(["simulate", "thesis_three_link_pd", "--bag", "--out",
                  str(tmp_path / "p")]) == 2
     assert "--bag: only for spatial scenarios" in capsys.readouterr().err
+
+
+def test_a_newton_failure_is_one_line_and_exit_1(tmp_path, capsys):
+    """A 1000 N m kick on seed 000's 0.28 m strip at 5 ms: the step's Newton fails even in
+    substeps; the user gets one line naming the time and what to change (issue 47), not a
+    traceback (a plain RuntimeError before)."""
+    path = tmp_path / "kick.yaml"
+    path.write_text("name: hard_kick\narm: seed000_real_arm_3d\nduration: 0.1\n"
+                    "step: 5.0e-3\nsample_period: 0.005\ninitial: {joint_values: [0.0]}\n"
+                    "pulses:\n  - {joint: joint1, torque: 1000.0, start: 0.0, end: 0.05}\n")
+    assert main(["simulate", str(path), "--out", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("flex-twin: failed: hard_kick: Newton did not "
+                                               "converge in the step after t = 0 s")
+    assert "reduce the step or the input" in err[0]

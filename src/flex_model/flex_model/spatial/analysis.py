@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from ..errors import StaticConvergenceError
 from .dynamics import SpatialArmModel
 
 
@@ -77,7 +78,7 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
                 np.max(np.abs(r)) < 1e-14 * scale:
             break
     else:
-        raise RuntimeError(f"no static equilibrium after {max_iter} Newton steps "
+        raise StaticConvergenceError(f"no static equilibrium after {max_iter} Newton steps "
                            f"(largest residual {np.max(np.abs(r)):.3e})")
     tip = model.tip_frame(q)
     pos = np.real(tip.o)

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from ..errors import SimulationDivergedError
 from ..integrators import galpha_parameters
 from .dynamics import SpatialArmModel
 
@@ -93,7 +94,7 @@ def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: f
     sol = solve_ivp(rhs, (t_out[0], t_out[-1]), np.concatenate([q0, v0]), method="DOP853",
                     t_eval=t_out, rtol=rtol, atol=atol)
     if not sol.success:
-        raise RuntimeError(f"DOP853 failed: {sol.message}")
+        raise SimulationDivergedError(f"DOP853 failed: {sol.message}")
     return SpatialRun(sol.t, sol.y[:nq].T.copy(), sol.y[nq:].T.copy())
 
 
@@ -214,7 +215,7 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
             if dmax <= tol * amax:
                 break
         else:
-            raise RuntimeError(f"generalized-alpha: no convergence at t = {t1:.6g} s")
+            raise SimulationDivergedError(f"generalized-alpha: no convergence at t = {t1:.6g} s")
         ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
         q = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
         v = v + h * ((1 - gam) * abar + gam * ab1)
@@ -316,14 +317,16 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
         if iters >= 0:
             break
         if not substeps:
-            raise RuntimeError(f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s")
+            raise SimulationDivergedError(
+                f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s")
         sub = np.array(np.repeat(tau[pos:pos + 1], substeps, axis=0), order="C")
         acc = np.zeros((2, model.nq))
         qs2, vs2, it2 = loop(qs[k], vs[k], h / substeps, sub, acc, False,
                              forces(pos, pos + 1, substeps))
         if it2 < 0:
-            raise RuntimeError(f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} "
-                               f"s, nor in {substeps} substeps")
+            raise SimulationDivergedError(
+                f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s, nor in "
+                f"{substeps} substeps")
         out_q.append(qs2[-1:])
         out_v.append(vs2[-1:])
         total += it2

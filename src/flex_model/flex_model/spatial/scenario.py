@@ -54,6 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import ConfigError, Fields, read_yaml
+from ..errors import SimulationDivergedError, StaticConvergenceError
 from ..inputs import JointPD
 from ..scenario import is_inf, joint_index
 from .description import SPATIAL_PRESET_DIR, SpatialArm
@@ -279,10 +280,10 @@ class SpatialScenario:
                         rho_inf=self.rho_inf, tol=self.tol, damping=Dp,
                         pd_clip=None if self.pd is None else (self.pd.kp, self.pd.kd),
                         tip_force=None if tipf is None else tipf[start:stop])
-                except RuntimeError as exc:   # the time of the segment -> of the run
-                    raise RuntimeError(f"{self.name}: Newton did not converge in the step "
-                                       f"after t = {start * h:.6g} s + ({exc}); reduce the "
-                                       "step or the input") from None
+                except SimulationDivergedError as exc:   # the segment's time -> the run's
+                    raise SimulationDivergedError(
+                        f"{self.name}: Newton did not converge in the step after t = "
+                        f"{start * h:.6g} s + ({exc}); reduce the step or the input") from None
                 qs.append(run.q[1:])
                 vs.append(run.v[1:])
                 iters += run.newton_iterations
@@ -357,7 +358,7 @@ def pd_static_equilibrium(model: SpatialArmModel, K_pd, u, start=None, tol: floa
         q[free] += dq
         if np.max(np.abs(dq)) < tol * max(1.0, np.max(np.abs(q))):
             return q
-    raise RuntimeError(f"no PD equilibrium after {max_iter} Newton steps")
+    raise StaticConvergenceError(f"no PD equilibrium after {max_iter} Newton steps")
 
 
 @dataclass

@@ -1,15 +1,23 @@
 """Recording topics into a bag (``flex-twin record``).
 
 The log time is the receive time (wall clock, as rosbag2) or, with ``use_sim_time``
-(``record --use-sim-time``, the default when /clock is recorded; the twin demo), the
-latest /clock. rclpy is imported lazily.
+(``record --use-sim-time``, the default when /clock is published or recorded; the twin
+demo), the latest /clock. rclpy is imported lazily.
 """
 from __future__ import annotations
 
+import bisect
 import time
 
 from .message_types import BagError, get_message
 from .writer import BagWriter
+
+#: the key of the recorder's own /clock subscription among the recorded topics' names
+CLOCK = "\0clock"
+#: use_sim_time: messages published in the last HOLD_NS (their source timestamps, this
+#: host's clock) wait for a later callback, so that one delivered late (another topic's
+#: reader, a reliable resend) is still handled in publication order; at most HOLD_MAX
+HOLD_NS, HOLD_MAX = 50_000_000, 10000
 
 
 def discover_types(node, names, timeout_s: float = 5.0, stop_event=None) -> dict[str, str]:
@@ -44,27 +52,32 @@ class Recorder:
     TRANSIENT_LOCAL when all publishers offer it, so that latched messages (published
     before the recorder started) are recorded. Topics without a publisher until
     :meth:`stop` are declared in the bag with no messages.
+
+    Each callback takes every message waiting in all the subscriptions and handles them in
+    the order they were published (:meth:`_take`), with ``depth`` (1000) per topic: a
+    lockstep suite publishing faster than one executor wake-up per message loses none.
     """
 
     def __init__(self, node, bag_writer: BagWriter, topics, *, use_header_stamp=(),
-                 depth: int = 100, discovery_timeout_s: float = 5.0,
+                 depth: int = 1000, discovery_timeout_s: float = 5.0,
                  use_sim_time: bool = False):
         from rclpy.clock import Clock, ClockType
         self.node, self.writer, self.depth = node, bag_writer, depth
         self.use_header_stamp = set(use_header_stamp)
         self.use_sim_time = use_sim_time
-        self._subs, self._pending, self._types = {}, {}, {}
+        self._subs, self._pending, self._types, self._classes = {}, {}, {}, {}
         self._sim_ns = None   # the latest /clock (use_sim_time)
         self._early = []      # (name, data, receive ns) before the first /clock
+        self._held = []       # (source ns, name, data) published after the latest /clock
         self._clock_sub = None
         if use_sim_time:
             from rclpy.qos import QoSProfile, ReliabilityPolicy
             from rosgraph_msgs.msg import Clock as ClockMsg
             # BEST_EFFORT, VOLATILE: compatible with every /clock publisher
             self._clock_sub = node.create_subscription(
-                ClockMsg, "/clock", self._on_clock,
-                QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
-        self._timer = node.create_timer(0.1, self._subscribe_pending,
+                ClockMsg, "/clock", lambda msg, info: self._take(CLOCK, msg, info),
+                QoSProfile(depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT))
+        self._timer = node.create_timer(0.1, self._poll,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_topics(dict(topics) if isinstance(topics, dict) else discover_types(
             node, list(topics), discovery_timeout_s))
@@ -116,32 +129,72 @@ class Recorder:
                 self.writer.write(name, data, received_ns if t_ns is None else t_ns)
 
     def _callback(self, name, cls):
-        from rclpy.serialization import deserialize_message
-        by_header = name in self.use_header_stamp
-        is_clock = self.use_sim_time and name == "/clock" and not by_header
+        self._classes[name] = cls
+        return lambda data, info: self._take(name, data, info)
 
-        def callback(data):
-            if by_header:
-                stamp = deserialize_message(data, cls).header.stamp
-                t_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
-            elif is_clock:
-                clock = deserialize_message(data, cls).clock
-                t_ns = clock.sec * 1_000_000_000 + clock.nanosec
-            elif self.use_sim_time:
-                if self._sim_ns is None:  # stamped with the first /clock when it comes
-                    self._early.append((name, data, self.node.get_clock().now().nanoseconds))
-                    return
-                t_ns = self._sim_ns
+    def _take(self, name, data, info) -> None:
+        """The executor's message, then every message waiting in the subscriptions, in the
+        order they were published (source timestamps): with ``use_sim_time`` each gets
+        the /clock published last before it (those published in the last HOLD_NS wait for
+        the next callback, the 0.1 s timer or :meth:`stop`); one wake-up of the executor
+        per message could not keep up with a lockstep suite (its messages beyond a
+        subscription's depth were lost)."""
+        self._drain([(info["source_timestamp"], name, data)])
+
+    def _drain(self, batch=()) -> None:
+        batch = self._held + list(batch)
+        subs = list(self._subs.items())
+        if self._clock_sub is not None:
+            subs.append((CLOCK, self._clock_sub))
+        for key, sub in subs:
+            with sub.handle:
+                while (got := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                    batch.append((got[1]["source_timestamp"], key, got[0]))
+        batch.sort(key=lambda b: b[0])
+        self._held = []
+        if self.use_sim_time and len(batch) <= HOLD_MAX:  # late deliveries: sorted in
+            cut = bisect.bisect_right([b[0] for b in batch], time.time_ns() - HOLD_NS)
+            batch, self._held = batch[:cut], batch[cut:]
+        self._handle(batch)
+
+    def _poll(self) -> None:
+        """The 0.1 s steady timer: new publishers, held messages."""
+        self._subscribe_pending()
+        if self._held:
+            self._drain()
+
+    def _handle(self, batch) -> None:
+        for _, key, msg in batch:
+            if key == CLOCK:
+                self._on_clock(msg)
             else:
-                t_ns = self.node.get_clock().now().nanoseconds
-            if not self.writer.closed:
-                self.writer.write(name, data, t_ns)
-        return callback
+                self._write(key, msg)
+
+    def _write(self, name, data) -> None:
+        """Write one serialized message with its log time (class docstring)."""
+        from rclpy.serialization import deserialize_message
+        if name in self.use_header_stamp:
+            stamp = deserialize_message(data, self._classes[name]).header.stamp
+            t_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        elif self.use_sim_time and name == "/clock":
+            clock = deserialize_message(data, self._classes[name]).clock
+            t_ns = clock.sec * 1_000_000_000 + clock.nanosec
+        elif self.use_sim_time:
+            if self._sim_ns is None:  # stamped with the first /clock when it comes
+                self._early.append((name, data, self.node.get_clock().now().nanoseconds))
+                return
+            t_ns = self._sim_ns
+        else:
+            t_ns = self.node.get_clock().now().nanoseconds
+        if not self.writer.closed:
+            self.writer.write(name, data, t_ns)
 
     def stop(self) -> None:
         """Destroy the subscriptions and declare topics that never had a publisher (the
         writer stays open; the caller closes it). Messages held for the first /clock are
         written with their receive time when no /clock came."""
+        held, self._held = self._held, []
+        self._handle(held)  # with the latest /clock
         self._write_early(None)
         if not self.writer.closed:
             for name, type_str in self._pending.items():

@@ -164,9 +164,9 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
         raise ValueError(f"{run.controller}: {controller.n_joints} joints in the controller, "
                          f"{arm.n_links} in the arm {arm_path}")
     check_integrable(controller, arm)
-    fit = load_recording(run.data, arm.n_links, run.link_topic)
-    holdout = load_recording(run.holdout, arm.n_links, run.link_topic) if run.holdout \
-        else None
+    fit = load_recording(run.data, arm.n_links, run.link_topic, arm.gravity)
+    holdout = load_recording(run.holdout, arm.n_links, run.link_topic, arm.gravity) \
+        if run.holdout else None
     for path, rec in ((run.data, fit), (run.holdout, holdout)):
         if rec is not None and controller.period > 0 and \
                 rec.t[-1] - rec.t[0] < controller.period:

@@ -5,7 +5,9 @@
   interpolated linearly between its points (header stamp + time_from_start); without it
   the commanded set-points are unknown and the bag is refused;
 - optional ``/flex/deflections`` (sensor_msgs/JointState, ``link<i>/tip_deflection``): w<i>;
-- optional ``/flex/tip_pose`` (geometry_msgs/PoseStamped): tip_x, tip_y;
+- optional ``/flex/tip_pose`` (geometry_msgs/PoseStamped): tip_x, tip_y, the arm's plane
+  coordinates (a pose in ``arm_plane`` or without a frame as it is; one in the base
+  frame, as the model node publishes it, turned back into the plane of ``gravity``);
 - optional link-side encoders of elastic joints, topic :data:`LINK_TOPIC` by default
   (``flex-twin diagnose --link-topic``): a sensor_msgs/JointState whose ``name`` lists the
   joints (names of ``/joint_states``) that have one, ``position`` their link-side angles and
@@ -38,9 +40,11 @@ def _stamp(msg, t_ns) -> float:
     return t if t > 0 else 1e-9 * t_ns
 
 
-def load_bag(path, n_joints: int, link_topic: str | None = None):
+def load_bag(path, n_joints: int, link_topic: str | None = None, gravity=(0.0, -9.81)):
     """Read the bag into a :class:`~flex_twin.diagnosis.recording.Recording`; the link-side
-    encoders from ``link_topic`` (default :data:`LINK_TOPIC`) when the bag has it."""
+    encoders from ``link_topic`` (default :data:`LINK_TOPIC`) when the bag has it;
+    ``gravity``: the arm's (m/s^2, in its plane), for a tip pose in the base frame."""
+    from flex_model.urdf import base_to_plane, plane_rotation
     from ..bags import BagError, read_bag, topic_types
     path = Path(path)
     link_topic = LINK_TOPIC if link_topic is None else link_topic
@@ -74,7 +78,10 @@ def load_bag(path, n_joints: int, link_topic: str | None = None):
                 defl.append((_stamp(msg, t_ns), [d.get(f"link{i + 1}/tip_deflection", np.nan)
                                                  for i in range(n_joints)]))
             else:
-                tip.append((_stamp(msg, t_ns), msg.pose.position.x, msg.pose.position.y))
+                p, frame = msg.pose.position, msg.header.frame_id
+                x, y = (p.x, p.y) if not frame or frame.endswith("arm_plane") else \
+                    base_to_plane(plane_rotation(gravity), [p.x, p.y, p.z])[0]
+                tip.append((_stamp(msg, t_ns), x, y))
     except (BagError, OSError, ValueError, RuntimeError) as exc:
         raise RecordingError(f"{path}: corrupt or truncated bag ({exc})") from None
     if len(js) < 2:
