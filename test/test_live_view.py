@@ -389,7 +389,8 @@ def test_model_node_streams_what_it_publishes_over_ros():
     rclpy.init(context=ctx)
     ns = f"/lv{uuid.uuid4().hex[:8]}"
     params = {"arm": "thesis_example1", "foxglove_port": free_port(), "shape_rate": 20.0,
-              "publish_rate": 100.0, "initial_joint_angles_deg": [30.0, -45.0]}
+              "publish_rate": 100.0, "initial_joint_angles_deg": [30.0, -45.0],
+              "hold_until_command": False}  # the arm falls: frames that differ
     node = ModelNode(context=ctx, namespace=ns, parameter_overrides=[
         Parameter(k, value=v) for k, v in params.items()])
     probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=ctx, namespace=ns)

@@ -139,7 +139,9 @@ def test_tf_from_another_process_ends_at_the_tip_pose(repo_root):
     proc = subprocess.Popen(
         [sys.executable, "-m", "flex_model.model_node", "--ros-args", "-r", f"__ns:={ns}",
          "-p", f"frame_prefix:={prefix}", "-p", "initial_joint_angles_deg:=[40.0, -30.0]",
-         "-p", "publish_rate:=100.0"], env=env, cwd=repo_root,
+         "-p", "publish_rate:=100.0",
+         "-p", "hold_until_command:=false"],  # (it falls: the chain must follow it)
+        env=env, cwd=repo_root,
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     ctx = rclpy.Context()
     rclpy.init(context=ctx)

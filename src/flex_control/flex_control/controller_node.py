@@ -14,7 +14,7 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
 from flex_model.ros_main import (Param, ParameterError, ReasonLog, clock_topic_param,
-                                 declare_parameters, follow_clock, guard_parameters,
+                                 declare_parameters, fmt, follow_clock, guard_parameters,
                                  lean_node, run_node)
 
 from .laws import hold_reference
@@ -51,8 +51,20 @@ def parameter_specs() -> tuple:
                            item=float if isinstance(default, list) else None))
     specs += [Param(name, default, "false: see flex_model.ros_main.lean_node")
               for name, default in NODE_PARAMETERS]
+    specs.append(Param("hold_joint_angles_deg", [], "joint angles (deg) held until a "
+                       "trajectory arrives, one per joint or one for all, e.g. the model's "
+                       "initial_joint_angles_deg: a restarted controller holds the same pose; "
+                       "empty (default): the first measured pose (a restart re-anchors to "
+                       "where the arm sagged)", item=float))
     specs.append(clock_topic_param("the timer and the trajectory time run on it"))
     return tuple(specs)
+
+
+def stand_in_joints(values: dict) -> tuple:
+    """Joint names to check the parameters with until joint_states names the joints: as
+    many as the longest of h, a, torque_limits."""
+    k = max(len(values[f]) for f in ("h", "a", "torque_limits"))
+    return tuple(f"joint{i + 1}" for i in range(k))
 
 
 class ControllerNode(Node):
@@ -76,8 +88,10 @@ class ControllerNode(Node):
     number of joints; until then it publishes nothing. Given explicitly, they are checked
     against every new set of names in joint_states: a set missing some is one error line
     (those messages are then dropped), extra joints one warning. Gains and limits may be
-    set at run time and are validated before they are swapped in; the structural ones
-    (joint_names, law, rate_hz, use_deflections) are refused with a reason. A float
+    set at run time (``ros2 param set``: lists arrive as arrays; before the joints are
+    known they are checked against as many stand-in joints as the longest list) and are
+    validated before they are swapped in; the structural ones (joint_names, law, rate_hz,
+    use_deflections, hold_joint_angles_deg) are refused with a reason. A float
     parameter takes an integer (``rate_hz:=500``); a bad value at start is one line naming
     the parameter, the value and what is allowed. Node parameters ``parameter_services``
     and ``qos_event_warnings`` (default true): false leaves out rclpy's parameter services
@@ -87,7 +101,9 @@ class ControllerNode(Node):
     relative ``clock`` is the namespace's: one clock per lockstep twin,
     flex_model.ros_main.follow_clock).
 
-    Safety: until a trajectory arrives the controller holds the first measured pose; joint
+    Safety: until a trajectory arrives the controller holds ``hold_joint_angles_deg`` (one
+    per joint or one for all; e.g. the model's initial_joint_angles_deg, so that restarts
+    do not creep) or, if empty (the default), the first measured pose; joint
     states older than ``state_timeout`` (by arrival time) give zero torques (or the last
     command, ``stale_action: hold``), logged once per episode; malformed or non-finite
     inputs and trajectories with other joint names are logged (at most once a second per
@@ -101,10 +117,13 @@ class ControllerNode(Node):
         values = declare_parameters(self, self.specs)
         lean = [values.pop(name) for name, _ in NODE_PARAMETERS]
         clock_topic = values.pop("clock_topic")
+        self.hold_deg = values.pop("hold_joint_angles_deg")
         names = tuple(values["joint_names"])
+        if names and len(self.hold_deg) not in (0, 1, len(names)):
+            raise ParameterError(f"parameter hold_joint_angles_deg: got {fmt(self.hold_deg)}; "
+                                 f"expected {len(names)} angles (deg) or one for all")
         if not names:  # checked with stand-in joints now, with the model's when they come
-            k = max(len(values[f]) for f in ("h", "a", "torque_limits"))
-            values["joint_names"] = tuple(f"joint{i + 1}" for i in range(k))
+            values["joint_names"] = stand_in_joints(values)
         try:
             self.params = ControllerParams.from_mapping(values)
             self.controller = build_controller(self.params)
@@ -218,8 +237,25 @@ class ControllerNode(Node):
         if vel is None:
             vel = self.differentiate(pos, msg, now)
         if self.state is None and self.t_start is None:
-            self.controller.set_reference(hold_reference(self.params.joint_names, pos))
+            self.controller.set_reference(hold_reference(self.params.joint_names,
+                                                         self.hold_positions(pos)))
         self.state = (pos, vel, now)
+
+    def hold_positions(self, measured) -> np.ndarray:
+        """The pose held until a trajectory arrives (rad): hold_joint_angles_deg, else the
+        first measured one (logged once, with what a restart does)."""
+        if not self.hold_deg:
+            self._once("hold", f"holding the first measured pose {fmt(np.degrees(measured))} "
+                       "deg until a trajectory arrives (hold_joint_angles_deg empty: a "
+                       "restarted controller holds where the arm has sagged to)", "info")
+            return measured
+        if len(self.hold_deg) not in (1, self.n):
+            self._once("hold-length", f"parameter hold_joint_angles_deg: got "
+                       f"{fmt(self.hold_deg)}; expected {self.n} angles (deg, one per joint "
+                       f"{list(self.names)}) or one for all; holding the measured pose",
+                       "error")
+            return measured
+        return np.radians(np.broadcast_to(np.asarray(self.hold_deg, float), (self.n,)))
 
     def differentiate(self, pos, msg, now) -> np.ndarray:
         """Joint rates from the positions of successive messages (their header stamps, or
@@ -323,9 +359,13 @@ class ControllerNode(Node):
         controller before it is swapped in (raises ValueError with the reason)."""
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()
                   if k not in dict(NODE_PARAMETERS)}
+        reference = self.controller.reference
+        if self.names is None:  # no joints yet: as many stand-ins as the longest list
+            values["joint_names"] = stand_in_joints({**vars(self.params), **values})
+            reference = None
         params = replace(self.params, **values)
         try:
-            controller = build_controller(params, reference=self.controller.reference)
+            controller = build_controller(params, reference=reference)
         except OSError as exc:
             raise ValueError(f"schedule_file: {exc}") from None
         self.params, self.controller = params, controller

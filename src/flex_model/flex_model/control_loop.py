@@ -35,12 +35,20 @@ class ControlLoop:
                               dtype=np.int64)
         self.n_updates = 0
         self.t0 = 0.0  # the trajectory's start (simulation time, s)
+        self.idle = False  # after drop_trajectory: zero command, no controller updates
 
     def set_trajectory(self, trajectory, start: float = 0.0) -> None:
         """Track ``trajectory`` (a JointTrajectoryData) from the simulation time ``start``:
         the controller sees the time since then."""
         self.controller.set_trajectory(trajectory)
         self.t0 = float(start)
+        self.idle = False
+
+    def drop_trajectory(self) -> None:
+        """Forget the trajectory (a reset): command zero, without updating the controller,
+        until the next :meth:`set_trajectory`."""
+        self.idle, self.t0 = True, 0.0
+        self.stepper.set_command(np.zeros(self.stepper.model.n_links))
 
     def sense(self) -> SensedState:
         """Joint angles and rates, link tip deflections and their rates, now."""
@@ -67,6 +75,9 @@ class ControlLoop:
     def advance(self, n_periods: int = 1) -> None:
         """``n_periods`` control periods: update, then integrate one period, each."""
         n = int(n_periods)
+        if self.idle and n > 0:  # the zero command of drop_trajectory, held
+            self.stepper.advance(n * self.period)
+            return
         while n > 0:
             law = self.compiled_law()
             if law is None:  # users' controllers; a built-in law before its first update

@@ -27,8 +27,9 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
 Subscriptions:
     effort_controller/commands  std_msgs/Float64MultiArray  joint torques, joint order
     flex/payload                std_msgs/Float64MultiArray  [mass kg, inertia kg m^2]
-Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; after a
-divergence it restarts the loop), ~/pause (std_srvs/SetBool).
+Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; an
+in-loop controller's trajectory is dropped: zero until the next one; after a divergence it
+restarts the loop), ~/pause (std_srvs/SetBool).
 Action (with an in-loop controller, where control_msgs imports): joint_trajectory_controller/
 follow_joint_trajectory (control_msgs/FollowJointTrajectory, flex_model.trajectory_action).
 
@@ -39,7 +40,10 @@ sampled rate feedback acts on the tiny root inertia of a flexible link and diver
 0.1 s), vars_per_link, kinematics, mode (realtime | lockstep), rate (Hz, model loop),
 publish_rate (Hz), shape_rate (Hz, /flex/shape, at most publish_rate), max_step (s),
 initial_joint_angles_deg (one per joint, or one for all), start_static (start deflected at
-rest under gravity), start_paused (until ~/pause false), command_timeout (s of simulation
+rest under gravity), start_paused (until ~/pause false), hold_until_command (default true:
+from the start and after ~/reset the initial state is held, time running, until the first
+valid command, or with an in-loop controller after ~/reset the next trajectory: the arm
+does not fall before its controller connects), command_timeout (s of simulation
 time, default 0.5, 0 = never; lockstep: a watchdog step applies it at once; not with an
 in-loop controller), timeout_action (zero, the default, | hold), lockstep_timeout (s,
 wall), frame_id (the base frame, root of the URDF and TF), frame_prefix, publish_tf,
@@ -62,10 +66,14 @@ may be set (checked); the others are read_only in their descriptors (rclpy refus
 and the bounded numbers carry ranges (:data:`RANGES`).
 
 Bad inputs are dropped with a reason logged at most once a second per reason (not per
-call site: a wrong length does not hide a NaN). A divergence of the integration (Newton
-fails, the state runs away) logs one error naming the held command and payload, publishes
-the ERROR diagnostic, sets the command to zero and stops stepping; the node stays up
-(commands are answered with a reason) and ~/reset restarts it.
+call site: a wrong length does not hide a NaN). A failed integration step (Newton fails,
+the state runs away) under external commands is done again in steps 4, then 16 x
+shorter (Stepper.advance_refining; a warning line). If that fails too, the model diverged:
+one error names the command applied then, the largest command before (of the last
+COMMAND_MEMORY) and the payload, publishes the ERROR diagnostic, sets the command to zero
+and stops stepping; the node stays up (commands are answered with a reason), publishes the
+last good state with zero effort (at publish_rate, at most the timer's rate) and ~/reset
+restarts it.
 
 realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in steps
 of exactly ``max_step`` (rcl timers skip missed periods: a late tick catches up with several
@@ -90,10 +98,12 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections import deque
 from contextlib import ExitStack
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
@@ -116,7 +126,7 @@ from .ros_main import (FLOAT_MAX, INT_MAX, Param, ParameterError, ReasonLog,
                        declare_parameters, fmt,
                        guard_parameters, lean_node, run_node)
 from .stepper import Stepper
-from .trajectory_action import action_server
+from .trajectory_action import INVALID_GOAL, action_server
 
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
@@ -125,6 +135,8 @@ LOCKSTEP_SLICE = 0.02
 #: periods one timer callback runs on a wait set of its own (ModelNode._realtime_slice)
 #: before it returns to the executor (0: one period a callback)
 REALTIME_SLICE = 0.05
+#: commands remembered for the divergence diagnostic (it names the largest of them)
+COMMAND_MEMORY = 4096
 #: QoS of robot_description and /tf_static (as robot_state_publisher: latched, depth 1)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -160,6 +172,17 @@ def plausibility_limits(model: FlexArmModel) -> dict:
     return {"max_torque": max(100.0, 10.0 * gravity, 100.0 * inertia),
             "max_payload_mass": 10.0 * float(model.total_mass),
             "max_payload_inertia": 10.0 * inertia}
+
+
+def _refuse_controller_params(changes) -> SetParametersResult:
+    """controller_params.* are read when the in-loop controller is built: a change at run
+    time is refused with the reason (it would be accepted and do nothing)."""
+    for p in changes:
+        if p.name.startswith("controller_params."):
+            return SetParametersResult(successful=False, reason=(
+                f"parameter {p.name} is read-only at run time (the in-loop controller is "
+                f"built from it); restart the node with -p {p.name}:=..."))
+    return SetParametersResult(successful=True)
 
 
 def _choice(*options):
@@ -212,6 +235,10 @@ PARAMETERS = (
           check=lambda v: None if 0 <= v <= 65535 else "0 (off) or a port 1-65535"),
     Param("start_static", False, "start at rest, deflected under gravity"),
     Param("start_paused", False, "start paused (until ~/pause false)"),
+    Param("hold_until_command", True, "hold the arm at its initial state (brakes on: time "
+          "runs, joints and links stay) from the start and after ~/reset until the first "
+          "valid command (an in-loop controller: from ~/reset until the next trajectory); "
+          "false: the arm moves under zero torque (falls under gravity) until then"),
     Param("realtime_priority", 0, "SCHED_FIFO priority of the node's thread (0: off)",
           check=lambda v: None if 0 <= v <= 99 else "0 (off) or 1-99"),
     Param("max_torque", 0.0, "plausibility limit of a joint command (N m, or V for "
@@ -276,6 +303,9 @@ class ModelNode(Node):
         self.links = [lk.name for lk in arm.links]
         self.has_imu = any(s.kind == "tip_accelerometer" for s in arm.sensors)
         self.paused = bool(p["start_paused"])
+        # hold_until_command: the initial state held until a command (an in-loop controller
+        # commands from the start)
+        self.braked = bool(p["hold_until_command"]) and not p["controller"]
         self.command_time = 0.0
         self.commanded = False  # a valid command has arrived (lockstep: the loop runs)
         self.next_publish = self.next_shape = 0.0
@@ -283,6 +313,8 @@ class ModelNode(Node):
         self.diverged = None  # after a divergence: its DiagnosticStatus (stepping stops)
         self.diverged_at = 0.0  # simulation time of the divergence (s)
         self.next_diagnostic = 0.0  # wall time of the next repeat of that status
+        self.next_held_state = 0.0  # diverged: wall time of the next held-state publication
+        self.recent_commands = deque(maxlen=COMMAND_MEMORY)  # (t, command): the diagnostic
         self.warned = set()
         self.drops = ReasonLog(self)
         # REP 103/105 frames (flex_model.urdf): the plane's coordinates in the base frame
@@ -352,7 +384,9 @@ class ModelNode(Node):
                                f"publishing at {p['publish_rate']:g} Hz; plausibility "
                                f"limits {self.limit('max_torque'):.4g} N m, payload "
                                f"{self.limit('max_payload_mass'):.4g} kg, "
-                               f"{self.limit('max_payload_inertia'):.4g} kg m^2")
+                               f"{self.limit('max_payload_inertia'):.4g} kg m^2"
+                               + ("; the initial state is held until the first command "
+                                  "(hold_until_command)" if self.braked else ""))
 
     def _tf_setup(self, p) -> None:
         """/tf_static (base -> arm_plane, latched) once and /tf publishers, if tf2_msgs can
@@ -387,6 +421,7 @@ class ModelNode(Node):
             ctl = load_controller(p["controller"], self.names, params)
         except ValueError as exc:
             raise ParameterError(f"parameter {exc}") from None
+        self.add_on_set_parameters_callback(_refuse_controller_params)
         self.create_subscription(JointTrajectory, "flex_planner/trajectory",
                                  self.on_trajectory, 1)
         self.get_logger().info(f"in-loop controller {p['controller']} at "
@@ -444,7 +479,8 @@ class ModelNode(Node):
                                "valid command")
             return
         self.stepper.set_command(u)
-        self.command_time, self.commanded = self.stepper.t, True
+        self.command_time, self.commanded, self.braked = self.stepper.t, True, False
+        self.recent_commands.append((self.command_time, u))
         if self.p["mode"] == "lockstep" and not self.paused:
             self.last_wall = time.monotonic()
             self.step(1.0 / self.p["rate"])
@@ -477,6 +513,12 @@ class ModelNode(Node):
         was_diverged = self.diverged is not None
         self.stepper.model.set_payload(*self.payload0)
         self.stepper.reset()
+        self.recent_commands.clear()
+        if self.fjt is not None:  # a running FollowJointTrajectory goal ends here
+            self.fjt.finish(INVALID_GOAL, "ended by ~/reset")
+        if self.loop is not None:  # the old task must not replay: zero until a trajectory
+            self.loop.drop_trajectory()
+        self.braked = bool(self.p["hold_until_command"]) and self.loop is None
         self.command_time = self.next_publish = self.next_shape = self.behind = 0.0
         self.last_wall = time.monotonic()
         self.diverged = None
@@ -518,6 +560,9 @@ class ModelNode(Node):
             if now >= self.next_diagnostic:
                 self.next_diagnostic = now + 1.0
                 self.publish_diagnostic(self.diverged)
+            if now >= self.next_held_state:  # the last good state, its effort zero
+                self.next_held_state = now + 1.0 / self.p["publish_rate"]
+                self.publish_state(full=True, shape=False)
             return
         if self.paused:
             return
@@ -618,8 +663,15 @@ class ModelNode(Node):
             return
         self.apply_command_timeout()
         try:
-            if self.loop is None:
-                self.stepper.advance(dt)
+            if self.braked or (self.loop is not None and self.loop.idle and
+                               self.p["hold_until_command"]):  # until a command/trajectory
+                self.stepper.hold(dt)
+            elif self.loop is None:
+                refined = self.stepper.advance_refining(dt)
+                if refined > 1:
+                    self.drops.warning(f"integration failed at t = {fmt(self.stepper.t - dt)}"
+                                       f" s with the step {fmt(self.stepper.max_step)} s; "
+                                       f"integrated again in steps {refined} x shorter")
             else:
                 self.loop.advance(max(1, int(round(dt / self.loop.period))))
         except Exception as exc:  # a diverged model stops stepping, loudly, and stays up
@@ -661,11 +713,12 @@ class ModelNode(Node):
         u = st.u.copy()
         k = int(np.argmax(np.abs(u))) if u.size else 0
         mass, inertia = st.model.payload
-        cause = (f"the arm's state ran away under the held joint command {fmt(u)} "
-                 f"(largest {fmt(abs(u[k]))} at {self.names[k]}) with the payload "
-                 f"{fmt(mass)} kg, {fmt(inertia)} kg m^2: likely a command or payload beyond "
-                 "what this arm can follow, or an unstable control loop (a sampled joint "
-                 "controller too stiff for the arm)")
+        peak = self._largest_recent_command(u)
+        cause = (f"the arm's state ran away under the joint command {fmt(u)} applied when it "
+                 f"failed (largest {fmt(abs(u[k]))} at {self.names[k]}){peak} with the "
+                 f"payload {fmt(mass)} kg, {fmt(inertia)} kg m^2: likely a command or payload "
+                 "beyond what this arm can follow, or an unstable control loop (a sampled "
+                 "joint controller too stiff for the arm)")
         self.diverged_at = st.t
         self.diverged = conv.diagnostic_status(
             self.get_fully_qualified_name(), self.model.arm.name, "error",
@@ -677,8 +730,20 @@ class ModelNode(Node):
         self.get_logger().error(self.diverged.message + f" ({exc})")
         self.publish_diagnostic(self.diverged)
         self.next_diagnostic = time.monotonic() + 1.0
+        self.next_held_state = 0.0  # the held state from the next tick on, effort zero
         if self.fjt is not None:
             self.fjt.check()
+
+    def _largest_recent_command(self, applied) -> str:
+        """'; the largest command before: [..] at t = .. s' (of the last COMMAND_MEMORY
+        since the start or ~/reset) if it exceeds the applied one (a pulse that left the
+        arm running away, a command timed out to zero), else ''."""
+        if not self.recent_commands:
+            return ""
+        tc, u = max(self.recent_commands, key=lambda item: float(np.max(np.abs(item[1]))))
+        if np.max(np.abs(u)) <= np.max(np.abs(applied)):
+            return ""
+        return f"; the largest command before: {fmt(u)} at t = {fmt(tc)} s"
 
     def publish_diagnostic(self, status) -> None:
         msg = DiagnosticArray(status=[status])

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import re
+from array import array
 import signal
 import sys
 import time
@@ -158,6 +159,8 @@ def coerce_parameter(spec: Param, value):
     else:  # a list (an empty one may come typed as a byte array)
         if value is None or isinstance(value, (bytes, bytearray)) and not value:
             value = []  # an empty list reaches rclpy untyped (NOT_SET) or as bytes
+        if isinstance(value, array):  # a list through the parameter service (ros2 param
+            value = value.tolist()    # set, --params-file): rclpy gives array('d'/'q')
         strings = spec.list_item is str
         ok = isinstance(value, (list, tuple)) and all(
             isinstance(v, str) if strings else _number(v) and math.isfinite(v)

@@ -17,8 +17,12 @@ from .dynamics import FlexArmModel
 from .inputs import input_data
 from .integrators import (consistent_acceleration, generalized_alpha, joint_torques,
                           restart_acceleration)
-from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, apply_payload_change, diverged,
-                       newton_failed)
+from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, SimulationDivergedError,
+                       apply_payload_change, diverged, newton_failed)
+
+#: finer steps (max_step / k) that :meth:`Stepper.advance_refining` tries, in turn, over a
+#: duration whose integration failed
+REFINEMENTS = (4, 16)
 
 
 class Stepper:
@@ -85,6 +89,35 @@ class Stepper:
         if status == 2:
             raise newton_failed(t_end, h, RUNAWAY)
         self.t, self.x, self.a, self.abar = self.t + duration, x_end, a, abar
+
+    def hold(self, duration: float) -> None:
+        """Let ``duration`` (s) pass with the state held where it is (the arm's brakes on:
+        joints and links do not move)."""
+        if duration > 0:
+            self.t += duration
+
+    def advance_refining(self, duration: float, refinements=REFINEMENTS) -> int:
+        """:meth:`advance`; if it fails (Newton or a run-away state), the same duration
+        again from the same state in steps of max_step / k for each k of ``refinements``
+        in turn. Returns the k that succeeded (1: none needed); raises the first failure
+        if every one fails. A failed attempt leaves the state unchanged."""
+        try:
+            self.advance(duration)
+            return 1
+        except SimulationDivergedError as first:
+            failure = first
+        step = self.max_step
+        try:
+            for k in refinements:
+                self.max_step = step / k
+                try:
+                    self.advance(duration)
+                    return k
+                except SimulationDivergedError:
+                    continue
+        finally:
+            self.max_step = step
+        raise failure
 
     # ------------------------------------------------------------------ outputs
     @property

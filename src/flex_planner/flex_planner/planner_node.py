@@ -8,31 +8,44 @@ from flex_model.ros_main import (Param, ParameterError, clock_topic_param,
                                  lean_node, run_node)
 from nav_msgs.msg import Path
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory
 
 from .config import DESCRIPTIONS, PlannerConfig
 from .planning import INTEGRATION_STEP, plan
-from .ros_messages import deflections_msg, nominal_path_msg, path_request, trajectory_msg
+from .ros_messages import (deflections_msg, nominal_path_msg, path_request,
+                           serialized_path_size, stamp_seconds, trajectory_msg)
 
 #: parameters fixed for the node's life (the model is built from them)
 READ_ONLY = ("arm", "vars_per_link")
 #: default bound on the samples of a plan (200 s at the default 1 ms)
 MAX_SAMPLES = 200_000
+#: default bound on the waypoints of a request (planning and building the message cost
+#: time in proportion: 1000 keep a request near a second on the dev machine)
+MAX_WAYPOINTS = 1000
+#: the planner's topics: relative names, not private ones (~/...), so that they do not
+#: follow the node's name (a renamed planner still feeds the model and the controller,
+#: which listen on flex_planner/trajectory) but do follow its namespace and remapping
+TOPICS = {name: f"flex_planner/{name}" for name in
+          ("waypoints", "trajectory", "nominal_path", "nominal_deflections")}
 
 
-def _max_samples(v):
+def _two_or_more(v):
     return None if v >= 2 else "an integer >= 2"
 
 
 def parameter_specs() -> tuple:
-    """PlannerConfig's fields (checked by PlannerConfig), ``max_samples`` and the node
-    parameters."""
+    """PlannerConfig's fields (checked by PlannerConfig), ``max_samples``,
+    ``max_waypoints`` and the node parameters."""
     specs = [Param(f.name, f.default, DESCRIPTIONS[f.name], runtime=f.name not in READ_ONLY)
              for f in fields(PlannerConfig)]
     specs.append(Param("max_samples", MAX_SAMPLES, "largest number of samples of a plan "
                        "(published, or computed at the nominal-input step if finer): a "
-                       "request needing more is refused", True, _max_samples))
+                       "request needing more is refused", True, _two_or_more))
+    specs.append(Param("max_waypoints", MAX_WAYPOINTS, "largest number of waypoints of a "
+                       "request: one with more is refused from its size alone, before it is "
+                       "deserialized", True, _two_or_more))
     specs += [Param(name, True, "false: see flex_model.ros_main.lean_node")
               for name in ("parameter_services", "qos_event_warnings")]
     specs.append(clock_topic_param("the stamps of nominal_path"))
@@ -49,25 +62,30 @@ def samples_needed(times, sample_period: float) -> int:
 class PlannerNode(Node):
     """Plans a tip path (thesis Ch. IV-V.1) for every request.
 
-    Subscription: ``~/waypoints`` (nav_msgs/Path; each pose's stamp is its time from the
-    start, positions in ``frame_id``; the tip orientation is the pose's yaw for arms with
-    three or more links). Publications (once per valid request): ``~/trajectory``
-    (trajectory_msgs/JointTrajectory: positions, velocities, accelerations and ``effort`` =
-    the admissible nominal torque every ``sample_period``), ``~/nominal_path`` (nav_msgs/Path,
-    the nominal tip path) and ``~/nominal_deflections`` (trajectory_msgs/JointTrajectory
-    whose "joints" are the model's deformation variables, m and rad). With the node name
-    ``flex_planner`` these are ``/flex_planner/...`` (``<ns>/flex_planner/...`` in a
-    namespace). Parameters: the fields of :class:`flex_planner.config.PlannerConfig`
-    (``arm``, ``vars_per_link`` read-only at run time; ``sample_period``, ``elbow``,
-    ``frame_id`` validated when set; a float takes an integer), ``max_samples`` (default
-    200000: a request whose plan needs more samples, e.g. a waypoint at t = 1e5 s, ~1e8
-    samples, is refused in one line before any work). A bad request (unreachable point,
-    times not increasing, empty path, wrong frame, too long) is logged as an error naming
-    the point, nothing is published for it, and the node keeps serving. A bad parameter at
-    start is one line naming it, its value and what is allowed. Node parameters
-    ``parameter_services`` and ``qos_event_warnings`` (default true, read-only at run
-    time): flex_model.ros_main.lean_node. With ``use_sim_time: true`` its stamps are the
-    simulation time of ``clock_topic`` (default /clock; ``clock``: the namespace's).
+    Subscription: ``flex_planner/waypoints`` (nav_msgs/Path; each pose's stamp is its time
+    from the start, positions in ``frame_id``; the tip orientation is the pose's yaw for
+    arms with three or more links). Publications (once per valid request):
+    ``flex_planner/trajectory`` (trajectory_msgs/JointTrajectory: positions, velocities,
+    accelerations and ``effort`` = the admissible nominal torque every ``sample_period``),
+    ``flex_planner/nominal_path`` (nav_msgs/Path, the nominal tip path) and
+    ``flex_planner/nominal_deflections`` (trajectory_msgs/JointTrajectory whose "joints"
+    are the model's deformation variables, m and rad): :data:`TOPICS`, relative names,
+    ``/flex_planner/...`` (``<ns>/flex_planner/...`` in a namespace) whatever the node's
+    name. Parameters: the fields of
+    :class:`flex_planner.config.PlannerConfig` (``arm``, ``vars_per_link`` read-only at run
+    time; ``sample_period``, ``elbow``, ``frame_id`` validated when set; a float takes an
+    integer), ``max_waypoints`` (default 1000: a request with more poses is refused from
+    its serialized size, before rclpy builds its poses) and ``max_samples`` (default
+    200000: a request whose first and last stamps span a plan of more samples, e.g. a
+    waypoint at t = 1e5 s, ~1e8 samples, is refused before any planning); each refusal is
+    one line, and the node stays responsive (Ctrl-C, later requests). A bad request
+    (unreachable point, times not increasing, empty path, wrong frame, too long) is logged
+    as an error naming the point, nothing is published for it, and the node keeps serving.
+    A bad parameter at start is one line naming it, its value and what is allowed. Node
+    parameters ``parameter_services`` and ``qos_event_warnings`` (default true, read-only
+    at run time): flex_model.ros_main.lean_node. With ``use_sim_time: true`` its stamps
+    are the simulation time of ``clock_topic`` (default /clock; ``clock``: the
+    namespace's).
     """
 
     def __init__(self, **kwargs):
@@ -75,6 +93,7 @@ class PlannerNode(Node):
         self.specs = parameter_specs()
         values = declare_parameters(self, self.specs)
         self.max_samples = values.pop("max_samples")
+        self.max_waypoints = values.pop("max_waypoints")
         lean = [values.pop(name) for name in ("parameter_services", "qos_event_warnings")]
         clock_topic = values.pop("clock_topic")
         try:
@@ -86,11 +105,14 @@ class PlannerNode(Node):
         reliable = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.pub_trajectory = self.create_publisher(JointTrajectory, "~/trajectory", reliable)
-        self.pub_path = self.create_publisher(Path, "~/nominal_path", latched)
-        self.pub_deflections = self.create_publisher(JointTrajectory, "~/nominal_deflections",
-                                                     latched)
-        self.create_subscription(Path, "~/waypoints", self.on_waypoints, reliable)
+        self.pub_trajectory = self.create_publisher(JointTrajectory, TOPICS["trajectory"],
+                                                    reliable)
+        self.pub_path = self.create_publisher(Path, TOPICS["nominal_path"], latched)
+        self.pub_deflections = self.create_publisher(JointTrajectory,
+                                                     TOPICS["nominal_deflections"], latched)
+        # raw: a request's size is read from its bytes before rclpy builds its poses
+        self.create_subscription(Path, TOPICS["waypoints"], self.on_waypoints, reliable,
+                                 raw=True)
         guard_parameters(self, self.specs, self.apply_parameters)
         follow_clock(self, clock_topic)
         lean_node(self, *lean)
@@ -98,24 +120,42 @@ class PlannerNode(Node):
                                f"coordinates) in frame {self.config.frame_id!r}")
 
     def apply_parameters(self, values: dict) -> None:
-        """Run-time sample_period, elbow, frame_id, max_samples (types checked; raises
-        ValueError with the reason)."""
+        """Run-time sample_period, elbow, frame_id, max_samples, max_waypoints (types
+        checked; raises ValueError with the reason)."""
         max_samples = values.pop("max_samples", self.max_samples)
+        max_waypoints = values.pop("max_waypoints", self.max_waypoints)
         self.config = replace(self.config, **values)
-        self.max_samples = max_samples
+        self.max_samples, self.max_waypoints = max_samples, max_waypoints
 
-    def on_waypoints(self, msg: Path) -> None:
+    def bounded_request(self, data: bytes) -> Path:
+        """The request of the serialized Path ``data``, refused (ValueError) before any
+        work if it has more than max_waypoints poses or its first and last stamps span a
+        plan of more than max_samples samples."""
+        n = serialized_path_size(data)
+        if n is not None and n > self.max_waypoints:
+            raise ValueError(f"Path.poses: got {n} poses; expected at most max_waypoints = "
+                             f"{self.max_waypoints} (thin the path, or raise max_waypoints)")
+        msg = deserialize_message(data, Path)
+        if len(msg.poses) > self.max_waypoints:  # not plain CDR: counted after all
+            raise ValueError(f"Path.poses: got {len(msg.poses)} poses; expected at most "
+                             f"max_waypoints = {self.max_waypoints}")
+        if len(msg.poses) >= 2:
+            times = [stamp_seconds(msg.poses[k].header.stamp) for k in (0, -1)]
+            need = samples_needed(times, self.config.sample_period)
+            if need > self.max_samples:
+                raise ValueError(
+                    f"Path.poses[{len(msg.poses) - 1}].header.stamp: got {times[-1]:.9g} s, "
+                    f"a plan of {times[-1] - times[0]:.9g} s needing {need} samples (every "
+                    f"{min(self.config.sample_period, INTEGRATION_STEP):g} s); expected at "
+                    f"most max_samples = {self.max_samples} (shorten the motion, or raise "
+                    "sample_period or max_samples)")
+        return msg
+
+    def on_waypoints(self, data: bytes) -> None:
         cfg = self.config
         try:
+            msg = self.bounded_request(data)
             pts, times, phis = path_request(msg, cfg.frame_id, self.model.n_links >= 3)
-            n = samples_needed(times, cfg.sample_period)
-            if n > self.max_samples:
-                raise ValueError(
-                    f"Path.poses[{len(times) - 1}].header.stamp: got {times[-1]:.9g} s, a plan "
-                    f"of {times[-1] - times[0]:.9g} s needing {n} samples (every "
-                    f"{min(cfg.sample_period, INTEGRATION_STEP):g} s); expected at most "
-                    f"max_samples = {self.max_samples} (shorten the motion, or raise "
-                    "sample_period or max_samples)")
             result = plan(self.model, pts, times, sample_period=cfg.sample_period,
                           elbow=cfg.elbow, orientations=phis)
         except (ValueError, RuntimeError) as exc:

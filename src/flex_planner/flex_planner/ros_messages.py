@@ -8,6 +8,8 @@ allowed, so the node can log it and publish nothing for that request.
 """
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 from builtin_interfaces.msg import Duration
 from geometry_msgs.msg import PoseStamped
@@ -30,6 +32,23 @@ def yaw(quaternion) -> float:
     """Rotation about z (rad) of a quaternion (planar tip orientation)."""
     q = quaternion
     return float(np.arctan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z)))
+
+
+def serialized_path_size(data: bytes) -> int | None:
+    """The number of poses of a serialized nav_msgs/Path (plain CDR, as the ROS 2 RMWs
+    write it), read from its first bytes without deserializing the poses (rclpy builds
+    every pose as Python objects: minutes for 10^6); None if the encapsulation is not
+    plain CDR."""
+    if len(data) < 20 or data[0] != 0 or data[1] not in (0, 1):
+        return None
+    order = "<" if data[1] == 1 else ">"
+    # after the 4-byte encapsulation (CDR aligns from there): header.stamp (8 bytes),
+    # header.frame_id (uint32 length with the NUL, the bytes), then the poses' count
+    (n_frame,) = struct.unpack_from(order + "I", data, 4 + 8)
+    count_at = 4 + (8 + 4 + n_frame + 3) // 4 * 4
+    if count_at + 4 > len(data):
+        return None
+    return struct.unpack_from(order + "I", data, count_at)[0]
 
 
 def path_request(msg: Path, frame_id: str, with_orientation: bool):
