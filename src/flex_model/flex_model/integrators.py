@@ -466,8 +466,10 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
     (Arnold-Bruls form of generalized-alpha): all of dA in the modes with
     gamma' omega, beta' omega^2 << 1, next to nothing in the unresolved ones.
     ``share`` = |dA - da|_B / |dA|_B, the part of the jump the step does not follow (kinetic
-    norm); ``overshoot`` = h^2 (1/2 - beta) max|dA - da|, the position (m or rad) the
-    consistent restart would add to it. When both exceed RESTART_SHARE and
+    norm); ``overshoot`` = k h^2 max|dA - da|, the position (m or rad) the consistent
+    restart would add to it, k = :func:`restart_kick` (1/2 - beta from rho_inf = 0.721 up;
+    issue 47: 1/2 - beta everywhere was <= 0 below rho_inf = sqrt(2) - 1, which never
+    filtered: tip deflections 1588 % off at 0.5 ms, rho_inf 0). When both exceed RESTART_SHARE and
     RESTART_OVERSHOOT the restart filters the jump, a = abar = a + da; otherwise it is the
     consistent one (results as before: smooth commands, arms with hub or rotor inertia,
     bristle states).
@@ -489,11 +491,29 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
     da = np.linalg.solve(S, Bj)
     e = jump - da
     share = np.sqrt(max(e @ (B @ e), 0.0) / full)
-    overshoot = h * h * (0.5 - beta) * np.max(np.abs(e))
+    overshoot = h * h * restart_kick(rho_inf) * np.max(np.abs(e))
     if share > RESTART_SHARE and overshoot > RESTART_OVERSHOOT:
         a1 = a + da
         return a1, a1.copy(), share, overshoot
     return ac, ac.copy(), share, overshoot
+
+
+@njit(cache=_CACHE)
+def restart_kick(rho_inf):
+    """Coefficient k of the position k h^2 |dA - da| a consistent restart adds to the modes
+    a step cannot follow (restart_acceleration's ``overshoot``): max(1/2 - beta,
+    gamma - 1/2) of Chung-Hulbert's parameters (Eq. 25 of Chung & Hulbert 1993).
+
+    1/2 - beta is the share of the old acceleration in the position update (h^2 (1/2 -
+    beta) abar_n, Arnold & Bruls 2007 Eq. 8a); it is 0.223 at rho_inf = 0.9 but 0 at
+    rho_inf = sqrt(2) - 1 and negative below, where a consistent restart still kicks
+    the unresolved modes, through the velocity update h ((1 - gamma) abar_n + gamma
+    abar_n+1): gamma - 1/2 = (1 - rho_inf) / (1 + rho_inf) is the scheme's numerical
+    damping, 1 at rho_inf = 0 (single mode h omega = 30: the consistent restart's
+    velocity 7.5 times the exact solution's largest at rho_inf = 0, 0.9 times at 0.9).
+    From rho_inf = 0.721 up the first term is the larger (decisions as before)."""
+    am, af, gam, beta = galpha_parameters(rho_inf)
+    return max(0.5 - beta, gam - 0.5)
 
 
 @njit(cache=_CACHE)
