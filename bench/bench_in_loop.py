@@ -120,7 +120,8 @@ def run_demos(seconds: float, rate: float) -> None:
         + f"; ratio {rows[0][1] / rows[1][1]:.1f}")
 
 
-TOPICS = ("/joint_states", "/clock", "/flex/deflections", "/flex/tip_pose", "/flex/shape")
+TOPICS = ("/joint_states", "/clock", "/flex/deflections", "/flex/tip_pose", "/flex/shape",
+          "/tf")
 
 
 def listener_main(out: str) -> None:
@@ -141,10 +142,12 @@ def listener_main(out: str) -> None:
         signal.signal(sig, lambda *_: stop.append(1))
     rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     node = rclpy.create_node("bench_listener")
-    counts = {t: 0 for t in TOPICS}
+    counts = {t: 0 for t in TOPICS}  # /tf: 0 where tf2_msgs does not import
+    from flex_model.model_node import tf_message_type
     types = {"/joint_states": JointState, "/clock": Clock, "/flex/deflections": JointState,
-             "/flex/tip_pose": PoseStamped, "/flex/shape": MarkerArray}
-    for topic in TOPICS:
+             "/flex/tip_pose": PoseStamped, "/flex/shape": MarkerArray,
+             "/tf": tf_message_type()[0]}
+    for topic in [t for t in TOPICS if types[t] is not None]:
         def count(_raw, topic=topic):
             counts[topic] += 1
         node.create_subscription(types[topic], topic, count, 100, raw=True)
@@ -191,7 +194,8 @@ def run_node(traj, theta0, rate: float, publish_rate: float, listen: bool = Fals
         node.loop.set_trajectory(traj, 0.0)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
-        pubs = (node.pub_js, node.pub_clock, node.pub_defl, node.pub_tip, node.pub_shape)
+        pubs = [p for p in (node.pub_js, node.pub_clock, node.pub_defl, node.pub_tip,
+                            node.pub_shape, node.pub_tf) if p is not None]
         end = time.monotonic() + 60.0
         while listen and not all(p.get_subscription_count() for p in pubs):
             if time.monotonic() > end or child.poll() is not None:
