@@ -17,8 +17,9 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
     flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor,
                         in the last link's tip frame
     robot_description   std_msgs/String          the URDF (transient local, depth 1)
-    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips; base ->
-                        arm_plane (where tf2_msgs imports: scripts/bootstrap.sh builds it)
+    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips (/tf
+                        while someone subscribes); base -> arm_plane (where tf2_msgs
+                        imports: scripts/bootstrap.sh builds it)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
     /diagnostics        diagnostic_msgs/DiagnosticArray  OK (running or paused, mode,
@@ -90,8 +91,9 @@ command for ``lockstep_timeout`` (wall) the model steps with the held one (a war
 the loop ran; before the first command this is the start: a controller timed by /clock
 needs that first step). The state messages are serialized once (CDR templates,
 flex_model.cdr_messages) and published as bytes, only their stamps and numbers written
-per publication (the same bytes a subscriber got from the message objects); flex/shape
-and flex/tip_imu, costly to compute, only while someone subscribes.
+per publication (the same bytes a subscriber got from the message objects; /tf too,
+from flex_model.urdf.ArmTransforms); flex/shape, flex/tip_imu and /tf only while someone
+subscribes.
 """
 from __future__ import annotations
 

@@ -145,7 +145,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             model.loop.set_trajectory(conv.trajectory_from_msg(plans[-1], model.names), 0.0)
         period, per_publish = 1.0 / rate, max(1, int(round(rate / publish_rate)))
         n_periods, done = int(round(duration * rate)), 0
-        loop_wall = 0.0
+        loop_wall = loop_cpu = 0.0
         with BagWriter(out_dir / "bag") as bag:
             # one time base, the simulation's: log time = the latest /clock (sim time from
             # 0, as ``ros2 bag record --use-sim-time``), header stamps (the same sim time)
@@ -158,7 +158,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             if in_loop:  # the start (the node published it before the recorder was there)
                 model.publish_state(full=True)
                 _load_compiled_loop(model.loop)
-            w0 = time.perf_counter()
+            w0, c0 = time.perf_counter(), time.process_time()
             while model.stepper.t < duration - 1e-9:
                 if in_loop:  # up to the next publication in one compiled call (paused node:
                     # its own timer does not step), then the recorder takes the messages
@@ -183,6 +183,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             ex.remove_node(model)
             _drain(ex, timeout_sec=QUIET)
             loop_wall = time.perf_counter() - w0
+            loop_cpu = time.process_time() - c0
             recorder.stop()
         wall = time.perf_counter() - wall0
     finally:
@@ -199,7 +200,8 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     summary = _summarize(tips, states, defl, plans[-1], wall, duration, out_dir, plane)
     summary.update(controller="in the model's loop (eq95)" if in_loop
                    else "controller node over topics",
-                   loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall)
+                   loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall,
+                   loop_cpu_s=loop_cpu, loop_cpu_real_time_factor=duration / loop_cpu)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
 
