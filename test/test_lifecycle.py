@@ -1,0 +1,207 @@
+"""Lifecycle nodes (issue 46): a real lifecycle client (lifecycle_msgs ChangeState and
+GetState on <node>/change_state, <node>/get_state, what ``ros2 lifecycle set`` calls) in
+another node drives the suite's nodes through configure, activate, deactivate, cleanup."""
+import time
+import uuid
+
+import numpy as np
+import pytest
+import rclpy
+from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from flex_model.arm import load_arm
+from flex_model.dynamics import FlexArmModel
+from flex_model.model_node import ModelNode
+from flex_model.stepper import Stepper
+
+
+def stamp_s(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+class Manager:
+    """``node`` in its own namespace, spun with a manager node holding its lifecycle
+    clients and a probe of its topics."""
+
+    def __init__(self, factory, name, **params):
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        ns = f"/lc{uuid.uuid4().hex[:8]}"
+        self.node = factory(context=self.ctx, namespace=ns, parameter_overrides=[
+            Parameter(k, value=v) for k, v in params.items()])
+        self.mgr = rclpy.create_node(f"manager_{uuid.uuid4().hex[:8]}", context=self.ctx,
+                                     namespace=ns)
+        self.change = self.mgr.create_client(ChangeState, f"{ns}/{name}/change_state")
+        self.get = self.mgr.create_client(GetState, f"{ns}/{name}/get_state")
+        self.states = []
+        self.mgr.create_subscription(JointState, "joint_states", self.states.append, 100)
+        self.cmd = self.mgr.create_publisher(Float64MultiArray, "effort_controller/commands",
+                                             100)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self.ex.add_node(self.mgr)
+        self.spin_until(lambda: self.change.service_is_ready() and self.get.service_is_ready(),
+                        "the lifecycle services")
+
+    def spin_until(self, pred, what, timeout=10.0):
+        end = time.monotonic() + timeout
+        while not pred():
+            assert time.monotonic() < end, f"timed out waiting for {what}"
+            self.ex.spin_once(timeout_sec=0.005)
+
+    def spin_for(self, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=0.005)
+
+    def call(self, client, request):
+        future = client.call_async(request)
+        self.spin_until(future.done, f"{client.srv_name}")
+        return future.result()
+
+    def state(self) -> str:
+        return self.call(self.get, GetState.Request()).current_state.label
+
+    def transition(self, transition_id) -> bool:
+        return self.call(self.change, ChangeState.Request(
+            transition=Transition(id=transition_id))).success
+
+    def close(self):
+        self.ex.shutdown()
+        self.node.destroy_node()
+        self.mgr.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+def core(arm: str, angles_deg, steps: int):
+    """The core's joint state after ``steps`` lockstep steps of 1 ms at zero torque."""
+    model = FlexArmModel(load_arm(arm))
+    ref = Stepper(model, model.q_from_joint_angles(np.radians(angles_deg)))
+    for _ in range(steps):
+        ref.advance(1e-3)
+    return ref.joint_state()
+
+
+@pytest.fixture
+def managed():
+    h = Manager(ModelNode, "flex_model", autostart=False, mode="lockstep", rate=1000.0,
+                publish_rate=1000.0, lockstep_timeout=100.0, hold_until_command=False,
+                initial_joint_angles_deg=[30.0, -20.0])
+    yield h
+    h.close()
+
+
+def step(h, k: int) -> None:
+    """``k`` zero-torque commands, one lockstep step (and joint_states) each."""
+    h.spin_until(lambda: h.cmd.get_subscription_count() > 0, "the command subscription")
+    for _ in range(k):
+        n = len(h.states)
+        h.cmd.publish(Float64MultiArray(data=[0.0, 0.0]))
+        h.spin_until(lambda: len(h.states) > n, "a step")
+
+
+def test_model_node_transitions_with_a_lifecycle_client(managed):
+    h = managed
+    assert h.state() == "unconfigured"
+    h.spin_for(0.2)
+    assert h.states == []  # unconfigured: no arm, nothing published
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "inactive"
+    h.spin_for(0.2)
+    assert h.states == []  # configured, not active: nothing stepping-related
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    assert h.state() == "active"
+    h.spin_until(lambda: h.states, "the state published on activate")
+    assert stamp_s(h.states[0]) == 0.0
+    step(h, 20)
+    angles, rates, _ = core("thesis_example1_motors", [30.0, -20.0], 20)
+    assert stamp_s(h.states[-1]) == pytest.approx(0.020, abs=1e-12)
+    np.testing.assert_allclose(h.states[-1].position, angles, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(h.states[-1].velocity, rates, rtol=0, atol=1e-10)
+    assert abs(rates[0]) > 1e-3  # the arm moves under gravity: a hold would fail this
+
+    # deactivate: commands are refused, nothing is published, the state is held
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.state() == "inactive"
+    held, n = h.states[-1], len(h.states)
+    for _ in range(10):
+        h.cmd.publish(Float64MultiArray(data=[0.0, 0.0]))
+        h.spin_for(0.03)
+    assert len(h.states) == n
+    assert h.node.stepper.t == pytest.approx(0.020, abs=1e-12)
+
+    # activate again: resumes from the held state, on the same time grid
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    h.spin_until(lambda: len(h.states) > n, "the held state on activate")
+    assert stamp_s(h.states[n]) == stamp_s(held)
+    np.testing.assert_array_equal(h.states[n].position, held.position)
+    step(h, 20)
+    angles, rates, _ = core("thesis_example1_motors", [30.0, -20.0], 40)
+    assert stamp_s(h.states[-1]) == pytest.approx(0.040, abs=1e-12)
+    np.testing.assert_allclose(h.states[-1].position, angles, rtol=0, atol=1e-12)
+
+    # cleanup: unconfigured, the arm released; configure another arm and run it
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.transition(Transition.TRANSITION_CLEANUP)
+    assert h.state() == "unconfigured"
+    assert not list(h.node.timers)
+    assert h.node.set_parameters([Parameter("arm", value="thesis_example1")])[0].successful
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.node.model.arm.name == "thesis_example1"
+    assert h.node.describe_parameter("arm").read_only  # configured: built from it
+    # new publishers (cleanup released the old ones): the probe matches them first
+    h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0, "discovery")
+    n = len(h.states)
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    h.spin_until(lambda: len(h.states) > n, "the new arm's first state")
+    assert stamp_s(h.states[n]) == 0.0
+    step(h, 20)
+    angles, rates, _ = core("thesis_example1", [30.0, -20.0], 20)
+    np.testing.assert_allclose(h.states[-1].position, angles, rtol=0, atol=1e-12)
+    other, _, _ = core("thesis_example1_motors", [30.0, -20.0], 20)
+    assert np.max(np.abs(np.asarray(other) - angles)) > 1e-6  # the two arms differ
+
+
+def test_a_bad_configure_fails_and_the_node_stays_unconfigured(managed):
+    h = managed
+    assert h.node.set_parameters([Parameter("arm", value="no_such_arm")])[0].successful
+    assert not h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "unconfigured"
+    assert not list(h.node.timers) and h.states == []
+    # the node keeps running: a good value configures it
+    assert h.node.set_parameters([Parameter("arm", value="thesis_example1")])[0].successful
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "inactive"
+
+
+def test_a_bad_value_fails_configure_with_the_start_line():
+    """A value the parameter check refuses: configure FAILURE, logged with the same line
+    that autostart (run_node) prints and exits with."""
+    h = Manager(ModelNode, "flex_model", autostart=False, rate=-5.0)
+    try:
+        assert not h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.state() == "unconfigured"
+        assert str(h.node._failure) == "parameter rate: got -5; expected a number > 0"
+    finally:
+        h.close()
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        with pytest.raises(ValueError, match="parameter rate: got -5; expected a number > 0"):
+            ModelNode(context=ctx, parameter_overrides=[Parameter("rate", value=-5.0)])
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_autostart_default_is_active():
+    h = Manager(ModelNode, "flex_model")
+    try:
+        assert h.state() == "active"
+        h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
+    finally:
+        h.close()
