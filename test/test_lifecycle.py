@@ -205,3 +205,105 @@ def test_autostart_default_is_active():
         h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
     finally:
         h.close()
+
+
+def test_controller_node_transitions_with_a_lifecycle_client():
+    """Active: Eq. 45 about the first measured pose; deactivate: zero torques once, then
+    silence; activate: the same held reference; cleanup and a configure with another
+    hold pose; a bad law fails configure."""
+    from flex_control.controller_node import ControllerNode
+    from flex_control.laws import PDLikeCascade, hold_reference
+    h = Manager(ControllerNode, "flex_controller", autostart=False, law="eq45",
+                joint_names=["j"], torque_limits=[1e9], state_timeout=30.0)
+    got = []
+    h.mgr.create_subscription(Float64MultiArray, "effort_controller/commands",
+                              lambda m: got.append(list(m.data)), 100)
+    js = h.mgr.create_publisher(JointState, "joint_states", 10)
+
+    def command_for(pos, vel, expected=None):
+        """The command once the timer has used the state (pos, vel): the first one, or
+        the first equal to ``expected`` within 1 s (commands come at rate_hz)."""
+        n = len(got)
+        js.publish(JointState(name=["j"], position=[pos], velocity=[vel]))
+        h.spin_until(lambda: len(got) > n, "a command")
+        end = time.monotonic() + 1.0
+        while expected is not None and got[-1][0] != pytest.approx(expected, rel=1e-12) \
+                and time.monotonic() < end:
+            h.ex.spin_once(timeout_sec=0.005)
+        return got[-1][0]
+
+    def want(ref, pos, vel):
+        return PDLikeCascade(hold_reference(["j"], [ref])).torque(0.0, [pos], [vel])[0]
+
+    try:
+        assert h.state() == "unconfigured"
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        h.spin_until(lambda: js.get_subscription_count() > 0, "discovery")
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        command_for(0.2, 0.0)  # the first measured pose becomes the held reference
+        w = want(0.2, 0.1, 0.01)
+        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        h.spin_for(0.1)
+        assert got[-1] == [0.0]  # zero torques once
+        n = len(got)
+        for _ in range(5):
+            js.publish(JointState(name=["j"], position=[0.1], velocity=[0.01]))
+            h.spin_for(0.05)
+        assert len(got) == n  # inactive: no commands
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        w = want(0.2, 0.1, 0.01)
+        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        assert h.transition(Transition.TRANSITION_CLEANUP)
+        assert h.node.set_parameters([Parameter("law", value="no_such_law")])[0].successful
+        assert not h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.state() == "unconfigured"
+        assert h.node.set_parameters([Parameter("law", value="eq45"), Parameter(
+            "hold_joint_angles_deg", value=[-10.0])])[0].successful
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        h.spin_until(lambda: h.node.pub.get_subscription_count() > 0, "discovery")
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        w = want(np.radians(-10.0), 0.1, 0.01)
+        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+    finally:
+        h.close()
+
+
+def test_planner_node_plans_only_while_active():
+    from nav_msgs.msg import Path
+    from geometry_msgs.msg import PoseStamped
+    from trajectory_msgs.msg import JointTrajectory
+    from flex_planner import SECTION_F_TIMES, SECTION_F_WAYPOINTS
+    from flex_planner.planner_node import PlannerNode
+    h = Manager(PlannerNode, "flex_planner", autostart=False, arm="thesis_example1",
+                sample_period=0.02)
+    got = []
+    h.mgr.create_subscription(JointTrajectory, "flex_planner/trajectory", got.append, 5)
+    pub = h.mgr.create_publisher(Path, "flex_planner/waypoints", 5)
+    path = Path()
+    path.header.frame_id = "arm_plane"
+    for (x, y), t in zip(SECTION_F_WAYPOINTS, SECTION_F_TIMES):
+        ps = PoseStamped()
+        ps.header.stamp.sec, ps.header.stamp.nanosec = int(t), int(round((t % 1) * 1e9))
+        ps.pose.position.x, ps.pose.position.y, ps.pose.orientation.w = x, y, 1.0
+        path.poses.append(ps)
+    try:
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        h.spin_until(lambda: pub.get_subscription_count() > 0 and
+                     h.node.pub_trajectory.get_subscription_count() > 0, "discovery")
+        pub.publish(path)  # inactive: refused
+        h.spin_for(0.3)
+        assert got == []
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        pub.publish(path)
+        h.spin_until(lambda: got, "a plan", timeout=30.0)
+        assert list(got[0].joint_names) == ["joint1", "joint2"]
+        assert len(got[0].points) == pytest.approx(SECTION_F_TIMES[-1] / 0.02, abs=2)
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        assert h.transition(Transition.TRANSITION_CLEANUP)
+        assert h.node.set_parameters([Parameter("arm", value="no_such_arm")])[0].successful
+        assert not h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.state() == "unconfigured"
+    finally:
+        h.close()
