@@ -307,3 +307,61 @@ def test_planner_node_plans_only_while_active():
         assert h.state() == "unconfigured"
     finally:
         h.close()
+
+
+def test_entry_point_with_autostart_false_is_managed_and_exits_cleanly():
+    """The model node as a process (its console entry point's main) with autostart:=false:
+    unconfigured and silent until a lifecycle client configures and activates it, then
+    joint_states flow; SIGINT: exit status 0 after the shutdown transition."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    ns = f"/lcp{os.getpid()}_{uuid.uuid4().hex[:6]}"
+    proc = subprocess.Popen([sys.executable, "-m", "flex_model.model_node", "--ros-args",
+                             "-r", f"__ns:={ns}", "-p", "autostart:=false"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    mgr = rclpy.create_node(f"lcmgr_{uuid.uuid4().hex[:6]}", context=ctx, namespace=ns)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(mgr)
+    states = []
+    mgr.create_subscription(JointState, "joint_states", states.append, 10)
+    change = mgr.create_client(ChangeState, f"{ns}/flex_model/change_state")
+    get = mgr.create_client(GetState, f"{ns}/flex_model/get_state")
+
+    def until(pred, what, timeout=30.0):
+        end = time.monotonic() + timeout
+        while not pred():
+            assert time.monotonic() < end, f"timed out waiting for {what}"
+            assert proc.poll() is None, proc.stdout.read().decode()
+            ex.spin_once(timeout_sec=0.01)
+
+    def call(client, request):
+        future = client.call_async(request)
+        until(future.done, client.srv_name)
+        return future.result()
+
+    try:
+        until(lambda: change.service_is_ready() and get.service_is_ready(), "the services")
+        assert call(get, GetState.Request()).current_state.id == State.PRIMARY_STATE_UNCONFIGURED
+        end = time.monotonic() + 0.3
+        until(lambda: time.monotonic() > end, "a while")
+        assert states == []
+        for t in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+            assert call(change, ChangeState.Request(transition=Transition(id=t))).success
+        assert call(get, GetState.Request()).current_state.id == State.PRIMARY_STATE_ACTIVE
+        until(lambda: len(states) >= 5, "joint_states")
+        assert stamp_s(states[-1]) > stamp_s(states[0])  # the realtime loop runs
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=20)
+        assert proc.returncode == 0, out.decode()
+        assert "inactive: stepping stopped" in out.decode()  # on_shutdown deactivated it
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        ex.shutdown()
+        mgr.destroy_node()
+        rclpy.try_shutdown(context=ctx)

@@ -327,6 +327,21 @@ class Managed:
             self.destroy_node()
             raise self._failure
         self.trigger_activate()
+        if self.has_parameter("parameter_services") and \
+                not self.get_parameter("parameter_services").value:
+            self._unmanaged()
+
+    def _unmanaged(self) -> None:
+        """A lean autostarted node (parameter_services false: its parameters cannot be
+        reached from outside either) leaves its five lifecycle services out of the
+        executor's wait set, as lean_node leaves out the parameter services: no outside
+        manager then, and no cost per wait. (They are taken out of the node's service
+        list, not destroyed: the rcl state machine owns them.)"""
+        lifecycle = {"change_state", "get_state", "get_available_states",
+                     "get_available_transitions", "get_transition_graph"}
+        for srv in list(self.services):
+            if srv.srv_name.rsplit("/", 1)[-1] in lifecycle:
+                self._services.remove(srv)
 
     def on_configure(self, state):
         from rclpy.lifecycle import TransitionCallbackReturn as R
@@ -452,7 +467,8 @@ def stop_on_signals():
 def run_node(factory, args=None, on_stop=None) -> None:
     """init, spin the node made by ``factory`` in a SingleThreadedExecutor until SIGINT or
     SIGTERM, call ``on_stop(node)`` while the context is still valid (the controller
-    commands zero torques there), destroy, shut down.
+    commands zero torques there), a lifecycle node's shutdown transition, destroy, shut
+    down.
 
     rclpy's signal handlers are replaced by :func:`stop_on_signals`, so no callback runs
     into a context that Ctrl-C has already shut down. A :class:`ParameterError` from the
@@ -479,6 +495,8 @@ def run_node(factory, args=None, on_stop=None) -> None:
         if node is not None:
             if on_stop is not None and rclpy.ok():
                 on_stop(node)
+            if isinstance(node, Managed) and rclpy.ok():
+                node.trigger_shutdown()  # lifecycle: on_shutdown, to finalized
             if executor is not None:
                 executor.shutdown()
             node.destroy_node()
