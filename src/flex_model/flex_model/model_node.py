@@ -65,6 +65,11 @@ shape_rate, command_timeout, timeout_action, lockstep_timeout and the plausibili
 may be set (checked); the others are read_only in their descriptors (rclpy refuses them),
 and the bounded numbers carry ranges (:data:`RANGES`).
 
+Lifecycle (issue 46, flex_model.ros_main.Managed, docs/ros.md "Lifecycle"): a managed
+node; ``autostart`` (default true) configures and activates it at start; false: it starts
+unconfigured for a lifecycle manager. configure loads the arm, activate runs the loop,
+deactivate holds the state (time stands still, inputs refused), cleanup releases the arm.
+
 Bad inputs are dropped with a reason logged at most once a second per reason (not per
 call site: a wrong length does not hide a NaN). A failed integration step (Newton fails,
 the state runs away) under external commands is done again in steps 4, then 16 x
@@ -426,12 +431,13 @@ class ModelNode(Managed, LifecycleNode):
                                "the state held")
 
     def _cleanup(self) -> None:
-        """Release the live view's server (the entities go in ros_main.Managed)."""
+        """Release the arm, the in-loop controller and the live view's server (the
+        entities go in ros_main.Managed)."""
         if self.fjt is not None:
             self.fjt.finish(INVALID_GOAL, "ended by cleanup (lifecycle)")
         if self.live_view is not None:
             self.live_view.close()
-        self.loop = self.fjt = self.live_view = None
+        self.loop = self.fjt = self.live_view = self.stepper = self.model = None
 
     def _inactive(self) -> str | None:
         """Why an input is refused in the inactive state (lifecycle), or None."""
