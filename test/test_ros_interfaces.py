@@ -12,7 +12,6 @@ rebuild the frame chain, which ends at the pose on /flex/tip_pose; the graph rep
 hash for /tf, and rosbags decodes the raw /tf bytes to the same numbers (the wire format).
 """
 import json
-import math
 import os
 import re
 import subprocess
@@ -22,7 +21,6 @@ import uuid
 from pathlib import Path
 
 import numpy as np
-import pytest
 import rclpy
 from geometry_msgs.msg import PoseStamped
 from rclpy.executors import SingleThreadedExecutor
@@ -132,7 +130,8 @@ def _chain(transforms, parent, child):
 def test_tf_from_another_process_ends_at_the_tip_pose(repo_root):
     """A model node (realtime, the arm falling from 40, -30 deg under gravity) in its own
     process; here /tf_static (latched) + /tf rebuild base_link -> link2_tip: at the stamps
-    of /flex/tip_pose its (x, y, phi) in arm_plane, (x, 0, y) in the base (z up)."""
+    of /flex/tip_pose (in the base frame, z up) its position and orientation, in the arm's
+    plane."""
     prefix = f"t{uuid.uuid4().hex[:6]}/"
     ns = f"/tf{uuid.uuid4().hex[:6]}"
     env = dict(os.environ, FLEX_TWIN_NUMBA_WARMUP="0")
@@ -180,21 +179,19 @@ def test_tf_from_another_process_ends_at_the_tip_pose(repo_root):
         base, plane, tip = f"{prefix}base_link", f"{prefix}arm_plane", f"{prefix}link2_tip"
         tree = dict(next(iter(static.values())))
         assert tree[plane].header.frame_id == base
-        angles = []
+        tips_x = []
         for s in common[-10:]:
             tree.update(tfs[s])
-            pose = tips[s].pose
-            x, y = pose.position.x, pose.position.y
-            phi = 2.0 * math.atan2(pose.orientation.z, pose.orientation.w)
-            r, p = _chain(tree, plane, tip)
-            np.testing.assert_allclose(p, [x, y, 0.0], rtol=0, atol=1e-9)
-            np.testing.assert_allclose(r, [[math.cos(phi), -math.sin(phi), 0],
-                                           [math.sin(phi), math.cos(phi), 0], [0, 0, 1]],
-                                       rtol=0, atol=1e-9)
+            pose = tips[s].pose   # in the base frame, as the markers (issue 46 item 10e)
+            assert tips[s].header.frame_id == base
+            o = pose.orientation
             r, p = _chain(tree, base, tip)
-            np.testing.assert_allclose(p, [x, 0.0, y], rtol=0, atol=1e-9)
-            angles.append(phi)
-        assert np.ptp(angles) > 1e-4  # the arm moved: the chain followed it
+            np.testing.assert_allclose(p, [pose.position.x, pose.position.y, pose.position.z],
+                                       rtol=0, atol=1e-9)
+            np.testing.assert_allclose(r, _matrix((o.x, o.y, o.z, o.w)), rtol=0, atol=1e-9)
+            assert abs(_chain(tree, plane, tip)[1][2]) < 1e-12   # in the arm's plane
+            tips_x.append(pose.position.x)
+        assert np.ptp(tips_x) > 1e-4  # the arm moved: the chain followed it
         from rosbags.typesys import Stores, get_typestore
         store, decoded = get_typestore(Stores.ROS2_JAZZY), 0
         for data in raw:

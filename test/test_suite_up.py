@@ -335,3 +335,21 @@ def test_record_during_up_is_complete_and_in_sim_time(tmp_path):
         assert np.all(stamps - log >= -1e-9) and np.all(stamps - log <= period + 1e-9)
         assert abs((log[-1] - log[0]) - (stamps[-1] - stamps[0])) <= period + 1e-9
     assert "log time = sim time (/clock)" in err
+
+
+def test_a_topic_loop_controller_holds_its_models_start_not_the_sagged_pose():
+    """Issue 46 item 8: over topics, each controller node holds its own namespace's model
+    start until a trajectory arrives (a restart then holds the same pose, no creep); a
+    pose in the file is kept; in the loop there is no controller node to tell."""
+    from flex_twin.ros_suite import suite_nodes
+    raw = {"flex_model": {"initial_joint_angles_deg": [151.0, -20.0]},
+           "flex_controller": {"rate_hz": 500.0},
+           "/arm2/flex_model": {}, "/arm2/flex_controller": {},
+           "/arm3/flex_model": {}, "/arm3/flex_controller": {"hold_joint_angles_deg": [5.0]}}
+    params, _ = suite_nodes(raw, topic_loop=True)
+    assert params["flex_controller"]["hold_joint_angles_deg"] == [151.0, -20.0]
+    assert params["/arm2/flex_controller"]["hold_joint_angles_deg"] == [0.0]  # the default
+    assert params["/arm3/flex_controller"]["hold_joint_angles_deg"] == [5.0]
+    assert "hold_joint_angles_deg" not in raw["flex_controller"]   # the file is not changed
+    in_loop, _ = suite_nodes(raw)
+    assert not any("hold_joint_angles_deg" in body for body in in_loop.values())

@@ -84,6 +84,24 @@ def in_loop_parameters(params: dict) -> dict:
     return out
 
 
+def held_at_the_model_start(params: dict) -> dict:
+    """Each controller node (over topics) holds its model's initial joint angles until a
+    trajectory arrives (``hold_joint_angles_deg``; issue 46 item 8: holding the first
+    measured, sagged pose crept at every restart), unless its file gives a pose."""
+    from flex_model.model_node import PARAMETERS
+    default = next(p.default for p in PARAMETERS if p.name == "initial_joint_angles_deg")
+    keys = {split_name(k): k for k in params}
+    out = dict(params)
+    for key, body in params.items():
+        ns, name = split_name(key)
+        model = keys.get((ns, "flex_model"))
+        if name == "flex_controller" and model is not None and \
+                not body.get("hold_joint_angles_deg"):
+            hold = params[model].get("initial_joint_angles_deg", default)
+            out[key] = dict(body, hold_joint_angles_deg=[float(a) for a in hold])
+    return out
+
+
 def _with_controller(model: dict, controller: dict) -> dict:
     """A model's parameters with the controller's law in its loop."""
     from flex_control.controller_node import NODE_DEFAULTS
@@ -106,8 +124,7 @@ def suite_nodes(params: dict, topic_loop: bool = False) -> tuple[dict, list]:
     """What ``up`` (and the launch file) starts from a parameter file's ``params``: the
     parameters (the controller folded into the model unless ``topic_loop``) and per node
     (package, executable, namespace, name)."""
-    if not topic_loop:
-        params = in_loop_parameters(params)
+    params = in_loop_parameters(params) if not topic_loop else held_at_the_model_start(params)
     nodes = []
     for key in params:
         ns, name = split_name(key)
