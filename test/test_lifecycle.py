@@ -186,7 +186,7 @@ def test_a_bad_value_fails_configure_with_the_start_line():
     try:
         assert not h.transition(Transition.TRANSITION_CONFIGURE)
         assert h.state() == "unconfigured"
-        assert str(h.node._failure) == "parameter rate: got -5; expected a number > 0"
+        assert str(h.node.configure_error) == "parameter rate: got -5; expected a number > 0"
     finally:
         h.close()
     ctx = rclpy.Context()

@@ -433,9 +433,9 @@ class ModelNode(Managed, LifecycleNode):
     def _cleanup(self) -> None:
         """Release the arm, the in-loop controller and the live view's server (the
         entities go in ros_main.Managed)."""
-        if self.fjt is not None:
+        if getattr(self, "fjt", None) is not None:  # (a failed configure: partly built)
             self.fjt.finish(INVALID_GOAL, "ended by cleanup (lifecycle)")
-        if self.live_view is not None:
+        if getattr(self, "live_view", None) is not None:
             self.live_view.close()
         self.loop = self.fjt = self.live_view = self.stepper = self.model = None
 

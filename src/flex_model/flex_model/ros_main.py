@@ -301,17 +301,20 @@ class Managed:
     ros2_control's managed nodes: configure loads and checks (``_configure``: a
     :class:`ParameterError` is FAILURE with that line, the node stays unconfigured),
     activate starts the loop (``_activate``), deactivate holds (``_deactivate``), cleanup
-    destroys what configure and activate made (``_cleanup`` first) and unlocks the
-    parameters, shutdown does what is due of those. ``specs`` are the node's parameters:
+    destroys what configure and activate made (``_cleanup`` first, also after a failed
+    configure: it must take a partly built node) and unlocks the parameters, shutdown
+    does what is due of those. Another exception of configure is FAILURE too (autostart:
+    raised as before). ``specs`` are the node's parameters:
     declared in the constructor (``ros2 param`` works unconfigured), read_only while
     configured. ``autostart`` (default true) configures and activates in the
-    constructor; there a configure failure raises its :class:`ParameterError`."""
+    constructor; there a configure failure raises its :class:`ParameterError`.
+    ``configure_error``: the exception of the last failed configure, else None."""
 
     configured = active = False
 
     def _start_lifecycle(self, specs) -> None:
         """Call at the end of ``__init__``, after declaring ``specs`` and guarding them."""
-        self._specs, self._made, self._failure = specs, None, None
+        self._specs, self._made, self.configure_error = specs, None, None
         declare_only(self, [AUTOSTART])
         self.set_descriptor("autostart", descriptor(AUTOSTART))
         if not self.get_parameter("autostart").value:
@@ -323,9 +326,9 @@ class Managed:
             self.trigger_configure()
         finally:
             self._autostarting = False
-        if self._failure is not None:
+        if self.configure_error is not None:
             self.destroy_node()
-            raise self._failure
+            raise self.configure_error
         self.trigger_activate()
         if self.has_parameter("parameter_services") and \
                 not self.get_parameter("parameter_services").value:
@@ -345,15 +348,17 @@ class Managed:
 
     def on_configure(self, state):
         from rclpy.lifecycle import TransitionCallbackReturn as R
-        self._made, self._failure = _entities(self), None
+        self._made, self.configure_error = _entities(self), None
         try:
             self._configure()
-        except ParameterError as exc:
+        except Exception as exc:  # a ParameterError: its line; else the exception's
+            self._cleanup()       # (what was made of it: a live view's server)
             destroy_since(self, self._made)
             unlock_parameters(self, self._specs)
-            self._made, self._failure = None, exc
+            self._made, self.configure_error = None, exc
             if not getattr(self, "_autostarting", False):  # (autostart: run_node prints it)
-                self.get_logger().error(f"configure failed: {exc}")
+                why = exc if isinstance(exc, ParameterError) else repr(exc)
+                self.get_logger().error(f"configure failed: {why}")
             return R.FAILURE
         self.configured = True
         return R.SUCCESS
