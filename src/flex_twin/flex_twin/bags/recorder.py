@@ -74,6 +74,8 @@ class Recorder:
     Each callback takes every message waiting in all the subscriptions and handles them in
     the order they were published (:meth:`_take`), with ``depth`` (1000) per topic: a
     lockstep suite publishing faster than one executor wake-up per message loses none.
+    :meth:`drain` does the same without the executor. ``keep``: topics whose serialized
+    messages are also kept in :attr:`kept` (the twin demo's summary reads them).
     """
 
     def __init__(self, node, bag_writer: BagWriter, topics, *, use_header_stamp=(),
