@@ -4,7 +4,8 @@ VALIDATION.md section E (the thesis's efficiency example): three links held by a
 -20, 20, -20 deg (relative), 1000 N m on joint 1 over 3-4 s; the equations of motion are
 thesis Eq. (84) in the wavelet variables. The scenario file gives the arm, the start, the
 PD and the integrator; here its duration is shortened and the step fixed. Prints the
-largest tip deflection of each link and writes scenario.png.
+largest tip deflection of each link and the last joint angles (the arm still swings after
+the pulse) and writes scenario.png.
 
     python examples/simulate_scenario.py              # 6 s
     FLEX_TWIN_EXAMPLES_QUICK=1 python examples/simulate_scenario.py   # 4.5 s (the tests)
