@@ -1,12 +1,13 @@
-"""Diagnose a recording: a synthetic unit with a hidden heavier tool, named by the twin.
+"""Diagnose a recording: a synthetic unit with a hidden change of its tool, named by the twin.
 
 flex_twin.diagnosis.synthetic writes what a user hands the diagnosis (docs/diagnosis.md):
 two closed-loop recordings (fit and held out) of a "true" thesis Example 1 arm with geared
-motors whose parameters scatter within tolerance and whose tool is heavier than the
-nominal 0.15 kg, plus the nominal arm and the controller (PD with gravity feed-forward).
-The diagnosis replays the recordings on the nominal twin in closed loop, recalibrates
-within tolerance, and fits the library's effects that pass its screening; it prints the
-verdict and the named effect with its parameters (truth.json holds the hidden value).
+motors whose parameters scatter within tolerance and whose tool is not the nominal 0.15 kg
+(seed 1001: a lighter one), plus the nominal arm and the controller (PD with gravity
+feed-forward). The diagnosis replays the recordings on the nominal twin in closed loop,
+recalibrates within tolerance and fits the library's effects that pass its screening.
+Prints the verdict, the named effects and the tool mass: nominal, diagnosed (the updated
+twin's) and hidden (truth.json, which the diagnosis never reads).
 
     python examples/diagnose_recording.py             # 12 s recordings
     FLEX_TWIN_EXAMPLES_QUICK=1 python examples/diagnose_recording.py   # 4 s, 1 candidate
