@@ -72,6 +72,8 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
 
     from flex_model import ros_conversions as conv
     from .bags import BagWriter, Recorder
+    from flex_model.control_loop import compile_ahead_in_background
+    from flex_model.errors import SimulationDivergedError
     from flex_model.model_node import ModelNode
 
     out_dir = Path(out_dir or Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-twin-demo")
@@ -86,6 +88,9 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         "parameter_services", "qos_event_warnings", "start_type_description_service")]
     nodes, ex = [], None
     wall0 = time.perf_counter()
+    # the model's in-loop kernels compile on the second core while the planner compiles its
+    # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo)
+    ahead = compile_ahead_in_background(arm, 1.0 / rate) if in_loop else None
     try:
         planner = PlannerNode(context=ctx, parameter_overrides=[
             P("arm", value=arm), P("sample_period", value=1.0 / rate), *lean])
@@ -114,11 +119,11 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                                      QoSProfile(depth=1,
                                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
-        def spin_until(pred, what, timeout=120.0):
+        def spin_until(pred, what, timeout=600.0):
             end = time.monotonic() + timeout
             while not pred():
                 if time.monotonic() > end:
-                    raise RuntimeError(f"twin demo: timed out waiting for {what}")
+                    raise TimeoutError(f"twin demo: timed out waiting for {what}")
                 ex.spin_once(timeout_sec=0.01)
         spin_until(lambda: pub.get_subscription_count() > 0, "the planner")
         pub.publish(_waypoints_msg(conv.stamp))
@@ -127,6 +132,8 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         own = [P("controller", value="eq95"), P("controller_rate", value=rate),
                P("controller_params.h", value=[25.0]), P("controller_params.a", value=[5.0]),
                P("start_paused", value=True)] if in_loop else []
+        if ahead is not None:
+            ahead.wait()
         model = ModelNode(context=ctx, parameter_overrides=[
             P("arm", value=arm), P("mode", value="lockstep"), P("rate", value=rate),
             P("publish_rate", value=publish_rate),
@@ -157,8 +164,8 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                     model.step(k * period)
                     done += k
                     if model.diverged is not None:
-                        raise RuntimeError("twin demo: the model diverged: "
-                                           f"{model.diverged.message}")
+                        raise SimulationDivergedError(
+                            f"twin demo: the model diverged: {model.diverged.message}")
                     _drain(ex)
                 else:
                     ex.spin_once(timeout_sec=0.01)
@@ -175,6 +182,9 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             recorder.stop()
         wall = time.perf_counter() - wall0
     finally:
+        if ahead is not None and ahead.poll() is None:   # the demo failed before the model
+            ahead.kill()
+            ahead.wait()
         if ex is not None:
             ex.shutdown()
         for n in nodes:
