@@ -6,16 +6,16 @@ from dataclasses import fields, replace
 
 import numpy as np
 from rclpy.duration import Duration
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.ros_main import (Param, ParameterError, ReasonLog, clock_topic_param,
-                                 declare_parameters, fmt, follow_clock, guard_parameters,
-                                 lean_node, run_node)
+from flex_model.ros_main import (Managed, Param, ParameterError, ReasonLog,
+                                 clock_topic_param, declare_only, fmt, follow_clock,
+                                 guard_parameters, lean_node, read_parameters, run_node)
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
@@ -67,8 +67,10 @@ def stand_in_joints(values: dict) -> tuple:
     return tuple(f"joint{i + 1}" for i in range(k))
 
 
-class ControllerNode(Node):
-    """Joint torque controller.
+class ControllerNode(Managed, LifecycleNode):
+    """Joint torque controller; a lifecycle node (flex_model.ros_main.Managed): configure
+    builds the controller, activate starts its timer, deactivate stops it and commands
+    zero torques once, cleanup releases the controller.
 
     Subscriptions: ``joint_states`` (sensor_msgs/JointState; without velocities the rates
     are differentiated positions), ``flex_planner/trajectory`` (trajectory_msgs/
@@ -114,7 +116,14 @@ class ControllerNode(Node):
     def __init__(self, **kwargs):
         super().__init__("flex_controller", **kwargs)
         self.specs = parameter_specs()
-        values = declare_parameters(self, self.specs)
+        declare_only(self, self.specs)
+        guard_parameters(self, self.specs, self.apply_parameters,
+                         frozen=lambda: self.configured)
+        self._start_lifecycle(self.specs)
+
+    def _configure(self) -> None:
+        """Read and check the parameters, build the controller, its topics."""
+        values = read_parameters(self, self.specs)
         lean = [values.pop(name) for name, _ in NODE_PARAMETERS]
         clock_topic = values.pop("clock_topic")
         self.hold_deg = values.pop("hold_joint_angles_deg")
@@ -151,13 +160,23 @@ class ControllerNode(Node):
         if self.params.use_deflections:
             self.create_subscription(JointState, "flex/deflections", self.on_deflections,
                                      qos_profile_sensor_data)
-        guard_parameters(self, self.specs, self.apply_parameters)
         follow_clock(self, clock_topic)
-        self.timer = self.create_timer(1.0 / self.params.rate_hz, self.on_timer)
+        self.timer = None  # while active
         lean_node(self, *lean)
         joints = list(names) if names else "the joints of joint_states"
         self.get_logger().info(f"law {self.params.law} on {joints} at "
                                f"{self.params.rate_hz:g} Hz")
+
+    def _activate(self) -> None:
+        """Start the control timer (the held reference and the joints stay)."""
+        self.timer = self.create_timer(1.0 / self.params.rate_hz, self.on_timer)
+
+    def _deactivate(self) -> None:
+        """Stop the timer and command zero torques once (as on SIGINT)."""
+        self.destroy_timer(self.timer)
+        self.timer = None
+        self.publish_zero()
+        self.get_logger().info("inactive: no commands; zero torques commanded once")
 
     def _once(self, key, text, level="warning") -> None:
         """Log ``text`` once per ``key`` (each severity from its own call site)."""
@@ -347,7 +366,9 @@ class ControllerNode(Node):
 
     def stop(self) -> None:
         """The last act of a stopping node (SIGINT/SIGTERM, ``flex-twin up``'s end):
-        zero torques."""
+        zero torques (inactive or unconfigured: nothing, deactivate commanded them)."""
+        if not self.active:
+            return
         if self.names is None:
             self.get_logger().info("stopped: no joints known, nothing was commanded")
             return

@@ -50,6 +50,6 @@ def run_command(args) -> int:
     except (ConfigError, ValueError, FileNotFoundError) as exc:
         print(f"flex-twin: error: {exc}", file=sys.stderr)
         return 2
-    except (SolverError, np.linalg.LinAlgError) as exc:
+    except (SolverError, TimeoutError, np.linalg.LinAlgError) as exc:
         print(f"flex-twin: failed: {exc}", file=sys.stderr)
         return 1

@@ -106,3 +106,27 @@ class ControlLoop:
             raise newton_failed(
                 t_fail, self.period / max(1, int(np.ceil(self.period / st.max_step - 1e-9))),
                 RUNAWAY)
+
+
+def compile_ahead(arm: str, period: float, law: str = "eq95") -> None:
+    """Compile the in-loop kernels for ``arm`` (a preset or file) and ``law`` into numba's
+    on-disk cache: two periods of a held arm, nothing computed that is kept."""
+    from .arm import load_arm
+    from .controller_interface import load_controller
+    from .dynamics import FlexArmModel
+    model = FlexArmModel(load_arm(arm))
+    ctl = load_controller(law, list(model.arm.joint_names), {})
+    ControlLoop(Stepper(model), ctl, period).advance(2)
+
+
+def compile_ahead_in_background(arm: str, period: float, law: str = "eq95"):
+    """:func:`compile_ahead` in another process (the second core), e.g. while a planner
+    compiles its own loops; returns the Popen (``wait()`` before building the model: then
+    the model loads the kernels from the cache instead of compiling them again)."""
+    import subprocess
+    import sys
+    code = ("import sys; from flex_model.control_loop import compile_ahead; "
+            "compile_ahead(sys.argv[1], float(sys.argv[2]), sys.argv[3])")
+    return subprocess.Popen([sys.executable, "-c", code, str(arm), repr(float(period)), law],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)

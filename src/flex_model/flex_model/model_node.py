@@ -17,8 +17,9 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
     flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor,
                         in the last link's tip frame
     robot_description   std_msgs/String          the URDF (transient local, depth 1)
-    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips; base ->
-                        arm_plane (where tf2_msgs imports: scripts/bootstrap.sh builds it)
+    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips (/tf
+                        while someone subscribes); base -> arm_plane (where tf2_msgs
+                        imports: scripts/bootstrap.sh builds it)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
     /diagnostics        diagnostic_msgs/DiagnosticArray  OK (running or paused, mode,
@@ -65,6 +66,11 @@ shape_rate, command_timeout, timeout_action, lockstep_timeout and the plausibili
 may be set (checked); the others are read_only in their descriptors (rclpy refuses them),
 and the bounded numbers carry ranges (:data:`RANGES`).
 
+Lifecycle (issue 46, flex_model.ros_main.Managed, docs/ros.md "Lifecycle"): a managed
+node; ``autostart`` (default true) configures and activates it at start; false: it starts
+unconfigured for a lifecycle manager. configure loads the arm, activate runs the loop,
+deactivate holds the state (time stands still, inputs refused), cleanup releases the arm.
+
 Bad inputs are dropped with a reason logged at most once a second per reason (not per
 call site: a wrong length does not hide a NaN). A failed integration step (Newton fails,
 the state runs away) under external commands is done again in steps 4, then 16 x
@@ -90,8 +96,9 @@ command for ``lockstep_timeout`` (wall) the model steps with the held one (a war
 the loop ran; before the first command this is the start: a controller timed by /clock
 needs that first step). The state messages are serialized once (CDR templates,
 flex_model.cdr_messages) and published as bytes, only their stamps and numbers written
-per publication (the same bytes a subscriber got from the message objects); flex/shape
-and flex/tip_imu, costly to compute, only while someone subscribes.
+per publication (the same bytes a subscriber got from the message objects; /tf too,
+from flex_model.urdf.ArmTransforms); flex/shape, flex/tip_imu and /tf only while someone
+subscribes.
 """
 from __future__ import annotations
 
@@ -106,7 +113,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
@@ -122,9 +129,9 @@ from .arm import load_arm
 from .control_loop import ControlLoop
 from .controller_interface import load_controller
 from .dynamics import FlexArmModel
-from .ros_main import (FLOAT_MAX, INT_MAX, Param, ParameterError, ReasonLog,
-                       declare_parameters, fmt,
-                       guard_parameters, lean_node, run_node)
+from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog,
+                       declare_only, fmt, guard_parameters, lean_node, read_parameters,
+                       run_node)
 from .stepper import Stepper
 from .trajectory_action import INVALID_GOAL, action_server
 
@@ -174,10 +181,11 @@ def plausibility_limits(model: FlexArmModel) -> dict:
             "max_payload_inertia": 10.0 * inertia}
 
 
-def _refuse_controller_params(changes) -> SetParametersResult:
-    """controller_params.* are read when the in-loop controller is built: a change at run
-    time is refused with the reason (it would be accepted and do nothing)."""
-    for p in changes:
+def _refuse_controller_params(changes, configured: bool = True) -> SetParametersResult:
+    """controller_params.* are read when the in-loop controller is built (configure): a
+    change while configured is refused with the reason (it would be accepted and do
+    nothing)."""
+    for p in changes if configured else ():
         if p.name.startswith("controller_params."):
             return SetParametersResult(successful=False, reason=(
                 f"parameter {p.name} is read-only at run time (the in-loop controller is "
@@ -271,12 +279,24 @@ RANGES = {"vars_per_link": (0, INT_MAX, 2), "rate": (0.0, FLOAT_MAX),
           "controller_rate": (0.0, FLOAT_MAX)}
 
 
-class ModelNode(Node):
-    """The arm simulated at ``rate`` and published at ``publish_rate``."""
+class ModelNode(Managed, LifecycleNode):
+    """The arm simulated at ``rate`` and published at ``publish_rate``; a lifecycle node
+    (ros_main.Managed): configure loads the arm, activate runs the loop, deactivate holds
+    the state (time stands still), cleanup releases the arm."""
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
-        p = declare_parameters(self, PARAMETERS, RANGES)
+        declare_only(self, PARAMETERS)
+        guard_parameters(self, PARAMETERS, lambda d: self.p.update(d),
+                         frozen=lambda: self.configured)
+        self.add_on_set_parameters_callback(
+            lambda changes: _refuse_controller_params(changes, self.configured))
+        self._start_lifecycle(PARAMETERS)
+
+    def _configure(self) -> None:
+        """Read and check the parameters, load the arm, make the publishers,
+        subscriptions, services and the in-loop controller."""
+        p = read_parameters(self, PARAMETERS, RANGES)
         try:
             arm = load_arm(p["arm"], p["vars_per_link"] or None)
             if p["kinematics"]:
@@ -351,7 +371,7 @@ class ModelNode(Node):
         self.pub_clock = self.create_publisher(Clock, p["clock_topic"], qos) \
             if p["mode"] == "lockstep" or p["publish_clock"] else None
         self.pub_description = self.create_publisher(String, "robot_description", LATCHED)
-        self.pub_tf = self.msg_tf = None
+        self.pub_tf = self.cdr_tf = None
         self._tf_setup(p)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
         self.create_subscription(Float64MultiArray, "effort_controller/commands",
@@ -362,14 +382,7 @@ class ModelNode(Node):
         self.loop = self._in_loop_controller(p) if p["controller"] else None
         # control_msgs/FollowJointTrajectory for the in-loop controller (trajectory_action)
         self.fjt = action_server(self) if self.loop is not None else None
-        guard_parameters(self, PARAMETERS, self.p.update)
-        self.last_wall = time.monotonic()
-        # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog;
-        # lockstep with an in-loop controller: each tick runs the loop for LOCKSTEP_SLICE s
-        period = 1.0 / p["rate"] if p["mode"] == "realtime" else 0.05
-        if self.loop is not None and p["mode"] == "lockstep":
-            period = 1e-4
-        self.timer = self.create_timer(period, self.on_tick)
+        self.timer = None  # the model loop's, while active
         self.create_timer(1.0, self.on_status,  # wall time: sim time may stand still
                           clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         if p["mode"] == "realtime" and p["realtime_priority"]:
@@ -378,7 +391,6 @@ class ModelNode(Node):
         self.pub_description.publish(String(data=urdf.robot_description(
             self.model, p["frame_prefix"], p["frame_id"],
             effort_limits=[self.limit("max_torque")] * n)))
-        self.publish_state(full=True)
         self.get_logger().info(f"arm {arm.name} ({self.model.nq} coordinates, joints "
                                f"{', '.join(self.names)}), {p['mode']} at {p['rate']:g} Hz, "
                                f"publishing at {p['publish_rate']:g} Hz; plausibility "
@@ -387,6 +399,51 @@ class ModelNode(Node):
                                f"{self.limit('max_payload_inertia'):.4g} kg m^2"
                                + ("; the initial state is held until the first command "
                                   "(hold_until_command)" if self.braked else ""))
+
+    def _activate(self) -> None:
+        """Start the model loop from the held state (the wall time spent inactive is not
+        integrated) and publish that state."""
+        p = self.p
+        self.last_wall, self.behind = time.monotonic(), 0.0
+        # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog;
+        # lockstep with an in-loop controller: each tick runs the loop for LOCKSTEP_SLICE s
+        period = 1.0 / p["rate"] if p["mode"] == "realtime" else 0.05
+        if self.loop is not None and p["mode"] == "lockstep":
+            period = 1e-4
+        self.timer = self.create_timer(period, self.on_tick)
+        self.publish_state(full=True)
+
+    def _deactivate(self) -> None:
+        """Stop the loop: time and state stand still, nothing stepping-related is
+        published, inputs are refused. The command becomes the safe one of a command
+        timeout (timeout_action zero: zero torque) and, with hold_until_command, the arm is
+        held after activate until the next command; an in-loop controller's trajectory
+        (and goal) ends, as on ~/reset."""
+        self.destroy_timer(self.timer)
+        self.timer = None
+        if self.fjt is not None:
+            self.fjt.finish(INVALID_GOAL, "ended by deactivate (lifecycle)")
+        if self.loop is not None:  # as ~/reset: zero (held) until the next trajectory
+            self.loop.drop_trajectory()
+        else:
+            if self.p["timeout_action"] == "zero":
+                self.stepper.set_command(np.zeros(self.model.n_links))
+            self.braked = bool(self.p["hold_until_command"])
+        self.get_logger().info(f"inactive: stepping stopped at t = {fmt(self.stepper.t)} s, "
+                               "the state held")
+
+    def _cleanup(self) -> None:
+        """Release the arm, the in-loop controller and the live view's server (the
+        entities go in ros_main.Managed)."""
+        if getattr(self, "fjt", None) is not None:  # (a failed configure: partly built)
+            self.fjt.finish(INVALID_GOAL, "ended by cleanup (lifecycle)")
+        if getattr(self, "live_view", None) is not None:
+            self.live_view.close()
+        self.loop = self.fjt = self.live_view = self.stepper = self.model = None
+
+    def _inactive(self) -> str | None:
+        """Why an input is refused in the inactive state (lifecycle), or None."""
+        return None if self.active else "the node is inactive (lifecycle): activate it"
 
     def _tf_setup(self, p) -> None:
         """/tf_static (base -> arm_plane, latched) once and /tf publishers, if tf2_msgs can
@@ -403,9 +460,9 @@ class ModelNode(Node):
         self.create_publisher(tf_type, "/tf_static", LATCHED).publish(
             tf_type(transforms=conv.Transforms(static).msgs))
         self.pub_tf = self.create_publisher(tf_type, "/tf", 100)
-        self.tf_msgs = conv.Transforms(urdf.arm_transforms(self.model, self.stepper.q,
-                                                           self.frames))
-        self.msg_tf = tf_type(transforms=self.tf_msgs.msgs)
+        # the moving transforms as numbers into a CDR template (flex_model.cdr_messages)
+        self.tf_values = urdf.ArmTransforms(self.model, self.frames)
+        self.cdr_tf = conv.transforms_cdr(tf_type, self.tf_values.pairs)
 
     def _in_loop_controller(self, p) -> ControlLoop:
         """The controller named by the parameter ``controller`` in the model's loop (the
@@ -415,13 +472,13 @@ class ModelNode(Node):
         prefix = "controller_params."
         params = {}
         for name, override in getattr(self, "_parameter_overrides", {}).items():
-            if name.startswith(prefix):
-                params[name[len(prefix):]] = self.declare_parameter(name, override.value).value
+            if name.startswith(prefix):  # (declared at the first configure)
+                params[name[len(prefix):]] = (self.get_parameter(name) if self.has_parameter(
+                    name) else self.declare_parameter(name, override.value)).value
         try:
             ctl = load_controller(p["controller"], self.names, params)
         except ValueError as exc:
             raise ParameterError(f"parameter {exc}") from None
-        self.add_on_set_parameters_callback(_refuse_controller_params)
         self.create_subscription(JointTrajectory, "flex_planner/trajectory",
                                  self.on_trajectory, 1)
         self.get_logger().info(f"in-loop controller {p['controller']} at "
@@ -430,6 +487,8 @@ class ModelNode(Node):
 
     def on_trajectory(self, msg: JointTrajectory) -> None:
         try:
+            if not self.active:
+                raise ValueError(self._inactive())
             data = conv.trajectory_from_msg(msg, self.names)
             start = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
             self.loop.set_trajectory(data, start if start > 0 else self.stepper.t)
@@ -468,6 +527,8 @@ class ModelNode(Node):
                                   f"one per joint: {', '.join(self.names)}")
             conv.within_limit(u, self.limit("max_torque"), "command", self.names,
                               "max_torque", "N m")
+            if not self.active:
+                raise ValueError(self._inactive())
             if self.diverged is not None:
                 raise ValueError(f"the model diverged at t = "
                                  f"{fmt(self.diverged_at)} s and is stopped; call ~/reset")
@@ -501,6 +562,8 @@ class ModelNode(Node):
                                      f"plausibility limit; raise {limit} if intended)")
             if self.diverged is not None:
                 raise ValueError("the model diverged and is stopped; call ~/reset")
+            if not self.active:
+                raise ValueError(self._inactive())
             self.stepper.set_payload(m, j)
         except ValueError as exc:
             self.drops.warning(f"dropped flex/payload: {exc}")
@@ -510,6 +573,9 @@ class ModelNode(Node):
     def on_reset(self, request, response):
         """Back to the initial state, payload and a zero command at t = 0; after a
         divergence this restarts the loop (the diagnostic goes back to OK)."""
+        if not self.active:
+            response.success, response.message = False, self._inactive()
+            return response
         was_diverged = self.diverged is not None
         self.stepper.model.set_payload(*self.payload0)
         self.stepper.reset()
@@ -540,10 +606,14 @@ class ModelNode(Node):
         if self.diverged is None:
             self.publish_diagnostic(conv.diagnostic_status(
                 self.get_fully_qualified_name(), self.model.arm.name, "ok",
-                f"{'paused' if self.paused else 'running'} ({self.p['mode']})",
+                ("inactive" if not self.active else "paused" if self.paused else "running")
+                + f" ({self.p['mode']})",
                 t=fmt(self.stepper.t)))
 
     def on_pause(self, request, response):
+        if not self.active:
+            response.success, response.message = False, self._inactive()
+            return response
         was_paused, self.paused = self.paused, bool(request.data)
         if self.p["mode"] == "lockstep":  # realtime: paused ticks keep last_wall on the grid
             self.last_wall = time.monotonic()
@@ -769,7 +839,8 @@ class ModelNode(Node):
         values[0:2 * n:2], values[1:2 * n:2] = q[self._tip_index], r @ q
         values[2 * n::2], values[2 * n + 1::2] = v[self._tip_index], r @ v
         self.pub_defl.publish(self.cdr_defl.fill(t, values))
-        x, y = self.model.link_origins(q)[-1]  # st.tip_pose()
+        origins = self.model.link_origins(q)
+        x, y = origins[-1]  # st.tip_pose()
         phi = float(q[self._last_alpha] + r[-1] @ q)
         self.pub_tip.publish(self.cdr_tip.fill(t, conv.tip_pose_values(x, y, phi,
                                                                        self.plane)))
@@ -789,10 +860,11 @@ class ModelNode(Node):
                 self.plane @ urdf.matrix_from_quaternion(urdf.yaw_quaternion(phi)))
             self.pub_imu.publish(self.cdr_imu.fill(t, conv.imu_values(
                 st.tip_specific_force(), rate, orientation)))
-        if self.pub_tf is not None:
-            self.msg_tf.transforms = self.tf_msgs.update(
-                t, urdf.arm_transforms(self.model, st.q, self.frames))
-            self.pub_tf.publish(self.msg_tf)
+        # /tf while someone subscribes (volatile: a later subscriber gets the next ones,
+        # as it would), as bytes: the TFMessage of urdf.arm_transforms
+        if self.pub_tf is not None and self.pub_tf.get_subscription_count():
+            rows = self.tf_values.values(q, origins)
+            self.pub_tf.publish(self.cdr_tf.fill(t, rows.ravel()))
 
 
 def _arm_argument(argv) -> str | None:

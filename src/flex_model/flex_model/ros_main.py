@@ -206,23 +206,44 @@ def declare_parameters(node, specs, ranges=None) -> dict:
     values; raises :class:`ParameterError` naming the first bad one. Then each gets its
     full :func:`descriptor` (read_only, ``ranges[name]``), after the check, so that a bad
     start value is still the check's one line."""
-    values = {}
-    ranges = ranges or {}
+    declare_only(node, specs)
+    return read_parameters(node, specs, ranges)
+
+
+def declare_only(node, specs) -> None:
+    """Declare ``specs`` with dynamic typing and writable descriptors, unchecked (a
+    lifecycle node's constructor: ``ros2 param`` works while it is unconfigured)."""
     for spec in specs:
         desc = ParameterDescriptor(description=spec.doc, dynamic_typing=True)
         default = list(spec.default) if isinstance(spec.default, tuple) else spec.default
-        value = node.declare_parameter(spec.name, default, desc).value
-        values[spec.name] = coerce_parameter(spec, value)
+        node.declare_parameter(spec.name, default, desc)
+
+
+def read_parameters(node, specs, ranges=None) -> dict:
+    """The checked values of the declared ``specs`` (:class:`ParameterError` naming the
+    first bad one), then each its full :func:`descriptor` (read_only, range)."""
+    values = {s.name: coerce_parameter(s, node.get_parameter(s.name).value) for s in specs}
     for spec in specs:
-        node.set_descriptor(spec.name, descriptor(spec, ranges.get(spec.name)))
+        node.set_descriptor(spec.name, descriptor(spec, (ranges or {}).get(spec.name)))
     return values
 
 
-def guard_parameters(node, specs, apply: Callable | None = None) -> None:
+def unlock_parameters(node, specs) -> None:
+    """Writable descriptors again (a lifecycle cleanup: the next configure reads new
+    values). rclpy's set_descriptor refuses a read_only parameter, so the descriptor is
+    replaced in the node's table (``Node._descriptors``, rclpy Jazzy)."""
+    for spec in specs:
+        node._descriptors[spec.name] = ParameterDescriptor(description=spec.doc,
+                                                           dynamic_typing=True)
+
+
+def guard_parameters(node, specs, apply: Callable | None = None,
+                     frozen: Callable | None = None) -> None:
     """Refuse ``set_parameters`` with a reason for parameters that cannot change at run
-    time (``runtime`` false) and for bad values; hand the accepted values of runtime
-    parameters to ``apply(dict)``. Parameters not in ``specs`` (rclpy's ``use_sim_time``)
-    are left to rclpy. Call after declaring (rclpy runs the callback on declarations)."""
+    time (``runtime`` false; a lifecycle node: only while ``frozen()``, i.e. configured)
+    and for bad values; hand the accepted values of runtime parameters to
+    ``apply(dict)``. Parameters not in ``specs`` (rclpy's ``use_sim_time``) are left to
+    rclpy. Call after declaring (rclpy runs the callback on declarations)."""
     by_name = {s.name: s for s in specs}
 
     def callback(changes) -> SetParametersResult:
@@ -231,7 +252,7 @@ def guard_parameters(node, specs, apply: Callable | None = None) -> None:
             spec = by_name.get(p.name)
             if spec is None:
                 continue
-            if not spec.runtime:
+            if not spec.runtime and (frozen is None or frozen()):
                 return SetParametersResult(successful=False, reason=(
                     f"parameter {p.name} is read-only at run time (the node is built from "
                     f"it); restart the node with -p {p.name}:=..."))
@@ -239,13 +260,159 @@ def guard_parameters(node, specs, apply: Callable | None = None) -> None:
                 accepted[p.name] = coerce_parameter(spec, p.value)
             except ParameterError as exc:
                 return SetParametersResult(successful=False, reason=str(exc))
-        if accepted and apply is not None:
+        if accepted and apply is not None and (frozen is None or frozen()):
             try:
                 apply(accepted)
             except ValueError as exc:
                 return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
     node.add_on_set_parameters_callback(callback)
+
+
+#: the ``autostart`` parameter of the lifecycle nodes (:class:`Managed`)
+AUTOSTART = Param("autostart", True, "configure and activate at start (lifecycle); "
+                  "false: start unconfigured, a lifecycle manager (ros2 lifecycle set, "
+                  "lifecycle_msgs/srv/ChangeState on <node>/change_state) drives it")
+
+
+def _entities(node) -> dict:
+    return {"publishers": set(node.publishers), "subscriptions": set(node.subscriptions),
+            "services": set(node.services), "timers": set(node.timers),
+            "clients": set(node.clients), "waitables": set(node.waitables)}
+
+
+def destroy_since(node, before: dict) -> None:
+    """Destroy what ``node`` made since ``before`` (:func:`_entities`): publishers,
+    subscriptions, services, timers, clients, then the rest of its waitables (an action
+    server)."""
+    now = _entities(node)
+    for kind in ("publishers", "subscriptions", "services", "timers", "clients"):
+        destroy = getattr(node, "destroy_" + kind[:-1])
+        for entity in now[kind] - before[kind]:
+            destroy(entity)
+    for waitable in set(node.waitables) - before["waitables"]:
+        waitable.destroy()  # an ActionServer removes itself from the node
+        if waitable in node.waitables:
+            node.remove_waitable(waitable)
+
+
+class Managed:
+    """The lifecycle of a suite node (a mixin before rclpy's LifecycleNode, issue 46), as
+    ros2_control's managed nodes: configure loads and checks (``_configure``: a
+    :class:`ParameterError` is FAILURE with that line, the node stays unconfigured),
+    activate starts the loop (``_activate``), deactivate holds (``_deactivate``), cleanup
+    destroys what configure and activate made (``_cleanup`` first, also after a failed
+    configure: it must take a partly built node) and unlocks the parameters, shutdown
+    does what is due of those. Another exception of configure is FAILURE too (autostart:
+    raised as before). ``specs`` are the node's parameters:
+    declared in the constructor (``ros2 param`` works unconfigured), read_only while
+    configured. ``autostart`` (default true) configures and activates in the
+    constructor; there a configure failure raises its :class:`ParameterError`.
+    ``configure_error``: the exception of the last failed configure, else None."""
+
+    configured = active = False
+
+    def _start_lifecycle(self, specs) -> None:
+        """Call at the end of ``__init__``, after declaring ``specs`` and guarding them."""
+        self._specs, self._made, self.configure_error = specs, None, None
+        declare_only(self, [AUTOSTART])
+        self.set_descriptor("autostart", descriptor(AUTOSTART))
+        if not self.get_parameter("autostart").value:
+            self.get_logger().info("unconfigured (autostart false): waiting for a "
+                                   "lifecycle manager")
+            return
+        self._autostarting = True
+        try:
+            self.trigger_configure()
+        finally:
+            self._autostarting = False
+        if self.configure_error is not None:
+            self.destroy_node()
+            raise self.configure_error
+        self.trigger_activate()
+        if self.has_parameter("parameter_services") and \
+                not self.get_parameter("parameter_services").value:
+            self._unmanaged()
+
+    def _unmanaged(self) -> None:
+        """A lean autostarted node (parameter_services false: its parameters cannot be
+        reached from outside either) leaves its five lifecycle services out of the
+        executor's wait set, as lean_node leaves out the parameter services: no outside
+        manager then, and no cost per wait. (They are taken out of the node's service
+        list, not destroyed: the rcl state machine owns them.)"""
+        lifecycle = {"change_state", "get_state", "get_available_states",
+                     "get_available_transitions", "get_transition_graph"}
+        for srv in list(self.services):
+            if srv.srv_name.rsplit("/", 1)[-1] in lifecycle:
+                self._services.remove(srv)
+
+    def on_configure(self, state):
+        from rclpy.lifecycle import TransitionCallbackReturn as R
+        self._made, self.configure_error = _entities(self), None
+        try:
+            self._configure()
+        except Exception as exc:  # a ParameterError: its line; else the exception's
+            self._cleanup()       # (what was made of it: a live view's server)
+            destroy_since(self, self._made)
+            unlock_parameters(self, self._specs)
+            self._made, self.configure_error = None, exc
+            if not getattr(self, "_autostarting", False):  # (autostart: run_node prints it)
+                why = exc if isinstance(exc, ParameterError) else repr(exc)
+                self.get_logger().error(f"configure failed: {why}")
+            return R.FAILURE
+        self.configured = True
+        return R.SUCCESS
+
+    def on_activate(self, state):
+        from rclpy.lifecycle import TransitionCallbackReturn as R
+        self.active = True
+        self._activate()
+        return R.SUCCESS
+
+    def on_deactivate(self, state):
+        from rclpy.lifecycle import TransitionCallbackReturn as R
+        self.active = False
+        self._deactivate()
+        return R.SUCCESS
+
+    def on_cleanup(self, state):
+        from rclpy.lifecycle import TransitionCallbackReturn as R
+        self._release()
+        return R.SUCCESS
+
+    def on_shutdown(self, state):
+        from rclpy.lifecycle import TransitionCallbackReturn as R
+        if self.active:
+            self.active = False
+            self._deactivate()
+        self._release()
+        return R.SUCCESS
+
+    def on_error(self, state):
+        from rclpy.lifecycle import TransitionCallbackReturn as R
+        self.active = False
+        self._release()
+        return R.SUCCESS
+
+    def _release(self) -> None:
+        if self._made is not None:
+            self._cleanup()
+            destroy_since(self, self._made)
+            self._made = None
+        self.configured = False
+        unlock_parameters(self, self._specs)
+
+    def _configure(self) -> None:
+        """Read the parameters, build the node's objects, publishers, subscriptions."""
+
+    def _activate(self) -> None:
+        """Start the timers (the loop) and publishing."""
+
+    def _deactivate(self) -> None:
+        """Stop the timers; hold."""
+
+    def _cleanup(self) -> None:
+        """Release what is not an entity of the node (a live view's server)."""
 
 
 _NUMBER = re.compile(r"nan|inf|[-+]?\d[\d.]*(?:e[-+]?\d+)?", re.IGNORECASE)
@@ -305,7 +472,8 @@ def stop_on_signals():
 def run_node(factory, args=None, on_stop=None) -> None:
     """init, spin the node made by ``factory`` in a SingleThreadedExecutor until SIGINT or
     SIGTERM, call ``on_stop(node)`` while the context is still valid (the controller
-    commands zero torques there), destroy, shut down.
+    commands zero torques there), a lifecycle node's shutdown transition, destroy, shut
+    down.
 
     rclpy's signal handlers are replaced by :func:`stop_on_signals`, so no callback runs
     into a context that Ctrl-C has already shut down. A :class:`ParameterError` from the
@@ -332,6 +500,8 @@ def run_node(factory, args=None, on_stop=None) -> None:
         if node is not None:
             if on_stop is not None and rclpy.ok():
                 on_stop(node)
+            if isinstance(node, Managed) and rclpy.ok():
+                node.trigger_shutdown()  # lifecycle: on_shutdown, to finalized
             if executor is not None:
                 executor.shutdown()
             node.destroy_node()

@@ -175,7 +175,8 @@ def test_lean_node_leaves_only_its_own_entities():
     try:
         n_entities = len([*full.node.publishers, *full.node.subscriptions])
         assert len([*full.node.waitables]) == 2 * n_entities
-        assert len([*full.node.services]) == 2 + 6 + 1   # own, parameters, type description
+        # own, parameters, type description, lifecycle (issue 46)
+        assert len([*full.node.services]) == 2 + 6 + 1 + 5
     finally:
         full.close()
     h = Harness(arm="thesis_example1", mode="lockstep", lockstep_timeout=30.0,

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
-from flex_model.ros_main import (Param, ParameterError, clock_topic_param,
-                                 declare_parameters, follow_clock, guard_parameters,
-                                 lean_node, run_node)
+from flex_model.ros_main import (Managed, Param, ParameterError, clock_topic_param,
+                                 declare_only, follow_clock, guard_parameters, lean_node,
+                                 read_parameters, run_node)
 from nav_msgs.msg import Path
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode
 from rclpy.serialization import deserialize_message
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory
@@ -59,8 +59,10 @@ def samples_needed(times, sample_period: float) -> int:
     return int(duration / min(sample_period, INTEGRATION_STEP) + 1e-6) + 2
 
 
-class PlannerNode(Node):
-    """Plans a tip path (thesis Ch. IV-V.1) for every request.
+class PlannerNode(Managed, LifecycleNode):
+    """Plans a tip path (thesis Ch. IV-V.1) for every request; a lifecycle node
+    (flex_model.ros_main.Managed): configure loads the arm and makes the topics, only an
+    active node plans (inactive: a request is refused with one line), cleanup releases.
 
     Subscription: ``flex_planner/waypoints`` (nav_msgs/Path; each pose's stamp is its time
     from the start, positions in ``frame_id``; the tip orientation is the pose's yaw for
@@ -91,7 +93,14 @@ class PlannerNode(Node):
     def __init__(self, **kwargs):
         super().__init__("flex_planner", **kwargs)
         self.specs = parameter_specs()
-        values = declare_parameters(self, self.specs)
+        declare_only(self, self.specs)
+        guard_parameters(self, self.specs, self.apply_parameters,
+                         frozen=lambda: self.configured)
+        self._start_lifecycle(self.specs)
+
+    def _configure(self) -> None:
+        """Read and check the parameters, load the arm, make the topics."""
+        values = read_parameters(self, self.specs)
         self.max_samples = values.pop("max_samples")
         self.max_waypoints = values.pop("max_waypoints")
         lean = [values.pop(name) for name in ("parameter_services", "qos_event_warnings")]
@@ -113,7 +122,6 @@ class PlannerNode(Node):
         # raw: a request's size is read from its bytes before rclpy builds its poses
         self.create_subscription(Path, TOPICS["waypoints"], self.on_waypoints, reliable,
                                  raw=True)
-        guard_parameters(self, self.specs, self.apply_parameters)
         follow_clock(self, clock_topic)
         lean_node(self, *lean)
         self.get_logger().info(f"planning for {self.model.arm.name} ({self.model.nq} "
@@ -154,6 +162,8 @@ class PlannerNode(Node):
     def on_waypoints(self, data: bytes) -> None:
         cfg = self.config
         try:
+            if not self.active:
+                raise ValueError("the node is inactive (lifecycle): activate it")
             msg = self.bounded_request(data)
             pts, times, phis = path_request(msg, cfg.frame_id, self.model.n_links >= 3)
             result = plan(self.model, pts, times, sample_period=cfg.sample_period,

@@ -173,7 +173,7 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
             next_mark = 0.0
             while ctx.ok() and not stop:
                 ex.spin_once(timeout_sec=0.01)
-                if models and duration is not None:
+                if models and duration is not None and all(m.configured for m in models):
                     t = min(m.stepper.t for m in models)
                     if progress is not None and t >= next_mark:
                         progress(t, duration)

@@ -1,0 +1,367 @@
+"""Lifecycle nodes (issue 46): a real lifecycle client (lifecycle_msgs ChangeState and
+GetState on <node>/change_state, <node>/get_state, what ``ros2 lifecycle set`` calls) in
+another node drives the suite's nodes through configure, activate, deactivate, cleanup."""
+import time
+import uuid
+
+import numpy as np
+import pytest
+import rclpy
+from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from flex_model.arm import load_arm
+from flex_model.dynamics import FlexArmModel
+from flex_model.model_node import ModelNode
+from flex_model.stepper import Stepper
+
+
+def stamp_s(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+class Manager:
+    """``node`` in its own namespace, spun with a manager node holding its lifecycle
+    clients and a probe of its topics."""
+
+    def __init__(self, factory, name, **params):
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        ns = f"/lc{uuid.uuid4().hex[:8]}"
+        self.node = factory(context=self.ctx, namespace=ns, parameter_overrides=[
+            Parameter(k, value=v) for k, v in params.items()])
+        self.mgr = rclpy.create_node(f"manager_{uuid.uuid4().hex[:8]}", context=self.ctx,
+                                     namespace=ns)
+        self.change = self.mgr.create_client(ChangeState, f"{ns}/{name}/change_state")
+        self.get = self.mgr.create_client(GetState, f"{ns}/{name}/get_state")
+        self.states = []
+        self.mgr.create_subscription(JointState, "joint_states", self.states.append, 100)
+        self.cmd = self.mgr.create_publisher(Float64MultiArray, "effort_controller/commands",
+                                             100)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self.ex.add_node(self.mgr)
+        self.spin_until(lambda: self.change.service_is_ready() and self.get.service_is_ready(),
+                        "the lifecycle services")
+
+    def spin_until(self, pred, what, timeout=10.0):
+        end = time.monotonic() + timeout
+        while not pred():
+            assert time.monotonic() < end, f"timed out waiting for {what}"
+            self.ex.spin_once(timeout_sec=0.005)
+
+    def spin_for(self, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=0.005)
+
+    def call(self, client, request):
+        future = client.call_async(request)
+        self.spin_until(future.done, f"{client.srv_name}")
+        return future.result()
+
+    def state(self) -> str:
+        return self.call(self.get, GetState.Request()).current_state.label
+
+    def transition(self, transition_id) -> bool:
+        return self.call(self.change, ChangeState.Request(
+            transition=Transition(id=transition_id))).success
+
+    def close(self):
+        self.ex.shutdown()
+        self.node.destroy_node()
+        self.mgr.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+def core(arm: str, angles_deg, steps: int):
+    """The core's joint state after ``steps`` lockstep steps of 1 ms at zero torque."""
+    model = FlexArmModel(load_arm(arm))
+    ref = Stepper(model, model.q_from_joint_angles(np.radians(angles_deg)))
+    for _ in range(steps):
+        ref.advance(1e-3)
+    return ref.joint_state()
+
+
+@pytest.fixture
+def managed():
+    h = Manager(ModelNode, "flex_model", autostart=False, mode="lockstep", rate=1000.0,
+                publish_rate=1000.0, lockstep_timeout=100.0, hold_until_command=False,
+                initial_joint_angles_deg=[30.0, -20.0])
+    yield h
+    h.close()
+
+
+def step(h, k: int) -> None:
+    """``k`` zero-torque commands, one lockstep step (and joint_states) each."""
+    h.spin_until(lambda: h.cmd.get_subscription_count() > 0, "the command subscription")
+    for _ in range(k):
+        n = len(h.states)
+        h.cmd.publish(Float64MultiArray(data=[0.0, 0.0]))
+        h.spin_until(lambda: len(h.states) > n, "a step")
+
+
+def test_model_node_transitions_with_a_lifecycle_client(managed):
+    h = managed
+    assert h.state() == "unconfigured"
+    h.spin_for(0.2)
+    assert h.states == []  # unconfigured: no arm, nothing published
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "inactive"
+    h.spin_for(0.2)
+    assert h.states == []  # configured, not active: nothing stepping-related
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    assert h.state() == "active"
+    h.spin_until(lambda: h.states, "the state published on activate")
+    assert stamp_s(h.states[0]) == 0.0
+    step(h, 20)
+    angles, rates, _ = core("thesis_example1_motors", [30.0, -20.0], 20)
+    assert stamp_s(h.states[-1]) == pytest.approx(0.020, abs=1e-12)
+    np.testing.assert_allclose(h.states[-1].position, angles, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(h.states[-1].velocity, rates, rtol=0, atol=1e-10)
+    assert abs(rates[0]) > 1e-3  # the arm moves under gravity: a hold would fail this
+
+    # deactivate: commands are refused, nothing is published, the state is held
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.state() == "inactive"
+    held, n = h.states[-1], len(h.states)
+    for _ in range(10):
+        h.cmd.publish(Float64MultiArray(data=[0.0, 0.0]))
+        h.spin_for(0.03)
+    assert len(h.states) == n
+    assert h.node.stepper.t == pytest.approx(0.020, abs=1e-12)
+
+    # activate again: resumes from the held state, on the same time grid
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    h.spin_until(lambda: len(h.states) > n, "the held state on activate")
+    assert stamp_s(h.states[n]) == stamp_s(held)
+    np.testing.assert_array_equal(h.states[n].position, held.position)
+    step(h, 20)
+    angles, rates, _ = core("thesis_example1_motors", [30.0, -20.0], 40)
+    assert stamp_s(h.states[-1]) == pytest.approx(0.040, abs=1e-12)
+    np.testing.assert_allclose(h.states[-1].position, angles, rtol=0, atol=1e-12)
+
+    # cleanup: unconfigured, the arm released; configure another arm and run it
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.transition(Transition.TRANSITION_CLEANUP)
+    assert h.state() == "unconfigured"
+    assert not list(h.node.timers)
+    assert h.node.set_parameters([Parameter("arm", value="thesis_example1")])[0].successful
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.node.model.arm.name == "thesis_example1"
+    assert h.node.describe_parameter("arm").read_only  # configured: built from it
+    # new publishers (cleanup released the old ones): the probe matches them first
+    h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0, "discovery")
+    n = len(h.states)
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    h.spin_until(lambda: len(h.states) > n, "the new arm's first state")
+    assert stamp_s(h.states[n]) == 0.0
+    step(h, 20)
+    angles, rates, _ = core("thesis_example1", [30.0, -20.0], 20)
+    np.testing.assert_allclose(h.states[-1].position, angles, rtol=0, atol=1e-12)
+    other, _, _ = core("thesis_example1_motors", [30.0, -20.0], 20)
+    assert np.max(np.abs(np.asarray(other) - angles)) > 1e-6  # the two arms differ
+
+
+def test_a_bad_configure_fails_and_the_node_stays_unconfigured(managed):
+    h = managed
+    assert h.node.set_parameters([Parameter("arm", value="no_such_arm")])[0].successful
+    assert not h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "unconfigured"
+    assert not list(h.node.timers) and h.states == []
+    # the node keeps running: a good value configures it
+    assert h.node.set_parameters([Parameter("arm", value="thesis_example1")])[0].successful
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "inactive"
+
+
+def test_a_bad_value_fails_configure_with_the_start_line():
+    """A value the parameter check refuses: configure FAILURE, logged with the same line
+    that autostart (run_node) prints and exits with."""
+    h = Manager(ModelNode, "flex_model", autostart=False, rate=-5.0)
+    try:
+        assert not h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.state() == "unconfigured"
+        assert str(h.node.configure_error) == "parameter rate: got -5; expected a number > 0"
+    finally:
+        h.close()
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        with pytest.raises(ValueError, match="parameter rate: got -5; expected a number > 0"):
+            ModelNode(context=ctx, parameter_overrides=[Parameter("rate", value=-5.0)])
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_autostart_default_is_active():
+    h = Manager(ModelNode, "flex_model")
+    try:
+        assert h.state() == "active"
+        h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
+    finally:
+        h.close()
+
+
+def test_controller_node_transitions_with_a_lifecycle_client():
+    """Active: Eq. 45 about the first measured pose; deactivate: zero torques once, then
+    silence; activate: the same held reference; cleanup and a configure with another
+    hold pose; a bad law fails configure."""
+    from flex_control.controller_node import ControllerNode
+    from flex_control.laws import PDLikeCascade, hold_reference
+    h = Manager(ControllerNode, "flex_controller", autostart=False, law="eq45",
+                joint_names=["j"], torque_limits=[1e9], state_timeout=30.0)
+    got = []
+    h.mgr.create_subscription(Float64MultiArray, "effort_controller/commands",
+                              lambda m: got.append(list(m.data)), 100)
+    js = h.mgr.create_publisher(JointState, "joint_states", 10)
+
+    def command_for(pos, vel, expected=None):
+        """The command once the timer has used the state (pos, vel): the first one, or
+        the first equal to ``expected`` within 1 s (commands come at rate_hz)."""
+        n = len(got)
+        js.publish(JointState(name=["j"], position=[pos], velocity=[vel]))
+        h.spin_until(lambda: len(got) > n, "a command")
+        end = time.monotonic() + 1.0
+        while expected is not None and got[-1][0] != pytest.approx(expected, rel=1e-12) \
+                and time.monotonic() < end:
+            h.ex.spin_once(timeout_sec=0.005)
+        return got[-1][0]
+
+    def want(ref, pos, vel):
+        return PDLikeCascade(hold_reference(["j"], [ref])).torque(0.0, [pos], [vel])[0]
+
+    try:
+        assert h.state() == "unconfigured"
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        h.spin_until(lambda: js.get_subscription_count() > 0, "discovery")
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        command_for(0.2, 0.0)  # the first measured pose becomes the held reference
+        w = want(0.2, 0.1, 0.01)
+        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        h.spin_for(0.1)
+        assert got[-1] == [0.0]  # zero torques once
+        n = len(got)
+        for _ in range(5):
+            js.publish(JointState(name=["j"], position=[0.1], velocity=[0.01]))
+            h.spin_for(0.05)
+        assert len(got) == n  # inactive: no commands
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        w = want(0.2, 0.1, 0.01)
+        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        assert h.transition(Transition.TRANSITION_CLEANUP)
+        assert h.node.set_parameters([Parameter("law", value="no_such_law")])[0].successful
+        assert not h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.state() == "unconfigured"
+        assert h.node.set_parameters([Parameter("law", value="eq45"), Parameter(
+            "hold_joint_angles_deg", value=[-10.0])])[0].successful
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        h.spin_until(lambda: h.node.pub.get_subscription_count() > 0, "discovery")
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        w = want(np.radians(-10.0), 0.1, 0.01)
+        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+    finally:
+        h.close()
+
+
+def test_planner_node_plans_only_while_active():
+    from nav_msgs.msg import Path
+    from geometry_msgs.msg import PoseStamped
+    from trajectory_msgs.msg import JointTrajectory
+    from flex_planner import SECTION_F_TIMES, SECTION_F_WAYPOINTS
+    from flex_planner.planner_node import PlannerNode
+    h = Manager(PlannerNode, "flex_planner", autostart=False, arm="thesis_example1",
+                sample_period=0.02)
+    got = []
+    h.mgr.create_subscription(JointTrajectory, "flex_planner/trajectory", got.append, 5)
+    pub = h.mgr.create_publisher(Path, "flex_planner/waypoints", 5)
+    path = Path()
+    path.header.frame_id = "arm_plane"
+    for (x, y), t in zip(SECTION_F_WAYPOINTS, SECTION_F_TIMES):
+        ps = PoseStamped()
+        ps.header.stamp.sec, ps.header.stamp.nanosec = int(t), int(round((t % 1) * 1e9))
+        ps.pose.position.x, ps.pose.position.y, ps.pose.orientation.w = x, y, 1.0
+        path.poses.append(ps)
+    try:
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        h.spin_until(lambda: pub.get_subscription_count() > 0 and
+                     h.node.pub_trajectory.get_subscription_count() > 0, "discovery")
+        pub.publish(path)  # inactive: refused
+        h.spin_for(0.3)
+        assert got == []
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        pub.publish(path)
+        h.spin_until(lambda: got, "a plan", timeout=30.0)
+        assert list(got[0].joint_names) == ["joint1", "joint2"]
+        assert len(got[0].points) == pytest.approx(SECTION_F_TIMES[-1] / 0.02, abs=2)
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        assert h.transition(Transition.TRANSITION_CLEANUP)
+        assert h.node.set_parameters([Parameter("arm", value="no_such_arm")])[0].successful
+        assert not h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.state() == "unconfigured"
+    finally:
+        h.close()
+
+
+def test_entry_point_with_autostart_false_is_managed_and_exits_cleanly():
+    """The model node as a process (its console entry point's main) with autostart:=false:
+    unconfigured and silent until a lifecycle client configures and activates it, then
+    joint_states flow; SIGINT: exit status 0 after the shutdown transition."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    ns = f"/lcp{os.getpid()}_{uuid.uuid4().hex[:6]}"
+    proc = subprocess.Popen([sys.executable, "-m", "flex_model.model_node", "--ros-args",
+                             "-r", f"__ns:={ns}", "-p", "autostart:=false"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    mgr = rclpy.create_node(f"lcmgr_{uuid.uuid4().hex[:6]}", context=ctx, namespace=ns)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(mgr)
+    states = []
+    mgr.create_subscription(JointState, "joint_states", states.append, 10)
+    change = mgr.create_client(ChangeState, f"{ns}/flex_model/change_state")
+    get = mgr.create_client(GetState, f"{ns}/flex_model/get_state")
+
+    def until(pred, what, timeout=30.0):
+        end = time.monotonic() + timeout
+        while not pred():
+            assert time.monotonic() < end, f"timed out waiting for {what}"
+            assert proc.poll() is None, proc.stdout.read().decode()
+            ex.spin_once(timeout_sec=0.01)
+
+    def call(client, request):
+        future = client.call_async(request)
+        until(future.done, client.srv_name)
+        return future.result()
+
+    try:
+        until(lambda: change.service_is_ready() and get.service_is_ready(), "the services")
+        assert call(get, GetState.Request()).current_state.id == State.PRIMARY_STATE_UNCONFIGURED
+        end = time.monotonic() + 0.3
+        until(lambda: time.monotonic() > end, "a while")
+        assert states == []
+        for t in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+            assert call(change, ChangeState.Request(transition=Transition(id=t))).success
+        assert call(get, GetState.Request()).current_state.id == State.PRIMARY_STATE_ACTIVE
+        until(lambda: len(states) >= 5, "joint_states")
+        assert stamp_s(states[-1]) > stamp_s(states[0])  # the realtime loop runs
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=20)
+        assert proc.returncode == 0, out.decode()
+        assert "inactive: stepping stopped" in out.decode()  # on_shutdown deactivated it
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        ex.shutdown()
+        mgr.destroy_node()
+        rclpy.try_shutdown(context=ctx)
