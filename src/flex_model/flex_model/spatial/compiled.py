@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from .. import integrators, kernels
-from ..integrators import dead_zone, galpha_parameters
+from ..integrators import dead_zone, galpha_parameters, restart_choice
 from ..kernels import cholesky, solve_chol
 from .dynamics import SpatialArmModel
 
@@ -1126,7 +1126,7 @@ def _hold(S, r, held):
 
 @njit(cache=_CACHE)
 def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, held, H,
-                effort, q0, v0, h, tau, rho_inf, tol, max_iter, acc, warm):
+                effort, q0, v0, h, tau, rho_inf, tol, max_iter, acc, start):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
     integrate.simulate_fixed: Newton on the accelerations with
     M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
@@ -1151,8 +1151,11 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
     stagnates (no longer halves) within 1e3 x tol is accepted (integrate.STAGNATION: the
     round-off floor of the accelerations); ``held`` (nq, 0/1):
     coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
-    the method, read as the start when ``warm`` (a continued run; else the consistent
-    acceleration restarts it) and overwritten with the last step's. Returns (q, v) at
+    the method, read as the start when ``start`` is 1 (a continued run), the step's
+    acceleration before an input jump when 2 (the restart of integrators.restart_choice,
+    as the planar fixed step's: the part of the jump the step follows where the rest
+    would kick modes it cannot follow), else unused (0: the consistent acceleration
+    restarts it); overwritten with the last step's. Returns (q, v) at
     every step (n_steps + 1, nq) and the Newton iteration count (-1 - n: no convergence
     at step n; acc[0, 0] then holds the iterations done). A Newton matrix made indefinite
     by a friction slope > 0 (a Stribeck peak's negative damping) is rebuilt without those
@@ -1223,7 +1226,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
     for j in range(nq):
         r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
     _hold(M, r, held)
-    if warm:
+    if start == 1:
         a = acc[0].copy()
         abar = acc[1].copy()
     else:
@@ -1231,6 +1234,10 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
         if Lc.shape[0] != nq:   # not positive definite
             return qs[:1], vs[:1], -1
         a = solve_chol(Lc, r)
+        if start == 2:
+            S = M + cq * K + cv * D
+            _hold(S, r, held)
+            a = restart_choice(acc[0].copy(), a, M, S, h, rho_inf)[0]
         abar = a.copy()
     a1 = a.copy()
     da = np.zeros(nq)

@@ -230,7 +230,8 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
                             joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
                             max_iter: int = 50, damping=None,
                             clip_to_effort: bool = True, acceleration=None,
-                            pd_clip=None, substeps: int = 4, tip_force=None) -> SpatialRun:
+                            pd_clip=None, substeps: int = 4, tip_force=None,
+                            restart_from=None) -> SpatialRun:
     """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the
     analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
     (n_joints) or an (n_steps, n_joints) array, row n held over step n (applied at
@@ -253,7 +254,10 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     off with ``clip_to_effort=False``. ``tip_force``: None, a constant (3) or an
     (n_steps, 3) array of forces (N, base frame) at the tip (the origin of the last
     link's end frame), row n over step n, as J_tip^T F (``simulate_fixed``'s ``force``
-    does the same with a callback)."""
+    does the same with a callback). ``restart_from``: the ``acceleration`` of the run
+    before an input jump at (q0, v0): the restart then takes the part of the jump the
+    step can follow where the rest would kick modes it cannot (integrators.restart_choice,
+    as the planar fixed step), instead of the consistent acceleration."""
     from .compiled import galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
@@ -284,9 +288,9 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
         effort[pdc[:, 0].astype(int)] = np.inf     # the whole PD torque is clipped instead
     held = np.zeros(model.nq, np.int64)
     held[model.held] = 1
-    warm = acceleration is not None
-    acc = np.array(acceleration, float).reshape(2, model.nq) if warm else \
-        np.zeros((2, model.nq))
+    warm = 1 if acceleration is not None else 2 if restart_from is not None else 0
+    acc = np.array(acceleration if warm == 1 else restart_from, float).reshape(
+        2, model.nq) if warm else np.zeros((2, model.nq))
     K, H = np.ascontiguousarray(model.K), joint_input_matrix(model)
     tipf = np.zeros((0, 3)) if tip_force is None else np.array(np.broadcast_to(
         np.asarray(tip_force, float), (n_steps, 3)), order="C")
@@ -321,7 +325,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
                 f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s")
         sub = np.array(np.repeat(tau[pos:pos + 1], substeps, axis=0), order="C")
         acc = np.zeros((2, model.nq))
-        qs2, vs2, it2 = loop(qs[k], vs[k], h / substeps, sub, acc, False,
+        qs2, vs2, it2 = loop(qs[k], vs[k], h / substeps, sub, acc, 0,
                              forces(pos, pos + 1, substeps))
         if it2 < 0:
             raise SimulationDivergedError(
@@ -335,7 +339,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
             acc = None
             break
         acc = np.zeros((2, model.nq))
-        qs, vs, iters = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"), acc, False,
+        qs, vs, iters = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"), acc, 0,
                              forces(pos, n_steps))
     qs, vs = np.vstack(out_q), np.vstack(out_v)
     return SpatialRun(h * np.arange(len(qs)), qs, vs, int(total), acc)

@@ -41,9 +41,10 @@ of delta is the torque step kp delta (as the planar scenario). With effort limit
 ``<limit effort>`` or a DH joint's ``effort``) the whole actuator torque (PD, holding
 torques and pulses) is clipped to them inside the loop (integrate.simulate_fixed_compiled
 ``pd_clip``; without a PD the torques are). Pulses and set-point steps
-are evaluated at mid-step, and the method restarts (consistent acceleration) where one
-switches, as the planar fixed-step mode does (simulate._run_fixed), so that a planar arm
-embedded in 3D follows the planar run.
+are evaluated at mid-step, and the method restarts where one switches, as the planar
+fixed-step mode does (simulate._run_fixed; integrators.restart_choice: the consistent
+acceleration, or the part of the jump the step follows where the rest would kick modes
+it cannot follow), so that a planar arm embedded in 3D follows the planar run.
 """
 from __future__ import annotations
 
@@ -264,12 +265,12 @@ class SpatialScenario:
         changes = [(int(round(tc / h)), model_with_payload(model, self.arm, m, inertia))
                    for tc, m, inertia in self.payload_changes]
         K0 = model.K
-        qs, vs, iters, start = [q[None]], [v[None]], 0, 0
+        qs, vs, iters, start, acc = [q[None]], [v[None]], 0, 0, None
         try:
             model.K = K0 + Kp     # the PD's stiffness, for this run only
             for _, m in changes:
                 m.K = model.K
-            for stop in bounds:   # a restart (consistent acceleration) at every switch
+            for stop in bounds:   # a restart at every switch (integrators.restart_choice)
                 cur = model
                 for step_c, m in changes:
                     if step_c <= start:
@@ -279,7 +280,8 @@ class SpatialScenario:
                         cur, q, v, h, stop - start, joint_torques=u[start:stop],
                         rho_inf=self.rho_inf, tol=self.tol, damping=Dp,
                         pd_clip=None if self.pd is None else (self.pd.kp, self.pd.kd),
-                        tip_force=None if tipf is None else tipf[start:stop])
+                        tip_force=None if tipf is None else tipf[start:stop],
+                        restart_from=acc)
                 except SimulationDivergedError as exc:   # the segment's time -> the run's
                     raise SimulationDivergedError(
                         f"{self.name}: Newton did not converge in the step after t = "
@@ -288,6 +290,7 @@ class SpatialScenario:
                 vs.append(run.v[1:])
                 iters += run.newton_iterations
                 q, v = run.q[-1].copy(), run.v[-1].copy()
+                acc = run.acceleration   # the restart at the next switch starts from it
                 start = stop
                 if progress is not None:
                     progress(stop * h, n_total * h)
