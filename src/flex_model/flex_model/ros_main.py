@@ -394,6 +394,29 @@ class Managed:
         self._release()
         return R.SUCCESS
 
+    def _inactive(self) -> str | None:
+        """Why an input is refused in the inactive state, or None (active)."""
+        return None if self.active else "the node is inactive (lifecycle): activate it"
+
+    def _activity(self, paused: bool) -> str:
+        """A model node's state word on /diagnostics: inactive, paused or running."""
+        return "inactive" if not self.active else "paused" if paused else "running"
+
+    def _start_loop(self, period: float) -> None:
+        """A model node's activate: its loop timer (``self.timer``, calling ``on_tick``)
+        from now on; the wall time spent inactive is not integrated (``last_wall``,
+        ``behind``)."""
+        self.last_wall, self.behind = time.monotonic(), 0.0
+        self.timer = self.create_timer(period, self.on_tick)
+
+    def _stop_loop(self, t: float) -> None:
+        """A model node's deactivate: its loop timer destroyed at simulation time ``t``
+        (s), logged; time and state stand still."""
+        self.destroy_timer(self.timer)
+        self.timer = None
+        self.get_logger().info(f"inactive: stepping stopped at t = {fmt(t)} s, the state "
+                               "held")
+
     def _release(self) -> None:
         if self._made is not None:
             self._cleanup()
