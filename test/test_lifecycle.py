@@ -469,9 +469,9 @@ def test_spatial_model_node_transitions_with_a_lifecycle_client():
             assert not h.transition(Transition.TRANSITION_CONFIGURE)
             assert h.state() == "unconfigured"
             assert str(h.node.configure_error).startswith(line)
+        # seed000's slender link needs the short step (as in test_spatial_node)
         assert h.node.set_parameters([Parameter("initial_joint_values", value=[0.4]),
-                                      Parameter("step", value=2.5e-4)])[0].successful  # (its
-        # slender link needs the short step, as in test_spatial_node)
+                                      Parameter("step", value=2.5e-4)])[0].successful
         assert h.transition(Transition.TRANSITION_CONFIGURE)
         assert h.node.names == ["joint1"] and h.node.describe_parameter("arm").read_only
         h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0, "discovery")
