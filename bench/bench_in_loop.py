@@ -8,6 +8,7 @@ model node does with ``controller:=eq95``): the real-time factor is simulated / 
 of the loop alone (no ROS), the tip error at the waypoints checks it is the demo's run.
 
     python bench/bench_in_loop.py [--rate 500] [--repeat 3] [--demo-seconds 3]
+        [--publish-rates 250 50] [--no-topic-demo]
 
 Prints, from one run: the core loop with the law compiled into it (one compiled call for
 the whole task, flex_model.control_kernel) and with the law called from Python every
@@ -15,10 +16,10 @@ period (users' own controllers; ``compiled=False``), both as real-time factors o
 and of CPU time (the CPU figure is what the loop costs on a machine shared with other
 jobs); the model node in lockstep with ``controller:=eq95`` publishing at 250 and 50 Hz,
 without a subscriber and with a raw subscriber of every topic in another process (as the
-bag recorder's; what it received is printed: a lockstep model waits for nobody), real-time
-factors of wall and of the process's CPU time; and the twin demo (nodes, bag recorder)
-with the controller in the model's loop and over topics (the controller node), side by
-side.
+bag recorder's, /tf included where tf2_msgs imports; what it received is printed: a
+lockstep model waits for nobody), real-time factors of wall and of the process's CPU
+time; and the twin demo (nodes, bag recorder) with the controller in the model's loop and
+over topics (the controller node), side by side, wall and CPU time of its loop.
 """
 from __future__ import annotations
 
@@ -44,6 +45,10 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--demo-seconds", type=float, default=3.0,
                     help="simulated seconds of each twin demo run (0: skip)")
+    ap.add_argument("--publish-rates", type=float, nargs="*", default=[250.0, 50.0],
+                    help="publication rates (Hz) of the model node runs")
+    ap.add_argument("--no-topic-demo", action="store_true",
+                    help="twin demo: only the controller in the model's loop")
     args = ap.parse_args()
     model = FlexArmModel(load_arm("thesis_example1_motors"))
     period = 1.0 / args.rate
@@ -86,7 +91,7 @@ def main() -> None:
               + ", ".join(f"{1e3 * errors[k]:.2f}" for k in sorted(errors)))
     print(f"  compiled vs Python path, largest state difference after {TIMES[-1]:g} s: "
           f"{np.abs(final[True] - final[False]).max():.2e}")
-    for publish_rate in (250.0, 50.0):
+    for publish_rate in args.publish_rates:
         for listen in (False, True):
             r = run_node(traj, theta0, args.rate, publish_rate, listen)
             print(f"model node, lockstep, controller:=eq95 (SingleThreadedExecutor, "
@@ -100,10 +105,10 @@ def main() -> None:
                 print(f"  received of {r['publications']} publications: " + ", ".join(
                     f"{k} {v}" for k, v in sorted(r["received"].items())))
     if args.demo_seconds > 0:
-        run_demos(args.demo_seconds, args.rate)
+        run_demos(args.demo_seconds, args.rate, topic_loop=not args.no_topic_demo)
 
 
-def run_demos(seconds: float, rate: float) -> None:
+def run_demos(seconds: float, rate: float, topic_loop: bool = True) -> None:
     """The twin demo (flex_twin.ros_twin_demo) for ``seconds``, the controller in the
     model's loop and over topics; the real-time factor of the stepping loop (nodes,
     recorder, bag), without the setup (planning, node creation)."""
@@ -111,16 +116,19 @@ def run_demos(seconds: float, rate: float) -> None:
 
     from flex_twin.ros_twin_demo import run
     rows = []
-    for in_loop in (True, False):
+    for in_loop in (True, False) if topic_loop else (True,):
         with tempfile.TemporaryDirectory() as tmp:
             s = run(tmp, duration=seconds, rate=rate, in_loop=in_loop)
-        rows.append((s["controller"], s["loop_real_time_factor"]))
-    print(f"twin demo, {seconds:g} s recorded (real-time factor of the loop): " + "; ".join(
-        f"{what} {rtf:.1f}" for what, rtf in rows)
-        + f"; ratio {rows[0][1] / rows[1][1]:.1f}")
+        rows.append((s["controller"], s["loop_real_time_factor"],
+                     s.get("loop_cpu_real_time_factor", float("nan"))))
+    print(f"twin demo, {seconds:g} s recorded (real-time factor of the loop, wall; CPU "
+          "time of the process): " + "; ".join(
+              f"{what} {rtf:.1f} (CPU {cpu:.1f})" for what, rtf, cpu in rows)
+          + (f"; ratio {rows[0][1] / rows[1][1]:.1f}" if len(rows) == 2 else ""))
 
 
-TOPICS = ("/joint_states", "/clock", "/flex/deflections", "/flex/tip_pose", "/flex/shape")
+TOPICS = ("/joint_states", "/clock", "/flex/deflections", "/flex/tip_pose", "/flex/shape",
+          "/tf")
 
 
 def listener_main(out: str) -> None:
@@ -141,10 +149,12 @@ def listener_main(out: str) -> None:
         signal.signal(sig, lambda *_: stop.append(1))
     rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     node = rclpy.create_node("bench_listener")
-    counts = {t: 0 for t in TOPICS}
+    counts = {t: 0 for t in TOPICS}  # /tf: 0 where tf2_msgs does not import
+    from flex_model.model_node import tf_message_type
     types = {"/joint_states": JointState, "/clock": Clock, "/flex/deflections": JointState,
-             "/flex/tip_pose": PoseStamped, "/flex/shape": MarkerArray}
-    for topic in TOPICS:
+             "/flex/tip_pose": PoseStamped, "/flex/shape": MarkerArray,
+             "/tf": tf_message_type()[0]}
+    for topic in [t for t in TOPICS if types[t] is not None]:
         def count(_raw, topic=topic):
             counts[topic] += 1
         node.create_subscription(types[topic], topic, count, 100, raw=True)
@@ -191,7 +201,8 @@ def run_node(traj, theta0, rate: float, publish_rate: float, listen: bool = Fals
         node.loop.set_trajectory(traj, 0.0)
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
-        pubs = (node.pub_js, node.pub_clock, node.pub_defl, node.pub_tip, node.pub_shape)
+        pubs = [p for p in (node.pub_js, node.pub_clock, node.pub_defl, node.pub_tip,
+                            node.pub_shape, node.pub_tf) if p is not None]
         end = time.monotonic() + 60.0
         while listen and not all(p.get_subscription_count() for p in pubs):
             if time.monotonic() > end or child.poll() is not None:

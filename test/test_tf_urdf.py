@@ -306,3 +306,38 @@ def test_transform_messages_carry_the_chain():
     # the tip of link 1 in its root frame: (L - u, delta) with the model's tip deflection
     assert out[1].transform.translation.y == pytest.approx(model.tip_deflections(q)[0],
                                                            abs=1e-12)
+
+
+@pytest.mark.parametrize("arm", ["thesis_example1_motors", "thesis_example1"])
+def test_tf_bytes_decode_to_the_transform_messages(arm):
+    """The /tf bytes the node publishes (a CDR template filled from urdf.ArmTransforms)
+    are the bytes of the TFMessage of urdf.arm_transforms (what it published as objects),
+    and rclpy decodes them to those frames, stamps and numbers."""
+    from rclpy.serialization import deserialize_message
+
+    from flex_model import ros_conversions as conv
+    from flex_model.cdr_messages import encode
+    from flex_model.model_node import tf_message_type
+    tf_type, why = tf_message_type()
+    if tf_type is None:
+        pytest.skip(f"tf2_msgs: {why}")
+    model = FlexArmModel(load_arm(arm))
+    frames = urdf.Frames.of(model, "robot1/")
+    moving = urdf.ArmTransforms(model, frames)
+    template = conv.transforms_cdr(tf_type, moving.pairs)
+    for seed, t in ((3, 1.25), (4, 7.000000001)):
+        q = deflected_state(model, seed)
+        reference = urdf.arm_transforms(model, q, frames)
+        msg = tf_type(transforms=conv.Transforms(reference).update(t, reference))
+        data = template.fill(t, moving.values(q, model.link_origins(q)).ravel())
+        assert data == encode(msg)
+        got = deserialize_message(data, tf_type).transforms
+        assert len(got) == len(reference) == (6 if arm.endswith("motors") else 4)
+        for m, tr in zip(got, reference):
+            assert (m.header.frame_id, m.child_frame_id) == (tr.parent, tr.child)
+            assert m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec == \
+                round(t * 1e9)
+            tl, r = m.transform.translation, m.transform.rotation
+            assert (tl.x, tl.y, tl.z, r.x, r.y, r.z, r.w) == (*tr.translation,
+                                                               *tr.rotation)
+        assert abs(got[1].transform.translation.y) > 1e-4  # a deflected tip, not zeros

@@ -17,8 +17,9 @@ Publications (simulation time in every header; frames: flex_model.urdf, REP 103 
     flex/tip_imu        sensor_msgs/Imu          when the arm has a tip_accelerometer sensor,
                         in the last link's tip frame
     robot_description   std_msgs/String          the URDF (transient local, depth 1)
-    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips; base ->
-                        arm_plane (where tf2_msgs imports: scripts/bootstrap.sh builds it)
+    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips (/tf
+                        while someone subscribes); base -> arm_plane (where tf2_msgs
+                        imports: scripts/bootstrap.sh builds it)
     /clock              rosgraph_msgs/Clock      in lockstep mode (or publish_clock), on
                         ``clock_topic``
     /diagnostics        diagnostic_msgs/DiagnosticArray  OK (running or paused, mode,
@@ -95,8 +96,9 @@ command for ``lockstep_timeout`` (wall) the model steps with the held one (a war
 the loop ran; before the first command this is the start: a controller timed by /clock
 needs that first step). The state messages are serialized once (CDR templates,
 flex_model.cdr_messages) and published as bytes, only their stamps and numbers written
-per publication (the same bytes a subscriber got from the message objects); flex/shape
-and flex/tip_imu, costly to compute, only while someone subscribes.
+per publication (the same bytes a subscriber got from the message objects; /tf too,
+from flex_model.urdf.ArmTransforms); flex/shape, flex/tip_imu and /tf only while someone
+subscribes.
 """
 from __future__ import annotations
 
@@ -369,7 +371,7 @@ class ModelNode(Managed, LifecycleNode):
         self.pub_clock = self.create_publisher(Clock, p["clock_topic"], qos) \
             if p["mode"] == "lockstep" or p["publish_clock"] else None
         self.pub_description = self.create_publisher(String, "robot_description", LATCHED)
-        self.pub_tf = self.msg_tf = None
+        self.pub_tf = self.cdr_tf = None
         self._tf_setup(p)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
         self.create_subscription(Float64MultiArray, "effort_controller/commands",
@@ -450,9 +452,9 @@ class ModelNode(Managed, LifecycleNode):
         self.create_publisher(tf_type, "/tf_static", LATCHED).publish(
             tf_type(transforms=conv.Transforms(static).msgs))
         self.pub_tf = self.create_publisher(tf_type, "/tf", 100)
-        self.tf_msgs = conv.Transforms(urdf.arm_transforms(self.model, self.stepper.q,
-                                                           self.frames))
-        self.msg_tf = tf_type(transforms=self.tf_msgs.msgs)
+        # the moving transforms as numbers into a CDR template (flex_model.cdr_messages)
+        self.tf_values = urdf.ArmTransforms(self.model, self.frames)
+        self.cdr_tf = conv.transforms_cdr(tf_type, self.tf_values.pairs)
 
     def _in_loop_controller(self, p) -> ControlLoop:
         """The controller named by the parameter ``controller`` in the model's loop (the
@@ -828,7 +830,8 @@ class ModelNode(Managed, LifecycleNode):
         values[0:2 * n:2], values[1:2 * n:2] = q[self._tip_index], r @ q
         values[2 * n::2], values[2 * n + 1::2] = v[self._tip_index], r @ v
         self.pub_defl.publish(self.cdr_defl.fill(t, values))
-        x, y = self.model.link_origins(q)[-1]  # st.tip_pose()
+        origins = self.model.link_origins(q)
+        x, y = origins[-1]  # st.tip_pose()
         phi = float(q[self._last_alpha] + r[-1] @ q)
         self.pub_tip.publish(self.cdr_tip.fill(t, conv.tip_pose_values(x, y, phi,
                                                                        self.plane)))
@@ -848,10 +851,11 @@ class ModelNode(Managed, LifecycleNode):
                 self.plane @ urdf.matrix_from_quaternion(urdf.yaw_quaternion(phi)))
             self.pub_imu.publish(self.cdr_imu.fill(t, conv.imu_values(
                 st.tip_specific_force(), rate, orientation)))
-        if self.pub_tf is not None:
-            self.msg_tf.transforms = self.tf_msgs.update(
-                t, urdf.arm_transforms(self.model, st.q, self.frames))
-            self.pub_tf.publish(self.msg_tf)
+        # /tf while someone subscribes (volatile: a later subscriber gets the next ones,
+        # as it would), as bytes: the TFMessage of urdf.arm_transforms
+        if self.pub_tf is not None and self.pub_tf.get_subscription_count():
+            rows = self.tf_values.values(q, origins)
+            self.pub_tf.publish(self.cdr_tf.fill(t, rows.ravel()))
 
 
 def _arm_argument(argv) -> str | None:

@@ -205,6 +205,21 @@ class Transforms:
         return self.msgs
 
 
+def transforms_cdr(tf_type, pairs) -> CdrTemplate:
+    """A ``tf_type`` (tf2_msgs/TFMessage) of TransformStamped with these (parent, child)
+    frames as a CDR template: every stamp; per transform translation x, y, z and rotation
+    x, y, z, w, in order (the rows of flex_model.urdf.ArmTransforms.values)."""
+    msgs = []
+    for parent, child in pairs:
+        m = TransformStamped(child_frame_id=child)
+        m.header.frame_id = parent
+        m.transform.rotation.w = 1.0
+        msgs.append(m)
+    return CdrTemplate(tf_type(transforms=msgs),
+                       [f"transforms[{k}].header.stamp" for k in range(len(msgs))],
+                       ["transforms"])
+
+
 def imu(t, specific_force, angular_rate, phi, frame="tip", orientation=None) -> Imu:
     """Tip accelerometer: linear_acceleration = specific force in the tip frame (m/s^2),
     angular_velocity about its z (the joint axes); orientation: the quaternion (x, y, z,

@@ -177,26 +177,50 @@ def arm_transforms(model: FlexArmModel, q, frames: Frames) -> list[Transform]:
     arm_plane -> link root: rotation theta_i about z) and its deflected tip (root -> tip:
     the tip point in the root frame, rotation gamma_i); then the motors' rotors
     (:func:`rotors`: the joint's parent -> ``<link>_rotor``, rotation n theta_i)."""
-    q = np.asarray(q, float)
-    org = model.link_origins(q)
-    theta = model.joint_angles(q)
-    gamma = model.tip_rotations(q)
-    out = []
-    for i in range(model.n_links):
-        parent = frames.plane if i == 0 else frames.tips[i - 1]
-        out.append(Transform(parent, frames.links[i], (0.0, 0.0, 0.0),
-                             yaw_quaternion(float(theta[i]))))
-        a = float(q[model.alpha_index(i)])
-        dx, dy = org[i + 1] - org[i]
-        c, s = math.cos(a), math.sin(a)
-        out.append(Transform(frames.links[i], frames.tips[i],
-                             (c * dx + s * dy, -s * dx + c * dy, 0.0),
-                             yaw_quaternion(float(gamma[i]))))
-    for r in rotors(model):  # on the stator (the joint's parent) at n theta_i
-        parent = frames.plane if r.joint == 0 else frames.tips[r.joint - 1]
-        out.append(Transform(parent, frames.links[r.joint] + "_rotor", (0.0, 0.0, 0.0),
-                             yaw_quaternion(r.ratio * float(theta[r.joint]))))
-    return out
+    moving = ArmTransforms(model, frames)
+    return [Transform(parent, child, tuple(row[:3].tolist()), tuple(row[3:].tolist()))
+            for (parent, child), row in zip(moving.pairs, moving.values(q))]
+
+
+class ArmTransforms:
+    """The transforms of :func:`arm_transforms` as numbers (the model node's /tf): their
+    (parent, child) frames once, per state an (N, 7) array of translation x, y, z and
+    rotation x, y, z, w (the same arithmetic; no Transform objects per publication)."""
+
+    def __init__(self, model: FlexArmModel, frames: Frames):
+        self.model = model
+        self.rotors = [(r.joint, r.ratio) for r in rotors(model)]
+        n = model.n_links
+        self.pairs = []
+        for i in range(n):
+            parent = frames.plane if i == 0 else frames.tips[i - 1]
+            self.pairs += [(parent, frames.links[i]), (frames.links[i], frames.tips[i])]
+        for joint, _ in self.rotors:
+            parent = frames.plane if joint == 0 else frames.tips[joint - 1]
+            self.pairs.append((parent, frames.links[joint] + "_rotor"))
+        self._alpha = [model.alpha_index(i) for i in range(n)]
+        self._tip_rotation = model.tip_rotation_matrix()
+        self._rows = np.zeros((len(self.pairs), 7))
+
+    def values(self, q, origins=None) -> np.ndarray:
+        """(N, 7) at state q (``origins``: model.link_origins(q) if known); a view of one
+        array, overwritten by the next call."""
+        m, out = self.model, self._rows
+        q = np.asarray(q, float)
+        org = m.link_origins(q) if origins is None else origins
+        theta = m.joint_angles(q).tolist()
+        gamma = (self._tip_rotation @ q).tolist()
+        for i, alpha in enumerate(self._alpha):
+            out[2 * i, 5:] = math.sin(theta[i] / 2.0), math.cos(theta[i] / 2.0)
+            a = float(q[alpha])
+            dx, dy = org[i + 1] - org[i]
+            c, s = math.cos(a), math.sin(a)
+            out[2 * i + 1, :2] = c * dx + s * dy, -s * dx + c * dy
+            out[2 * i + 1, 5:] = math.sin(gamma[i] / 2.0), math.cos(gamma[i] / 2.0)
+        for k, (joint, ratio) in enumerate(self.rotors, start=2 * len(self._alpha)):
+            angle = ratio * theta[joint]
+            out[k, 5:] = math.sin(angle / 2.0), math.cos(angle / 2.0)
+        return out
 
 
 def plane_to_base(rotation, points) -> np.ndarray:

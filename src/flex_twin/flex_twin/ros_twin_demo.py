@@ -35,6 +35,13 @@ RECORDED = {"/joint_states": "sensor_msgs/msg/JointState",
             "/effort_controller/commands": "std_msgs/msg/Float64MultiArray",
             "/flex_planner/waypoints": "nav_msgs/msg/Path",
             "/clock": "rosgraph_msgs/msg/Clock"}
+#: the topics the summary reads (their messages kept serialized during the run)
+KEPT = {name: RECORDED[name] for name in ("/flex/tip_pose", "/joint_states",
+                                          "/flex/deflections")}
+#: in the model's loop: wall time (s) between the executor's turns (timers, services; the
+#: recorder takes the messages after every step itself); after the last step: the quiet
+#: time (s) that ends taking the last messages
+SPIN_PERIOD, QUIET = 0.05, 0.01
 
 
 def _waypoints_msg(stamp):
@@ -62,9 +69,6 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     from rclpy.qos import DurabilityPolicy, QoSProfile
-    from sensor_msgs.msg import JointState
-    from geometry_msgs.msg import PoseStamped
-    from std_msgs.msg import Float64MultiArray
     from trajectory_msgs.msg import JointTrajectory
 
     from flex_control.controller_node import ControllerNode
@@ -72,6 +76,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
 
     from flex_model import ros_conversions as conv
     from .bags import BagWriter, Recorder
+    from .bags.message_types import get_message
     from flex_model.control_loop import compile_ahead_in_background
     from flex_model.errors import SimulationDivergedError
     from flex_model.model_node import ModelNode
@@ -106,14 +111,15 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             ex.add_node(n)
         plans = []
         probe.create_subscription(JointTrajectory, "flex_planner/trajectory", plans.append, 1)
-        tips, states = [], []
-        probe.create_subscription(PoseStamped, "/flex/tip_pose", tips.append, 100)
-        probe.create_subscription(JointState, "/joint_states", states.append, 1000)
-        commands = []
-        probe.create_subscription(Float64MultiArray, "/effort_controller/commands",
-                                  commands.append, 1000)
-        defl = []
-        probe.create_subscription(JointState, "/flex/deflections", defl.append, 1000)
+        # the summary's topics as serialized messages (deserialized after the run): in
+        # the model's loop the recorder keeps them (one reader per topic, taken in one
+        # call per step); over topics the probe too (it has the state of t = 0, which the
+        # model publishes when it starts, before the recorder subscribes)
+        kept = {name: [] for name in KEPT}
+        if not in_loop:
+            for name, cls in KEPT.items():
+                probe.create_subscription(get_message(cls), name, kept[name].append, 1000,
+                                          raw=True)
         # latched (transient local): the recorder, started later, records the waypoints too
         pub = probe.create_publisher(type(_waypoints_msg(conv.stamp)), "flex_planner/waypoints",
                                      QoSProfile(depth=1,
@@ -146,17 +152,20 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
             model.loop.set_trajectory(conv.trajectory_from_msg(plans[-1], model.names), 0.0)
         period, per_publish = 1.0 / rate, max(1, int(round(rate / publish_rate)))
         n_periods, done = int(round(duration * rate)), 0
-        loop_wall = 0.0
+        loop_wall = loop_cpu = 0.0
         with BagWriter(out_dir / "bag") as bag:
             # one time base, the simulation's: log time = the latest /clock (sim time from
             # 0, as ``ros2 bag record --use-sim-time``), header stamps (the same sim time)
             # for the stamped topics; bag duration = simulated duration
             recorder = Recorder(probe, bag, RECORDED, use_sim_time=True, use_header_stamp=(
-                "/joint_states", "/flex/deflections", "/flex/tip_pose"))
-            next_mark = 0.0
+                "/joint_states", "/flex/deflections", "/flex/tip_pose"),
+                keep=KEPT if in_loop else ())
+            kept = recorder.kept if in_loop else kept
+            next_mark = next_spin = 0.0
             if in_loop:  # the start (the node published it before the recorder was there)
                 model.publish_state(full=True)
-            w0 = time.perf_counter()
+                _load_compiled_loop(model.loop)
+            w0, c0 = time.perf_counter(), time.process_time()
             while model.stepper.t < duration - 1e-9:
                 if in_loop:  # up to the next publication in one compiled call (paused node:
                     # its own timer does not step), then the recorder takes the messages
@@ -166,19 +175,22 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                     if model.diverged is not None:
                         raise SimulationDivergedError(
                             f"twin demo: the model diverged: {model.diverged.message}")
-                    _drain(ex)
+                    recorder.drain()  # the step's messages, without waking the executor
+                    if time.monotonic() >= next_spin:  # timers, services (the recorder's
+                        next_spin = time.monotonic() + SPIN_PERIOD  # 0.1 s poll)
+                        _drain(ex)
                 else:
                     ex.spin_once(timeout_sec=0.01)
                 if progress is not None and model.stepper.t >= next_mark:
                     progress(model.stepper.t, duration)
                     next_mark += duration / 20
-            # the messages of the last step are still queued: stop the model (no further
-            # step) and take them, so that the bag ends at the simulated duration
+            # the messages of the last step may still be queued: stop the model (no
+            # further step) and take them until none has come for QUIET s, so that the
+            # bag ends at the simulated duration
             ex.remove_node(model)
-            drain_end = time.monotonic() + 0.3
-            while time.monotonic() < drain_end:
-                ex.spin_once(timeout_sec=0.01)
+            _drain(ex, timeout_sec=QUIET)
             loop_wall = time.perf_counter() - w0
+            loop_cpu = time.process_time() - c0
             recorder.stop()
         wall = time.perf_counter() - wall0
     finally:
@@ -192,22 +204,40 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         rclpy.try_shutdown(context=ctx)
     from flex_model.urdf import plane_rotation
     plane = plane_rotation(model.model.gravity)  # flex/tip_pose is in the base frame
-    summary = _summarize(tips, states, defl, commands, plans[-1], wall, duration, out_dir,
-                         plane)
+    from rclpy.serialization import deserialize_message
+    tips, states, defl = ([deserialize_message(data, get_message(KEPT[name]))
+                           for data in kept[name]] for name in KEPT)
+    summary = _summarize(tips, states, defl, plans[-1], wall, duration, out_dir, plane)
     summary.update(controller="in the model's loop (eq95)" if in_loop
                    else "controller node over topics",
-                   loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall)
+                   loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall,
+                   loop_cpu_s=loop_cpu, loop_cpu_real_time_factor=duration / loop_cpu)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
 
 
-def _drain(ex, limit: int = 100) -> None:
+def _load_compiled_loop(loop) -> None:
+    """Run two control periods of a copy of the in-loop controller on a copy of the state
+    (the first on the Python path, flex_model.control_loop): numba loads the integrator
+    and the compiled loop (from its cache, 0.3-0.4 s once per process) before the demo's
+    loop is timed, which the node's first step did (setup, as planning is)."""
+    import copy
+
+    from flex_model.control_loop import ControlLoop
+    from flex_model.stepper import Stepper
+    st = loop.stepper
+    scratch = Stepper(st.model, st.q.copy(), max_step=st.max_step)
+    ControlLoop(scratch, copy.deepcopy(loop.controller), loop.period).advance(2)
+
+
+def _drain(ex, limit: int = 100, timeout_sec: float = 0.0) -> None:
     """Run the executor's ready callbacks (what the last publications made ready) until
-    none is left; one wait set serves all the callbacks ready at once."""
+    none is left (none within ``timeout_sec``); one wait set serves all the callbacks
+    ready at once."""
     from rclpy.executors import ShutdownException, TimeoutException
     for _ in range(limit):
         try:
-            handler, _, _ = ex.wait_for_ready_callbacks(timeout_sec=0.0)
+            handler, _, _ = ex.wait_for_ready_callbacks(timeout_sec=timeout_sec)
         except (TimeoutException, ShutdownException):
             return
         handler()
@@ -227,8 +257,7 @@ def _by_time(msgs):
     return [seen[t] for t in sorted(seen)]
 
 
-def _summarize(tips, states, defl, commands, plan, wall, duration, out_dir,
-               plane) -> dict:
+def _summarize(tips, states, defl, plan, wall, duration, out_dir, plane) -> dict:
     from flex_model.plots import finish_figure, plt
     from flex_model.urdf import base_to_plane
     tips, states, defl = _by_time(tips), _by_time(states), _by_time(defl)

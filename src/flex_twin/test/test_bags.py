@@ -575,3 +575,21 @@ def test_mixed_time_bases_are_warned_and_refused_by_play(tmp_path, ros):
     with pytest.raises(BagError, match="mixed time bases"):
         Player(make_node("play"), tmp_path / "bag")
     assert Player(make_node("one"), tmp_path / "bag", topics=["/sim"]).bag_span_ns == 18_000_000
+
+
+def test_recorder_reads_stamps_from_the_bytes():
+    """The recorder's stamp of a serialized message (no deserialization): header.stamp of
+    a stamped type, the time of a Clock, as rclpy's deserialization gives it; types that
+    do not start with a stamp are not read so."""
+    from rclpy.serialization import serialize_message
+    from rosgraph_msgs.msg import Clock
+
+    from flex_twin.bags.recorder import leading_stamp_ns, starts_with_stamp
+    js = JointState(name=["joint1"], position=[1.5])
+    js.header.stamp.sec, js.header.stamp.nanosec = 1234, 567_890_123
+    clock = Clock()
+    clock.clock.sec, clock.clock.nanosec = -2, 999_999_999
+    assert leading_stamp_ns(serialize_message(js)) == 1234_567_890_123
+    assert leading_stamp_ns(serialize_message(clock)) == -1_000_000_001
+    assert starts_with_stamp(JointState) and starts_with_stamp(Clock)
+    assert not starts_with_stamp(Float64MultiArray)

@@ -7,6 +7,7 @@ demo), the latest /clock. rclpy is imported lazily.
 from __future__ import annotations
 
 import bisect
+import struct
 import time
 
 from .message_types import BagError, get_message
@@ -18,6 +19,23 @@ CLOCK = "\0clock"
 #: host's clock) wait for a later callback, so that one delivered late (another topic's
 #: reader, a reliable resend) is still handled in publication order; at most HOLD_MAX
 HOLD_NS, HOLD_MAX = 50_000_000, 10000
+
+
+def leading_stamp_ns(data) -> int:
+    """The first field of a serialized message whose first field is a
+    builtin_interfaces/Time or a std_msgs/Header (its stamp): CDR after the 4-byte
+    encapsulation header (byte 1 odd: little endian), int32 sec, uint32 nanosec; in ns.
+    No deserialization (the recorder's per-message cost, :func:`starts_with_stamp`)."""
+    sec, nanosec = struct.unpack_from("<iI" if data[1] & 1 else ">iI", data, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
+def starts_with_stamp(cls) -> bool:
+    """Whether the message class's first field is a Header or a Time (then
+    :func:`leading_stamp_ns` reads header.stamp, or that time, from its bytes)."""
+    kind = cls.SLOT_TYPES[0] if cls.SLOT_TYPES else None
+    name = (tuple(getattr(kind, "namespaces", ())), getattr(kind, "name", None))
+    return name in ((("std_msgs", "msg"), "Header"), (("builtin_interfaces", "msg"), "Time"))
 
 
 def discover_types(node, names, timeout_s: float = 5.0, stop_event=None) -> dict[str, str]:
@@ -56,13 +74,17 @@ class Recorder:
     Each callback takes every message waiting in all the subscriptions and handles them in
     the order they were published (:meth:`_take`), with ``depth`` (1000) per topic: a
     lockstep suite publishing faster than one executor wake-up per message loses none.
+    :meth:`drain` does the same without the executor. ``keep``: topics whose serialized
+    messages are also kept in :attr:`kept` (the twin demo's summary reads them).
     """
 
     def __init__(self, node, bag_writer: BagWriter, topics, *, use_header_stamp=(),
                  depth: int = 1000, discovery_timeout_s: float = 5.0,
-                 use_sim_time: bool = False):
+                 use_sim_time: bool = False, keep=()):
         from rclpy.clock import Clock, ClockType
         self.node, self.writer, self.depth = node, bag_writer, depth
+        #: the serialized messages of the topics in ``keep``, as recorded (in order)
+        self.kept = {name: [] for name in keep}
         self.use_header_stamp = set(use_header_stamp)
         self.use_sim_time = use_sim_time
         self._subs, self._pending, self._types, self._classes = {}, {}, {}, {}
@@ -75,8 +97,9 @@ class Recorder:
             from rosgraph_msgs.msg import Clock as ClockMsg
             # BEST_EFFORT, VOLATILE: compatible with every /clock publisher
             self._clock_sub = node.create_subscription(
-                ClockMsg, "/clock", lambda msg, info: self._take(CLOCK, msg, info),
-                QoSProfile(depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT))
+                ClockMsg, "/clock", lambda data, info: self._take(CLOCK, data, info),
+                QoSProfile(depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT),
+                raw=True)
         self._timer = node.create_timer(0.1, self._poll,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_topics(dict(topics) if isinstance(topics, dict) else discover_types(
@@ -115,8 +138,8 @@ class Recorder:
         """The latest /clock received (``use_sim_time``), None before the first."""
         return self._sim_ns
 
-    def _on_clock(self, msg) -> None:
-        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+    def _on_clock(self, data) -> None:
+        t_ns = leading_stamp_ns(data)  # Clock: its one field
         first = self._sim_ns is None
         self._sim_ns = t_ns if first else max(self._sim_ns, t_ns)
         if first:
@@ -140,6 +163,13 @@ class Recorder:
         per message could not keep up with a lockstep suite (its messages beyond a
         subscription's depth were lost)."""
         self._drain([(info["source_timestamp"], name, data)])
+
+    def drain(self) -> None:
+        """Take and record every message waiting in the subscriptions now (what a
+        callback does; the twin demo calls it after each step instead of waking the
+        executor per message); those published in the last HOLD_NS may wait (class
+        docstring)."""
+        self._drain()
 
     def _drain(self, batch=()) -> None:
         batch = self._held + list(batch)
@@ -172,13 +202,10 @@ class Recorder:
 
     def _write(self, name, data) -> None:
         """Write one serialized message with its log time (class docstring)."""
-        from rclpy.serialization import deserialize_message
-        if name in self.use_header_stamp:
-            stamp = deserialize_message(data, self._classes[name]).header.stamp
-            t_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
-        elif self.use_sim_time and name == "/clock":
-            clock = deserialize_message(data, self._classes[name]).clock
-            t_ns = clock.sec * 1_000_000_000 + clock.nanosec
+        if name in self.kept:
+            self.kept[name].append(data)
+        if name in self.use_header_stamp or (self.use_sim_time and name == "/clock"):
+            t_ns = self._stamp_ns(name, data)
         elif self.use_sim_time:
             if self._sim_ns is None:  # stamped with the first /clock when it comes
                 self._early.append((name, data, self.node.get_clock().now().nanoseconds))
@@ -188,6 +215,17 @@ class Recorder:
             t_ns = self.node.get_clock().now().nanoseconds
         if not self.writer.closed:
             self.writer.write(name, data, t_ns)
+
+    def _stamp_ns(self, name, data) -> int:
+        """header.stamp (or a Clock's time) of a serialized message, in ns: read from the
+        bytes where the type starts with it (:func:`starts_with_stamp`), else from the
+        deserialized message's header."""
+        cls = self._classes[name]
+        if starts_with_stamp(cls):
+            return leading_stamp_ns(data)
+        from rclpy.serialization import deserialize_message
+        stamp = deserialize_message(data, cls).header.stamp
+        return stamp.sec * 1_000_000_000 + stamp.nanosec
 
     def stop(self) -> None:
         """Destroy the subscriptions and declare topics that never had a publisher (the
