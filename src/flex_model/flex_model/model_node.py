@@ -129,9 +129,8 @@ from .arm import load_arm
 from .control_loop import ControlLoop
 from .controller_interface import load_controller
 from .dynamics import FlexArmModel
-from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog,
-                       declare_only, fmt, guard_parameters, lean_node, read_parameters,
-                       run_node)
+from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
+                       lean_node, read_parameters, run_node)
 from .stepper import Stepper
 from .trajectory_action import INVALID_GOAL, action_server
 
@@ -286,12 +285,9 @@ class ModelNode(Managed, LifecycleNode):
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
-        declare_only(self, PARAMETERS)
-        guard_parameters(self, PARAMETERS, lambda d: self.p.update(d),
-                         frozen=lambda: self.configured)
         self.add_on_set_parameters_callback(
             lambda changes: _refuse_controller_params(changes, self.configured))
-        self._start_lifecycle(PARAMETERS)
+        self._start_lifecycle(PARAMETERS, lambda d: self.p.update(d))
 
     def _configure(self) -> None:
         """Read and check the parameters, load the arm, make the publishers,

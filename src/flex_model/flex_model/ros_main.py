@@ -312,8 +312,12 @@ class Managed:
 
     configured = active = False
 
-    def _start_lifecycle(self, specs) -> None:
-        """Call at the end of ``__init__``, after declaring ``specs`` and guarding them."""
+    def _start_lifecycle(self, specs, apply) -> None:
+        """Call at the end of ``__init__``: declare ``specs`` (``ros2 param`` works while
+        unconfigured), guard them (``apply`` takes the accepted changes; those a node is
+        built from are refused while configured), then autostart or wait."""
+        declare_only(self, specs)
+        guard_parameters(self, specs, apply, frozen=lambda: self.configured)
         self._specs, self._made, self.configure_error = specs, None, None
         declare_only(self, [AUTOSTART])
         self.set_descriptor("autostart", descriptor(AUTOSTART))

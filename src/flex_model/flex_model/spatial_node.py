@@ -108,8 +108,8 @@ from visualization_msgs.msg import MarkerArray
 from . import ros_spatial as sr
 from .config import ConfigError
 from .ros_conversions import diagnostic_status, within_limit
-from .ros_main import (Managed, Param, ParameterError, ReasonLog, declare_only, fmt,
-                       guard_parameters, lean_node, read_parameters, run_node)
+from .ros_main import (Managed, Param, ParameterError, ReasonLog, fmt, lean_node, read_parameters,
+                       run_node)
 from .urdf import quaternion_from_matrix
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -251,10 +251,7 @@ class SpatialModelNode(Managed, LifecycleNode):
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
-        declare_only(self, PARAMETERS)
-        guard_parameters(self, PARAMETERS, lambda d: self.p.update(d),
-                         frozen=lambda: self.configured)
-        self._start_lifecycle(PARAMETERS)
+        self._start_lifecycle(PARAMETERS, lambda d: self.p.update(d))
 
     def _configure(self) -> None:
         """Read and check the parameters, load the arm, build the loop's matrices and
@@ -632,7 +629,8 @@ class SpatialModelNode(Managed, LifecycleNode):
         second per joint and kind."""
         qj, vj = self.q[self.model.off], self.v[self.model.off]
         lim = self.limits
-        how = "in the end stop (joint_stops)" if self.model.stops else             "reported, not enforced: the arm file has no joint_stops"
+        how = "in the end stop (joint_stops)" if self.model.stops else \
+            "reported, not enforced: the arm file has no joint_stops"
         for i in np.flatnonzero((qj < lim["lower"]) | (qj > lim["upper"])):
             self.drops.warning(f"joint {self.names[i]} at {fmt(qj[i])} outside its URDF "
                                f"limits [{fmt(lim['lower'][i])}, {fmt(lim['upper'][i])}] "
