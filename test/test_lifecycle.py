@@ -365,3 +365,137 @@ def test_entry_point_with_autostart_false_is_managed_and_exits_cleanly():
         ex.shutdown()
         mgr.destroy_node()
         rclpy.try_shutdown(context=ctx)
+
+
+# ---------------------------------------------------------------- the spatial model node
+SPATIAL, SPATIAL_1 = "seed003_like_arm", "seed000_real_arm_3d"  # three joints, one joint
+
+
+def spatial_core(arm: str, q, v, torques, per: int = 5):
+    """The compiled spatial loop at rate 200 Hz, ``per`` steps a period, one call per
+    period, restarted at each new command as the node does, from (q, v) (None: zeros):
+    the model and [(q, v)] after each period."""
+    from flex_model.spatial import SpatialArmModel, load_spatial_arm
+    from flex_model.spatial.integrate import simulate_fixed_compiled
+    model, out = SpatialArmModel(load_spatial_arm(arm)), []
+    q, v = (np.zeros(model.nq) if x is None else x for x in (q, v))
+    for u in torques:
+        run = simulate_fixed_compiled(model, q, v, 5e-3 / per, per,
+                                      joint_torques=np.asarray(u))
+        q, v = run.q[-1], run.v[-1]
+        out.append((q, v))
+    return model, out
+
+
+def spatial_periods(h, torques) -> None:
+    """One lockstep period (and joint_states) per command of ``torques``."""
+    for u in torques:
+        n = len(h.states)
+        h.cmd.publish(Float64MultiArray(data=[float(x) for x in u]))
+        h.spin_until(lambda: len(h.states) > n, "a lockstep period")
+
+
+def assert_spatial_states(h, model, ref, first: int) -> None:
+    """joint_states at periods first, first + 1, ... equal the core's ``ref`` (1e-12)."""
+    by_period = {round(stamp_s(m) * 200): m for m in h.states}
+    for k, (q, v) in enumerate(ref[first - 1:], start=first):
+        np.testing.assert_allclose(by_period[k].position, q[model.off], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(by_period[k].velocity, v[model.off], rtol=0, atol=1e-12)
+
+
+def test_spatial_model_node_transitions_with_a_lifecycle_client():
+    """The spatial node (issue 25) managed as the planar one: silent until activate;
+    lockstep periods equal the compiled loop; deactivate holds (inputs and ~/reset
+    refused, nothing published, time stands still), activate resumes on the same grid;
+    cleanup; a bad arm and a bad per-joint value fail configure with their line; another
+    arm configures and runs."""
+    from std_srvs.srv import Trigger
+    from flex_model.spatial_node import SpatialModelNode
+    spatial_core(SPATIAL, None, None, [[0.0] * 3])  # compile before the node waits
+    h = Manager(SpatialModelNode, "flex_model", autostart=False, arm=SPATIAL,
+                mode="lockstep", rate=200.0, step=1e-3, lockstep_timeout=100.0,
+                initial_joint_values=[0.1, -0.2, 0.3])
+    reset = h.mgr.create_client(Trigger, f"{h.node.get_fully_qualified_name()}/reset")
+    torques = [[2.0 * np.sin(0.7 * k), -1.0 + 0.1 * k, 0.5] for k in range(16)]
+    try:
+        assert h.state() == "unconfigured"
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.state() == "inactive"
+        h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0 and
+                     h.cmd.get_subscription_count() > 0, "discovery")
+        h.spin_for(0.2)
+        assert h.states == []  # configured, not active: nothing stepping-related
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        assert h.state() == "active"
+        h.spin_until(lambda: h.states, "the state published on activate")
+        assert stamp_s(h.states[0]) == 0.0
+        spatial_periods(h, torques[:8])
+        q0, v0 = h.node.q0, h.node.v0
+        model, ref = spatial_core(SPATIAL, q0, v0, torques)
+        np.testing.assert_allclose(q0[model.off], [0.1, -0.2, 0.3], rtol=0, atol=1e-15)
+        assert_spatial_states(h, model, ref[:8], 1)
+        assert stamp_s(h.states[-1]) == pytest.approx(0.040, abs=1e-12)
+
+        # deactivate: commands and ~/reset refused, nothing published, time stands still
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        assert h.state() == "inactive"
+        held, n, dropped = h.states[-1], len(h.states), h.node.dropped
+        for k in range(5):
+            h.cmd.publish(Float64MultiArray(data=[1.0, 1.0, 1.0]))
+            h.spin_for(0.04)
+        assert not h.call(reset, Trigger.Request()).success
+        h.spin_until(lambda: h.node.dropped == dropped + 5, "five refused commands")
+        assert len(h.states) == n and h.node.t == 0.040 and h.node.steps == 8
+
+        # activate again: the held state first, then the same time grid as the core
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        h.spin_until(lambda: len(h.states) > n, "the held state on activate")
+        assert stamp_s(h.states[n]) == stamp_s(held)
+        np.testing.assert_array_equal(h.states[n].position, held.position)
+        spatial_periods(h, torques[8:])
+        assert_spatial_states(h, model, ref, 9)
+        assert stamp_s(h.states[-1]) == pytest.approx(0.080, abs=1e-12)
+
+        # cleanup releases; bad values fail configure with their line; another arm runs
+        assert h.transition(Transition.TRANSITION_DEACTIVATE)
+        assert h.transition(Transition.TRANSITION_CLEANUP)
+        assert h.state() == "unconfigured"
+        assert not list(h.node.timers) and h.node.model is None
+        for params, line in (({"arm": "no_such_arm"}, "parameter arm: "),
+                             ({"arm": SPATIAL_1}, "parameter initial_joint_values: got "
+                              "[0.1, -0.2, 0.3]; expected 1 values")):
+            assert h.node.set_parameters([Parameter(k, value=v) for k, v in
+                                          params.items()])[0].successful
+            assert not h.transition(Transition.TRANSITION_CONFIGURE)
+            assert h.state() == "unconfigured"
+            assert str(h.node.configure_error).startswith(line)
+        # seed000's slender link needs the short step (as in test_spatial_node)
+        assert h.node.set_parameters([Parameter("initial_joint_values", value=[0.4]),
+                                      Parameter("step", value=2.5e-4)])[0].successful
+        assert h.transition(Transition.TRANSITION_CONFIGURE)
+        assert h.node.names == ["joint1"] and h.node.describe_parameter("arm").read_only
+        h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0, "discovery")
+        n = len(h.states)
+        assert h.transition(Transition.TRANSITION_ACTIVATE)
+        h.spin_until(lambda: len(h.states) > n, "the new arm's first state")
+        assert stamp_s(h.states[n]) == 0.0
+        del h.states[:n]
+        one = [[0.3 * np.cos(0.5 * k)] for k in range(6)]
+        spatial_periods(h, one)
+        model, ref = spatial_core(SPATIAL_1, h.node.q0, h.node.v0, one, per=20)
+        assert h.node.q0[model.off] == pytest.approx([0.4], abs=1e-15)
+        assert_spatial_states(h, model, ref, 1)
+        assert abs(ref[-1][1][model.off][0]) > 1e-3  # the commands moved the joint
+    finally:
+        h.close()
+
+
+def test_spatial_autostart_default_is_active():
+    from flex_model.spatial_node import SpatialModelNode
+    h = Manager(SpatialModelNode, "flex_model", arm=SPATIAL)
+    try:
+        assert h.state() == "active"
+        h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
+        assert stamp_s(h.states[-1]) > stamp_s(h.states[0])  # the realtime loop runs
+    finally:
+        h.close()

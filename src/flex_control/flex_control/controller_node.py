@@ -13,9 +13,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.ros_main import (Managed, Param, ParameterError, ReasonLog,
-                                 clock_topic_param, declare_only, fmt, follow_clock,
-                                 guard_parameters, lean_node, read_parameters, run_node)
+from flex_model.ros_main import (Managed, Param, ParameterError, ReasonLog, clock_topic_param, fmt,
+                                 follow_clock, lean_node, read_parameters, run_node)
 
 from .laws import hold_reference
 from .params import ControllerParams, build_controller
@@ -116,10 +115,7 @@ class ControllerNode(Managed, LifecycleNode):
     def __init__(self, **kwargs):
         super().__init__("flex_controller", **kwargs)
         self.specs = parameter_specs()
-        declare_only(self, self.specs)
-        guard_parameters(self, self.specs, self.apply_parameters,
-                         frozen=lambda: self.configured)
-        self._start_lifecycle(self.specs)
+        self._start_lifecycle(self.specs, self.apply_parameters)
 
     def _configure(self) -> None:
         """Read and check the parameters, build the controller, its topics."""

@@ -129,9 +129,8 @@ from .arm import load_arm
 from .control_loop import ControlLoop
 from .controller_interface import load_controller
 from .dynamics import FlexArmModel
-from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog,
-                       declare_only, fmt, guard_parameters, lean_node, read_parameters,
-                       run_node)
+from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
+                       lean_node, read_parameters, run_node)
 from .stepper import Stepper
 from .trajectory_action import INVALID_GOAL, action_server
 
@@ -286,12 +285,9 @@ class ModelNode(Managed, LifecycleNode):
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
-        declare_only(self, PARAMETERS)
-        guard_parameters(self, PARAMETERS, lambda d: self.p.update(d),
-                         frozen=lambda: self.configured)
         self.add_on_set_parameters_callback(
             lambda changes: _refuse_controller_params(changes, self.configured))
-        self._start_lifecycle(PARAMETERS)
+        self._start_lifecycle(PARAMETERS, lambda d: self.p.update(d))
 
     def _configure(self) -> None:
         """Read and check the parameters, load the arm, make the publishers,
@@ -404,13 +400,12 @@ class ModelNode(Managed, LifecycleNode):
         """Start the model loop from the held state (the wall time spent inactive is not
         integrated) and publish that state."""
         p = self.p
-        self.last_wall, self.behind = time.monotonic(), 0.0
         # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog;
         # lockstep with an in-loop controller: each tick runs the loop for LOCKSTEP_SLICE s
         period = 1.0 / p["rate"] if p["mode"] == "realtime" else 0.05
         if self.loop is not None and p["mode"] == "lockstep":
             period = 1e-4
-        self.timer = self.create_timer(period, self.on_tick)
+        self._start_loop(period)
         self.publish_state(full=True)
 
     def _deactivate(self) -> None:
@@ -419,8 +414,7 @@ class ModelNode(Managed, LifecycleNode):
         timeout (timeout_action zero: zero torque) and, with hold_until_command, the arm is
         held after activate until the next command; an in-loop controller's trajectory
         (and goal) ends, as on ~/reset."""
-        self.destroy_timer(self.timer)
-        self.timer = None
+        self._stop_loop(self.stepper.t)
         if self.fjt is not None:
             self.fjt.finish(INVALID_GOAL, "ended by deactivate (lifecycle)")
         if self.loop is not None:  # as ~/reset: zero (held) until the next trajectory
@@ -429,8 +423,6 @@ class ModelNode(Managed, LifecycleNode):
             if self.p["timeout_action"] == "zero":
                 self.stepper.set_command(np.zeros(self.model.n_links))
             self.braked = bool(self.p["hold_until_command"])
-        self.get_logger().info(f"inactive: stepping stopped at t = {fmt(self.stepper.t)} s, "
-                               "the state held")
 
     def _cleanup(self) -> None:
         """Release the arm, the in-loop controller and the live view's server (the
@@ -440,10 +432,6 @@ class ModelNode(Managed, LifecycleNode):
         if getattr(self, "live_view", None) is not None:
             self.live_view.close()
         self.loop = self.fjt = self.live_view = self.stepper = self.model = None
-
-    def _inactive(self) -> str | None:
-        """Why an input is refused in the inactive state (lifecycle), or None."""
-        return None if self.active else "the node is inactive (lifecycle): activate it"
 
     def _tf_setup(self, p) -> None:
         """/tf_static (base -> arm_plane, latched) once and /tf publishers, if tf2_msgs can
@@ -606,8 +594,7 @@ class ModelNode(Managed, LifecycleNode):
         if self.diverged is None:
             self.publish_diagnostic(conv.diagnostic_status(
                 self.get_fully_qualified_name(), self.model.arm.name, "ok",
-                ("inactive" if not self.active else "paused" if self.paused else "running")
-                + f" ({self.p['mode']})",
+                f"{self._activity(self.paused)} ({self.p['mode']})",
                 t=fmt(self.stepper.t)))
 
     def on_pause(self, request, response):

@@ -312,8 +312,12 @@ class Managed:
 
     configured = active = False
 
-    def _start_lifecycle(self, specs) -> None:
-        """Call at the end of ``__init__``, after declaring ``specs`` and guarding them."""
+    def _start_lifecycle(self, specs, apply) -> None:
+        """Call at the end of ``__init__``: declare ``specs`` (``ros2 param`` works while
+        unconfigured), guard them (``apply`` takes the accepted changes; those a node is
+        built from are refused while configured), then autostart or wait."""
+        declare_only(self, specs)
+        guard_parameters(self, specs, apply, frozen=lambda: self.configured)
         self._specs, self._made, self.configure_error = specs, None, None
         declare_only(self, [AUTOSTART])
         self.set_descriptor("autostart", descriptor(AUTOSTART))
@@ -393,6 +397,29 @@ class Managed:
         self.active = False
         self._release()
         return R.SUCCESS
+
+    def _inactive(self) -> str | None:
+        """Why an input is refused in the inactive state, or None (active)."""
+        return None if self.active else "the node is inactive (lifecycle): activate it"
+
+    def _activity(self, paused: bool) -> str:
+        """A model node's state word on /diagnostics: inactive, paused or running."""
+        return "inactive" if not self.active else "paused" if paused else "running"
+
+    def _start_loop(self, period: float) -> None:
+        """A model node's activate: its loop timer (``self.timer``, calling ``on_tick``)
+        from now on; the wall time spent inactive is not integrated (``last_wall``,
+        ``behind``)."""
+        self.last_wall, self.behind = time.monotonic(), 0.0
+        self.timer = self.create_timer(period, self.on_tick)
+
+    def _stop_loop(self, t: float) -> None:
+        """A model node's deactivate: its loop timer destroyed at simulation time ``t``
+        (s), logged; time and state stand still."""
+        self.destroy_timer(self.timer)
+        self.timer = None
+        self.get_logger().info(f"inactive: stepping stopped at t = {fmt(t)} s, the state "
+                               "held")
 
     def _release(self) -> None:
         if self._made is not None:

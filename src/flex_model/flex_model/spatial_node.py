@@ -62,6 +62,12 @@ is one line naming the parameter, value and what is allowed (exit status 2). At 
 command_timeout, timeout_action, lockstep_timeout and the plausibility limits may be set
 (checked); the others are refused with a reason.
 
+Lifecycle (issue 46, flex_model.ros_main.Managed, docs/ros.md "Lifecycle"): a managed
+node as the planar one; ``autostart`` (default true) configures and activates it at start;
+false: it starts unconfigured for a lifecycle manager. configure loads the arm, activate
+runs the loop, deactivate holds the state (time stands still, inputs refused, the command
+zero with timeout_action zero), cleanup releases the arm.
+
 Limits of a URDF arm (spatial/limits.py): joint_states' effort and the loop's torques are
 the commands clipped to the ``<limit effort>`` (inside the compiled loop; with eq95 the
 whole actuator torque, PD and feed-forward, is clipped: simulate_fixed_compiled's
@@ -91,7 +97,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock as SteadyClock, ClockType
-from rclpy.node import Node
+from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -102,8 +108,8 @@ from visualization_msgs.msg import MarkerArray
 from . import ros_spatial as sr
 from .config import ConfigError
 from .ros_conversions import diagnostic_status, within_limit
-from .ros_main import (Param, ParameterError, ReasonLog, declare_parameters, fmt,
-                       guard_parameters, lean_node, run_node)
+from .ros_main import (Managed, Param, ParameterError, ReasonLog, fmt, lean_node, read_parameters,
+                       run_node)
 from .urdf import quaternion_from_matrix
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -238,15 +244,23 @@ def plausibility_limits(model) -> dict:
             "max_payload_inertia": 10.0 * inertia}
 
 
-class SpatialModelNode(Node):
-    """A spatial arm stepped at ``rate`` (realtime) or per command (lockstep)."""
+class SpatialModelNode(Managed, LifecycleNode):
+    """A spatial arm stepped at ``rate`` (realtime) or per command (lockstep); a lifecycle
+    node as the planar ModelNode (ros_main.Managed): configure loads the arm, activate
+    runs the loop, deactivate holds the state (time stands still), cleanup releases it."""
 
     def __init__(self, **kwargs):
         super().__init__("flex_model", **kwargs)
+        self._start_lifecycle(PARAMETERS, lambda d: self.p.update(d))
+
+    def _configure(self) -> None:
+        """Read and check the parameters, load the arm, build the loop's matrices and
+        the initial state, make the publishers, subscriptions, services, the status
+        timer; robot_description goes out (latched)."""
         from .spatial.dynamics import SpatialArmModel
         from .spatial.limits import joint_limits
         from .spatial.payload import payload_inertia
-        p = declare_parameters(self, PARAMETERS)
+        p = read_parameters(self, PARAMETERS)
         self.p = p
         self.arm0 = load_arm_parameter(p["arm"], p["from_planar"])   # without payload
         self.payload0 = payload_inertia(p["payload"])
@@ -310,19 +324,13 @@ class SpatialModelNode(Node):
         self.create_subscription(Float64MultiArray, "flex/payload", self.on_payload, qos)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.create_service(SetBool, "~/pause", self.on_pause)
-        guard_parameters(self, PARAMETERS, self.p.update)
-        self.last_wall = time.monotonic()
-        self.behind = 0.0
-        # realtime: the model loop; lockstep: steps happen on commands, this is the watchdog
-        self.timer = self.create_timer(self.period if p["mode"] == "realtime"
-                                       else WATCHDOG_PERIOD, self.on_tick)
+        self.timer = None  # the model loop's, while active
         self.create_timer(1.0, self.on_status,  # wall time: sim time may stand still
                           clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.base = sr.frame_name("base_link", p["frame_prefix"], p["frame_id"])
         self.pub_description.publish(String(data=sr.skeleton_urdf(
             self.model, p["frame_prefix"], p["frame_id"])))
-        self.publish()
         m, inertia = self.payload0
         self.get_logger().info(
             f"spatial arm {self.arm.name} ({self.model.nq} coordinates, joints "
@@ -336,6 +344,25 @@ class SpatialModelNode(Node):
             self.get_logger().info(
                 f"dc_motor joints {', '.join(self.motor_joints)}: their commands on "
                 "effort_controller/commands are voltages (V), through the motor model")
+
+    def _activate(self) -> None:
+        """Start the loop from the held state and publish that state: realtime the model
+        loop, lockstep the watchdog (steps happen on commands)."""
+        self._start_loop(self.period if self.p["mode"] == "realtime" else WATCHDOG_PERIOD)
+        self.publish()
+
+    def _deactivate(self) -> None:
+        """Stop the loop: time and state stand still, nothing stepping-related is
+        published, inputs are refused. The command becomes the command timeout's
+        (timeout_action zero: a zero command; with eq95 the PD holds the set-points)."""
+        self._stop_loop(self.t)
+        if self.p["timeout_action"] == "zero" and np.any(self.u):
+            self.u = np.zeros(self.model.n_links)
+            self.acc = None if self.p["restart_on_change"] else self.acc
+
+    def _cleanup(self) -> None:
+        """Release the arm and its models (the entities go in ros_main.Managed)."""
+        self.model = self.model0 = self.arm0 = None
 
     # ------------------------------------------------------------- set-up
     @property
@@ -429,6 +456,9 @@ class SpatialModelNode(Node):
         return data
 
     def _not_diverged(self) -> None:
+        """Raise the reason an input is refused: inactive (lifecycle), or diverged."""
+        if not self.active:
+            raise ValueError(self._inactive())
         if self.diverged is not None:
             raise ValueError(f"the model diverged at t = {fmt(self.diverged_at)} s and is "
                              "stopped; call ~/reset")
@@ -460,6 +490,8 @@ class SpatialModelNode(Node):
             if not self.in_loop_pd:
                 raise ValueError("no set-point controller (parameter controller is none)")
             s = self._vector(msg, "set-points", "rad or m")
+            if not self.active:
+                raise ValueError(self._inactive())
         except ValueError as exc:
             self._drop("flex/setpoints", str(exc))
             return
@@ -497,6 +529,9 @@ class SpatialModelNode(Node):
     def on_reset(self, request, response):
         """Back to the initial state, payload and a zero command at t = 0; after a
         Newton failure this restarts the loop (the diagnostic goes back to OK)."""
+        if not self.active:
+            response.success, response.message = False, self._inactive()
+            return response
         was_diverged = self.diverged is not None
         self.reset_state()
         self.last_wall = time.monotonic()
@@ -515,6 +550,9 @@ class SpatialModelNode(Node):
         """Pause (true) or resume (false): paused, no period runs (the simulation time and
         /clock stand still); commands are still taken. Lockstep: resuming runs one period
         (it restarts the model-controller loop)."""
+        if not self.active:
+            response.success, response.message = False, self._inactive()
+            return response
         was_paused, self.paused = self.paused, bool(request.data)
         self.last_wall = time.monotonic()
         self.behind = 0.0
@@ -591,7 +629,8 @@ class SpatialModelNode(Node):
         second per joint and kind."""
         qj, vj = self.q[self.model.off], self.v[self.model.off]
         lim = self.limits
-        how = "in the end stop (joint_stops)" if self.model.stops else             "reported, not enforced: the arm file has no joint_stops"
+        how = "in the end stop (joint_stops)" if self.model.stops else \
+            "reported, not enforced: the arm file has no joint_stops"
         for i in np.flatnonzero((qj < lim["lower"]) | (qj > lim["upper"])):
             self.drops.warning(f"joint {self.names[i]} at {fmt(qj[i])} outside its URDF "
                                f"limits [{fmt(lim['lower'][i])}, {fmt(lim['upper'][i])}] "
@@ -630,7 +669,7 @@ class SpatialModelNode(Node):
         if self.diverged is None:
             self.publish_diagnostic(diagnostic_status(
                 self.get_fully_qualified_name(), self.arm.name, "ok",
-                f"{'paused' if self.paused else 'running'} ({self.p['mode']})",
+                f"{self._activity(self.paused)} ({self.p['mode']})",
                 t=fmt(self.t)))
 
     def on_tick(self) -> None:

@@ -3,9 +3,8 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
-from flex_model.ros_main import (Managed, Param, ParameterError, clock_topic_param,
-                                 declare_only, follow_clock, guard_parameters, lean_node,
-                                 read_parameters, run_node)
+from flex_model.ros_main import (Managed, Param, ParameterError, clock_topic_param, follow_clock,
+                                 lean_node, read_parameters, run_node)
 from nav_msgs.msg import Path
 from rclpy.lifecycle import LifecycleNode
 from rclpy.serialization import deserialize_message
@@ -93,10 +92,7 @@ class PlannerNode(Managed, LifecycleNode):
     def __init__(self, **kwargs):
         super().__init__("flex_planner", **kwargs)
         self.specs = parameter_specs()
-        declare_only(self, self.specs)
-        guard_parameters(self, self.specs, self.apply_parameters,
-                         frozen=lambda: self.configured)
-        self._start_lifecycle(self.specs)
+        self._start_lifecycle(self.specs, self.apply_parameters)
 
     def _configure(self) -> None:
         """Read and check the parameters, load the arm, make the topics."""

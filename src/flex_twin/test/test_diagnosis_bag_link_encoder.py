@@ -148,3 +148,41 @@ def test_bag_link_side_refusals_are_one_line(tmp_path, capsys):
     with pytest.raises(RecordingError, match="custom_data: start_window: '-1' is not a "
                        "number of seconds >= 0"):
         load_bag(_custom_data(_write_bag(tmp_path / "window", t, ch), start_window="-1"), 2)
+
+
+def test_a_base_frame_tip_pose_needs_the_arms_gravity(tmp_path):
+    """The model node publishes /flex/tip_pose in the base frame (z up); the recording wants
+    it in the arm's plane, which depends on the arm's gravity: given, the plane's (x, y)
+    come back to 1e-12; not given, the bag is refused with a reason (a default vertical
+    plane would be silently wrong for a horizontal or tilted arm)."""
+    from geometry_msgs.msg import PoseStamped
+    from flex_model.urdf import plane_rotation, plane_to_base
+    t, ch = _channels()
+    path = _write_bag(tmp_path / "bag", t, ch)
+    plane_xy = np.column_stack([1.0 + 0.1 * np.sin(t), 0.2 * np.cos(t)])
+    gravity = (3.0, -9.0)   # a tilted arm
+    base = plane_to_base(plane_rotation(gravity), plane_xy)
+    with BagWriter(tmp_path / "tip") as bag:
+        bag.write("/flex_planner/trajectory", _read_one(path, "/flex_planner/trajectory"), 0)
+        for k, tk in enumerate(t):
+            t_ns = int(round(tk * 1e9))
+            bag.write("/joint_states", conv.joint_state(
+                tk, NAMES, [ch["q1"][k], ch["q2"][k]], [ch["v1"][k], ch["v2"][k]],
+                [ch["tau1"][k], ch["tau2"][k]]), t_ns)
+            pose = PoseStamped()
+            pose.header.frame_id = "base_link"
+            conv.set_time(pose.header.stamp, tk)
+            pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = \
+                (float(v) for v in base[k])
+            bag.write("/flex/tip_pose", pose, t_ns)
+    rec = load_bag(tmp_path / "tip", 2, gravity=gravity)
+    np.testing.assert_allclose(rec.channels["tip_x"], plane_xy[:, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rec.channels["tip_y"], plane_xy[:, 1], rtol=0, atol=1e-12)
+    with pytest.raises(RecordingError, match="needs the arm's gravity"):
+        load_recording(tmp_path / "tip", 2)
+
+
+def _read_one(path, topic):
+    """The first message of ``topic`` in a bag."""
+    from flex_twin.bags import read_bag
+    return next(msg for _, _, _, msg in read_bag(path, [topic]))

@@ -40,10 +40,11 @@ def _stamp(msg, t_ns) -> float:
     return t if t > 0 else 1e-9 * t_ns
 
 
-def load_bag(path, n_joints: int, link_topic: str | None = None, gravity=(0.0, -9.81)):
+def load_bag(path, n_joints: int, link_topic: str | None = None, gravity=None):
     """Read the bag into a :class:`~flex_twin.diagnosis.recording.Recording`; the link-side
     encoders from ``link_topic`` (default :data:`LINK_TOPIC`) when the bag has it;
-    ``gravity``: the arm's (m/s^2, in its plane), for a tip pose in the base frame."""
+    ``gravity``: the arm's (m/s^2, in its plane), needed for a tip pose in the base frame
+    (refused without it: the arm's plane in the base frame depends on it)."""
     from flex_model.urdf import base_to_plane, plane_rotation
     from ..bags import BagError, read_bag, topic_types
     path = Path(path)
@@ -79,9 +80,15 @@ def load_bag(path, n_joints: int, link_topic: str | None = None, gravity=(0.0, -
                                                  for i in range(n_joints)]))
             else:
                 p, frame = msg.pose.position, msg.header.frame_id
-                x, y = (p.x, p.y) if not frame or frame.endswith("arm_plane") else \
+                in_plane = not frame or frame.endswith("arm_plane")
+                if not in_plane and gravity is None:
+                    raise RecordingError(f"{path}: /flex/tip_pose is in {frame!r}; turning it "
+                                         "into the arm's plane needs the arm's gravity")
+                x, y = (p.x, p.y) if in_plane else \
                     base_to_plane(plane_rotation(gravity), [p.x, p.y, p.z])[0]
                 tip.append((_stamp(msg, t_ns), x, y))
+    except RecordingError:
+        raise
     except (BagError, OSError, ValueError, RuntimeError) as exc:
         raise RecordingError(f"{path}: corrupt or truncated bag ({exc})") from None
     if len(js) < 2:

@@ -9,10 +9,11 @@ from .ros_recording import load_bag
 
 
 def load_recording(path, n_joints: int, link_topic: str | None = None,
-                   gravity=(0.0, -9.81)) -> Recording:
+                   gravity=None) -> Recording:
     """A CSV file, or a rosbag2 directory / .mcap file (needs rclpy) whose link-side
     encoders are on ``link_topic`` (default ``ros_recording.LINK_TOPIC``); ``gravity``
-    (the arm's) turns a bag's base-frame tip pose into the plane."""
+    (the arm's) turns a bag's base-frame tip pose into the plane (a bag with one and no
+    ``gravity`` is refused: the plane is not known)."""
     path = Path(path)
     if not path.exists():
         raise RecordingError(f"{path}: no such file or directory")
