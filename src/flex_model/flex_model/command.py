@@ -3,8 +3,11 @@ output directory, the progress line and the exit convention: 0 success, 2 bad in
 line on stderr), 1 a failed computation."""
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time
+from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 
@@ -38,6 +41,24 @@ class Progress:
         elif frac >= self.next_mark - 1e-9 or frac >= 1:
             print(msg, file=sys.stderr, flush=True)
             self.next_mark = np.floor(frac * 10 + 1e-9) / 10 + 0.1
+
+
+@contextmanager
+def stop_on_signals():
+    """A ``threading.Event`` that SIGINT and SIGTERM set while inside (their previous
+    handlers come back on exit; outside the main thread none is installed): loops check
+    it between steps, so nothing interrupts a callback or a compiled call, and a ROS
+    context stays valid for a last command."""
+    stop = threading.Event()
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda *_: stop.set())
+    try:
+        yield stop
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def run_command(args) -> int:

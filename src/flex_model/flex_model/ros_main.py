@@ -10,10 +10,8 @@ from __future__ import annotations
 import math
 import re
 from array import array
-import signal
 import sys
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable
 
@@ -24,6 +22,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from flex_model import ros_environment
+from flex_model.command import stop_on_signals
 
 
 PARAMETER_SERVICES = ("describe_parameters", "get_parameter_types", "get_parameters",
@@ -481,21 +480,6 @@ class ReasonLog:
             self.node.get_logger().info(text)
 
 
-@contextmanager
-def stop_on_signals():
-    """A list that SIGINT and SIGTERM append to while inside (the previous handlers come
-    back on exit): spin loops check it between callbacks, so nothing interrupts a
-    callback and the context stays valid for a last command."""
-    stop = []
-    old = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum))
-           for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield stop
-    finally:
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
-
-
 def run_node(factory, args=None, on_stop=None) -> None:
     """init, spin the node made by ``factory`` in a SingleThreadedExecutor until SIGINT or
     SIGTERM, call ``on_stop(node)`` while the context is still valid (the controller
@@ -519,7 +503,7 @@ def run_node(factory, args=None, on_stop=None) -> None:
                 print(f"{getattr(factory, '__name__', 'node')}: {exc}", file=sys.stderr)
                 raise SystemExit(2) from None
             executor.add_node(node)
-            while rclpy.ok() and not stop:
+            while rclpy.ok() and not stop.is_set():
                 executor.spin_once(timeout_sec=0.05)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -12,15 +12,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import sys
-import threading
 import time
 from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 
 from flex_model import ros_environment
+from flex_model.command import stop_on_signals
 
 
 @contextmanager
@@ -29,28 +28,22 @@ def _ros_node(name: str):
     SIGINT/SIGTERM (handlers restored and ROS shut down on exit)."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    stop = threading.Event()
-    previous = {}
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            previous[sig] = signal.signal(sig, lambda *_: stop.set())
     ctx = rclpy.Context()
     ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(context=ctx)
     node = executor = None
     try:
-        node = rclpy.create_node(name, context=ctx)
-        executor = SingleThreadedExecutor(context=ctx)
-        executor.add_node(node)
-        yield node, executor, stop
+        with stop_on_signals() as stop:
+            node = rclpy.create_node(name, context=ctx)
+            executor = SingleThreadedExecutor(context=ctx)
+            executor.add_node(node)
+            yield node, executor, stop
     finally:
         if executor is not None:
             executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown(context=ctx)
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 def standard_topics(node) -> dict[str, str]:

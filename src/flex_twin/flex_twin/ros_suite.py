@@ -152,7 +152,7 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
-    from flex_model.ros_main import stop_on_signals
+    from flex_model.command import stop_on_signals
 
     ctx = rclpy.Context()
     ros_environment()   # LOCALHOST discovery before the participant exists
@@ -171,7 +171,7 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
                 ex.add_node(n)
             models = [n for k, n in nodes.items() if split_name(k)[1] == "flex_model"]
             next_mark = 0.0
-            while ctx.ok() and not stop:
+            while ctx.ok() and not stop.is_set():
                 ex.spin_once(timeout_sec=0.01)
                 if models and duration is not None and all(m.configured for m in models):
                     t = min(m.stepper.t for m in models)

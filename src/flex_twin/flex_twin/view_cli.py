@@ -8,14 +8,13 @@ Open connection > Foxglove WebSocket > ws://localhost:8765.
 """
 from __future__ import annotations
 
-import contextlib
 import math
-import signal
 import sys
-import threading
 import time
 
 import numpy as np
+
+from flex_model.command import stop_on_signals
 
 
 #: after the last frame, the server stays up this long (s) so that it reaches the clients
@@ -161,7 +160,7 @@ def cmd_view(args) -> int:
     view = LiveView(model, port=args.port, host=args.host, points_per_link=args.shape_points)
     print(f"flex-twin view: {label}; serving {view.url} (Foxglove: Open connection > "
           f"Foxglove WebSocket); Ctrl-C stops", file=sys.stderr, flush=True)
-    with _stop_on_signals() as stop:
+    with stop_on_signals() as stop:
         try:
             if args.wait:
                 print("flex-twin view: waiting for a client to subscribe", file=sys.stderr,
@@ -180,20 +179,6 @@ def cmd_view(args) -> int:
         finally:
             view.close(linger)
     return 0
-
-
-@contextlib.contextmanager
-def _stop_on_signals():
-    """An Event set by Ctrl-C or SIGTERM while inside (the stream stops between frames: a
-    KeyboardInterrupt inside the compiled integrator would surface as a SystemError)."""
-    stop = threading.Event()
-    handlers = {sig: signal.signal(sig, lambda *_: stop.set())
-                for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield stop
-    finally:
-        for sig, handler in handlers.items():
-            signal.signal(sig, handler)
 
 
 def add_view_parser(sub) -> None:
