@@ -167,3 +167,26 @@ def test_imports_of_the_studies_are_found(tmp_path):
                       "from .studies import x\nimport studiesx\n")
     assert sorted(imports_of(source, "studies")) == ["studies", "studies.servo_split",
                                                      "studies.transfer"]
+
+
+#: the ROS adapters of flex_model: the only modules of the core package that import rclpy
+ROS_ADAPTERS = {"flex_model.model_node", "flex_model.spatial_node", "flex_model.ros_main",
+                "flex_model.ros_trajectory_action"}
+
+
+def test_only_the_ros_adapters_of_flex_model_import_rclpy():
+    """The numeric core (every other flex_model module) imports no rclpy, lazily either."""
+    found = {name for name, path in module_files().items() if name.startswith("flex_model.")
+             and any(t.split(".")[0] == "rclpy" for t in _all_imports(path))}
+    assert found <= ROS_ADAPTERS, found - ROS_ADAPTERS
+
+
+def _all_imports(path: Path) -> list[str]:
+    """Every module name an import statement of the file names."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            out.append(node.module)
+    return out

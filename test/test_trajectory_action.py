@@ -23,6 +23,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter as P
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from flex_model import ros_trajectory_action as rta
 from flex_model import trajectory_action as ta
 
 NAMES = ["joint1", "joint2"]
@@ -113,7 +114,7 @@ def test_no_control_msgs_no_server_and_a_log_line(monkeypatch):
         def get_logger(self):
             return type("L", (), {"info": staticmethod(logged.append)})()
     monkeypatch.setitem(sys.modules, "control_msgs.action", None)
-    assert ta.action_server(Node()) is None
+    assert rta.action_server(Node()) is None
     assert "FollowJointTrajectory off: control_msgs cannot be imported" in logged[0]
 
 

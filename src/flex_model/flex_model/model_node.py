@@ -32,7 +32,7 @@ Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t 
 in-loop controller's trajectory is dropped: zero until the next one; after a divergence it
 restarts the loop), ~/pause (std_srvs/SetBool).
 Action (with an in-loop controller, where control_msgs imports): joint_trajectory_controller/
-follow_joint_trajectory (control_msgs/FollowJointTrajectory, flex_model.trajectory_action).
+follow_joint_trajectory (control_msgs/FollowJointTrajectory, flex_model.ros_trajectory_action).
 
 Parameters (:data:`PARAMETERS`: defaults, descriptions, checks): arm (default
 thesis_example1_motors: with its geared motors the default controller node, a sampled
@@ -132,7 +132,8 @@ from .dynamics import FlexArmModel
 from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
                        lean_node, read_parameters, run_node)
 from .stepper import Stepper
-from .trajectory_action import INVALID_GOAL, action_server
+from .ros_trajectory_action import action_server
+from .trajectory_action import INVALID_GOAL
 
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
