@@ -19,7 +19,6 @@ import numpy as np
 import pytest
 import rclpy
 import yaml
-from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
@@ -32,6 +31,7 @@ from flex_control.controller_node import ControllerNode
 from flex_model.model_node import ModelNode
 from flex_model.ros_main import ParameterError
 from flex_planner.planner_node import PlannerNode
+from flex_planner.ros_messages import waypoints_msg
 
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 NAN, INF = math.nan, math.inf
@@ -128,7 +128,7 @@ class Suite:
     def plan_alive(self):
         """A valid request is still planned and published."""
         n = len(self.trajectories)
-        self.pub["waypoints"].publish(path([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
+        self.pub["waypoints"].publish(waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
         self.spin_until(lambda: len(self.trajectories) > n, "a plan after the bad input",
                         timeout=60.0)
 
@@ -138,19 +138,6 @@ def suite():
     s = Suite()
     yield s
     s.close()
-
-
-def path(points, frame="arm_plane"):
-    msg = Path()
-    msg.header.frame_id = frame
-    for x, y, t in points:
-        ps = PoseStamped()
-        ps.header.stamp.sec = int(t)
-        ps.header.stamp.nanosec = int(round((t - int(t)) * 1e9))
-        ps.pose.position.x, ps.pose.position.y = x, y
-        ps.pose.orientation.w = 1.0
-        msg.poses.append(ps)
-    return msg
 
 
 def trajectory(names, points):
@@ -216,17 +203,17 @@ INPUTS = [
      "JointTrajectory.points[0].velocities: got 1 values; expected 0 or 2"),
     ("ctrl", "trajectory", trajectory(J, [(0.0, [0], [])]),
      "JointTrajectory.points[0].positions: got 1 values; expected 2"),
-    ("plan", "waypoints", path([(-1.0, -1.0, 0.0), (9.0, 0.0, 1.0)]),
+    ("plan", "waypoints", waypoints_msg([(-1.0, -1.0, 0.0), (9.0, 0.0, 1.0)]),
      "waypoints rejected, nothing published: waypoint 1 at (9, 0) m is unreachable"),
-    ("plan", "waypoints", path([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1e5)]),
+    ("plan", "waypoints", waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1e5)]),
      "expected at most max_samples = 200000"),
-    ("plan", "waypoints", path([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)], frame="world"),
+    ("plan", "waypoints", waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)], frame_id="world"),
      "Path.header.frame_id: got 'world'; expected 'arm_plane'"),
-    ("plan", "waypoints", path([(-1.0, -1.0, 0.0), (NAN, -1.0, 1.0)]),
+    ("plan", "waypoints", waypoints_msg([(-1.0, -1.0, 0.0), (NAN, -1.0, 1.0)]),
      "Path.poses[1].pose.position: got (nan, -1.0); expected finite x, y (m)"),
-    ("plan", "waypoints", path([(-1.0, -1.0, 0.0)]),
+    ("plan", "waypoints", waypoints_msg([(-1.0, -1.0, 0.0)]),
      "Path.poses: got 1 poses; expected at least 2"),
-    ("plan", "waypoints", path([(-1.0, -1.0, 2.0), (-2.0, -1.0, 1.0)]),
+    ("plan", "waypoints", waypoints_msg([(-1.0, -1.0, 2.0), (-2.0, -1.0, 1.0)]),
      "Path.poses[1].header.stamp: got 1 s after 2 s; expected strictly increasing"),
 ]
 
@@ -481,7 +468,7 @@ def test_planner_stamps_with_its_twins_simulation_clock():
         while plan.get_clock().now().nanoseconds != 12_500_000_000:
             assert time.monotonic() < end, "timed out waiting for the clock"
             ex.spin_once(timeout_sec=0.01)
-        waypoints.publish(path([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
+        waypoints.publish(waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
         while not paths:
             assert time.monotonic() < end, "timed out waiting for the plan"
             ex.spin_once(timeout_sec=0.01)

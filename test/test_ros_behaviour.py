@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
@@ -39,6 +38,7 @@ from flex_model.model_node import ModelNode
 from flex_model.simulate import SimulationDivergedError
 from flex_model.stepper import Stepper
 from flex_planner.planner_node import PlannerNode
+from flex_planner.ros_messages import waypoints_msg
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -163,7 +163,7 @@ def test_renamed_planner_publishes_on_the_documented_topics():
         waypoints = g.probe.create_publisher(Path, "flex_planner/waypoints", RELIABLE)
         g.spin_until(lambda: waypoints.get_subscription_count() and
                      plan.pub_trajectory.get_subscription_count() >= 2, "discovery")
-        waypoints.publish(path_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
+        waypoints.publish(waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
         g.spin_until(lambda: trajectories, "the renamed planner's trajectory", 120.0)
         assert len(trajectories[0].points) == 21  # 1 s every 0.05 s
         # the controller in the namespace has it too (kept until joint_states name joints)
@@ -173,23 +173,12 @@ def test_renamed_planner_publishes_on_the_documented_topics():
 
 
 # ------------------------------------------------------------------ item 2
-def path_msg(points, frame="arm_plane"):
-    msg = Path()
-    msg.header.frame_id = frame
-    for x, y, t in points:
-        ps = PoseStamped()
-        ps.header.stamp.sec = int(t)
-        ps.header.stamp.nanosec = int(round((t - int(t)) * 1e9))
-        ps.pose.position.x, ps.pose.position.y = x, y
-        ps.pose.orientation.w = 1.0
-        msg.poses.append(ps)
-    return msg
 
 
 def path_bytes(x, y, t, frame="arm_plane") -> bytes:
     """The serialized nav_msgs/Path (plain CDR) of poses at (x, y) with stamps t (s), built
     with numpy: rclpy takes ~10 us a pose to build and serialize one, 10 s for 10^6."""
-    one = serialize_message(path_msg([(0.0, 0.0, 0.0)], frame))
+    one = serialize_message(waypoints_msg([(0.0, 0.0, 0.0)], frame))
     # a PoseStamped with an empty frame_id: 12 bytes, the NUL, padding to 8, 7 doubles;
     # the first one's padding depends on where it starts (CDR aligns from byte 4)
     first = next(k for k in (72, 76) if struct.unpack_from(
@@ -261,7 +250,7 @@ def test_planner_refuses_a_million_waypoints_at_once_and_keeps_serving():
         assert "Path.poses: got 1000000 poses; expected at most max_waypoints = 1000" in line
         print(f"10^6 waypoints ({len(big) / 1e6:.0f} MB) refused {refused_after:.2f} s "
               "after publishing")
-        waypoints.publish(path_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
+        waypoints.publish(waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
         g.spin_until(lambda: trajectories, "the next valid plan", 120.0)
         assert len(trajectories[0].points) == 21
         start = time.monotonic()
@@ -280,7 +269,7 @@ def test_planner_refuses_a_long_plan_from_its_first_and_last_stamps(graph):
     poses are converted (a 3-pose request spanning 1e5 s: ~1e8 samples)."""
     g = graph
     plan = g.add(PlannerNode(context=g.ctx, namespace=g.ns))
-    msg = serialize_message(path_msg([(-1.0, -1.0, 0.0), (float("nan"), 0.0, 1.0),
+    msg = serialize_message(waypoints_msg([(-1.0, -1.0, 0.0), (float("nan"), 0.0, 1.0),
                                       (-2.0, -1.0, 1e5)]))
     with pytest.raises(ValueError, match=r"needing 100000002 samples .* expected at most "
                        r"max_samples = 200000"):

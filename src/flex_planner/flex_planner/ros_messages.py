@@ -51,6 +51,22 @@ def serialized_path_size(data: bytes) -> int | None:
     return struct.unpack_from(order + "I", data, count_at)[0]
 
 
+def waypoints_msg(points, frame_id: str = "arm_plane") -> Path:
+    """Tip waypoints ``(x, y, t)`` (m, m, s from the start) as the planner node takes them
+    (the inverse of :func:`path_request`): a nav_msgs/Path in ``frame_id`` (the poses'
+    own frame_id left empty: the Path's applies), each pose stamped with its time."""
+    msg = Path()
+    msg.header.frame_id = frame_id
+    for x, y, t in points:
+        pose = PoseStamped()
+        pose.header.stamp.sec = int(t)
+        pose.header.stamp.nanosec = int(round((t - int(t)) * 1e9))
+        pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+        pose.pose.orientation.w = 1.0
+        msg.poses.append(pose)
+    return msg
+
+
 def path_request(msg: Path, frame_id: str, with_orientation: bool):
     """(waypoints (N, 2) m, times (N,) s, orientations (N,) rad or None) of a request."""
     if msg.header.frame_id != frame_id:

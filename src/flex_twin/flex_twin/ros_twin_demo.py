@@ -44,21 +44,6 @@ KEPT = {name: RECORDED[name] for name in ("/flex/tip_pose", "/joint_states",
 SPIN_PERIOD, QUIET = 0.05, 0.01
 
 
-def _waypoints_msg(stamp):
-    from geometry_msgs.msg import PoseStamped
-    from nav_msgs.msg import Path as PathMsg
-    msg = PathMsg()
-    msg.header.frame_id = "arm_plane"
-    for (x, y), t in zip(WAYPOINTS, TIMES):
-        pose = PoseStamped()
-        pose.header.frame_id = "arm_plane"
-        pose.header.stamp = stamp(t)
-        pose.pose.position.x, pose.pose.position.y = float(x), float(y)
-        pose.pose.orientation.w = 1.0
-        msg.poses.append(pose)
-    return msg
-
-
 def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0,
         progress=None, in_loop: bool = True, publish_rate: float = 50.0) -> dict:
     """Run the demo; returns the summary (also written as summary.json). ``in_loop``: the
@@ -73,6 +58,8 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
 
     from flex_control.controller_node import ControllerNode
     from flex_planner.planner_node import PlannerNode
+    from flex_planner.ros_messages import waypoints_msg
+    from nav_msgs.msg import Path as PathMsg
 
     from flex_model import ros_conversions as conv
     from .bags import BagWriter, Recorder
@@ -121,7 +108,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                 probe.create_subscription(get_message(cls), name, kept[name].append, 1000,
                                           raw=True)
         # latched (transient local): the recorder, started later, records the waypoints too
-        pub = probe.create_publisher(type(_waypoints_msg(conv.stamp)), "flex_planner/waypoints",
+        pub = probe.create_publisher(PathMsg, "flex_planner/waypoints",
                                      QoSProfile(depth=1,
                                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
@@ -132,7 +119,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                     raise TimeoutError(f"twin demo: timed out waiting for {what}")
                 ex.spin_once(timeout_sec=0.01)
         spin_until(lambda: pub.get_subscription_count() > 0, "the planner")
-        pub.publish(_waypoints_msg(conv.stamp))
+        pub.publish(waypoints_msg([(x, y, t) for (x, y), t in zip(WAYPOINTS, TIMES)]))
         spin_until(lambda: plans, "the plan")
         first = np.degrees(plans[-1].points[0].positions)
         own = [P("controller", value="eq95"), P("controller_rate", value=rate),
