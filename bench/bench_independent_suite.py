@@ -69,7 +69,7 @@ NONE = "no material discrepancy"
 
 def _case_key(name: str):
     """(stratum, seed, magnitude) of a case id such as B-samp500-payload-m1-s2."""
-    m = re.match(r"^(?P<ac>[AB]-[a-z0-9]+)-(?P<kind>.+?)(?:-m(?P<mag>\d+))?-s(?P<seed>\d+)$",
+    m = re.match(r"^(?P<ac>[A-Z]-[a-z0-9]+)-(?P<kind>.+?)(?:-m(?P<mag>\d+))?-s(?P<seed>\d+)$",
                  name)
     if not m:
         return (name, 0, 0)

@@ -124,8 +124,24 @@ CONTROLLERS = {'cont': {'kind': 'continuous', 'kp': [KP, KP], 'kd': [KD, KD]},
                # gains of the twin's synthetic cases on this arm (diagnosis/synthetic.py)
                'samp500': {'kind': 'sampled', 'period': SAMPLED_PERIOD,
                            'kp': [300.0, 100.0], 'kd': [60.0, 20.0]}}
-ARMS = {'A': {'rotor': False}, 'B': {'rotor': True}}
+ARMS = {'A': {'rotor': False}, 'B': {'rotor': True},
+        # issue 44: arm A with Kelvin-Voigt damping in its nominal description (ANCF
+        # bending damping b EI, b = NOMINAL_KV s on both links, tolerance 0.5 in the twin)
+        'C': {'rotor': False, 'kelvin_voigt': 0.005}}
 CONFIGS = (('A', 'cont'), ('B', 'cont'), ('B', 'samp500'))
+#: issue 44's cases on arm C (continuous PD): (id tail, [(kind, level, target index,
+#: parameter overrides)]); the stiffness changes are 15-25 %, the elastic joint 1 has a
+#: motor-side rotor of its own (no gear on the hub-less arm)
+C_CASES = (('stiffness20-link2', [('stiffness', 1, 1, {'E': E_NOM * 0.80})]),
+           ('stiffness15-link2', [('stiffness', 1, 1, {'E': E_NOM * 0.85})]),
+           ('stiffness25-link2', [('stiffness', 1, 1, {'E': E_NOM * 0.75})]),
+           ('two-joint_friction2+payload', [('joint_friction', 1, 1, {}),
+                                            ('payload', 1, 0, {})]),
+           ('joint_elasticity-rotor-joint1', [('joint_elasticity', 1, 0, {
+               'stiffness': 1000.0, 'motor_inertia': 0.05,
+               'damping': 2 * 0.1 * math.sqrt(1000.0 * 0.05)})]))
+C_SEEDS = {'stiffness20-link2': (1, 2), 'stiffness15-link2': (3,), 'stiffness25-link2': (4,),
+           'two-joint_friction2+payload': (1, 2), 'joint_elasticity-rotor-joint1': (1, 2)}
 
 
 def _rng(*tags):
@@ -209,6 +225,28 @@ def all_cases():
                 out.append({'id': '%s-two-%s+%s-s%d' % (base, k1, k2, s), 'arm': arm,
                             'controller': ctrl, 'kind': 'two:%s+%s' % (k1, k2),
                             'hidden': hs, 'reference_seed': s, 'noise_seed': 100 + s})
+    return out + c_cases()
+
+
+def c_cases():
+    """Issue 44's cases on arm C (Kelvin-Voigt damping in the nominal arm, continuous PD):
+    healthy runs, a link-2 stiffness change of 15-25 %, joint-2 friction with a tip payload,
+    a joint-1 spring with a motor-side rotor inertia."""
+    out = [{'id': 'C-cont-healthy-s%d' % s, 'arm': 'C', 'controller': 'cont',
+            'kind': 'healthy', 'hidden': [], 'reference_seed': s, 'noise_seed': 100 + s}
+           for s in (1, 2)]
+    for tail, spec in C_CASES:
+        for s in C_SEEDS[tail]:
+            hs = []
+            for kind, level, j, over in spec:
+                h = _hidden(kind, level, j, 'C')
+                h['parameters'].update(over)
+                hs.append(h)
+            kind = hs[0]['kind'] if len(hs) == 1 else 'two:%s+%s' % (hs[0]['kind'],
+                                                                    hs[1]['kind'])
+            out.append({'id': 'C-cont-%s-s%d' % (tail, s), 'arm': 'C', 'controller': 'cont',
+                        'kind': kind, 'hidden': hs, 'reference_seed': s,
+                        'noise_seed': 100 + s})
     return out
 
 
@@ -267,7 +305,7 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
     E = [E_NOM, E_NOM]
     if 'stiffness' in hidden:
         E[int(hidden['stiffness']['target'][-1]) - 1] = hidden['stiffness']['parameters']['E']
-    bdamp = [0.0, 0.0]
+    bdamp = [arm.get('kelvin_voigt', 0.0)] * 2
     if 'structural_damping' in hidden:
         e = hidden['structural_damping']
         bdamp[int(e['target'][-1]) - 1] = e['parameters']['rayleigh_stiffness']
@@ -289,7 +327,9 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
     if 'joint_elasticity' in hidden:
         e = hidden['joint_elasticity']
         elastic[int(e['target'][-1]) - 1] = (e['parameters']['stiffness'],
-                                             e['parameters']['damping'])
+                                             e['parameters']['damping'],
+                                             0.0 if arm['rotor'] else
+                                             e['parameters']['motor_inertia'])
 
     A = SIDE ** 2 - (SIDE - 2 * WALL) ** 2
     I = (SIDE ** 4 - (SIDE - 2 * WALL) ** 4) / 12.0
@@ -387,11 +427,12 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
         if elastic[j] is not None:   # motor body on the joint axis, spring to the link root
             jpos = P[j]
             mNode = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[jpos[0], jpos[1], absang[j]]))
-            mbs.AddObject(ObjectRigidBody2D(nodeNumber=mNode, mass=GLUE_MASS, inertia=GLUE_INERTIA))
+            k_t, b_t, j_m = elastic[j]   # j_m: the motor's own rotor (no gear, arm C)
+            mbs.AddObject(ObjectRigidBody2D(nodeNumber=mNode, mass=GLUE_MASS,
+                                            inertia=max(GLUE_INERTIA, j_m)))
             mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[
                 sPos, mbs.AddMarker(MarkerNodePosition(nodeNumber=mNode))]))
             aRig = mbs.AddMarker(MarkerNodeRigid(nodeNumber=mNode))
-            k_t, b_t = elastic[j]
             mbs.AddObject(ObjectConnectorTorsionalSpringDamper(
                 markerNumbers=[aRig, rRig], stiffness=k_t, damping=b_t, offset=0.0))
             driven = mNode
@@ -566,6 +607,11 @@ def arm_yaml(arm_id):
     if ARMS[arm_id]['rotor']:
         d['effects'] = [{'type': 'gear', 'joint': 'joint%d' % i, 'ratio': GEAR_RATIO,
                          'rotor_inertia': ROTOR_J} for i in (1, 2)]
+    kv = ARMS[arm_id].get('kelvin_voigt')
+    if kv:
+        d['description'] += ', Kelvin-Voigt damping b = %g s' % kv
+        d['effects'] = [{'type': 'structural_damping', 'link': 'link%d' % i,
+                         'rayleigh_stiffness': kv} for i in (1, 2)]
     return _yaml(d) + '\n'
 
 

@@ -60,6 +60,22 @@ def bounds(params) -> tuple[np.ndarray, np.ndarray]:
     return 1.0 - tol, 1.0 + tol
 
 
+#: a scale within this fraction of its tolerance from a bound sits at the bound
+AT_BOUND = 0.02
+
+
+def at_bounds(params, scales) -> list:
+    """The scales a fit drove to their tolerance bound (within :data:`AT_BOUND` of the
+    tolerance): [(name, scale, bound)]. A scale at its bound is evidence that the quantity
+    lies outside its tolerance (issue 44), not a recalibration."""
+    out = []
+    for p, s in zip(params, scales):
+        for b in (1.0 - p.tolerance, 1.0 + p.tolerance):
+            if p.tolerance > 0 and abs(float(s) - b) <= AT_BOUND * p.tolerance:
+                out.append((p.name, float(s), b))
+    return out
+
+
 def apply_scales(arm: ArmDescription, params, scales) -> ArmDescription:
     """The arm with the baseline scales applied."""
     links = list(arm.links)

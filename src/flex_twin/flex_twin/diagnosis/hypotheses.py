@@ -19,7 +19,8 @@ stick_slip_friction  viscous, coulomb, static - coulomb        Stribeck velocity
                                                                2 sqrt(sigma_0 J_j)
 gear                 rotor_inertia (ratio of the nominal, or 1)
 joint_elasticity     stiffness (fitted as a compliance),       motor_inertia: the gear's
-                     damping                                   n^2 J_r (moved there)
+                     damping; motor_inertia where no gear      n^2 J_r (moved there)
+                     declares a rotor
 backlash             half_width, stiffness and damping of its  smoothing 1e-4
                      spring (the gear's, as joint_elasticity)
 torque_saturation    limit
@@ -77,6 +78,10 @@ from flex_model.sensors import Sensor, declared_tip_gauge, with_tip_gauge
 FRICTION_EPS = 1e-3
 STRIBECK_VELOCITY = 0.05
 MOTOR_INERTIA = 1e-3
+#: an elastic joint without a declared rotor: its motor-side inertia in units of
+#: MOTOR_INERTIA up to this, probed (and started) at MOTOR_PROBE
+MOTOR_RANGE = 1e4
+MOTOR_PROBE = 30.0
 BACKLASH_SMOOTHING = 1e-4
 #: stick_slip_friction: the pre-sliding displacement F_s / sigma_0 (rad) and the elastic
 #: (drift-free) share of it (Dupont's z_ba sigma_0 / F_c)
@@ -202,7 +207,7 @@ class Hypothesis:
             # motor coordinate carries n^2 J_r (a bare motor coordinate under the sampled
             # PD would need a far shorter period)
             gear = arm.effect("gear", self.target)
-            jm = MOTOR_INERTIA
+            jm = v[2] if k == "joint_elasticity" and len(v) == 3 else MOTOR_INERTIA
             eff = ()
             if gear is not None and gear["rotor_inertia"] > 0:
                 jm = gear["ratio"] ** 2 * gear["rotor_inertia"]
@@ -359,6 +364,23 @@ def _h(kind, target, names, scale, lower, upper, starts, probe=None, probes=None
                       fit_from_probe, tuple(off_at), tuple(fixed))
 
 
+def _elasticity(joint, k_ref, has_rotor) -> Hypothesis:
+    """The joint elasticity of a joint: stiffness (as a compliance) and damping of the
+    spring (seed 002 Eqs. 11-14), and, behind a joint whose nominal arm declares no rotor,
+    the motor-side inertia fitted with them (issue 44; seed 003's elastic joint carries its
+    rotor): from :data:`MOTOR_INERTIA` (x = 1) up to 10 kg m^2. A gear's rotor is the
+    motor side's, n^2 J_r, known within its tolerance (:meth:`Hypothesis.apply`)."""
+    if has_rotor:
+        return _h("joint_elasticity", joint, ("stiffness", "damping"), (k_ref, k_ref * 5e-3),
+                  (0, 0), (1e3, 100), [(1.0, 1.0), (5.0, 1.0)],
+                  probes=[(1.0, 0.0), (1.0, 1.0)], inverse=(True, False))
+    return _h("joint_elasticity", joint, ("stiffness", "damping", "motor_inertia"),
+              (k_ref, k_ref * 5e-3, MOTOR_INERTIA), (0, 0, 1), (1e3, 100, MOTOR_RANGE),
+              [(1.0, 1.0, 1.0), (5.0, 1.0, 1.0), (1.0, 1.0, MOTOR_PROBE)],
+              probes=[(1.0, 0.0, 1.0), (1.0, 1.0, 1.0), (1.0, 0.0, MOTOR_PROBE)],
+              inverse=(True, False, False), off_at=(0.0, 0.0, 1.0))
+
+
 def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> list[Hypothesis]:
     """Every hypothesis for this arm and recording (scales from the measured torque and
     speed levels); ``exclude``: labels already accepted; ``twin_peaks``: the largest
@@ -401,9 +423,7 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
                ((rotor["rotor_inertia"] if has_rotor else 0.1),),
                (0.2,), (20,), [(1.0,)], probes=[(0.6,), (1.5,)], linear=False,
                off_at=(1.0,) if has_rotor else ()),
-            _h("joint_elasticity", name, ("stiffness", "damping"), (k_ref, k_ref * 5e-3),
-               (0, 0), (1e3, 100), [(1.0, 1.0), (5.0, 1.0)], probes=[(1.0, 0.0), (1.0, 1.0)],
-               inverse=(True, False)),
+            _elasticity(name, k_ref, has_rotor),
             # probes without damping (they screen the play better), fits from the
             # damped starts (from the probes the search stays near the undamped corner)
             _h("backlash", name, ("half_width", "stiffness", "damping"),
