@@ -286,7 +286,9 @@ def model_form_with(executor, ctx, ctx_ho, floor: Floor, scales, effects) -> dic
     [0, 1] (d(S) = J(u), the replay's own error), is model form: no further effect is
     needed for it. (Exudyn payload case B-samp500-payload-m1-s1 with the payload named:
     d 6.55 / 4.73, a 0.38 / 0.44: model form 1.0 / 0.92 of an excess of 1.3 / 1.6.)
-    Returns {"own_error", "gain", "along", "model_form"} (per recording) and "finer"."""
+    The model form counted is bounded by the twin's own error at the nominal parameters
+    (:func:`bounded_model_form`). Returns {"own_error", "gain", "along", "model_form",
+    "model_form_unbounded"} (per recording) and "finer"."""
     keys = (("fit", ctx), ("holdout", ctx_ho))
     ref_arm = floor.reference.arm(ctx.nominal)
     refs = [dataclasses.replace(c, nominal=ref_arm, dt=floor.reference.dt) for _, c in keys]
@@ -296,7 +298,7 @@ def model_form_with(executor, ctx, ctx_ho, floor: Floor, scales, effects) -> dic
     zero = {k: 0.0 for k, _ in keys}
     if any(o is None for o in outs):
         return {"own_error": None, "gain": None, "along": None, "model_form": zero,
-                "finer": False}
+                "model_form_unbounded": zero, "finer": False}
     rs = dict(zip([k for k, _ in keys], outs[:2]))
     rr = dict(zip([k for k, _ in keys], outs[2:]))
     d = {k: cost(rs[k] - rr[k]) for k, _ in keys}
@@ -305,5 +307,19 @@ def model_form_with(executor, ctx, ctx_ho, floor: Floor, scales, effects) -> dic
     finer = all(FINER_RANGE[0] <= along[k] <= FINER_RANGE[1] and gain[k] > 0.0
                 for k, _ in keys)
     mf = {k: float(np.clip(along[k], 0.0, 1.0) ** 2 * d[k]) for k, _ in keys}
-    return {"own_error": d, "gain": gain, "along": along, "model_form": mf,
-            "finer": finer}
+    return {"own_error": d, "gain": gain, "along": along, "finer": finer,
+            "model_form_unbounded": mf, "model_form": bounded_model_form(floor, mf)}
+
+
+def bounded_model_form(floor: Floor, mf: dict) -> dict:
+    """The model form measured with the named effects, bounded by the twin's own error
+    at the nominal parameters (d of :func:`measure_floor` at the chosen setting, per
+    recording): the twin's numerical and model-form error is a property of its setting
+    and of the run's excitation, which the named effects change a little, never a
+    physical effect (issue 44). Where the twins' difference grows beyond that, what
+    grows is a missing effect's cross term with the refinement (Exudyn case
+    C-cont-two-joint_friction2+payload-s1: with the payload named the remeasured model
+    form reached thousands of noise units, the gate rose to match and the joint-2
+    friction was left unnamed)."""
+    return {k: float(min(v, max(floor.own_error.get(k, 0.0), 0.0)))
+            if np.isfinite(floor.own_error.get(k, np.nan)) else 0.0 for k, v in mf.items()}
