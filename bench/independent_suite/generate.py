@@ -30,6 +30,10 @@ N m s/rad on the joint angles of both joints):
 - ``A``: no hub inertia (thesis Example 1). Its PD acts continuously (inside the implicit
   integrator: a sampled D term on a hub-less flexible link is unstable at any affordable
   period).
+- ``C`` (issue 44): arm A with Kelvin-Voigt damping in the nominal description (ANCF
+  bending damping b EI, b = 0.005 s on both links; a ``structural_damping`` effect per link
+  in arm.yaml), continuous PD; its cases (``C_CASES``): healthy, link 2's E -15/-20/-25 %,
+  joint-2 friction with a tip payload, a joint-1 spring with a 0.05 kg m^2 motor-side rotor.
 - ``B``: geared motors at both joints (ratio 100, rotor 5e-5 kg m^2: 0.5 kg m^2 reflected),
   the rotor's kinetic energy 1/2 J_r (n theta_i' + Omega_stator)^2 exactly (a constant mass
   matrix on the stator and link root rotations). PD continuous, or sampled at 500 Hz with a
@@ -252,7 +256,7 @@ def c_cases():
 
 #: the subset stored in test/data for CI: a healthy run and a two-effect run
 CI_SUBSET = ('B-samp500-healthy-s1', 'B-samp500-two-joint_friction+payload-s1',
-             'A-cont-healthy-s1')
+             'A-cont-healthy-s1', 'C-cont-stiffness20-link2-s1')
 
 
 def reference(seed, duration=DURATION, rate=RATE):
