@@ -29,3 +29,41 @@ def test_the_remeasured_model_form_is_bounded_by_the_twins_own_error():
 def test_no_own_error_measured_no_model_form():
     fl = _floor({"fit": math.nan, "holdout": math.nan})
     assert bounded_model_form(fl, {"fit": 5.0, "holdout": 5.0}) == {"fit": 0.0, "holdout": 0.0}
+
+
+def test_model_form_with_the_named_effects_counts_at_most_the_own_error(monkeypatch):
+    """model_form_with on stated replays: the data's residual lies wholly along the twins'
+    difference (along 1) and that difference is 3.65e3 noise units with the effects named;
+    the gate counts the own error at the nominal parameters instead."""
+    import dataclasses
+
+    import numpy as np
+
+    from flex_model.arm import load_arm
+    from flex_twin.diagnosis import floor as floor_mod
+
+    @dataclasses.dataclass
+    class Ctx:
+        nominal: object
+        dt: float
+
+    ref = Setting((4, 4), "second_order", 2.5e-4)
+    fl = Floor(S, ref, S, {"fit": 21.0, "holdout": 18.0}, {"fit": 21.0, "holdout": 18.0},
+               {}, {}, {}, {"fit": 0.0, "holdout": 0.0}, {}, False)
+    u = np.full(100, np.sqrt(3.65e3))
+
+    def evaluate(spec):   # the replay at S leaves u, the refined twin nothing
+        ctx, _, _ = spec
+        return u.copy() if ctx.dt == S.dt else np.zeros_like(u)
+
+    monkeypatch.setattr(floor_mod, "evaluate", evaluate)
+    arm = load_arm("thesis_example1")
+    out = floor_mod.model_form_with(SimpleExecutor(), Ctx(arm, S.dt), Ctx(arm, S.dt), fl,
+                                    np.ones(4), [])
+    assert out["along"]["holdout"] == 1.0
+    assert out["model_form_unbounded"]["holdout"] == 3.65e3
+    assert out["model_form"] == {"fit": 21.0, "holdout": 18.0}
+
+
+class SimpleExecutor:
+    map = staticmethod(lambda f, xs: [f(x) for x in xs])
