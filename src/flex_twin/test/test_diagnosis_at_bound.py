@@ -46,9 +46,14 @@ def test_a_recalibration_within_the_gate_only_at_a_bound_is_set_aside():
 def test_the_report_says_what_did_the_reducing():
     J = dict(J_CASE, recalibrated_holdout=1.3, baseline_holdout=12.0, final_holdout=1.2)
     s = {"holdout_error_reduction": 1.0 - 0.2 / 11.0, "reduction_by": report._reduction_by(J),
-         "at_bound": [{"scale": "link2.EI", "value": 0.893, "bound": 0.893}]}
+         "at_bound": [{"scale": "link2.EI", "value": 0.893, "bound": 0.893}],
+         "recalibration_set_aside": "within the gate with a scale at its tolerance bound"}
     assert s["reduction_by"]["recalibration"] == 0.0
     assert abs(s["reduction_by"]["named_effects"] - 10.8 / 11.0) < 1e-12
     text = " ".join(report._reduction_lines(s, J))
     assert "0.0 % by the recalibration" in text and "98.2 % by the named effects" in text
     assert "link2.EI to 0.893" in text and "outside its tolerance" in text
+    # a scale at its bound with a material excess left: the search went on from it
+    s["recalibration_set_aside"] = ""
+    text = " ".join(report._reduction_lines(s, dict(J, baseline_holdout=1.3)))
+    assert "went on from it" in text and "set aside" not in text

@@ -158,6 +158,7 @@ class Diagnosis:
     #: the recalibration's scales at their tolerance bound [(name, scale, bound)]: the
     #: search then started from the nominal twin (:func:`_restart_reason`)
     at_bound: list = field(default_factory=list)
+    set_aside: str = ""     # why the recalibration was set aside ("" if it was not)
 
 
 class _Round(NamedTuple):
@@ -1048,4 +1049,4 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                      localisation=loc, timing={"wall_s": time.perf_counter() - t_start},
                      final_effects=current.effects, twin=final_arm,
                      contexts=(ctx, ctx_ho), baseline_scales=baseline_scales, stop=stop,
-                     floor=fl, gate_effective=gate, at_bound=at_bound)
+                     floor=fl, gate_effective=gate, at_bound=at_bound, set_aside=why)

@@ -122,6 +122,7 @@ def summary(diagnosis) -> dict:
             "reduction_by": _reduction_by(J),
             "at_bound": [{"scale": n, "value": v, "bound": b}
                          for n, v, b in getattr(diagnosis, "at_bound", [])],
+            "recalibration_set_aside": getattr(diagnosis, "set_aside", ""),
             "baseline_scales": diagnosis.scales, "rounds": rounds,
             "localisation": diagnosis.localisation, "timing": diagnosis.timing}
 
@@ -147,11 +148,15 @@ def _reduction_lines(s, J) -> list:
            f"recalibration within tolerance, {100 * by['named_effects']:.1f} % by the named "
            "effects (each fitted with the baseline re-fitted within tolerance)."]
     if s["at_bound"]:
-        out.append("The recalibration drove " + ", ".join(
+        drove = "The recalibration drove " + ", ".join(
             f"{a['scale']} to {a['value']:.4g} (bound {a['bound']:.4g})" for a in s["at_bound"])
-            + f": evidence of a quantity outside its tolerance, not a recalibration (held "
-            f"out J {J.get('recalibrated_holdout', float('nan')):.4g} with it). It was set "
-            "aside and the search started from the nominal twin.")
+        if s.get("recalibration_set_aside"):
+            out.append(drove + ": evidence of a quantity outside its tolerance, not a "
+                       f"recalibration (held out J {J['recalibrated_holdout']:.4g} with it). "
+                       "It was set aside and the search started from the nominal twin.")
+        else:
+            out.append(drove + "; a material excess remained, and the search went on from it "
+                       "(the effects named are fitted with the baseline re-fitted).")
     return out
 
 
