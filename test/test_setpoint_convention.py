@@ -69,3 +69,23 @@ def test_degrees_are_refused_on_an_arm_with_a_prismatic_joint():
     with pytest.raises(ConfigError, match="prismatic joint has no degrees"):
         spatial(PRISMATIC, {}, {"setpoints_deg": [10.0, 5.0]}, {"setpoints": [0.0, 0.1]},
                 n=2)
+
+
+def test_one_schedule_rule_in_both_formats():
+    """Strictly increasing times, none inside the previous ramp (scenario.setpoint_schedule)."""
+    for steps in ([{"time": 0.005, "setpoints": [0.1, 0.0]},
+                   {"time": 0.005, "setpoints": [0.2, 0.0]}],
+                  [{"time": 0.002, "setpoints": [0.1, 0.0], "ramp": 0.004},
+                   {"time": 0.005, "setpoints": [0.2, 0.0]}]):
+        with pytest.raises(ConfigError, match=r"setpoint_schedule\[1\]\.time"):
+            scenario_from_dict(dict(PLANAR, control={"pd": {"kp": [1.0, 1.0], "kd": [1.0, 1.0]},
+                                                     "setpoint_schedule": steps}))
+        with pytest.raises(ConfigError, match=r"setpoint_schedule\[1\]\.time"):
+            spatial_scenario_from_dict(dict(SPATIAL, control={
+                "pd": {"kp": [0.2], "kd": [0.03]},
+                "setpoint_schedule": [dict(s, setpoints=s["setpoints"][:1]) for s in steps]}))
+    sc = scenario_from_dict(dict(PLANAR, control={"pd": {"kp": [1.0, 1.0], "kd": [1.0, 1.0]},
+                                                  "setpoint_schedule": [
+        {"time": 0.002, "setpoints": [0.1, 0.0], "ramp": 0.003},
+        {"time": 0.005, "setpoints": [0.2, 0.0]}]}))
+    assert [e[0] for e in sc.setpoint_schedule] == [0.002, 0.005]

@@ -58,7 +58,7 @@ import numpy as np
 from ..config import ConfigError, Fields, read_yaml
 from ..errors import SimulationDivergedError, StaticConvergenceError
 from ..inputs import JointPD
-from ..scenario import is_inf, joint_index
+from ..scenario import is_inf, joint_index, setpoint_schedule
 from .description import SPATIAL_PRESET_DIR, SpatialArm
 from .loader import load_spatial_arm
 from .dynamics import SpatialArmModel
@@ -560,19 +560,8 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
         sp = p.joint_vector("setpoints", n, q0.tolist(), all_revolute=revolute)
         p.done(list(keys) + ["setpoints", "setpoints_deg"])
         pd = SpatialPD(kp, kd, sp)
-    schedule = []
-    for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
-        sf = Fields(raw, source, f"{ctl.sub('setpoint_schedule')}[{k}]")
-        if pd is None:
-            raise ctl.error("setpoint_schedule", raw, "control.pd or pd45 as well (the "
-                            "schedule steps the PD's set-points)")
-        t = sf.number("time", nonnegative=True, unit="s")
-        if schedule and t <= schedule[-1][0] + schedule[-1][2]:
-            raise sf.error("time", t, f"a time > {schedule[-1][0] + schedule[-1][2]:g} s "
-                           "(increasing, after the previous step or ramp)")
-        ramp = sf.number("ramp", 0.0, nonnegative=True, unit="s")
-        schedule.append((t, sf.joint_vector("setpoints", n, all_revolute=revolute), ramp))
-        sf.done(["time", "setpoints", "setpoints_deg", "ramp"])
+    schedule = setpoint_schedule(ctl, n, pd is not None, "control.pd or pd45",
+                                 all_revolute=revolute)
     ctl.done(["gravity_hold", "pd", "pd45", "setpoint_schedule"])
     pulses = []
     for k, raw in enumerate(f.items("pulses", [])):
@@ -619,6 +608,6 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     return SpatialScenario(name=name, arm=arm, duration=duration, step=step,
                            sample_period=sample, rho_inf=rho_inf, joint_values=q0,
                            joint_rates=v0, start_static=start_static, gravity_hold=hold,
-                           pd=pd, setpoint_schedule=tuple(schedule), pulses=tuple(pulses),
+                           pd=pd, setpoint_schedule=schedule, pulses=tuple(pulses),
                            tol=tol, source=source, payload_changes=tuple(changes),
                            tip_loads=tuple(loads))
