@@ -246,8 +246,8 @@ def c_cases():
                 h = _hidden(kind, level, j, 'C')
                 h['parameters'].update(over)
                 hs.append(h)
-            kind = hs[0]['kind'] if len(hs) == 1 else 'two:%s+%s' % (hs[0]['kind'],
-                                                                    hs[1]['kind'])
+            kind = hs[0]['kind'] if len(hs) == 1 else \
+                'two:%s+%s' % (hs[0]['kind'], hs[1]['kind'])
             out.append({'id': 'C-cont-%s-s%d' % (tail, s), 'arm': 'C', 'controller': 'cont',
                         'kind': kind, 'hidden': hs, 'reference_seed': s,
                         'noise_seed': 100 + s})
