@@ -158,7 +158,9 @@ def _simulate(scenario_ref, args, label: str):
                "highest_mode_hz": advice.highest_mode_hz,
                "highest_excited_mode_hz": advice.highest_excited_mode_hz,
                "warning": advice.warning,
-               "step_halving_tip_error": advice.tip_error,
+               "estimated_tip_error": None if advice.estimate is None else {
+                   "step": advice.estimate.step_error, "variables": advice.estimate.vars_error,
+                   "window_s": advice.estimate.window, "cost_s": advice.estimate.cost_s},
                "csv": str(csv),
                "final_joint_angles_deg": np.degrees(res.joint_angles[-1]).tolist(),
                "final_tip_m": res.tip_xy[-1].tolist(),
