@@ -17,8 +17,8 @@ below the sweep's smallest, 2x its largest variables): the error is
 step_advice.tip_error (largest error of a link's tip deflection over the run, share of
 that link's largest value). The advice (Scenario.advice / SpatialScenario.advice,
 step_advice.estimate_error: the distance to the run with a quarter of the step and twice
-the variables) is asked for every setting. Acceptance: every run more than 2 % off warned, at most 10 % of the runs
-within 1 % warned. Prints the table and the two counts.
+the variables) is asked for every setting. Acceptance: every run more than 2 % off
+warned, at most 10 % of the runs within 1 % warned. Prints the table and the two counts.
 
     python bench/bench_step_advice.py [--arms tapered,sag,seed000_3d,seed003_3d] [--quick]
 """

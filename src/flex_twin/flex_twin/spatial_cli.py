@@ -170,8 +170,8 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
     if args.duration is not None:
         if not args.duration > 0:
             raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
-        sc = replace(sc, duration=args.duration, sample_period=min(sc.sample_period,
-                                                                  args.duration))
+        sc = replace(sc, duration=args.duration,
+                     sample_period=min(sc.sample_period, args.duration))
     if getattr(args, "step", None) is not None:
         if not 0 < args.step <= sc.sample_period:
             raise ValueError(f"--step: got {args.step}; expected a step > 0 s and at most "

@@ -311,7 +311,6 @@ class SpatialScenario:
                                  stats={"dt": h, "steps": n_total, "newton_iterations": iters,
                                         "restarts": len(bounds) - 1})
 
-
     # ------------------------------------------------------------ advice
     def tips(self, model: SpatialArmModel | None = None) -> np.ndarray:
         """(samples, flexible links, 2) tip deflections y, z of a run (m)."""
@@ -320,10 +319,12 @@ class SpatialScenario:
 
     def with_finer_variables(self) -> "SpatialScenario":
         """The scenario with twice the variables (bending and torsion) on every beam."""
-        links = tuple(lk if lk.flexible is None else dataclasses.replace(
-            lk, flexible=dataclasses.replace(lk.flexible, variables=2 * lk.flexible.variables,
-                                             torsion_variables=2 * lk.flexible.torsion_variables))
-            for lk in self.arm.links)
+        def finer(beam):
+            return dataclasses.replace(beam, variables=2 * beam.variables,
+                                       torsion_variables=2 * beam.torsion_variables)
+        links = tuple(lk if lk.flexible is None else
+                      dataclasses.replace(lk, flexible=finer(lk.flexible))
+                      for lk in self.arm.links)
         return dataclasses.replace(self, arm=dataclasses.replace(self.arm, links=links))
 
     def advice(self, model: SpatialArmModel | None = None):
