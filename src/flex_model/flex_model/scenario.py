@@ -153,19 +153,20 @@ class Scenario:
                         rtol=self.rtol, dt=self.step, rho_inf=self.rho_inf,
                         payload_changes=self.payload_changes, progress=progress)
 
-    def advice(self, model: FlexArmModel | None = None):
+    def advice(self, model: FlexArmModel | None = None, check: bool = True):
         """:func:`flex_model.step_advice.step_advice` (the arm's excited modes) for this
         scenario; in the fixed mode its warning is the a-posteriori estimate instead
         (step_advice.estimate_error over step_advice.probe_window: the run, the run at
-        a quarter of the step and that run with twice the variables per link)."""
+        a quarter of the step and that run with twice the variables per link; not with
+        ``check`` False: no warning then)."""
         from . import step_advice as sa
         model = model or self.model()
         h = fixed_step(self.sample_period, self.step)[0]   # the step simulate takes
         adv = sa.step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
                              method=self.method, step=h,
                              kp=None if self.pd is None else self.pd.kp)
-        if self.method != "fixed":
-            return adv
+        if self.method != "fixed" or not check:
+            return adv if self.method != "fixed" else replace(adv, warning=None)
         jumps = [p.start for p in self.pulses] + [t for t, _, _ in self.setpoint_schedule]
         window = sa.probe_window(self.duration, self.sample_period, jumps)
         finer = replace(self.arm, links=tuple(replace(lk, n_vars=2 * lk.n_vars)

@@ -152,12 +152,12 @@ def estimate_error(run, window: float, refine_vars: bool = True) -> ErrorEstimat
     quarter of the step (generalized-alpha: order 2 between input jumps, 1 across one, so
     its step error is a quarter or less of the run's) and twice the variables (their
     error shrinks about as fast): the estimate is near the run's true error (0.64-1.06 x
-    in bench/bench_step_advice.py). A run that fails (Newton) counts as an infinite
-    error."""
+    in bench/bench_step_advice.py). A refined run that fails (Newton) counts as an
+    infinite error; the run's own failure is raised."""
     import time
     t0 = time.perf_counter()
+    base = run(1, 1)    # fails as the run itself would (the caller reports it)
     try:
-        base = run(1, 1)
         fine = run(STEP_DIVISOR, 1)
         ref = run(STEP_DIVISOR, 2) if refine_vars else fine
     except REFINED_FAILURES:
@@ -184,9 +184,9 @@ def error_warning(est: ErrorEstimate, step: float, variables: str | None) -> str
         times = 2 ** max(1, int(np.ceil(np.log(vars_off / half) / np.log(VARS_GAIN))))
         fixes.append(f"{times}x the variables")
     if not np.isfinite(est.total):
-        return (f"the run fails (Newton) at step {step:.3g} s" + (
-            f" and {variables}" if variables else "") + " or at a quarter of it; use "
-            "a smaller step")
+        return (f"the run with a quarter of the step {step:.3g} s" + (
+            f" (and {variables}, or twice them)" if variables else "") + " fails (Newton): "
+            "the run cannot be checked; use a smaller step")
     parts = f"step {100 * est.step_error:.2g} %" + (
         f", variables {100 * est.vars_error:.2g} %" if np.isfinite(est.vars_error) else "")
     return (f"the tip deflections are about {100 * est.total:.2g} % off the converged run "

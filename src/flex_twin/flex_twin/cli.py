@@ -131,7 +131,7 @@ def _simulate(scenario_ref, args, label: str):
             raise ValueError(f"--rho-inf: got {args.rho_inf}; expected 0 <= rho_inf <= 1")
         sc.rho_inf = args.rho_inf
     model = sc.model()
-    advice = sc.advice(model)
+    advice = sc.advice(model, check=not getattr(args, "no_advice", False))
     if advice.warning:
         print(f"flex-twin: warning: {advice.warning}", file=sys.stderr)
     # numba loads (or compiles) the integrator on its first call: a run of two samples
@@ -372,6 +372,10 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--out", default=None, help="output directory (default runs/...)")
         sp.add_argument("--no-plot", action="store_true")
         sp.add_argument("--json", action="store_true")
+        sp.add_argument("--no-advice", action="store_true",
+                        help="fixed step: skip the step and variables check (it runs the "
+                        "first 0.5 s at the step, a quarter of it and with twice the "
+                        "variables)")
         kinematics_arg(sp)
 
     sp = sub.add_parser("simulate", help="simulate a scenario file; writes CSV and PNG")

@@ -186,7 +186,8 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
     t0, c0 = time.perf_counter(), time.process_time()
     sc.run(model=model, duration=sc.sample_period)
     load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
-    warning, est = sc.advice(model)   # the step and variables advice (step_advice)
+    warning, est = (None, None) if getattr(args, "no_advice", False) else \
+        sc.advice(model)   # the step and variables advice (step_advice)
     if warning:
         print(f"flex-twin: warning: {warning}", file=sys.stderr)
     t0, c0 = time.perf_counter(), time.process_time()
