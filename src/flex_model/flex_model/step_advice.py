@@ -24,7 +24,7 @@ tip deflection (:func:`tip_error`). Above :data:`WARN_ABOVE` (1.5 %: the estimat
 0.64-1.06 x the measured error on 66 settings of four arms, bench/bench_step_advice.py) it
 warns with the estimate and the step and variables
 that meet 2 % (:func:`error_warning`). Its cost: the window (0.5 s or up to 0.3 s past
-the first input jump) run three times, at h, h/4 and h/4 with twice the variables,
+the first input jump, at most 1 s) run three times, at h, h/4 and h/4 with twice the variables,
 about 10-15 times the window's own run (bench/bench_step_advice.py prints it).
 """
 from __future__ import annotations
@@ -51,9 +51,10 @@ VARS_GAIN = 4.0
 #: measured against that share (its own relative error would not matter)
 PEAK_FLOOR = 0.05
 #: the estimate runs the whole run up to this long (s), else up to PROBE_AFTER_JUMP s past
-#: the first input jump (at least that long)
+#: the first input jump (at least that long), at most PROBE_MAX s
 PROBE_WHOLE_RUN = 0.5
 PROBE_AFTER_JUMP = 0.3
+PROBE_MAX = 1.0
 #: failures of a refined run that the estimate counts as an infinite error
 REFINED_FAILURES = (SolverError, np.linalg.LinAlgError)
 
@@ -110,9 +111,10 @@ def step_advice(model, joint_angles, *, method: str, step: float | None = None,
 def probe_window(duration: float, sample_period: float, jumps) -> float:
     """The time the estimate runs (a whole number of samples): the whole run up to
     PROBE_WHOLE_RUN s, else PROBE_WHOLE_RUN s or up to PROBE_AFTER_JUMP s past the first
-    input jump (set-point step, pulse), whichever is longer."""
+    input jump (set-point step, pulse), whichever is longer, but at most PROBE_MAX s (a
+    later first jump is not checked: its cost)."""
     first = min((t for t in jumps if 0 <= t < duration), default=0.0)
-    window = min(duration, max(PROBE_WHOLE_RUN, first + PROBE_AFTER_JUMP))
+    window = min(duration, PROBE_MAX, max(PROBE_WHOLE_RUN, first + PROBE_AFTER_JUMP))
     return sample_period * max(1, round(window / sample_period))
 
 
