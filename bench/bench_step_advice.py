@@ -21,6 +21,10 @@ the variables) is asked for every setting. Acceptance: every run more than 2 % o
 warned, at most 10 % of the runs within 1 % warned. Prints the table and the two counts.
 
     python bench/bench_step_advice.py [--arms tapered,sag,seed000_3d,seed003_3d] [--quick]
+        [--variable]
+
+``--variable``: the planar arms in the variable-step mode (small_deflection, rtol 1e-2,
+1e-3, 1e-5; the advice's refined run has rtol / 16).
 """
 from __future__ import annotations
 
@@ -108,10 +112,22 @@ def tips_and_advice(sc, advise: bool):
     return tips, adv.warning, adv.estimate
 
 
-def sweep(name: str, quick: bool):
+#: --variable: the planar arms in the variable-step mode at these rtol (small_deflection)
+RTOLS = (1e-2, 1e-3, 1e-5)
+
+
+def variable(make):
+    """The planar scenario in the variable-step mode: the "step" is its rtol."""
+    return lambda kin, nv, rtol: dataclasses.replace(make(kin, nv, 1e-3), method="variable",
+                                                     rtol=rtol)
+
+
+def sweep(name: str, quick: bool, rtols: bool = False):
     make, kins, nvs, steps = ARMS[name]
     if quick:
         kins, nvs, steps = kins[:1], nvs[:1], steps[:2]
+    if rtols:   # the converged run below: the fixed step 1/8 of the smallest
+        return sweep_variable(name, make, nvs, min(steps) / 8)
     rows = []
     for kin in kins:
         ref, _, _ = tips_and_advice(make(kin, 2 * max(nvs), min(steps) / 8), False)
@@ -135,14 +151,34 @@ def sweep(name: str, quick: bool):
     return rows
 
 
+def sweep_variable(name, make, nvs, h_ref):
+    ref, _, _ = tips_and_advice(make("small_deflection", 2 * max(nvs), h_ref), False)
+    rows = []
+    for nv in nvs:
+        for rtol in RTOLS:
+            tips, warning, est = tips_and_advice(variable(make)("small_deflection", nv, rtol),
+                                                 True)
+            rows.append({"arm": name, "error": tip_error(tips, ref), "warns": bool(warning),
+                         "estimate": est.total, "cost": est.cost_s})
+            print(f"{name:>11} {'variable':>16} {nv:3d} {rtol:7.0e} "
+                  f"{100 * rows[-1]['error']:9.3f} {100 * est.total:9.3f} "
+                  f"{'warns' if warning else '-':>6} {est.cost_s:7.2f}", flush=True)
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--arms", default=",".join(ARMS))
     ap.add_argument("--quick", action="store_true", help="first kinematics, 2 steps only")
+    ap.add_argument("--variable", action="store_true", help="the planar arms in the "
+                    "variable-step mode instead (rtol 1e-2, 1e-3, 1e-5; step column: rtol)")
     args = ap.parse_args(argv)
+    if args.variable:
+        args.arms = ",".join(a for a in args.arms.split(",") if not a.endswith("_3d"))
     print(f"{'arm':>11} {'kinematics':>16} {'nv':>3} {'step ms':>7} {'error %':>9} "
           f"{'estim. %':>9} {'advice':>6} {'check s':>7}")
-    rows = [r for name in args.arms.split(",") for r in sweep(name, args.quick)]
+    rows = [r for name in args.arms.split(",") for r in sweep(name, args.quick,
+                                                               args.variable)]
     off = [r for r in rows if r["error"] > TOLERANCE]
     within = [r for r in rows if r["error"] <= TOLERANCE / 2]
     print(f"{len(rows)} runs on {len(set(r['arm'] for r in rows))} arms: "

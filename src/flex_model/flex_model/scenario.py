@@ -155,32 +155,36 @@ class Scenario:
 
     def advice(self, model: FlexArmModel | None = None, check: bool = True):
         """:func:`flex_model.step_advice.step_advice` (the arm's excited modes) for this
-        scenario; in the fixed mode its warning is the a-posteriori estimate instead
-        (step_advice.estimate_error over step_advice.probe_window: the run, the run at
-        a quarter of the step and that run with twice the variables per link; not with
-        ``check`` False: no warning then)."""
+        scenario; its warning is the a-posteriori estimate (step_advice.estimate_error
+        over step_advice.probe_window: the run, the run at a quarter of the step (variable
+        mode: rtol / 16) and that run with twice the variables per link; the variable mode
+        keeps the modal rule's warning and is not checked where the arm is stiff for the
+        explicit method). ``check`` False: no estimate (fixed mode: no warning)."""
         from . import step_advice as sa
         model = model or self.model()
         h = fixed_step(self.sample_period, self.step)[0]   # the step simulate takes
         adv = sa.step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
                              method=self.method, step=h,
                              kp=None if self.pd is None else self.pd.kp)
-        if self.method != "fixed" or not check:
-            return adv if self.method != "fixed" else replace(adv, warning=None)
+        fixed = self.method == "fixed"
+        if not check or (not fixed and adv.warning):   # explicit and stiff: not checked
+            return adv if not fixed else replace(adv, warning=None)
         jumps = [p.start for p in self.pulses] + [t for t, _, _ in self.setpoint_schedule]
         window = sa.probe_window(self.duration, self.sample_period, jumps)
         finer = replace(self.arm, links=tuple(replace(lk, n_vars=2 * lk.n_vars)
                                               for lk in self.arm.links))
 
-        def tips(divisor, factor):
-            probe = replace(self, duration=window, step=h / divisor,
+        def tips(divisor, factor):   # variable mode: the error follows rtol (DOPRI)
+            probe = replace(self, duration=window, step=h / divisor if fixed else self.step,
+                            rtol=self.rtol if fixed else self.rtol / divisor ** 2,
                             arm=finer if factor > 1 else self.arm)
             return probe.run(model=None if factor > 1 else model,
                              advise=False).tip_deflections
         est = sa.estimate_error(tips, window)
         nv = sorted({lk.n_vars for lk in self.arm.links})
         label = f"{'/'.join(map(str, nv))} variables per link"
-        return replace(adv, estimate=est, warning=sa.error_warning(est, h, label))
+        warning = sa.error_warning(est, h, label, rtol=None if fixed else self.rtol)
+        return replace(adv, estimate=est, warning=warning)
 
 
 def scenario_names() -> list[str]:

@@ -169,31 +169,36 @@ def estimate_error(run, window: float, refine_vars: bool = True) -> ErrorEstimat
                          time.perf_counter() - t0)
 
 
-def error_warning(est: ErrorEstimate, step: float, variables: str | None) -> str | None:
+def error_warning(est: ErrorEstimate, step: float, variables: str | None,
+                  rtol: float | None = None) -> str | None:
     """The one-line warning of an :class:`ErrorEstimate` above :data:`WARN_ABOVE` (None
     below): the estimated error and the setting that meets :data:`TOLERANCE` (half of it
     for each part; the step scaled with order 1, the variables doubled at VARS_GAIN per
-    doubling); ``variables`` names the current ones (e.g. "8 variables per link")."""
+    doubling); ``variables`` names the current ones (e.g. "8 variables per link").
+    ``rtol``: the variable-step mode (its refined run had rtol / STEP_DIVISOR^2)."""
     if not est.total > WARN_ABOVE:
         return None
     half = TOLERANCE / 2
+    at = f"rtol {rtol:.3g}" if rtol else f"step {step:.3g} s"
+    finer = (f"rtol / {STEP_DIVISOR ** 2}" if rtol else "a quarter of the step")
+    if not np.isfinite(est.total):
+        return (f"the run with {finer} (at {at}" + (
+            f" and {variables}, or twice them" if variables else "") + ") fails (Newton): "
+            "the run cannot be checked; use a smaller step")
     fixes = []
     if est.step_error > half:
-        fixes.append(f"a step of {step * half / est.step_error:.2g} s or less"
-                     if np.isfinite(est.step_error) else f"a step well below {step:.3g} s")
+        scale = half / est.step_error
+        fixes.append(f"rtol {rtol * scale:.2g} or less" if rtol else
+                     f"a step of {step * scale:.2g} s or less")
     vars_off = np.nan_to_num(est.vars_error)
     if vars_off > half and variables is not None:
         times = 2 ** max(1, int(np.ceil(np.log(vars_off / half) / np.log(VARS_GAIN))))
         fixes.append(f"{times}x the variables")
-    if not np.isfinite(est.total):
-        return (f"the run with a quarter of the step {step:.3g} s" + (
-            f" (and {variables}, or twice them)" if variables else "") + " fails (Newton): "
-            "the run cannot be checked; use a smaller step")
-    parts = f"step {100 * est.step_error:.2g} %" + (
+    parts = ("rtol" if rtol else "step") + f" {100 * est.step_error:.2g} %" + (
         f", variables {100 * est.vars_error:.2g} %" if np.isfinite(est.vars_error) else "")
     return (f"the tip deflections are about {100 * est.total:.2g} % off the converged run "
-            f"(against a run with a quarter of the step and twice the variables over the "
-            f"first {est.window:.3g} s, at step {step:.3g} s"
-            + (f" and {variables}" if variables else "") + f": {parts}); for "
-            f"{100 * TOLERANCE:.0f} % use " + (" and ".join(fixes) or "a finer setting")
+            f"(against a run with {finer} and twice the variables over the first "
+            f"{est.window:.3g} s, at {at}" + (f" and {variables}" if variables else "")
+            + f": {parts}); for {100 * TOLERANCE:.0f} % use "
+            + (" and ".join(fixes) or "a finer setting")
             + f" (this check took {est.cost_s:.2g} s)")
