@@ -177,8 +177,8 @@ def main(argv=None):
         args.arms = ",".join(a for a in args.arms.split(",") if not a.endswith("_3d"))
     print(f"{'arm':>11} {'kinematics':>16} {'nv':>3} {'step ms':>7} {'error %':>9} "
           f"{'estim. %':>9} {'advice':>6} {'check s':>7}")
-    rows = [r for name in args.arms.split(",") for r in sweep(name, args.quick,
-                                                               args.variable)]
+    names = args.arms.split(",")
+    rows = [r for name in names for r in sweep(name, args.quick, args.variable)]
     off = [r for r in rows if r["error"] > TOLERANCE]
     within = [r for r in rows if r["error"] <= TOLERANCE / 2]
     print(f"{len(rows)} runs on {len(set(r['arm'] for r in rows))} arms: "
