@@ -92,3 +92,16 @@ def test_spatial_warns_where_the_run_is_off_and_is_quiet_where_it_is_not():
     assert warning is not None and "variables per bending plane" in warning
     assert est.total > 0.015 and est.cost_s > 0
     assert ok.advice()[0] is None
+
+
+def test_the_variable_step_mode_is_checked_with_a_finer_rtol():
+    """The sagging link with 4 variables, variable step: rtol 1e-2 is 39 % off the fine
+    fixed-step run, rtol 1e-3 within 0.2 % (bench/bench_step_advice.py --variable)."""
+    ref = _sag(8, 1.25e-3 / 8).run(advise=False).tip_deflections
+    off, ok = (dataclasses.replace(_sag(4, 1e-3), method="variable", rtol=r)
+               for r in (1e-2, 1e-3))
+    assert tip_error(off.run(advise=False).tip_deflections, ref) > 0.02
+    assert tip_error(ok.run(advise=False).tip_deflections, ref) < 0.01
+    warning = off.advice().warning
+    assert warning is not None and "at rtol 0.01" in warning and "use rtol" in warning
+    assert ok.advice().warning is None
