@@ -141,11 +141,17 @@ def main() -> int:
             continue
         mm, pct, tip, dq = row(name, r, ref, f"{r['cpu_s'] / dur:.2f} CPU-s/s")
         if kin == "exact" and not old and nv >= 16 and (best is None or tip < best[1]):
-            best = (name, tip, pct.max())
+            best = (name, tip, pct.max(), r)
     if best is not None:
         ok = best[1] < 0.02 and best[2] < 0.3
         print(f"\nacceptance (end of link 2 within 0.02 mm, deflections within 0.3 %): "
               f"{best[0]}: {best[1]:.4f} mm, {best[2]:.3f} % -> {'met' if ok else 'NOT met'}")
+        # Exudyn's set-point step leaves an O(h) lag: its h -> 0 limit by Richardson
+        lim = dict(ref, data=(2 * np.asarray(ref["data"]) - np.asarray(exu[1]["data"])))
+        mm, pct, tip, dq = compare(best[3], lim)
+        print(f"the same against Exudyn's h -> 0 limit (2 x its 1/128 ms run - its 1/64 ms "
+              f"run): {mm[0]:.4f} / {mm[1]:.4f} mm, {pct[0]:.3f} / {pct[1]:.3f} %, end of "
+              f"link 2 {tip:.4f} mm, q {dq:.6f} deg")
     return 0
 
 
