@@ -21,7 +21,8 @@ at zero q-ddot, i.e. dJ/dt v) of its origin, a_o, and its rotation, alpha:
 
 The model data is a tuple of arrays built once by :func:`pack` (per link: joint type and
 axis, the fixed transforms before and after the joint and the beam, bodies; per beam
-Gauss point: mass and polar weights and the sampled bases, padded).
+Gauss point: mass weights, the section inertia weights rhoJ ds, rho I_y ds, rho I_z ds
+(the last two zero without rotary inertia) and the sampled bases, padded).
 """
 from __future__ import annotations
 
@@ -90,7 +91,11 @@ def pack(model: SpatialArmModel) -> tuple:
             npt = len(b.z)
             zs.append(b.z)
             mw.append(b.mass_w)
-            pw.append(b.polar_w)
+            pwk = np.zeros((npt, 3))      # rhoJ ds, rho I_y ds, rho I_z ds
+            pwk[:, 0] = b.polar_w
+            if b.rotary is not None:
+                pwk[:, 1:] = b.rotary
+            pw.append(pwk)
             for dst, src in ((Wv, b.Wv), (dWv, b.dWv), (Ww, b.Ww), (dWw, b.dWw)):
                 a = np.zeros((npt, maxnv))
                 a[:, :src.shape[1]] = src
@@ -128,7 +133,7 @@ def pack(model: SpatialArmModel) -> tuple:
     # a writable copy: np.diag gives a read-only view, another numba signature (recompiles)
     mdiag = np.diag(model.M_const).copy()
     return (jtype, koff, axis, T, P, flex, nv, nt, fstart, length, bm, bc, bI, pstart,
-            cat(zs), cat(mw), cat(pw), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
+            cat(zs), cat(mw), cat(pw, 3), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
             cat(dWw, maxnv), cat(Pt, maxnt), np.asarray(model.gravity, float),
             int(model.nq), rot.reshape(n, 3), mdiag,
             np.ascontiguousarray(np.concatenate(Sv)) if Sv else np.zeros((0, maxnv, maxnv)),
@@ -490,6 +495,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     acc = np.zeros(3)
     rv = np.zeros(3)
     xv = np.zeros(3)
+    ek = np.zeros((3, 3))
     tau = np.zeros(3)
     t1 = np.zeros(3)
     t2 = np.zeros(3)
@@ -580,9 +586,14 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         # per point, in scalars (no temporaries): the own columns of a point are
         # x_j = b_y Wv_j (v) and b_z Ww_j (w), orthonormal directions, and those of a
         # section's rotation are a_v dWv_j, a_w dWw_j, b_x Pt_j with the rank-one section
-        # inertia rhoJ ds a a^T (a the section's x axis)
+        # inertia rhoJ ds a a^T (a the section's x axis; with rotary inertia also
+        # rho I_y ds and rho I_z ds about the section's y and z axes)
         n2 = 2 * nv
         sown = np.zeros(n2 + nt)
+        # section inertia axes per point: 1 (rhoJ about x) or 3 (rotary inertia too)
+        nk = 1
+        if pstart[i + 1] > pstart[i] and (pw[pstart[i], 1] != 0.0 or pw[pstart[i], 2] != 0.0):
+            nk = 3
         sva = np.zeros(nv)
         swa = np.zeros(nv)
         for p in range(pstart[i], pstart[i + 1]):
@@ -686,7 +697,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                 for jj in range(j, nv):
                     M[jv, s0 + jj] += wv * Wv[p, jj]
                     M[jw, s0 + nv + jj] += ww * Ww[p, jj]
-            if nt:
+            if nt or nk == 3:
                 phi = 0.0
                 sphi = 0.0
                 for j in range(nt):
@@ -731,49 +742,62 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                 ab0 = Rb[0, 0] * ar0 + Rb[0, 1] * ar1 + Rb[0, 2] * ar2
                 ab1 = Rb[1, 0] * ar0 + Rb[1, 1] * ar1 + Rb[1, 2] * ar2
                 ab2 = Rb[2, 0] * ar0 + Rb[2, 1] * ar1 + Rb[2, 2] * ar2
-                x0 = Rb[0, 0] * xs0 + Rb[0, 1] * xs1 + Rb[0, 2] * xs2
-                x1 = Rb[1, 0] * xs0 + Rb[1, 1] * xs1 + Rb[1, 2] * xs2
-                x2 = Rb[2, 0] * xs0 + Rb[2, 1] * xs1 + Rb[2, 2] * xs2
+                # section axes (base): x, y = Rs e_y, z = a_v; inertia pw[p, k] e_k e_k^T
+                # (rhoJ about x; with rotary inertia rho I_y about y, rho I_z about z)
+                ys0 = -cp * st
+                ys1 = cf * ct - sf * sp * st
+                ys2 = sf * ct + cf * sp * st
+                for a in range(3):
+                    ek[0, a] = Rb[a, 0] * xs0 + Rb[a, 1] * xs1 + Rb[a, 2] * xs2
+                    ek[1, a] = Rb[a, 0] * ys0 + Rb[a, 1] * ys1 + Rb[a, 2] * ys2
+                    ek[2, a] = Rb[a, 0] * av0 + Rb[a, 1] * av1 + Rb[a, 2] * av2
                 wp0, wp1, wp2 = w[0] + wb0, w[1] + wb1, w[2] + wb2
                 lp0 = al[0] + (w[1] * wb2 - w[2] * wb1) + ab0
                 lp1 = al[1] + (w[2] * wb0 - w[0] * wb2) + ab1
                 lp2 = al[2] + (w[0] * wb1 - w[1] * wb0) + ab2
-                pj = pw[p]
-                xw = x0 * wp0 + x1 * wp1 + x2 * wp2
-                xl = x0 * lp0 + x1 * lp1 + x2 * lp2
-                # tau = pj (x (x . alpha) + (x . w) w x x)
-                tau[0] = pj * (x0 * xl + xw * (wp1 * x2 - wp2 * x1))
-                tau[1] = pj * (x1 * xl + xw * (wp2 * x0 - wp0 * x2))
-                tau[2] = pj * (x2 * xl + xw * (wp0 * x1 - wp1 * x0))
-                xv[0] = x0
-                xv[1] = x1
-                xv[2] = x2
+                tau[0] = 0.0
+                tau[1] = 0.0
+                tau[2] = 0.0
+                nown = n2 + nt
+                for k in range(nk):
+                    pj = pw[p, k]
+                    x0, x1, x2 = ek[k, 0], ek[k, 1], ek[k, 2]
+                    xw = x0 * wp0 + x1 * wp1 + x2 * wp2
+                    xl = x0 * lp0 + x1 * lp1 + x2 * lp2
+                    # tau += pj (x (x . alpha) + (x . w) w x x)
+                    tau[0] += pj * (x0 * xl + xw * (wp1 * x2 - wp2 * x1))
+                    tau[1] += pj * (x1 * xl + xw * (wp2 * x0 - wp0 * x2))
+                    tau[2] += pj * (x2 * xl + xw * (wp0 * x1 - wp1 * x0))
+                    for a in range(3):
+                        for b in range(3):
+                            G[4 + 3 * a + b] += pj * ek[k, a] * ek[k, b]
+                    if not want_m:
+                        continue
+                    Av = x0 * avb0 + x1 * avb1 + x2 * avb2
+                    Aw = x0 * awb0 + x1 * awb1 + x2 * awb2
+                    Ax = x0 * bx[0] + x1 * bx[1] + x2 * bx[2]
+                    for j in range(nv):
+                        sown[j] = Av * dWv[p, j]
+                        sown[nv + j] = Aw * dWw[p, j]
+                    for j in range(nt):
+                        sown[n2 + j] = Ax * Pt[p, j]
+                    for j in range(nown):
+                        sj = pj * sown[j]
+                        C6[3, s0 + j] += sj * x0
+                        C6[4, s0 + j] += sj * x1
+                        C6[5, s0 + j] += sj * x2
+                        for jj in range(j, nown):
+                            M[s0 + j, s0 + jj] += sj * sown[jj]
                 for a in range(3):
-                    for b in range(3):
-                        G[4 + 3 * a + b] += pj * xv[a] * xv[b]
                     G[16 + a] += tau[a]
-                Av = x0 * avb0 + x1 * avb1 + x2 * avb2
-                Aw = x0 * awb0 + x1 * awb1 + x2 * awb2
-                Ax = x0 * bx[0] + x1 * bx[1] + x2 * bx[2]
                 Tv = avb0 * tau[0] + avb1 * tau[1] + avb2 * tau[2]
                 Tw = awb0 * tau[0] + awb1 * tau[1] + awb2 * tau[2]
                 Tx = bx[0] * tau[0] + bx[1] * tau[1] + bx[2] * tau[2]
                 for j in range(nv):
-                    sown[j] = Av * dWv[p, j]
-                    sown[nv + j] = Aw * dWw[p, j]
                     c[s0 + j] += Tv * dWv[p, j]
                     c[s0 + nv + j] += Tw * dWw[p, j]
                 for j in range(nt):
-                    sown[n2 + j] = Ax * Pt[p, j]
                     c[s0 + n2 + j] += Tx * Pt[p, j]
-                nown = n2 + nt
-                for j in range(nown if want_m else 0):
-                    sj = pj * sown[j]
-                    C6[3, s0 + j] += sj * x0
-                    C6[4, s0 + j] += sj * x1
-                    C6[5, s0 + j] += sj * x2
-                    for jj in range(j, nown):
-                        M[s0 + j, s0 + jj] += sj * sown[jj]
         _flush(G, C6, s0, s1, Jo, Jw, ncols, M, c, X6, want_m)
         # tip frame (seed 000 Eq. 19)
         L = length[i]
@@ -840,7 +864,6 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         for b in range(a + 1, nq):
             M[b, a] = M[a, b]
     return M, c
-
 
 
 @njit(cache=_CACHE)

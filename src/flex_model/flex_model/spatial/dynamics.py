@@ -7,8 +7,9 @@ f_i = [v-variables, w-variables, phi-variables] of the wavelet basis of thesis C
 (basis.py, one basis per bending plane with its EI; the same Hermite wavelets for the
 torsion angle, whose root rate phi'(0) is free). The kinetic energy is that of point
 masses rhoA ds at the Gauss points of the centre line, the sections' polar mass moment
-rhoJ ds about the beam axis (torsional rotary inertia; Euler-Bernoulli: no bending rotary
-inertia) and the rigid root/end bodies:
+rhoJ ds about the beam axis (torsional rotary inertia), with ``rotary_inertia`` also the
+bending rotary inertia rho I_y ds, rho I_z ds about the section's y and z axes (a Rayleigh
+beam; Euler-Bernoulli without it: description.FlexibleBeam) and the rigid root/end bodies:
 
     M = sum m Jp^T Jp + sum Jw^T I Jw,
     c = sum m Jp^T (dJp/dt v) + sum Jw^T (I dJw/dt v + w x I w) - sum m Jp^T g,
@@ -172,6 +173,12 @@ class BeamData:
         self.mass_w = self.w * beam.bend_v.properties(self.z)[1]        # rhoA ds
         gj, rhoj, _ = beam.torsion.properties(self.z)
         self.polar_w = self.w * rhoj                                      # rhoJ ds
+        #: bending rotary inertia (rho I_y ds, rho I_z ds) per point, rho I = rhoJ EI /
+        #: (EI_y + EI_z) (description.FlexibleBeam.rotary_inertia); None without
+        self.rotary = None
+        if beam.rotary_inertia:
+            eiz, eiy = beam.bend_v.properties(self.z)[0], beam.bend_w.properties(self.z)[0]
+            self.rotary = np.column_stack([eiy, eiz]) * (self.polar_w / (eiy + eiz))[:, None]
         self.Wv, self.dWv = self.bv.shape_matrix(self.z), self.bv.slope_matrix(self.z)
         self.Ww, self.dWw = self.bw.shape_matrix(self.z), self.bw.slope_matrix(self.z)
         n = 2 * nv + nt
@@ -641,7 +648,7 @@ class SpatialArmModel:
                 Jp[:, :, cols[:nv]] -= Rb[None, :, 0, None] * Svf[:, None, :]
                 Jp[:, :, cols[nv:2 * nv]] -= Rb[None, :, 0, None] * Swf[:, None, :]
             points.append((b.mass_w, p, Jp))
-            if b.nt:
+            if b.nt or b.rotary is not None:
                 phi, dv, dw = b.Pt @ ft, b.dWv @ fv, b.dWw @ fw
                 Rx = rot_x(phi)
                 Rxy = Rx @ rot_y(-dw)
@@ -651,8 +658,13 @@ class SpatialArmModel:
                 Jw[:, :, cols[:nv]] += (ax_v @ Rb.T)[:, :, None] * b.dWv[:, None, :]
                 Jw[:, :, cols[nv:2 * nv]] += (ax_w @ Rb.T)[:, :, None] * b.dWw[:, None, :]
                 Jw[:, :, cols[2 * nv:]] += Rb[None, :, 0, None] * b.Pt[:, None, :]
-                a = (Rb @ (Rxy @ rot_z(dv))[:, :, 0].T).T   # section x axis, base frame
+                Rs = Rb @ (Rxy @ rot_z(dv))                # section axes, base frame
+                a = Rs[:, :, 0]
                 I = b.polar_w[:, None, None] * a[:, :, None] * a[:, None, :]
+                if b.rotary is not None:    # rho I_y y y^T + rho I_z z z^T
+                    for k in (1, 2):
+                        e = Rs[:, :, k]
+                        I = I + b.rotary[:, k - 1, None, None] * e[:, :, None] * e[:, None, :]
                 rotors.append((I, Jw))
         # tip frame
         L = b.length

@@ -175,7 +175,8 @@ def _flexible(f: Fields, default_length, link_name: str, u: _Urdf):
     beam = flexible_beam(f, length, "link_x")
     root = rigid_body(f.mapping("root_body")) if f.has("root_body") else RigidBody()
     end = rigid_body(f.mapping("end_body")) if f.has("end_body") else RigidBody()
-    f.done(["length", "section", "variables", "torsion_variables", "root_body", "end_body"])
+    f.done(["length", "section", "variables", "torsion_variables", "rotary_inertia",
+            "root_body", "end_body"])
     return beam, root, end
 
 
