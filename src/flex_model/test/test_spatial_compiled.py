@@ -1,7 +1,8 @@
 """The compiled spatial kernels (numba, analytic Newton-Euler velocity terms) against the
 Python reference (complex-step velocity terms): M, c, inverse dynamics and the compiled
 generalized-alpha loop, on arms covering DH (dh_x, aux_z), prismatic joints, torsion,
-bending rotary inertia and a URDF arm (general axes, link_x beam, merged fixed links, effort limits)."""
+bending rotary inertia and a URDF arm (general axes, link_x beam, merged fixed links,
+effort limits)."""
 import copy
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from flex_model.spatial.limits import clip_efforts
 AUX = {"name": "aux", "gravity": [0.5, -2.0, -9.81], "links": [
     {"joint": {"type": "revolute", "alpha": -1.2, "d": 0.2, "a": 0.1},
      "end_body": {"mass": 0.7, "inertia": [[0.01, 0.002, 0.0], [0.002, 0.02, 0.001],
-                                          [0.0, 0.001, 0.015]], "offset": [0.02, 0.03, -0.01]}},
+                                           [0.0, 0.001, 0.015]], "offset": [0.02, 0.03, -0.01]}},
     {"joint": {"type": "prismatic", "alpha": 0.7, "theta": 0.4, "d": 0.1}},
     {"joint": {"type": "revolute", "a": 0.05, "alpha": 0.3, "d": 0.02},
      "flexible": {"placement": "aux_z", "length": 0.6, "variables": 4, "torsion_variables": 2,
