@@ -2,7 +2,8 @@
 
     python bench/bench_spatial_torsion.py [--duration 0.6] [--quick]
     BENCH_ROTARY=0 ...      # ours without the bending rotary inertia (the state before)
-    BENCH_HUB=rotor ...     # the joint inertias as rotors about the joint axis only
+    BENCH_HUB=rotor ...     # the joint inertias as rotors about the joint axis only (ours)
+    BENCH_PITCH_DEG=0 ...   # link 2 in line with link 1 (default 30 deg raised)
 
 The arm: joint 1 yaw (vertical axis z), link 1 (1 m) horizontal along x; at its tip joint 2
 pitch (axis horizontal, normal to link 1: standard DH alpha_1 = 90 deg), link 2 (1 m)
@@ -44,7 +45,7 @@ PEER_PY = os.path.join(BENCH_DIR, ".venv-peer", "bin", "python")
 E, G_MOD, RHO = 70e9, 70e9 / (2 * 1.33), 2700.0
 D_OUT, WALL = 0.030, 0.002
 L1 = L2 = 1.0
-PITCH0 = np.radians(30.0)
+PITCH0 = np.radians(float(os.environ.get("BENCH_PITCH_DEG", "30")))   # link 2 raised
 TIP_MASS, HUB_J = 0.2, 0.05
 #: both sides: a small mass on the hubs and a small inertia on the tip masses (Exudyn's
 #: glued rigid bodies need a regular mass matrix)
@@ -55,19 +56,29 @@ GRAV = 9.81
 SAMPLE = 2.5e-3
 ROTARY = os.environ.get("BENCH_ROTARY", "1") != "0"
 HUB = os.environ.get("BENCH_HUB", "body")
+TUBE = os.environ.get("BENCH_TUBE", "round30")
+KINEMATICS = os.environ.get("BENCH_KINEMATICS", "small_deflection")
 
 
 def tube():
-    """Round tube section: A, I (each bending axis), I_p = 2 I (= J of a round tube)."""
+    """Section: A, I (each bending axis), I_p (polar), J (torsion constant). Round tube
+    D x t: J = I_p = 2 I; BENCH_TUBE=square20: the 20 x 1 mm square tube of issue 47's
+    planar arm (J by Bredt, 4 A_m^2 t / s_m = 0.75 I_p)."""
+    if TUBE == "square20":
+        b, t = 0.020, 0.001
+        A = b * b - (b - 2 * t) ** 2
+        I = (b ** 4 - (b - 2 * t) ** 4) / 12
+        bm = b - t
+        return A, I, 2 * I, 4 * bm ** 4 * t / (4 * bm)
     ro, ri = D_OUT / 2, D_OUT / 2 - WALL
     A = np.pi * (ro ** 2 - ri ** 2)
     I = np.pi / 4 * (ro ** 4 - ri ** 4)
-    return A, I, 2 * I
+    return A, I, 2 * I, 2 * I
 
 
 def section():
-    A, I, Ip = tube()
-    return {"EI_y": E * I, "EI_z": E * I, "GJ": G_MOD * Ip, "rhoA": RHO * A,
+    A, I, Ip, J = tube()
+    return {"EI_y": E * I, "EI_z": E * I, "GJ": G_MOD * J, "rhoA": RHO * A,
             "rhoJ": RHO * Ip}
 
 
@@ -84,8 +95,10 @@ def arm_dict(variables: int) -> dict:
     if HUB == "body":
         for lk in links:
             lk["root_body"] = hub
-        return {"name": "yaw_pitch_tubes", "gravity": [0.0, 0.0, -GRAV], "links": links}
+        return {"name": "yaw_pitch_tubes", "gravity": [0.0, 0.0, -GRAV], "links": links,
+                "kinematics": KINEMATICS}
     return {"name": "yaw_pitch_tubes", "gravity": [0.0, 0.0, -GRAV], "links": links,
+            "kinematics": KINEMATICS,
             "effects": [{"type": "gear", "joint": j, "ratio": 1.0, "rotor_inertia": HUB_J}
                         for j in ("yaw", "pitch")]}
 
@@ -96,9 +109,10 @@ def pulse(t):
 
 
 def roll(phi, dv, dw):
-    """atan2(R[2, 1], R[2, 2]) of R = Rx(phi) Ry(-w') Rz(v') (the tip section frame)."""
-    return np.arctan2(np.sin(phi) * np.cos(dv) - np.cos(phi) * np.sin(dw) * np.sin(dv),
-                      np.cos(phi) * np.cos(dw))
+    """atan2(R[2, 1], R[2, 2]) of R = Ry(-w') Rz(v') Rx(phi) (the tip section frame)."""
+    cp, sp, ct, st = np.cos(dw), -np.sin(dw), np.cos(dv), np.sin(dv)
+    return np.arctan2(np.cos(phi) * sp * st + np.sin(phi) * cp,
+                      -np.sin(phi) * sp * st + np.cos(phi) * cp)
 
 
 # ------------------------------------------------------------------ ours
@@ -163,7 +177,7 @@ def _glued_body(mbs, exu, node, p, R, mass, inertia):
     nb = mbs.AddNode(NodeRigidBodyEP(referenceCoordinates=list(p) + list(
         RotationMatrix2EulerParameters(R))))
     ri = RigidBodyInertia(mass=mass, inertiaTensor=np.diag(inertia))
-    body = mbs.AddObject(ObjectRigidBody(physicsMass=mass, physicsInertia=ri.GetInertia6D(),
+    body = mbs.AddObject(ObjectRigidBody(mass=mass, inertia=ri.GetInertia6D(),
                                          nodeNumber=nb))
     if mass:
         mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(
@@ -185,7 +199,7 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
     mbs = SC.AddSystem()
     ground = mbs.AddObject(ObjectGround())
     m_ground = mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground))
-    A, I, Ip = tube()
+    A, I, Ip, J = tube()
     R1 = np.eye(3)
     R2 = _rot_x(np.pi / 2) @ _rot_z(PITCH0)
     links = [(np.zeros(3), R1), (np.array([L1, 0.0, 0.0]), R2)]
@@ -193,7 +207,7 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
     for p0, R in links:
         sd = exu.BeamSection()
         ga = G_MOD * A / 2.0          # thin round tube: shear factor chi = 2
-        sd.stiffnessMatrix = np.diag([E * A, ga, ga, G_MOD * Ip, E * I, E * I])
+        sd.stiffnessMatrix = np.diag([E * A, ga, ga, G_MOD * J, E * I, E * I])
         sd.inertia = np.diag([RHO * Ip, RHO * I, RHO * I])
         sd.massPerLength = RHO * A
         ep = list(RotationMatrix2EulerParameters(R))
@@ -202,7 +216,7 @@ def run_exudyn(n_el: int, h: float, duration: float) -> dict:
             p0 + R[:, 0] * L * k / n_el) + ep)) for k in range(n_el + 1)]
         for a, b in zip(nodes[:-1], nodes[1:]):
             el = mbs.AddObject(ObjectBeamGeometricallyExact(nodeNumbers=[a, b],
-                                                            physicsLength=L / n_el,
+                                                            length=L / n_el,
                                                             sectionData=sd))
             mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(
                 MarkerBodyMass(bodyNumber=el)), loadVector=[0.0, 0.0, -GRAV]))
@@ -346,8 +360,7 @@ def main(argv=None) -> int:
             print(f"Exudyn run {r} failed or bench/.venv-peer is missing")
             return 1
         peer[r] = out
-    A, I, Ip = tube()
-    print(f"yaw + pitch tubes (D {1e3 * D_OUT:g} x {1e3 * WALL:g} mm, rotary inertia "
+    print(f"yaw + pitch tubes ({TUBE}, pitch {np.degrees(PITCH0):g} deg, rotary inertia "
           f"{'on' if ROTARY else 'off'}, hubs {HUB}), {TAU1:g} N m yaw pulse over "
           f"{T_PULSE:g} s, {args.duration:g} s; load {os.getloadavg()[0]:.1f}")
     for r, o in ours.items():
