@@ -80,7 +80,7 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
             break
     else:
         raise StaticConvergenceError(f"no static equilibrium after {max_iter} Newton steps "
-                           f"(largest residual {np.max(np.abs(r)):.3e})")
+                                     f"(largest residual {np.max(np.abs(r)):.3e})")
     tip = model.tip_frame(q)
     pos = np.real(tip.o)
     if linear:  # the linearized output as well (as the planar static --linear)
