@@ -26,6 +26,7 @@ Example (seed 000's real arm, vertical joint axis)::
           section: {EI_y: 248.0, EI_z: 0.70656, GJ: 1.0, rhoA: 0.1289, rhoJ: 1.0e-7}
           variables: 8                   # per bending plane, (deflection, rotation) pairs
           torsion_variables: 8           # even (+1: the root twist rate); 0: rigid
+          rotary_inertia: false          # true: the sections' bending rotary inertia
         end_body: {mass: 0.025607, inertia: [0, 0, 0], offset: [0, 0, 0]}
 
 A flexible link's beam frame has x along the beam, y in the plane normal to the joint
