@@ -24,7 +24,6 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve
 from scipy.stats import chi2
 
 from . import measurements as meas
@@ -190,7 +189,7 @@ class Estimator:
         B = np.zeros((n, N.shape[1]))
         B[nq:2 * nq] = plant.inverse_mass(self.x[:nq], self.x[2 * nq:]) @ N
         A = self._state_jacobian(u)
-        self._lu = lu_factor(np.eye(n) - GAMMA * T * A)
+        self._Winv = np.linalg.inv(np.eye(n) - GAMMA * T * A)
         self.F = np.eye(n) + self._ros2_increment(A, A)
         Gam = self._ros2_increment(A, B)
         Qd = (Gam * W) @ Gam.T
@@ -253,8 +252,8 @@ class Estimator:
         """The ROS2 step's increment for the linear right-hand side G (columns): with
         f = A x + G w, dx = T (3/2 k1 + 1/2 k2); F = I + increment(A), Gamma = increment(B)."""
         T = self.settings.sample_period
-        k1 = lu_solve(self._lu, G)
-        k2 = lu_solve(self._lu, G + T * (A @ k1) - 2.0 * k1)
+        k1 = self._Winv @ G
+        k2 = self._Winv @ (G + T * (A @ k1) - 2.0 * k1)
         return T * (1.5 * k1 + 0.5 * k2)
 
     def _predict(self, u) -> None:
@@ -264,8 +263,8 @@ class Estimator:
         if hasattr(self.plant, "step"):  # the plant's own implicit step (spatial)
             self.x = self.plant.step(self.x, u, T)
         else:
-            k1 = lu_solve(self._lu, f(self.x, u))
-            k2 = lu_solve(self._lu, f(self.x + T * k1, u) - 2.0 * k1)
+            k1 = self._Winv @ f(self.x, u)
+            k2 = self._Winv @ (f(self.x + T * k1, u) - 2.0 * k1)
             self.x = self.x + T * (1.5 * k1 + 0.5 * k2)
         self.P = self.F @ self.P @ self.F.T + self.Qd
         self.P = 0.5 * (self.P + self.P.T)
@@ -303,7 +302,7 @@ class Estimator:
 
 
 def _std(M, P) -> np.ndarray:
-    return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", M, P, M), 0.0))
+    return np.sqrt(np.maximum(((M @ P) * M).sum(axis=1), 0.0))
 
 
 _CHI2 = {}
