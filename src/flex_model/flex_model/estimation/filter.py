@@ -13,15 +13,16 @@ instead of resolved. The covariance moves by P+ = F P F^T + Q_d with F the same 
 derivative for the held A. Process noise: a torque error per joint and a force at each link's
 tip, each held over a sample (zero-order hold, as a digital command's error):
 Q_d = Gamma W Gamma^T with Gamma the step's map of the generalized force through B(q)^-1,
-plus the parameters' random walk (std^2 T per sample). Correction (Joseph form) with the
-readings present (NaN = missing); a delayed reading is compared with the estimate of its
-time (a short buffer of past estimates), with the present H (delays short against the
-arm's motion).
+plus the parameters' random walk (std^2 T per sample). Correction P - K H P (symmetrized)
+with the readings present (NaN = missing); a delayed reading is compared with the estimate
+of its time (a short buffer of past estimates), with the present H (delays short against
+the arm's motion).
 """
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.stats import chi2
@@ -73,30 +74,73 @@ class EstimatorSettings:
         object.__setattr__(self, "adapt", tuple(self.adapt))
 
 
-@dataclass
-class Sample:
-    """The estimate at one sample (after its correction)."""
+#: the fields of a Sample (and, stacked over time, of an EstimationResult)
+FIELDS = ("t", "q", "v", "state_cov", "joint_angles", "joint_angles_std", "joint_rates",
+          "joint_rates_std", "tip_deflections", "tip_deflections_std", "tip_position",
+          "tip_position_cov", "innovation", "innovation_cov", "nis", "nis_dof", "nis_mean",
+          "nis_95_fraction", "parameters", "parameter_std")
 
-    t: float
-    q: np.ndarray
-    v: np.ndarray
-    state_cov: np.ndarray
-    joint_angles: np.ndarray
-    joint_angles_std: np.ndarray
-    joint_rates: np.ndarray
-    joint_rates_std: np.ndarray
-    tip_deflections: np.ndarray
-    tip_deflections_std: np.ndarray
-    tip_position: np.ndarray
-    tip_position_cov: np.ndarray
-    innovation: np.ndarray
-    innovation_cov: np.ndarray
-    nis: float
-    nis_dof: int
-    nis_mean: float
-    nis_95_fraction: float
-    parameters: dict
-    parameter_std: dict
+
+class Sample:
+    """The estimate at one sample (after its correction): the fields of FIELDS, the
+    derived ones (angles, deflections, tip, their stds) computed when first read (the live
+    path reads what it publishes)."""
+
+    def __init__(self, t, x, P, plant, maps, innovation, innovation_cov, nis, nis_dof,
+                 nis_mean, nis_95_fraction):
+        self.t, self._x, self.state_cov, self._plant, self._maps = t, x, P, plant, maps
+        self.innovation, self.innovation_cov = innovation, innovation_cov
+        self.nis, self.nis_dof, self.nis_mean = nis, nis_dof, nis_mean
+        self.nis_95_fraction = nis_95_fraction
+        nq = plant.nq
+        self.q, self.v = x[:nq], x[nq:2 * nq]
+        self._Pq, self._Pv = P[:nq, :nq], P[nq:2 * nq, nq:2 * nq]
+
+    def __repr__(self):
+        return f"Sample(t={self.t:.6g}, nis={self.nis:.3g}, parameters={self.parameters})"
+
+    @cached_property
+    def joint_angles(self):
+        return self._plant.joint_angles(self.q)
+
+    @cached_property
+    def joint_angles_std(self):
+        return _std(self._maps[0], self._Pq)
+
+    @cached_property
+    def joint_rates(self):
+        return self._plant.joint_rates(self.v)
+
+    @cached_property
+    def joint_rates_std(self):
+        return _std(self._maps[0], self._Pv)
+
+    @cached_property
+    def tip_deflections(self):
+        return self._maps[1] @ self.q
+
+    @cached_property
+    def tip_deflections_std(self):
+        return _std(self._maps[1], self._Pq)
+
+    @cached_property
+    def tip_position(self):
+        return self._plant.tip_position(self.q)
+
+    @cached_property
+    def tip_position_cov(self):
+        J = self._plant.tip_jacobian(self.q)
+        return J @ self._Pq @ J.T
+
+    @cached_property
+    def parameters(self):
+        return dict(zip(self._plant.param_names, self._x[2 * self._plant.nq:].tolist()))
+
+    @cached_property
+    def parameter_std(self):
+        nq = self._plant.nq
+        return dict(zip(self._plant.param_names,
+                        np.sqrt(np.diag(self.state_cov)[2 * nq:]).tolist()))
 
 
 def make_plant(model, settings):
@@ -232,10 +276,11 @@ class Estimator:
         H = self.H[used]
         v = y[used] - h[used]
         S = H @ self.P @ H.T + np.diag(self.R[used])
-        K = np.linalg.solve(S, H @ self.P).T
+        HP = H @ self.P
+        K = np.linalg.solve(S, HP).T
         self.x = self.x + K @ v
-        IKH = np.eye(self.n) - K @ H
-        self.P = IKH @ self.P @ IKH.T + (K * self.R[used]) @ K.T
+        P = self.P - K @ HP            # = (I - K H) P; symmetrized (the Joseph form's
+        self.P = 0.5 * (P + P.T)       # guard at a third of the cost)
         self._project()
         nu[used] = v
         Sk[np.ix_(used, used)] = S
@@ -281,24 +326,11 @@ class Estimator:
             self._nis_sum += nis
             self._nis_count += 1
             self._nis_in += nis <= _chi2_95(dof)
-        nq, P, x = self.plant.nq, self.P, self.x
-        q, v = x[:nq], x[nq:2 * nq]
-        Pq, Pv = P[:nq, :nq], P[nq:2 * nq, nq:2 * nq]
-        G, D, J = self._angle, self._defl, self.plant.tip_jacobian(q)
-        names = self.plant.param_names
-        pstd = np.sqrt(np.diag(P)[2 * nq:])
         count = max(self._nis_count, 1)
-        return Sample(
-            t=self.t, q=q.copy(), v=v.copy(), state_cov=P.copy(),
-            joint_angles=self.plant.joint_angles(q), joint_rates=self.plant.joint_rates(v),
-            joint_angles_std=_std(G, Pq), joint_rates_std=_std(G, Pv),
-            tip_deflections=D @ q, tip_deflections_std=_std(D, Pq),
-            tip_position=self.plant.tip_position(q), tip_position_cov=J @ Pq @ J.T,
-            innovation=nu, innovation_cov=Sk, nis=nis, nis_dof=dof,
-            nis_mean=self._nis_sum / count if self._nis_count else np.nan,
-            nis_95_fraction=self._nis_in / count if self._nis_count else np.nan,
-            parameters=dict(zip(names, x[2 * nq:].tolist())),
-            parameter_std=dict(zip(names, pstd.tolist())))
+        return Sample(self.t, self.x.copy(), self.P.copy(), self.plant,
+                      (self._angle, self._defl), nu, Sk, nis, dof,
+                      self._nis_sum / count if self._nis_count else np.nan,
+                      self._nis_in / count if self._nis_count else np.nan)
 
 
 def _std(M, P) -> np.ndarray:

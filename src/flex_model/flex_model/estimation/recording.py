@@ -1,14 +1,14 @@
 """The offline path: the live filter (Estimator.step) run over the arrays of a recording."""
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
-from .filter import Estimator, EstimatorSettings, Sample
+from .filter import FIELDS, Estimator, EstimatorSettings
 
 #: Sample fields stacked over time in an EstimationResult (the dicts become arrays by name)
-_STACKED = [f.name for f in fields(Sample) if f.name not in ("parameters", "parameter_std")]
+_STACKED = [f for f in FIELDS if f not in ("parameters", "parameter_std")]
 
 
 @dataclass
