@@ -76,17 +76,24 @@ def test_covariance_converges_to_the_discrete_riccati_solution():
     assert np.abs(K - Kf).max() < 1e-9 * np.abs(K).max()
 
 
-def test_nis_mean_is_the_measurement_dimension_on_data_with_the_assumed_noise():
-    """The simulator's own run (dopri5, not the filter's ROS2) under a random torque held
-    per sample with the filter's torque noise, read with the filter's sensor noise: NIS
-    mean 2 (chi2 with 2 dof: 2 +- 0.1 over 3000 samples) and ~95 % inside the bound."""
+def _run(n, std_tau=0.05, seed=7):
+    """A dopri5 run of the link under a random torque held per sample: (model, result,
+    torques, rng)."""
     model = _link()
-    rng = np.random.default_rng(7)
-    n, std_tau = 3000, 0.05
+    rng = np.random.default_rng(seed)
     taus = rng.normal(0.0, std_tau, n + 1)
     res = simulate(model, np.zeros(model.nq), t_final=n * T, sample_period=T,
                    policy=lambda t, x: np.array([taus[min(int(round(t / T)), n)]]),
                    control_period=T)
+    return model, res, taus, rng
+
+
+def test_nis_mean_is_the_measurement_dimension_on_data_with_the_assumed_noise():
+    """The simulator's own run (dopri5, not the filter's ROS2) under a random torque held
+    per sample with the filter's torque noise, read with the filter's sensor noise: NIS
+    mean 2 (chi2 with 2 dof: 2 +- 0.1 over 3000 samples) and ~95 % inside the bound."""
+    n, std_tau = 3000, 0.05
+    model, res, taus, rng = _run(n, std_tau)
     y = np.column_stack([res.joint_angles[:, 0] + rng.normal(0, 1e-4, n + 1),
                          res.tip_deflections[:, 0] + rng.normal(0, 1e-3, n + 1)])
     ms = [Measurement("q1", "joint_angle", 0, std=1e-4),
@@ -114,3 +121,41 @@ def test_missing_and_delayed_readings():
         Estimator(_link(), [], EstimatorSettings(adapt=("stiction:0",)))
     with pytest.raises(ValueError, match="kind"):
         Measurement("x", "gyro")
+
+
+def test_readings_are_the_sensor_models_and_a_delay_is_read_against_its_time():
+    """The filter's readings at a state are flex_model.sensors' signals (joint encoder,
+    strain gauge, tip position, tip gauge); a tip gauge 5 ms late, declared, keeps
+    the NIS at its dimension, undeclared it does not."""
+    from flex_model.estimation import measurements as meas
+    from flex_model.sensors import Sensor, true_signal
+    n = 1500
+    model, res, taus, rng = _run(n)
+    est = _estimator(model)
+    k = 700
+    x = np.concatenate([res.q[k], res.v[k]])
+    ms = [Measurement("q", "joint_angle", 0),
+          Measurement("e", "strain", 0, position=0.5, surface_distance=0.01),
+          Measurement("x", "tip_position", component=0),
+          Measurement("y", "tip_position", component=1),
+          Measurement("w", "tip_deflection", 0)]
+    got = meas.outputs(ms, est.plant, x, taus[k:k + 1])
+    sensors = [Sensor("q", "joint_encoder", "joint1"),
+               Sensor("e", "strain_gauge", "link1", position=0.5, surface_distance=0.01),
+               Sensor("t", "tip_position"), Sensor("w", "tip_deflection", "link1")]
+    want = np.concatenate([true_signal(sn, res)[k] for sn in sensors])
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-15)
+    d = 5
+    w = np.concatenate([np.full(d, res.tip_deflections[0, 0]), res.tip_deflections[:-d, 0]])
+    y = np.column_stack([res.joint_angles[:, 0] + rng.normal(0, 1e-4, n + 1),
+                         w + rng.normal(0, 1e-4, n + 1)])
+    nis = []
+    for delay in (d * T, 0.0):
+        ms = [Measurement("q1", "joint_angle", 0, std=1e-4),
+              Measurement("w1", "tip_deflection", 0, std=1e-4, delay=delay)]
+        s = EstimatorSettings(sample_period=T, torque_noise=0.05, initial_angle_std=1e-4,
+                              initial_deflection_std=1e-4, initial_rate_std=1e-3)
+        r = estimate_recording(model, res.t, taus[:, None], y, ms, s, q0=np.zeros(model.nq))
+        nis.append(r.summary["nis_mean"])
+    assert nis[0] == pytest.approx(2.0, abs=0.3)
+    assert nis[1] > nis[0] + 0.2          # 2.33 against 2.01
