@@ -27,7 +27,7 @@ from functools import cached_property
 import numpy as np
 from scipy.stats import chi2
 
-from . import measurements as meas
+from .measurements import check, outputs
 from .plant import PARAMETER_FLOOR
 
 #: ROS2's gamma = 1 + 1/sqrt(2): L-stable, second order for any Jacobian (a W-method)
@@ -160,7 +160,7 @@ class Estimator:
         self.settings = settings or EstimatorSettings()
         self.plant = make_plant(model, self.settings)
         self.measurements = list(measurements)
-        meas.check(self.measurements, self.plant)
+        check(self.measurements, self.plant)
         self.R = np.array([m.variance for m in self.measurements])
         T = self.settings.sample_period
         self.delays = np.array([int(round(m.delay / T)) for m in self.measurements])
@@ -241,7 +241,7 @@ class Estimator:
                 zip(plant.param_names, self._kinds)]
         Qd[2 * nq:, 2 * nq:] += np.diag(np.square(walk) * T)
         self.Qd = 0.5 * (Qd + Qd.T)
-        H = self._jacobian(lambda x: meas.outputs(self.measurements, plant, x, u),
+        H = self._jacobian(lambda x: outputs(self.measurements, plant, x, u),
                            self.x, len(self.measurements))
         self.H = H
         self._since = 0
@@ -266,13 +266,13 @@ class Estimator:
         if used.size == 0:
             self._past.append(self.x.copy())
             return nu, Sk, used
-        h = meas.outputs(self.measurements, self.plant, self.x, u)
+        h = outputs(self.measurements, self.plant, self.x, u)
         for r in used:
             d = self.delays[r]
             if d:
                 past = self._past[-d] if len(self._past) >= d else self._past[0] \
                     if self._past else self.x
-                h[r] = meas.outputs([self.measurements[r]], self.plant, past, u)[0]
+                h[r] = outputs([self.measurements[r]], self.plant, past, u)[0]
         H = self.H[used]
         v = y[used] - h[used]
         S = H @ self.P @ H.T + np.diag(self.R[used])
@@ -325,7 +325,7 @@ class Estimator:
             nis = float(vv @ np.linalg.solve(Sk[np.ix_(used, used)], vv))
             self._nis_sum += nis
             self._nis_count += 1
-            self._nis_in += nis <= _chi2_95(dof)
+            self._nis_in += nis <= chi2_95(dof)
         count = max(self._nis_count, 1)
         return Sample(self.t, self.x.copy(), self.P.copy(), self.plant,
                       (self._angle, self._defl), nu, Sk, nis, dof,
@@ -340,7 +340,8 @@ def _std(M, P) -> np.ndarray:
 _CHI2 = {}
 
 
-def _chi2_95(dof: int) -> float:
+def chi2_95(dof: int) -> float:
+    """The chi2 95 % bound of a NIS with dof degrees of freedom (cached)."""
     if dof not in _CHI2:
         _CHI2[dof] = float(chi2.ppf(0.95, dof))
     return _CHI2[dof]

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .filter import FIELDS, Estimator, EstimatorSettings
+from .filter import FIELDS, Estimator, EstimatorSettings, chi2_95
 
 #: Sample fields stacked over time in an EstimationResult (the dicts become arrays by name)
 _STACKED = [f for f in FIELDS if f not in ("parameters", "parameter_std")]
@@ -101,8 +101,7 @@ def summarize(arrays, params, pstd) -> dict:
     """nis_mean, nis_95_fraction, mean measurement dimension, final parameters."""
     nis, dof = arrays["nis"], arrays["nis_dof"]
     ok = np.isfinite(nis)
-    from .filter import _chi2_95
-    inside = [n <= _chi2_95(int(d)) for n, d in zip(nis[ok], dof[ok])]
+    inside = [n <= chi2_95(int(d)) for n, d in zip(nis[ok], dof[ok])]
     return {"samples": int(len(nis)), "nis_mean": float(np.mean(nis[ok])) if ok.any() else None,
             "nis_dof_mean": float(np.mean(dof[ok])) if ok.any() else None,
             "nis_95_fraction": float(np.mean(inside)) if inside else None,
