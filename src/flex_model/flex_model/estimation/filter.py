@@ -262,11 +262,10 @@ class Estimator:
     def _correct(self, u, y):
         """(innovation, its covariance, indices of the readings used, NIS)."""
         m = len(self.measurements)
-        nu, Sk = np.full(m, np.nan), np.full((m, m), np.nan)
         used = np.flatnonzero(np.isfinite(y))
         if used.size == 0:
             self._remember()
-            return nu, Sk, used, np.nan
+            return np.full(m, np.nan), np.full((m, m), np.nan), used, np.nan
         h = outputs(self.measurements, self.plant, self.x, u)
         for r in used:
             d = self.delays[r]
@@ -283,8 +282,12 @@ class Estimator:
         self.x = self.x + K @ v
         self.P = self.P - K @ HP       # = (I - K H) P, symmetrized after the prediction
         self._project()
-        nu[used] = v
-        Sk[np.ix_(used, used)] = S
+        if used.size == m:
+            nu, Sk = v, S
+        else:
+            nu, Sk = np.full(m, np.nan), np.full((m, m), np.nan)
+            nu[used] = v
+            Sk[np.ix_(used, used)] = S
         self._remember()
         return nu, Sk, used, float(v @ sol[:, -1])
 
