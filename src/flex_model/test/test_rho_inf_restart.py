@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flex_model.integrators import galpha_parameters, restart_kick
 from flex_model.scenario import scenario_from_dict
+from flex_model.solvers.galpha import galpha_parameters, restart_kick
 
 T_JUMP = 0.02
 T_END = 0.1
