@@ -39,7 +39,9 @@ from numba import njit
 
 from .integrators import (LINE_SEARCH_HALVINGS, NEWTON_MAX_ITER, joint_passive_forces,
                           joint_tangent, joint_torques)
-from .solvers.galpha import galpha_coefficients, galpha_fixed, galpha_state
+from .solvers.galpha import Step, galpha_coefficients, galpha_state, step_status
+from .solvers.newton import backtrack_done, residual_norm
+from .solvers.status import FINISHED
 from .kernels import solve_spd
 
 _CACHE = True
@@ -447,14 +449,14 @@ def derivative(t, x, X, E):
 @njit(cache=_CACHE)
 def _residual(a1, st, c, X, E):
     """Residual B(q1) a1 - (Q - c) of a generalized-alpha step (solvers.galpha.Step st,
-    coefficients c) with :func:`balance`, and B, v1 (no bristle states: z1, g empty)."""
+    coefficients c) with :func:`balance`, and B, v1 (no bristle states)."""
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     B, rhs = balance(st.t, q1, v1, X, E)
-    return B @ a1 - rhs, B, v1, st.z, st.z
+    return B @ a1 - rhs, B, v1
 
 
 @njit(cache=_CACHE)
-def _tangent(B, v1, z1, g, st, c, X, E):
+def _tangent(B, v1, c, E):
     """B(q1) + gamma' (D + C_joints) + beta' (K + K_joints)."""
     Kj, Cj = joint_tangent(v1, E)
     return B + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj)
@@ -462,13 +464,51 @@ def _tangent(B, v1, z1, g, st, c, X, E):
 
 @njit(cache=_CACHE)
 def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, X, E):
-    """Fixed-step generalized-alpha with exact kinematics: the loop of
-    integrators.generalized_alpha (solvers.galpha.galpha_fixed: the same parameters,
-    full Newton with backtracking, pulses at mid-step) on :func:`balance`; no bristle
-    states. Same returns and status codes."""
-    return galpha_fixed(_residual, _tangent, t0, x0, a0, abar0, n_steps, every,
-                        galpha_coefficients(rho_inf, h), tol, NEWTON_MAX_ITER,
-                        LINE_SEARCH_HALVINGS, limit, X, E)
+    """Fixed-step generalized-alpha with exact kinematics: integrators.generalized_alpha
+    (flex_model.solvers: the same coefficients, update, backtracking and status; full
+    Newton, pulses at mid-step) on :func:`balance`; no bristle states. Same returns."""
+    c = galpha_coefficients(rho_inf, h)
+    n = E[0].shape[0]
+    X_out = np.full((n_steps // every + 1, 2 * n), np.nan)
+    X_out[0] = x0
+    q, v = x0[:n].copy(), x0[n:2 * n].copy()
+    a = a0.copy()
+    abar = abar0.copy()
+    t = t0
+    r = 1
+    iters = 0
+    for s in range(1, n_steps + 1):
+        t1 = t0 + s * h
+        st = Step(q, v, np.zeros(0), a, abar, t1 - 0.5 * h)
+        a1 = a.copy()
+        res, B, v1 = _residual(a1, st, c, X, E)
+        norm = residual_norm(res)
+        ok = False
+        for it in range(NEWTON_MAX_ITER):
+            da = solve_spd(_tangent(B, v1, c, E), -res)
+            lam = 1.0
+            for ls in range(LINE_SEARCH_HALVINGS):
+                a_try = a1 + lam * da
+                r_try, B_try, v_try = _residual(a_try, st, c, X, E)
+                n_try = residual_norm(r_try)
+                if backtrack_done(n_try, norm, lam, ls, LINE_SEARCH_HALVINGS):
+                    break
+                lam *= 0.5
+            a1, res, B, v1, norm = a_try, r_try, B_try, v_try, n_try
+            iters += 1
+            if np.max(np.abs(da)) * lam * c.bp <= tol:
+                ok = True
+                break
+        q, v, abar = galpha_state(q, v, a, abar, a1, c)
+        a, t = a1, t1
+        x = np.concatenate((q, v))
+        status = step_status(x, limit, ok)
+        if status != FINISHED:
+            return X_out, status, t, x, a, abar, iters
+        if s % every == 0:
+            X_out[r] = x
+            r += 1
+    return X_out, FINISHED, t, np.concatenate((q, v)), a, abar, iters
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
@@ -478,7 +518,8 @@ def _guard_caches():
     from .effects import stick_slip
     from .numba_cache import guard
     from .solvers import galpha, newton
-    guard([obj for obj in globals().values() if hasattr(obj, "py_func")],
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")
+           and obj.py_func.__module__ == __name__],
           [integrators.__file__, kernels.__file__, stick_slip.__file__,
            iteration_matrix.__file__, galpha.__file__, newton.__file__])
 

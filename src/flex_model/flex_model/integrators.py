@@ -34,8 +34,9 @@ from numba import njit
 from .effects.stick_slip import bristle_rate, bristle_step
 from .iteration_matrix import empty_factor, factor_solve, structured_factor
 from .solvers.status import DIVERGED, FINISHED, NO_CONVERGENCE
-from .solvers.galpha import (Step, finite_within, galpha_coefficients, galpha_fixed,
-                             galpha_parameters, galpha_state, restart_choice)
+from .solvers.galpha import (Step, finite_within, galpha_coefficients, galpha_parameters,
+                             galpha_state, restart_choice, step_status)
+from .solvers.newton import backtrack_done, residual_norm
 from .kernels import (band_matvec, cholesky, inverse_dynamics, link_origins, mass_matrix,
                       solve_spd, tip_jacobian)
 
@@ -584,9 +585,49 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     not converge in 50 iterations (with backtracking line search).
     """
     _check_state(x0, E)
-    return galpha_fixed(_alpha_residual, _alpha_tangent, t0, x0, a0, abar0, n_steps, every,
-                        galpha_coefficients(rho_inf, h), tol, NEWTON_MAX_ITER,
-                        LINE_SEARCH_HALVINGS, limit, P, E)
+    c = galpha_coefficients(rho_inf, h)
+    n = E[0].shape[0]
+    X = np.full((n_steps // every + 1, x0.shape[0]), np.nan)
+    X[0] = x0
+    q, v, z = x0[:n].copy(), x0[n:2 * n].copy(), x0[2 * n:].copy()
+    a = a0.copy()
+    abar = abar0.copy()
+    t = t0
+    r = 1
+    iters = 0
+    for s in range(1, n_steps + 1):
+        t1 = t0 + s * h
+        st = Step(q, v, z, a, abar, t1 - 0.5 * h)
+        # full Newton with backtracking on the residual norm (solvers.newton.backtrack)
+        a1 = a.copy()
+        res, B, v1, z1, g = _alpha_residual(a1, st, c, P, E)
+        norm = residual_norm(res)
+        ok = False
+        for it in range(NEWTON_MAX_ITER):
+            da = solve_spd(_alpha_tangent(B, v1, z1, g, st, c, P, E), -res)
+            lam = 1.0
+            for ls in range(LINE_SEARCH_HALVINGS):
+                a_try = a1 + lam * da
+                r_try, B_try, v_try, z_try, g_try = _alpha_residual(a_try, st, c, P, E)
+                n_try = residual_norm(r_try)
+                if backtrack_done(n_try, norm, lam, ls, LINE_SEARCH_HALVINGS):
+                    break
+                lam *= 0.5
+            a1, res, B, v1, norm, z1, g = a_try, r_try, B_try, v_try, n_try, z_try, g_try
+            iters += 1
+            if np.max(np.abs(da)) * lam * c.bp <= tol:
+                ok = True
+                break
+        q, v, abar = galpha_state(q, v, a, abar, a1, c)
+        a, z, t = a1, z1, t1
+        x = np.concatenate((q, v, z))
+        status = step_status(x, limit, ok)
+        if status != FINISHED:
+            return X, status, t, x, a, abar, iters
+        if s % every == 0:
+            X[r] = x
+            r += 1
+    return X, FINISHED, t, np.concatenate((q, v, z)), a, abar, iters
 
 
 @njit(cache=_CACHE)
@@ -668,7 +709,8 @@ def _guard_caches():
     from .numba_cache import guard
     from .effects import stick_slip
     from .solvers import galpha, newton
-    guard([obj for obj in globals().values() if hasattr(obj, "py_func")],
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")
+           and obj.py_func.__module__ == __name__],
           [kernels.__file__, stick_slip.__file__, iteration_matrix.__file__, galpha.__file__,
            newton.__file__])
 

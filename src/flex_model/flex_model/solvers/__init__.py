@@ -3,12 +3,14 @@ settings and the status of a run, for the planar and the spatial arms alike.
 
 - :mod:`.galpha`: Chung-Hulbert's parameters from rho_inf (the only copy of that formula),
   the Arnold-Bruls update of (q, v, abar) from an acceleration iterate, the restart after
-  an input discontinuity and the fixed-step loop with full Newton;
-- :mod:`.newton`: the Newton iterations (backtracking on the residual norm, the halving
-  line search and the stagnation test of the spatial loop);
+  an input discontinuity and the status of a step;
+- :mod:`.newton`: the pieces of the Newton iterations (the backtracking test on the
+  residual norm, the stagnation test of the spatial loop);
 - :mod:`.status`: the settings (rho_inf, tolerances, iteration limits) and the status of a
   run (finished / diverged / no convergence) with its one-line message.
 
-Compiled loops take the model's residual and iteration matrix as first-class numba
-functions; each model module wraps them in its own cached entry point.
+Each model keeps its compiled fixed-step entry point (integrators.generalized_alpha and
+generalized_alpha_simplified, exact_kinematics.generalized_alpha,
+spatial.compiled.galpha_loop) built from these pieces (solvers.newton says why the loop
+itself is not passed the residual as a function).
 """

@@ -1,7 +1,7 @@
 """Generalized-alpha (Chung & Hulbert 1993, in Arnold & Bruls's 2007 form with the
 acceleration-like variable abar): the parameters, the update of a step, the restart after
-an input jump and the fixed-step loop with full Newton (issue 43: one implementation for
-the planar kinematics, the exact kinematics and the spatial arms).
+an input jump and the status of a step (issue 43: one implementation for the planar
+kinematics, the exact kinematics, the spatial arms and the planner).
 
 One step solves r(a1) = 0 for the acceleration a1 at t_{n+1}, with
 
@@ -19,7 +19,6 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .newton import newton_backtracking
 from .status import DIVERGED, FINISHED, NO_CONVERGENCE
 
 _CACHE = True
@@ -164,45 +163,11 @@ def finite_within(x, limit):
     return True
 
 
-@njit
-def galpha_fixed(residual, tangent, t0, x0, a0, abar0, n_steps, every, c, tol, max_iter,
-                 backtrack, limit, M, E):
-    """Fixed-step generalized-alpha on x = [q; v; z] (z: states advanced inside the
-    residual, e.g. bristle deflections), each step solved by :func:`newton_backtracking`
-    from the previous acceleration, the residual at mid-step t_{n+1} - h/2.
-    ``residual(a1, step, c, M, E)`` -> (r, B, v1, z1, g) and ``tangent(B, v1, z1, g, step,
-    c, M, E)`` -> the iteration matrix are the model's (numba functions; a cached
-    wrapper per model). Returns (X, status, t_end, x_end, a_end, abar_end, iterations);
-    X holds every ``every``-th state, X[0] = x0; status: .status FINISHED, DIVERGED (non-
-    finite or beyond ``limit``), NO_CONVERGENCE."""
-    n = a0.shape[0]
-    nx = x0.shape[0]
-    X = np.full((n_steps // every + 1, nx), np.nan)
-    X[0] = x0
-    q = x0[:n].copy()
-    v = x0[n:2 * n].copy()
-    z = x0[2 * n:].copy()
-    a = a0.copy()
-    abar = abar0.copy()
-    t = t0
-    r = 1
-    iters = 0
-    for s in range(1, n_steps + 1):
-        t1 = t0 + s * c.h
-        step = Step(q, v, z, a, abar, t1 - 0.5 * c.h)
-        a1, z1, it, ok = newton_backtracking(residual, tangent, a.copy(), step, c, tol,
-                                             max_iter, backtrack, M, E)
-        iters += it
-        q, v, abar = galpha_state(q, v, a, abar, a1, c)
-        a = a1
-        z = z1
-        t = t1
-        x = np.concatenate((q, v, z))
-        if not finite_within(x, limit):
-            return X, DIVERGED, t, x, a, abar, iters
-        if not ok:
-            return X, NO_CONVERGENCE, t, x, a, abar, iters
-        if s % every == 0:
-            X[r] = x
-            r += 1
-    return X, FINISHED, t, np.concatenate((q, v, z)), a, abar, iters
+@njit(cache=_CACHE)
+def step_status(x, limit, converged):
+    """The status after a step (solvers.status): DIVERGED when the state x is non-finite
+    or beyond ``limit`` (checked first), NO_CONVERGENCE when Newton did not converge,
+    else FINISHED (the run goes on)."""
+    if not finite_within(x, limit):
+        return DIVERGED
+    return FINISHED if converged else NO_CONVERGENCE
