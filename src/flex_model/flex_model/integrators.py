@@ -319,8 +319,8 @@ def _stick_slip_tangent(Kj, Cj, v1, z0, z1, g, h, E):
 def _balance(t, q, v, z, zd, P, E):
     """Mass matrix and right-hand side of B(q) a = Q - c(q, v)."""
     n = q.shape[0]
-    rhs = applied_force(t, q, v, z, zd, P, E) - inverse_dynamics(q, v, np.zeros(n), E[3],
-                                                                  E[4], P)
+    rhs = applied_force(t, q, v, z, zd, P, E) - \
+        inverse_dynamics(q, v, np.zeros(n), E[3], E[4], P)
     return mass_matrix(q, P), rhs
 
 
@@ -387,10 +387,11 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
         k2 = _derivative(t + c2 * hh, x + hh * a21 * k1, P, E)
         k3 = _derivative(t + c3 * hh, x + hh * (a31 * k1 + a32 * k2), P, E)
         k4 = _derivative(t + c4 * hh, x + hh * (a41 * k1 + a42 * k2 + a43 * k3), P, E)
-        k5 = _derivative(t + c5 * hh, x + hh * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4),
-                        P, E)
-        k6 = _derivative(t + hh, x + hh * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4
-                                          + a65 * k5), P, E)
+        k5 = _derivative(t + c5 * hh,
+                         x + hh * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4), P, E)
+        k6 = _derivative(t + hh,
+                         x + hh * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4 + a65 * k5),
+                         P, E)
         xn = x + hh * (b1 * k1 + b3 * k3 + b4 * k4 + b5 * k5 + b6 * k6)
         k7 = _derivative(t + hh, xn, P, E)
         err = hh * (e1 * k1 + e3 * k3 + e4 * k4 + e5 * k5 + e6 * k6 + e7 * k7)
@@ -453,9 +454,9 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
     restart would add to it, k = :func:`restart_kick` (1/2 - beta from rho_inf = 0.721 up;
     issue 47: 1/2 - beta everywhere was <= 0 below rho_inf = sqrt(2) - 1, which never
     filtered: tip deflections 1588 % off at 0.5 ms, rho_inf 0). When both exceed
-    RESTART_SHARE and RESTART_OVERSHOOT the restart filters the jump, a = abar = a + da; otherwise it is the
-    consistent one (results as before: smooth commands, arms with hub or rotor inertia,
-    bristle states).
+    solvers.galpha.RESTART_SHARE and RESTART_OVERSHOOT the restart filters the jump,
+    a = abar = a + da; otherwise it is the consistent one (results as before: smooth
+    commands, arms with hub or rotor inertia, bristle states).
     """
     ac = consistent_acceleration(t, x, P, E)
     n = E[0].shape[0]

@@ -848,7 +848,6 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     return M, c
 
 
-
 @njit(cache=_CACHE)
 def _effects(Q0, fric, v, Q, slope):
     """Q = Q0 + friction torques on their coordinates, slope = their d/dv (effects.friction:
@@ -1178,8 +1177,8 @@ def galpha_loop(Pm, inp, q0, v0, h, tau, st, acc, start):
     n_steps = tau.shape[0]
     nj = tau.shape[1]
     K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, held, H, effort = inp
-    c = galpha_coefficients(st.rho_inf, h)
-    cq, cv = c.bp, c.gp
+    ga = galpha_coefficients(st.rho_inf, h)
+    cq, cv = ga.bp, ga.gp
     has_d = False
     for a_ in range(nq):
         for b_ in range(nq):
@@ -1269,7 +1268,7 @@ def galpha_loop(Pm, inp, q0, v0, h, tau, st, acc, start):
         back = 0
         dprev = np.inf
         for it in range(st.max_iter):
-            galpha_update(q, v, a, abar, a1, c, q1, v1, ab1)
+            galpha_update(q, v, a, abar, a1, ga, q1, v1, ab1)
             # residual M a + c + K q + D v - Q - Q_e by inverse dynamics; M once a step
             M1, f1 = spatial_eval(Pm, q1, v1, a1, it == 0)
             _effects(Q0, fric, v1, Qe, slope)
@@ -1358,7 +1357,7 @@ def galpha_loop(Pm, inp, q0, v0, h, tau, st, acc, start):
             dprev = dmax
         if not ok:
             return qs[:n + 1], vs[:n + 1], iters, NO_CONVERGENCE
-        galpha_update(q, v, a, abar, a1, c, q1, v1, ab1)
+        galpha_update(q, v, a, abar, a1, ga, q1, v1, ab1)
         for j in range(nq):
             q[j] = q1[j]
             v[j] = v1[j]
