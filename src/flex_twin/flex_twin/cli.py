@@ -410,11 +410,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .comparison.cli import add_compare_parser
     from .diagnosis.cli import add_diagnose_parser
+    from .estimate_cli import add_estimate_parser
     from .real_arms.cli import add_real_arm_parsers
     from .real_arms.modal_cli import add_modal_parsers
     from .sweep import add_sweep_parser
     from .view_cli import add_view_parser
-    for add in (add_compare_parser, add_diagnose_parser, add_real_arm_parsers,
+    for add in (add_compare_parser, add_diagnose_parser, add_estimate_parser,
+                add_real_arm_parsers,
                 add_modal_parsers, add_sweep_parser, add_plan_parser, add_control_parser,
                 add_view_parser):
         add(sub)
