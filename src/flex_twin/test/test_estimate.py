@@ -35,8 +35,9 @@ def test_channel_names_and_coverage():
 
 def test_cli_estimates_the_held_out_deflections(tmp_path):
     """Exudyn arm B, PD at 500 Hz: joint angles measured, both links' tip deflections held
-    out. The first 1.2 s (the arm sags under gravity from an undeformed start): w1 (peak
-    9.9 mm) within 0.9 mm RMS and 95 % of its samples in the band."""
+    out; the filter starts from the static sag at the first measured angles. Over the first
+    1.2 s (its first 0.1 s converging: 0.69 mm measured), w1 (peak 9.9 mm, the sag) within
+    0.9 mm RMS and every sample in the band."""
     case = SUITE / "B-samp500-healthy-s1"
     out = tmp_path / "est"
     assert main(["estimate", str(case / "recording.csv"), "--arm", str(case / "arm.yaml"),
@@ -48,7 +49,7 @@ def test_cli_estimates_the_held_out_deflections(tmp_path):
     assert head[:3] == ["t", "q1", "q1_std"] and "w2_std" in head
     w1 = s["held_out"]["w1"]
     assert w1["peak"] == pytest.approx(9.9e-3, abs=0.3e-3)
-    assert w1["rms"] < 0.9e-3 and w1["coverage_95"] > 0.95
+    assert w1["rms"] < 0.9e-3 and w1["coverage_95"] > 0.99
     assert set(s["held_out"]) == {"v1", "v2", "w1", "w2", "tip_x", "tip_y"}
 
 
