@@ -65,18 +65,6 @@ def estimated_channel(result, name: str) -> tuple[np.ndarray, np.ndarray]:
     return result.tip_position[:, i], np.sqrt(np.maximum(result.tip_position_cov[:, i, i], 0))
 
 
-def start_pose(model, recording, measure):
-    """q at the first sample when every joint angle is measured: the static equilibrium
-    (gravity and payload) at those angles, the joints held (flex_model.statics); else None
-    (the estimator's default: undeformed)."""
-    names = [f"q{i + 1}" for i in range(recording.n_joints)]
-    if not all(nm in measure for nm in names):
-        return None
-    from flex_model.statics import static_equilibrium
-    theta = [recording.channels[nm][0] for nm in names]
-    return static_equilibrium(model, theta, joints="clamped").q
-
-
 @dataclass
 class RecordingEstimate:
     """The estimate of one recording and its comparison with the held-out channels."""
@@ -107,8 +95,7 @@ def estimate_file(recording, model, measure, *, stds=None, settings=None,
     meas = [measurement(nm, stds.get(nm)) for nm in measure]
     Y = np.column_stack([recording.channels[nm][:n] for nm in measure])
     settings = settings or EstimatorSettings(sample_period=recording.dt)
-    res = estimate_recording(model, t, recording.stack("tau")[:n], Y, meas, settings,
-                             q0=start_pose(model, recording, measure))
+    res = estimate_recording(model, t, recording.stack("tau")[:n], Y, meas, settings)
     held = {c: recording.channels[c][:n] for c in recording.residual_channels
             if c not in measure and not c.startswith("tau")}
     metrics = {}

@@ -35,7 +35,7 @@ def test_channel_names_and_coverage():
 
 def test_cli_estimates_the_held_out_deflections(tmp_path):
     """Exudyn arm B, PD at 500 Hz: joint angles measured, both links' tip deflections held
-    out; the filter starts from the static sag at the first measured angles. Over the first
+    out; the filter starts from the static sag at the first measured angles (its default). Over the first
     1.2 s (its first 0.1 s converging: 0.69 mm measured), w1 (peak 9.9 mm, the sag) within
     0.9 mm RMS and every sample in the band."""
     case = SUITE / "B-samp500-healthy-s1"
@@ -61,3 +61,14 @@ def test_quanser_gauge_never_enters_the_filter(cuboulder_root):
     run.deflection = np.random.default_rng(1).permutation(run.deflection)
     b = estimate_run(model, run)
     assert np.array_equal(a.result.tip_deflections, b.result.tip_deflections)
+
+
+def test_quanser_held_out_run_tip_from_hub_and_voltage(cuboulder_root):
+    """A held-out run's first 4.5 s (rest, then a 0.2 rad step at 3.5 s): the tip from hub
+    encoder and voltage against the gauge (numbers of the stored twin and TUNED)."""
+    model = FlexArmModel(stored_calibrated_arm("flexible"))
+    run = _run(cuboulder_root, "flexarm_K1K2K3_6_-5_213").head(4.5)
+    m = estimate_run(model, run).metrics
+    print(m)
+    assert m["hub_rms_rad"] < 0.003
+    assert 0 < m["tip_rms_mm"] < 100

@@ -40,7 +40,7 @@ TUNED_ON = CUBOULDER_SPLIT["link_fit"]
 #: the link's model error (m): added to the filter's variance in the band, chosen so that
 #: the band holds 95 % of the TUNED_ON runs' gauge samples (bench/bench_quanser_estimate.py
 #: --tune); the filter's own band (coverage_95_filter) is far narrower
-TIP_MODEL_STD = 0.0
+TIP_MODEL_STD = 0.00687
 #: the held-out flexible runs (CUBOULDER_SPLIT); those without a gauge are skipped
 HELD_OUT = CUBOULDER_SPLIT["link_holdout"]
 
@@ -73,8 +73,9 @@ def estimate_run(model: FlexArmModel, run, settings: EstimatorSettings | None = 
     """Estimate a lab run from its encoder and voltage; score against its gauge (the band
     with ``model_std``, default :data:`TIP_MODEL_STD`)."""
     settings = settings or settings_for(run)
+    q0 = model.q_from_joint_angles([run.theta[0]])   # at rest, undeformed (no gravity)
     res = estimate_recording(model, run.t, run.voltage[:, None], run.theta[:, None],
-                             [hub_encoder()], settings)
+                             [hub_encoder()], settings, q0=q0)
     gauge = twin_gauge(model)
     d = delayed(run.t, res.tip_deflections[:, 0], gauge.delay)
     sd = delayed(run.t, res.tip_deflections_std[:, 0], gauge.delay) * abs(gauge.gain)
