@@ -35,9 +35,9 @@ def test_channel_names_and_coverage():
 
 def test_cli_estimates_the_held_out_deflections(tmp_path):
     """Exudyn arm B, PD at 500 Hz: joint angles measured, both links' tip deflections held
-    out; the filter starts from the static sag at the first measured angles (its default). Over the first
-    1.2 s (its first 0.1 s converging: 0.69 mm measured), w1 (peak 9.9 mm, the sag) within
-    0.9 mm RMS and every sample in the band."""
+    out; the filter starts from the static sag at the first measured angles (its default).
+    Over the first 1.2 s, w1 (peak 9.9 mm, the sag) within 0.9 mm RMS and every sample in
+    the band."""
     case = SUITE / "B-samp500-healthy-s1"
     out = tmp_path / "est"
     assert main(["estimate", str(case / "recording.csv"), "--arm", str(case / "arm.yaml"),
