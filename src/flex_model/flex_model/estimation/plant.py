@@ -12,6 +12,11 @@ Parameter names (``adapt``): ``coulomb_friction:<joint>``, ``viscous_friction:<j
 (N m, N m s/rad, on the actuator coordinate, the joint's total), ``payload_mass`` (kg, at
 the last link's tip), ``link_stiffness:<link>`` (scale on the link's EI: its first-mode
 frequency scales with its square root). ``<joint>``/``<link>``: index or name.
+
+The filter's joint friction is the arm's with its tanh regularization at least
+``friction_smoothing`` (default 0.02 rad/s): the model's 1e-4-1e-6 rad/s make the Jacobian
+at rest a stiff switch (the calibrated Quanser twin: lambda T = 89 at 1 kHz) that a
+linearization held over samples cannot follow.
 """
 from __future__ import annotations
 
@@ -65,9 +70,14 @@ class PlanarPlant:
         self.params = [parse_parameter(a, self.joint_names, self.link_names) for a in adapt]
         self.param_names = list(adapt)
         self.smoothing = friction_smoothing
-        self._E = list(input_data(self.model, None, (), np.zeros(self.n_joints)))
+        self._u = np.zeros(self.n_joints)
+        self._E = list(input_data(self.model, None, (), self._u))
+        self._cached = (None, None, None)
         self._K0 = self.model.K.copy()
         self._jd0 = self.model.joint_data.copy()
+        rubbing = self._jd0[:, 4:7].any(axis=1)   # the filter's friction: tanh over at
+        self._jd0[rubbing, 8] = np.maximum(self._jd0[rubbing, 8], friction_smoothing)
+        self._E[17] = self._jd0                   # least friction_smoothing (rad/s)
         self._payload = self.model.payload
         self._P_cache = (self._payload[0], self.model.P)
 
@@ -100,8 +110,8 @@ class PlanarPlant:
                 if kind == "coulomb_friction":  # keep the Stribeck excess F_s - F_c
                     jd[i, 6] = jd[i, 6] - jd[i, 5] + val
                     jd[i, 5] = val
-                    declared = self._jd0[i, 4:7].any()
-                    jd[i, 8] = max(jd[i, 8], self.smoothing) if declared else self.smoothing
+                    declared = self._jd0[i, 4:7].any()   # (its eps is floored already)
+                    jd[i, 8] = jd[i, 8] if declared else self.smoothing
                 else:
                     jd[i, 4] = val
         E[0], E[17] = K, jd
@@ -120,10 +130,14 @@ class PlanarPlant:
     def derivative(self, x, u) -> np.ndarray:
         """[v; a; 0] at state x = [q; v; p] and input u (joint torques or voltages)."""
         nq = self.nq
-        P, E = self._data(x[2 * nq:])
-        E[8] = np.asarray(u, float)
+        key = tuple(x[2 * nq:])
+        if self._cached[0] != key:   # (P, E) for these parameter values
+            P, E = self._data(x[2 * nq:])
+            self._cached = (key, P, tuple(E))
+        self._u[:] = u               # E[8], the held input, shared by every E
         out = np.zeros(len(x))
-        out[:2 * nq] = derivative(0.0, np.ascontiguousarray(x[:2 * nq]), P, tuple(E))
+        out[:2 * nq] = derivative(0.0, np.ascontiguousarray(x[:2 * nq]), self._cached[1],
+                                  self._cached[2])
         return out
 
     def inverse_mass(self, q, p) -> np.ndarray:
