@@ -48,7 +48,7 @@ TUNED_ON = CUBOULDER_SPLIT["link_fit"]
 #: the link's model error (m): added to the filter's variance in the band, chosen so that
 #: the band holds 95 % of the TUNED_ON runs' gauge samples (bench/bench_quanser_estimate.py
 #: --tune); the filter's own band (coverage_95_filter) is far narrower
-TIP_MODEL_STD = 0.00687
+TIP_MODEL_STD = 0.004215
 #: the held-out flexible runs (CUBOULDER_SPLIT); those without a gauge are skipped
 HELD_OUT = CUBOULDER_SPLIT["link_holdout"]
 
