@@ -855,18 +855,24 @@ class ModelNode(Managed, LifecycleNode):
             self.pub_tf.publish(self.cdr_tf.fill(t, rows.ravel()))
 
 
-def _arm_argument(argv) -> str | None:
-    """The value of ``-p arm:=...`` among the ROS arguments (the last one wins)."""
-    arm = None
+def _arm_argument(argv, name: str = "arm") -> str | None:
+    """The value of ``-p <name>:=...`` (default the arm) among the ROS arguments (the last
+    one wins)."""
+    value, prefix = None, name + ":="
     for a, b in zip(argv, list(argv[1:]) + [""]):
-        if a in ("-p", "--param") and b.startswith("arm:="):
-            arm = b[len("arm:="):]
-    return arm
+        if a in ("-p", "--param") and b.startswith(prefix):
+            value = b[len(prefix):]
+    return value
 
 
 def main(args=None) -> None:
-    """A spatial arm (issue 25) goes to :mod:`flex_model.spatial_node`."""
-    arm = _arm_argument(sys.argv if args is None else args)
+    """A spatial arm (issue 25) goes to :mod:`flex_model.spatial_node`, ``mode:=observer``
+    (issue 45) to :mod:`flex_model.observer_node`."""
+    argv = sys.argv if args is None else args
+    if _arm_argument(argv, "mode") == "observer":
+        from .observer_node import main as observer_main
+        return observer_main(args)
+    arm = _arm_argument(argv)
     if arm:
         from .spatial.description import is_spatial_arm
         if is_spatial_arm(arm):

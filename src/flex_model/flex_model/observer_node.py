@@ -1,0 +1,522 @@
+"""ObserverNode: the model node in observer mode (issue 45): the twin follows a real arm.
+
+Started as the model node with ``mode: observer`` (``model_node`` dispatches here, as it
+dispatches a spatial arm to :mod:`flex_model.spatial_node`; ``flex-twin observe``;
+``flex-twin up`` with ``mode: observer`` in the flex_model section). It does not integrate
+open loop: every sample of the real arm's joint_states runs one step of the state estimator
+(:class:`flex_model.estimation.Estimator`, a Kalman filter on the flexible model) inside
+the subscription callback, and the estimate goes out at once from messages serialized at
+start (flex_model.cdr_messages: only stamps and numbers are written per sample). No timer
+is in the hot path (one 1 s wall-clock timer publishes the filter's health).
+
+Topic names are relative (a namespace moves them); /diagnostics stays global.
+
+Subscriptions (reliable, depth ``queue_depth``: a burst of samples is queued, not lost):
+    joint_states (``input_topic``)  sensor_msgs/JointState  the real arm: position (joint
+                        angles, rad) and velocity (rates) feed the joint_angle and
+                        joint_rate measurements, effort (joint torques, or motor voltages
+                        when the arm has a motor effect) is the model's input with
+                        ``input: effort``; joints matched by name (any order, any extras)
+    flex/gauges (``gauge_topic``)   std_msgs/Float64MultiArray  the measurements that are
+                        not on joint_states (tip deflection, strain, tip acceleration ...),
+                        in the order of ``measure``; the latest one is used once, by the
+                        next joint_states sample, and missing ones are NaN (not measured)
+    effort_controller/commands      std_msgs/Float64MultiArray  the input with ``input:
+                        command`` (held until the next one)
+Publications (stamps: the joint_states sample's):
+    flex/estimate/joint_states  sensor_msgs/JointState  estimated joint angles, rates, the
+                        input used
+    flex/deflections    sensor_msgs/JointState  as the simulating model node:
+                        link<i>/tip_deflection (m), tip_rotation (rad) and their rates
+    flex/estimate/tip_pose  geometry_msgs/PoseWithCovarianceStamped  the tip in
+                        ``frame_id`` (z up, as flex/tip_pose of the model node) with the
+                        6 x 6 covariance (x, y, z, rotation about x, y, z; the plane's
+                        (x, y, phi) block turned into the base frame)
+    /diagnostics        diagnostic_msgs/DiagnosticArray  every second (wall time): the
+                        filter's health over the last ``nis_window`` samples (NIS mean,
+                        fraction inside the chi-square 95 % bound, samples, dropped, late,
+                        predicted-over gaps, adapted parameters); OK when consistent, WARN
+                        when the NIS mean leaves its 99 % band or fewer than 90 % lie inside
+                        the 95 % bound, or when inputs were dropped since the last report
+
+Bad messages (wrong lengths, unknown joint names, non-finite values, a stamp not after the
+previous sample's: late) are dropped with the reason logged at most once a second per
+reason (ros_main.ReasonLog) and counted; the node keeps running. A gap of k > 1 sample
+periods is predicted over (k - 1 steps without measurements, counted as missed); a gap
+longer than ``max_gap`` restarts the filter at the next sample's joint angles.
+
+Parameters (:data:`PARAMETERS`): arm, vars_per_link, kinematics (as the model node), mode
+(observer), measure (comma-separated names, as ``flex-twin estimate --measure``), measure_std
+(per measurement, or one for all; 0: the estimator's default), input (effort | command),
+adapt (comma-separated parameters adapted online), sample_period (s: the arm's sample period,
+the filter's step), initial_joint_angles_deg, input_topic, gauge_topic, queue_depth,
+max_gap, nis_window, frame_id, frame_prefix, parameter_services, qos_event_warnings.
+Lifecycle as the model node (ros_main.Managed): configure builds the filter, activate
+takes samples, deactivate refuses them (counted as dropped), cleanup releases the filter.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import replace
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.clock import Clock as SteadyClock, ClockType
+from rclpy.lifecycle import LifecycleNode
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from . import ros_conversions as conv
+from . import urdf
+from .arm import load_arm
+from .dynamics import FlexArmModel
+from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
+                       lean_node, read_parameters, run_node)
+
+
+def _positive(v):
+    return None if v > 0 else "a number > 0"
+
+
+def _names(v):
+    return None if all(s.strip() for s in v.split(",")) else \
+        "comma-separated names without empty ones (e.g. q1,w1)"
+
+
+#: the observer's parameters (name, default, description, changeable at run time, check)
+PARAMETERS = (
+    Param("arm", "thesis_example1_motors", "arm preset name or arm YAML path: the model of "
+          "the real arm", check=lambda v: None if v else "a preset name or a YAML path"),
+    Param("vars_per_link", 0, "deformation variables per link (0: as in the arm file)",
+          check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
+    Param("kinematics", "", "joint-to-link kinematics override (empty: the arm's)"),
+    Param("mode", "observer", "observer (this node); realtime | lockstep simulate "
+          "(flex_model.model_node)", check=lambda v: None if v == "observer" else
+          "observer (realtime and lockstep are the simulating model node's)"),
+    Param("measure", "q", "measurements, comma-separated, as flex-twin estimate --measure "
+          "(q: every joint angle; q1, w1: joint 1's angle, rate, from joint_states; the "
+          "others from gauge_topic in this order)", check=_names),
+    Param("measure_std", [0.0], "noise standard deviation per measurement, or one for all "
+          "(SI units; 0: the estimator's default)",
+          check=lambda v: None if v and all(x >= 0 for x in v) else "numbers >= 0"),
+    Param("input", "effort", "effort: joint_states' effort is the model's input (torques, "
+          "or voltages of motor joints); command: the last effort_controller/commands",
+          check=lambda v: None if v in ("effort", "command") else "effort or command"),
+    Param("adapt", "", "parameters adapted online, comma-separated (e.g. "
+          "coulomb_friction:0,payload_mass; empty: none)"),
+    Param("sample_period", 1e-3, "the real arm's sample period (s): one filter step per "
+          "joint_states sample", check=lambda v: None if 0 < v <= 0.1 else "in (0, 0.1] s"),
+    Param("initial_joint_angles_deg", [0.0], "the filter's initial joint angles (deg), "
+          "until the first sample (one per joint or one for all)"),
+    Param("input_topic", "joint_states", "the real arm's sensor_msgs/JointState",
+          check=lambda v: None if v else "a topic name"),
+    Param("gauge_topic", "flex/gauges", "std_msgs/Float64MultiArray of the measurements not "
+          "on joint_states, in the order of measure",
+          check=lambda v: None if v else "a topic name"),
+    Param("queue_depth", 1000, "depth of the reliable input subscriptions (samples queued "
+          "while a step runs)", check=lambda v: None if v >= 1 else "an integer >= 1"),
+    Param("max_gap", 0.1, "s: a longer gap between samples restarts the filter at the next "
+          "sample; shorter ones are predicted over", check=_positive),
+    Param("nis_window", 1000, "samples of the NIS statistics on /diagnostics",
+          check=lambda v: None if v >= 10 else "an integer >= 10"),
+    Param("frame_id", "base_link", "the base frame of the tip pose (z up, REP 103)",
+          check=lambda v: None if v else "a non-empty frame name"),
+    Param("frame_prefix", "", "prefix of the frame name (e.g. robot1/)"),
+    Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
+    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
+)
+
+RANGES = {"vars_per_link": (0, INT_MAX, 2), "sample_period": (0.0, 0.1),
+          "queue_depth": (1, INT_MAX), "max_gap": (0.0, FLOAT_MAX),
+          "nis_window": (10, INT_MAX)}
+
+
+#: measurement names (flex-twin estimate --measure): prefix -> (kind, default std, SI)
+NAMED_KINDS = {"q": ("joint_angle", 1e-3), "w": ("joint_rate", 1e-2),
+               "m": ("motor_angle", 1e-3), "d": ("tip_deflection", 1e-4)}
+#: names without an index: (kind, component, default std)
+NAMED_COMPONENTS = {"ax": ("tip_acceleration", 0, 0.1), "ay": ("tip_acceleration", 1, 0.1),
+                    "px": ("tip_position", 0, 1e-3), "py": ("tip_position", 1, 1e-3),
+                    "pz": ("tip_position", 2, 1e-3)}
+
+
+def measurements_named(model, names, stds=(0.0,)) -> list:
+    """The Measurements of ``names``: q<i>, w<i>, m<i> joint i's angle, rate, motor angle
+    (q, w alone: every joint's), d<i> link i's tip deflection, ax, ay the tip's specific
+    force, px, py, pz its position; ``stds`` one per measurement or one for all (0: the
+    default of its kind); ValueError naming a bad one."""
+    from .estimation import Measurement
+    out = []
+    for name in names:
+        if name in NAMED_COMPONENTS:
+            kind, comp, std = NAMED_COMPONENTS[name]
+            out.append(Measurement(name=name, kind=kind, component=comp, std=std))
+            continue
+        kind, std = NAMED_KINDS.get(name[:1], (None, 0.0))
+        count = model.n_links
+        if kind is None or not (name[1:].isdigit() or name in ("q", "w")):
+            raise ValueError(f"got {name!r}; expected q<i>, w<i>, m<i> (joint i), d<i> "
+                             "(link i), q, w (every joint), ax, ay, px, py or pz")
+        idx = range(count) if len(name) == 1 else [int(name[1:]) - 1]
+        if not all(0 <= i < count for i in idx):
+            raise ValueError(f"got {name!r}; the arm has {count} joints and links (1..{count})")
+        out += [Measurement(name=f"{name[:1]}{i + 1}", kind=kind, index=i, std=std)
+                for i in idx]
+    if len(stds) not in (1, len(out)):
+        raise ValueError(f"measure_std: got {fmt(stds)}; expected one per measurement "
+                         f"({len(out)}) or one for all")
+    return [replace(m, std=std) if std > 0 else m
+            for m, std in zip(out, np.broadcast_to(np.asarray(stds, float), (len(out),)))]
+
+
+class PlanarOutputs:
+    """What the simulating model node publishes of a planar (q, v), for an estimate:
+    flex/deflections' values (per link deflection, rotation, then their rates, as
+    :meth:`flex_model.stepper.Stepper.deflections`) and the tip's (x, y, phi)
+    (:meth:`FlexArmModel.tip_pose`) with its covariance from the state's (first order:
+    J P_qq J^T, J the tip Jacobian and phi's row)."""
+
+    def __init__(self, model: FlexArmModel):
+        n = model.n_links
+        self.model, self.nq = model, model.nq
+        self.tip_index = np.array([model.tip_deflection_index(i) for i in range(n)])
+        self.rotation = model.tip_rotation_matrix()
+        self.phi_row = self.rotation[-1].copy()
+        self.phi_row[model.alpha_index(n - 1)] += 1.0
+        self.values = np.empty(4 * n)
+        self.jacobian = np.empty((3, model.nq))
+
+    def deflections(self, q, v) -> np.ndarray:
+        n, out, r = len(self.tip_index), self.values, self.rotation
+        out[0:2 * n:2], out[1:2 * n:2] = q[self.tip_index], r @ q
+        out[2 * n::2], out[2 * n + 1::2] = v[self.tip_index], r @ v
+        return out
+
+    def tip(self, q, state_cov):
+        """((x, y, phi), their 3 x 3 covariance) of the arm's end."""
+        x, y = self.model.link_origins(q)[-1]
+        phi = float(self.phi_row @ q)
+        j = self.jacobian
+        j[:2], j[2] = self.model.tip_jacobian(q), self.phi_row
+        p = state_cov[:self.nq, :self.nq]
+        return (float(x), float(y), phi), j @ p @ j.T
+
+
+class NisWindow:
+    """The normalized innovation squared of the last ``size`` samples: mean (per
+    measured component, so 1 when consistent) and the fraction inside the chi-square 95 %
+    bound of its degrees of freedom (the bound per dof count cached)."""
+
+    def __init__(self, size: int):
+        self.nis, self.dof = deque(maxlen=size), deque(maxlen=size)
+        self.inside = deque(maxlen=size)
+        self._bound = {}
+
+    def add(self, nis: float, dof: int) -> None:
+        if dof <= 0 or not math.isfinite(nis):
+            return
+        bound = self._bound.get(dof)
+        if bound is None:
+            from scipy.stats import chi2
+            bound = self._bound[dof] = float(chi2.ppf(0.95, dof))
+        self.nis.append(nis)
+        self.dof.append(dof)
+        self.inside.append(nis <= bound)
+
+    def summary(self) -> dict:
+        """nis_mean (NIS / dof, 1 if consistent), nis_95_fraction, samples, and the 99 %
+        band of nis_mean for this many dof (chi-square of the summed dof / dof)."""
+        from scipy.stats import chi2
+        n, dof = len(self.nis), float(sum(self.dof))
+        if n == 0:
+            return {"samples": 0}
+        lo, hi = chi2.ppf([0.005, 0.995], dof) / dof
+        return {"samples": n, "nis_mean": float(sum(self.nis)) / dof,
+                "nis_95_fraction": float(sum(self.inside)) / n,
+                "nis_band": (float(lo), float(hi))}
+
+
+class ObserverNode(Managed, LifecycleNode):
+    """The flexible model as an observer of a real arm (module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__("flex_model", **kwargs)
+        self._start_lifecycle(PARAMETERS, None)
+
+    # ------------------------------------------------------------- lifecycle
+    def _configure(self) -> None:
+        from .estimation import Estimator
+        p = self.p = read_parameters(self, PARAMETERS, RANGES)
+        try:
+            arm = load_arm(p["arm"], p["vars_per_link"] or None)
+            if p["kinematics"]:
+                arm = arm.with_kinematics(p["kinematics"])
+        except (ValueError, OSError) as exc:
+            raise ParameterError(f"parameter arm: {exc}") from None
+        self.model = FlexArmModel(arm)
+        n = self.model.n_links
+        self.names = list(arm.joint_names)
+        self.measurements, self.sources = self._measurements(p)
+        try:
+            self.estimator = Estimator(self.model, self.measurements, self._settings(p))
+        except ValueError as exc:
+            raise ParameterError(f"parameter measure/adapt: {exc}") from None
+        angles = p["initial_joint_angles_deg"]
+        if len(angles) not in (1, n):
+            raise ParameterError(f"parameter initial_joint_angles_deg: got {fmt(angles)}; "
+                                 f"expected {n} angles (deg) or one for every joint")
+        self.theta0 = np.radians(np.broadcast_to(np.asarray(angles, float), (n,)))
+        self._reset_filter(self.theta0)
+        self.outputs = PlanarOutputs(self.model)
+        self.plane = urdf.plane_rotation(self.model.gravity)
+        frames = urdf.Frames.of(self.model, p["frame_prefix"], p["frame_id"])
+        self.cdr_js = conv.joint_state_cdr(self.names, n)
+        self.cdr_defl = conv.joint_state_cdr(
+            conv.deflection_names([lk.name for lk in arm.links]), 2 * n, effort=False)
+        self.cdr_tip = conv.tip_pose_cov_cdr(frames.base)
+        self._js_values = np.empty(3 * n)
+        self._tip_values = np.empty(7 + 36)
+        self._y = np.full(len(self.measurements), np.nan)
+        self._index = {}  # tuple of joint_states names -> their positions in joint order
+        self.u = np.zeros(n)
+        self.gauge = None  # the latest gauge values, used once
+        self.counts = dict.fromkeys(("samples", "dropped", "late", "missed", "restarts",
+                                     "gauge_dropped"), 0)
+        self.reported = dict(self.counts)
+        self.nis = NisWindow(int(p["nis_window"]))
+        self.drops = ReasonLog(self)
+        qos = QoSProfile(depth=int(p["queue_depth"]), history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE)
+        self.pub_js = self.create_publisher(JointState, "flex/estimate/joint_states", qos)
+        self.pub_defl = self.create_publisher(JointState, "flex/deflections", qos)
+        self.pub_tip = self.create_publisher(PoseWithCovarianceStamped,
+                                             "flex/estimate/tip_pose", qos)
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_subscription(JointState, p["input_topic"], self.on_joint_state, qos)
+        if any(s[0] == "gauge" for s in self.sources):
+            self.create_subscription(Float64MultiArray, p["gauge_topic"], self.on_gauge,
+                                     qos)
+        if p["input"] == "command":
+            self.create_subscription(Float64MultiArray, "effort_controller/commands",
+                                     self.on_command, qos)
+        self.create_timer(1.0, self.on_status,
+                          clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
+        lean_node(self, p["parameter_services"], p["qos_event_warnings"])
+        self.get_logger().info(
+            f"observer of arm {arm.name} ({self.model.nq} coordinates), measuring "
+            f"{', '.join(m.name for m in self.measurements)} every "
+            f"{p['sample_period'] * 1e3:g} ms from {self.resolve_topic_name(p['input_topic'])}"
+            f", input {p['input']}" + (f", adapting {p['adapt']}" if p["adapt"] else ""))
+
+    def _cleanup(self) -> None:
+        self.estimator = self.model = None
+
+    def _measurements(self, p):
+        """The estimator's measurements named by ``measure`` (:func:`measurements_named`)
+        and where each comes from: ("position" | "velocity", joint index) on
+        joint_states, else ("gauge", k), the k-th value on gauge_topic."""
+        names = [s.strip() for s in p["measure"].split(",")]
+        try:
+            found = measurements_named(self.model, names, p["measure_std"])
+        except ValueError as exc:
+            raise ParameterError(f"parameter measure: {exc}") from None
+        sources, k = [], 0
+        for m in found:
+            if m.kind in ("joint_angle", "joint_rate"):
+                sources.append(("position" if m.kind == "joint_angle" else "velocity",
+                                m.index))
+            else:
+                sources.append(("gauge", k))
+                k += 1
+        return found, sources
+
+    def _settings(self, p):
+        from .estimation import EstimatorSettings
+        adapt = tuple(s.strip() for s in p["adapt"].split(",") if s.strip())
+        return EstimatorSettings(sample_period=p["sample_period"], adapt=adapt)
+
+    def _reset_filter(self, theta) -> None:
+        """The filter at rest at the joint angles ``theta`` (rad), links straight."""
+        self.estimator.reset(self.model.q_from_joint_angles(theta), np.zeros(self.model.nq))
+        self.last_t = None
+
+    def _activate(self) -> None:
+        self.get_logger().info("observing: each joint_states sample is one filter step")
+
+    def _deactivate(self) -> None:
+        self.last_t = None  # the next sample after activate: predicted from there on
+
+    # ------------------------------------------------------------- inputs
+    def _drop(self, topic: str, why: str, counter: str = "dropped") -> None:
+        self.counts[counter] += 1
+        self.drops.warning(f"dropped {topic}: {why}")
+
+    def _joint_index(self, names) -> np.ndarray:
+        """Positions of the model's joints in a joint_states' ``names`` (cached per name
+        list); ValueError naming a missing joint."""
+        key = tuple(names)
+        idx = self._index.get(key)
+        if idx is None:
+            missing = [j for j in self.names if j not in key]
+            if missing:
+                raise ValueError(f"name: got {list(key)}; the joints {missing} of the arm "
+                                 "are missing")
+            idx = self._index[key] = np.array([key.index(j) for j in self.names])
+        return idx
+
+    def on_joint_state(self, msg: JointState) -> None:
+        """One sample of the real arm: one filter step, the estimate published."""
+        topic = self.p["input_topic"]
+        if not self.active:
+            return self._drop(topic, self._inactive())
+        try:
+            t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            idx = self._joint_index(msg.name)
+            position, velocity, u = self._sample_arrays(msg, idx)
+        except ValueError as exc:
+            return self._drop(topic, str(exc))
+        period = self.p["sample_period"]
+        if self.last_t is not None:
+            gap = t - self.last_t
+            if gap <= 0.5 * period:
+                return self._drop(topic, f"stamp {t:.9f} s is not after the previous "
+                                  f"sample's {self.last_t:.9f} s (late or repeated)", "late")
+            k = int(round(gap / period))
+            if gap > self.p["max_gap"]:
+                self.counts["restarts"] += 1
+                self.drops.warning(f"{topic}: a gap of {gap:.4g} s (max_gap "
+                                   f"{self.p['max_gap']:g} s): filter restarted at the "
+                                   "sample's joint angles")
+                self._reset_filter(position)
+            elif k > 1:  # missed samples: predicted over, no measurement
+                self.counts["missed"] += k - 1
+                nan = np.full(len(self.measurements), np.nan)
+                for _ in range(k - 1):
+                    self.estimator.step(self.u, nan)
+        if u is not None:
+            self.u = u
+        self.last_t = t
+        self._step(t, position, velocity)
+
+    def _sample_arrays(self, msg: JointState, idx):
+        """(joint angles, rates or None, input or None) of a sample in joint order, each
+        finite (ValueError naming the field)."""
+        n = len(self.names)
+        out = []
+        for field in ("position", "velocity", "effort"):
+            values = getattr(msg, field)
+            needed = field == "position" or (field == "effort" and
+                                             self.p["input"] == "effort") or \
+                (field == "velocity" and any(s[0] == "velocity" for s in self.sources))
+            if len(values) == 0 and not needed:
+                out.append(None)
+                continue
+            if len(values) != len(msg.name):
+                raise ValueError(f"{field}: got {len(values)} values for {len(msg.name)} "
+                                 f"names; expected one per name")
+            arr = np.frombuffer(values, float)[idx] if len(values) else np.zeros(n)
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"{field}: got non-finite values {fmt(arr)}; expected "
+                                 "finite numbers")
+            out.append(arr)
+        if self.p["input"] != "effort":
+            out[2] = None
+        return out
+
+    def on_gauge(self, msg: Float64MultiArray) -> None:
+        n = sum(1 for s in self.sources if s[0] == "gauge")
+        try:
+            values = conv.finite_array(msg.data, n, "gauges", "the measurements not on "
+                                       "joint_states, in the order of measure")
+        except ValueError as exc:
+            return self._drop(self.p["gauge_topic"], str(exc), "gauge_dropped")
+        self.gauge = values
+
+    def on_command(self, msg: Float64MultiArray) -> None:
+        try:
+            self.u = conv.finite_array(msg.data, len(self.u), "command",
+                                       f"one per joint: {', '.join(self.names)}")
+        except ValueError as exc:
+            self._drop("effort_controller/commands", str(exc))
+
+    # ------------------------------------------------------------- the step
+    def _step(self, t: float, position, velocity) -> None:
+        y = self._y
+        gauge, self.gauge = self.gauge, None
+        for k, (field, i) in enumerate(self.sources):
+            if field == "position":
+                y[k] = position[i]
+            elif field == "velocity":
+                y[k] = velocity[i]
+            else:
+                y[k] = gauge[i] if gauge is not None else np.nan
+        s = self._last_sample = self.estimator.step(self.u, y)
+        self.counts["samples"] += 1
+        self.nis.add(float(s.nis), int(np.count_nonzero(np.isfinite(y))))
+        self.publish(t, s)
+
+    def publish(self, t: float, s) -> None:
+        """The estimate of one sample: joint states, deflections, tip pose (bytes)."""
+        n = len(self.names)
+        js = self._js_values
+        js[:n], js[n:2 * n], js[2 * n:] = s.joint_angles, s.joint_rates, self.u[:n]
+        self.pub_js.publish(self.cdr_js.fill(t, js))
+        self.pub_defl.publish(self.cdr_defl.fill(t, self.outputs.deflections(s.q, s.v)))
+        (x, y, phi), cov = self.outputs.tip(s.q, s.state_cov)
+        tip = self._tip_values
+        tip[:7] = conv.tip_pose_values(x, y, phi, self.plane)
+        tip[7:] = conv.planar_tip_covariance(cov, self.plane).ravel()
+        self.pub_tip.publish(self.cdr_tip.fill(t, tip))
+
+    # ------------------------------------------------------------- health
+    def health(self):
+        """(level, message, values) of the filter's health (the /diagnostics status)."""
+        summary = self.nis.summary()
+        new = {k: self.counts[k] - self.reported[k] for k in self.counts}
+        self.reported = dict(self.counts)
+        values = {k: v for k, v in self.counts.items()}
+        level, why = "ok", []
+        if summary["samples"]:
+            lo, hi = summary["nis_band"]
+            values.update(nis_mean=f"{summary['nis_mean']:.4g}",
+                          nis_95_fraction=f"{summary['nis_95_fraction']:.4g}",
+                          nis_window=summary["samples"])
+            if not lo <= summary["nis_mean"] <= hi:
+                why.append(f"NIS mean {summary['nis_mean']:.3g} outside its 99 % band "
+                           f"[{lo:.3g}, {hi:.3g}]")
+            if summary["nis_95_fraction"] < 0.9:
+                why.append(f"only {summary['nis_95_fraction']:.1%} of the NIS inside the "
+                           "95 % bound")
+        dropped = new["dropped"] + new["late"] + new["gauge_dropped"]
+        if dropped:
+            why.append(f"{dropped} input(s) dropped in the last report period")
+        if why:
+            level = "warn"
+        params = getattr(self._last_sample, "parameters", None) or {}
+        values.update({f"param/{k}": f"{v:.6g}" for k, v in params.items()})
+        state = "observing" if self.active else "inactive"
+        return level, (f"{state}: " + "; ".join(why) if why else
+                       f"{state}: filter consistent"), values
+
+    _last_sample = None
+
+    def on_status(self) -> None:
+        if not self.configured:
+            return
+        level, message, values = self.health()
+        status = conv.diagnostic_status(self.get_fully_qualified_name(),
+                                        self.model.arm.name, level, message, **values)
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.pub_diag.publish(msg)
+
+
+def main(args=None) -> None:
+    run_node(ObserverNode, args)
+
+
+if __name__ == "__main__":
+    main()
