@@ -191,4 +191,3 @@ def test_the_model_node_entry_point_dispatches_observer_mode():
     argv = ["model_node", "--ros-args", "-p", "mode:=observer", "-p", "arm:=thesis_example1"]
     assert _arm_argument(argv, "mode") == "observer"
     assert _arm_argument(argv) == "thesis_example1"
-

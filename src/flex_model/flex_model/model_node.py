@@ -537,8 +537,8 @@ class ModelNode(Managed, LifecycleNode):
 
     def on_payload(self, msg: Float64MultiArray) -> None:
         try:
-            m, j = (float(v) for v in conv.finite_array(msg.data, 2,
-                                                          "payload [mass, inertia]"))
+            m, j = (float(v) for v in conv.finite_array(
+                msg.data, 2, "payload [mass, inertia]"))
             for value, name, limit, unit in (
                     (m, "mass", "max_payload_mass", "kg"),
                     (j, "inertia", "max_payload_inertia", "kg m^2")):
