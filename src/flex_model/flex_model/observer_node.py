@@ -143,11 +143,31 @@ NAMED_COMPONENTS = {"ax": ("tip_acceleration", 0, 0.1), "ay": ("tip_acceleration
                     "pz": ("tip_position", 2, 1e-3)}
 
 
+#: measurement kinds read by an arm file's sensor kind (flex_model.sensors)
+SENSOR_KINDS = {"joint_angle": "joint_encoder", "motor_angle": "motor_encoder",
+                "tip_deflection": "tip_deflection"}
+
+
+def _with_sensor(m, arm):
+    """``m`` with the noise, resolution and delay of the arm's sensor of its kind and
+    joint or link (flex_model.sensors), where the arm file has one with noise or a
+    resolution."""
+    targets = arm.joint_names if m.kind != "tip_deflection" else [lk.name
+                                                                  for lk in arm.links]
+    for s in arm.sensors:
+        if s.kind == SENSOR_KINDS.get(m.kind) and s.target == targets[m.index] and \
+                (s.noise > 0 or s.resolution > 0):
+            return replace(m, std=s.noise, quantum=s.resolution, delay=s.delay)
+    return m
+
+
 def measurements_named(model, names, stds=(0.0,)) -> list:
     """The Measurements of ``names``: q<i>, w<i>, m<i> joint i's angle, rate, motor angle
     (q, w alone: every joint's), d<i> link i's tip deflection, ax, ay the tip's specific
-    force, px, py, pz its position; ``stds`` one per measurement or one for all (0: the
-    default of its kind); ValueError naming a bad one."""
+    force, px, py, pz its position. Noise, resolution (the quantum) and delay are those
+    of the arm file's sensor of that joint or link where it has one, else the default of
+    the kind (:data:`NAMED_KINDS`); ``stds`` one per measurement or one for all overrides
+    the std (0: keep it); ValueError naming a bad one."""
     from .estimation import Measurement
     out = []
     for name in names:
@@ -163,12 +183,12 @@ def measurements_named(model, names, stds=(0.0,)) -> list:
         idx = range(count) if len(name) == 1 else [int(name[1:]) - 1]
         if not all(0 <= i < count for i in idx):
             raise ValueError(f"got {name!r}; the arm has {count} joints and links (1..{count})")
-        out += [Measurement(name=f"{name[:1]}{i + 1}", kind=kind, index=i, std=std)
-                for i in idx]
+        out += [_with_sensor(Measurement(name=f"{name[:1]}{i + 1}", kind=kind, index=i,
+                                         std=std), model.arm) for i in idx]
     if len(stds) not in (1, len(out)):
         raise ValueError(f"measure_std: got {fmt(stds)}; expected one per measurement "
                          f"({len(out)}) or one for all")
-    return [replace(m, std=std) if std > 0 else m
+    return [replace(m, std=float(std)) if std > 0 else m
             for m, std in zip(out, np.broadcast_to(np.asarray(stds, float), (len(out),)))]
 
 
