@@ -1,0 +1,295 @@
+"""The extended Kalman filter of the flexible arm, gain-scheduled (docs/estimation.md).
+
+State x = [q; v; p] (p: adapted parameters as random walks). Every ``relinearize_every``
+samples the Jacobian A = df/dx is taken by central differences at the current estimate and
+the model is discretized over the sample period T by one matrix exponential
+
+    expm([[A, I], [0, 0]] T) = [[F, S], [0, I]],   S = int_0^T expm(A s) ds,
+
+so that between re-linearizations the estimate moves by the exponential Euler step
+x+ = x + S f(x, u) (exact for a linear model, stable on the stiff flexible modes) and the
+covariance by P+ = F P F^T + Q_d. Process noise: a torque error per joint and a modal force
+per deformation variable, each held over a sample (zero-order hold, as a digital
+command's error): Q_d = Gamma W Gamma^T with Gamma = S [0; B^-1 N], plus the parameters'
+random walk (std^2 T per sample). Correction (Joseph form) with the readings present (NaN =
+missing); a delayed reading is compared with the estimate of its time (a short buffer of
+past estimates) and mapped to the present through F^-d.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import expm
+from scipy.stats import chi2
+
+from . import measurements as meas
+from .plant import PARAMETER_FLOOR
+
+#: default initial std and random-walk std (per sqrt(s)) of the adapted parameters
+ADAPT_STD = {"coulomb_friction": 1.0, "viscous_friction": 2.0, "payload_mass": 0.3,
+             "link_stiffness": 0.3}
+ADAPT_WALK = {"coulomb_friction": 0.1, "viscous_friction": 0.2, "payload_mass": 0.02,
+              "link_stiffness": 0.01}
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """Settings of the filter (SI units). ``torque_noise``: std (N m) of the input torque
+    error per joint held over a sample (a scalar for every joint, or one per joint);
+    ``modal_noise``: std (N, generalized force) on each deformation variable, held likewise;
+    ``adapt``: names of the adapted parameters (flex_model.estimation.plant), with optional
+    ``adapt_initial``, ``adapt_std`` (initial std) and ``adapt_walk`` (random-walk std per
+    sqrt(s)) by name; ``relinearize_every``: samples between Jacobians (0: only at reset)."""
+
+    sample_period: float = 1e-3
+    adapt: tuple = ()
+    torque_noise: float | tuple = 0.1
+    modal_noise: float = 0.0
+    relinearize_every: int = 10
+    initial_angle_std: float = 0.01
+    initial_deflection_std: float = 0.02
+    initial_rate_std: float = 0.1
+    adapt_initial: dict = field(default_factory=dict)
+    adapt_std: dict = field(default_factory=dict)
+    adapt_walk: dict = field(default_factory=dict)
+    friction_smoothing: float = 0.02
+
+    def __post_init__(self):
+        if not self.sample_period > 0:
+            raise ValueError(f"sample_period: got {self.sample_period}; expected > 0 s")
+        if int(self.relinearize_every) < 0:
+            raise ValueError(f"relinearize_every: got {self.relinearize_every}; expected "
+                             ">= 0 samples")
+        if np.any(np.asarray(self.torque_noise, float) < 0) or self.modal_noise < 0:
+            raise ValueError("torque_noise and modal_noise must be >= 0")
+        object.__setattr__(self, "adapt", tuple(self.adapt))
+
+
+@dataclass
+class Sample:
+    """The estimate at one sample (after its correction)."""
+
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+    state_cov: np.ndarray
+    joint_angles: np.ndarray
+    joint_angles_std: np.ndarray
+    joint_rates: np.ndarray
+    joint_rates_std: np.ndarray
+    tip_deflections: np.ndarray
+    tip_deflections_std: np.ndarray
+    tip_position: np.ndarray
+    tip_position_cov: np.ndarray
+    innovation: np.ndarray
+    innovation_cov: np.ndarray
+    nis: float
+    nis_dof: int
+    nis_mean: float
+    nis_95_fraction: float
+    parameters: dict
+    parameter_std: dict
+
+
+def make_plant(model, settings):
+    """PlanarPlant or SpatialPlant for a FlexArmModel or SpatialArmModel."""
+    from ..spatial.dynamics import SpatialArmModel
+    if isinstance(model, SpatialArmModel):
+        from .spatial_plant import SpatialPlant  # noqa: F401 (next commit)
+        return SpatialPlant(model, settings.adapt, settings.friction_smoothing)
+    from .plant import PlanarPlant
+    return PlanarPlant(model, settings.adapt, settings.friction_smoothing)
+
+
+class Estimator:
+    """The live path: ``reset`` then one ``step(u, y)`` per sample."""
+
+    def __init__(self, model, measurements, settings: EstimatorSettings | None = None):
+        self.settings = settings or EstimatorSettings()
+        self.plant = make_plant(model, self.settings)
+        self.measurements = list(measurements)
+        meas.check(self.measurements, self.plant)
+        self.R = np.array([m.variance for m in self.measurements])
+        T = self.settings.sample_period
+        self.delays = np.array([int(round(m.delay / T)) for m in self.measurements])
+        nq, npar = self.plant.nq, len(self.plant.params)
+        self.n = 2 * nq + npar
+        self._kinds = [k for k, _ in self.plant.params]
+        self._angle = self.plant.angle_map()
+        self._defl = self.plant.deflection_map()
+        self.reset(np.zeros(nq), np.zeros(nq))
+
+    # ------------------------------------------------------------------ setup
+    def reset(self, q0, v0=None, P0=None, t0: float = 0.0) -> None:
+        """Start from (q0, v0) with the parameters' initial values; P0 default: the
+        settings' initial stds."""
+        s, nq = self.settings, self.plant.nq
+        p0 = self.plant.nominal_parameters()
+        for k, name in enumerate(self.plant.param_names):
+            p0[k] = s.adapt_initial.get(name, p0[k])
+        v0 = np.zeros(nq) if v0 is None else np.asarray(v0, float)
+        self.x = np.concatenate([np.asarray(q0, float), v0, p0])
+        self.P = self._initial_cov() if P0 is None else np.array(P0, float)
+        if self.P.shape != (self.n, self.n):
+            raise ValueError(f"P0: got shape {self.P.shape}; expected {(self.n, self.n)}")
+        self.t = float(t0)
+        self.k = 0
+        self._since = None
+        self._nis_sum, self._nis_in, self._nis_count = 0.0, 0, 0
+        self._past = deque(maxlen=int(self.delays.max(initial=0)) + 1)
+
+    def _initial_cov(self) -> np.ndarray:
+        s, nq = self.settings, self.plant.nq
+        sd = np.full(nq, s.initial_deflection_std)
+        sd[self._angle.any(axis=0) & ~np.isin(np.arange(nq), self.plant.flex_indices())] = \
+            s.initial_angle_std
+        sp = [s.adapt_std.get(nm, ADAPT_STD[k]) for nm, k in
+              zip(self.plant.param_names, self._kinds)]
+        return np.diag(np.concatenate([sd, np.full(nq, s.initial_rate_std), sp]) ** 2)
+
+    # ---------------------------------------------------------- linearization
+    def _jacobian(self, f, x, n_out) -> np.ndarray:
+        """Central differences of f at x (n_out x n)."""
+        J = np.empty((n_out, self.n))
+        for j in range(self.n):
+            h = 1e-6 * max(1.0, abs(x[j]))
+            xp, xm = x.copy(), x.copy()
+            xp[j] += h
+            xm[j] -= h
+            J[:, j] = (f(xp) - f(xm)) / (2 * h)
+        return J
+
+    def _noise_input(self) -> tuple[np.ndarray, np.ndarray]:
+        """(N, W): generalized-force directions of the process noise and their variances."""
+        s, plant = self.settings, self.plant
+        flex = plant.flex_indices()
+        tn = np.broadcast_to(np.asarray(s.torque_noise, float), (plant.n_joints,))
+        N = np.hstack([plant.actuator_map(), np.eye(plant.nq)[:, flex]])
+        W = np.concatenate([tn ** 2, np.full(len(flex), s.modal_noise ** 2)])
+        return N, W
+
+    def relinearize(self, u) -> None:
+        """A, F, S, Q_d and H at the current estimate (the gain schedule's update)."""
+        s, plant, n, nq = self.settings, self.plant, self.n, self.plant.nq
+        T = s.sample_period
+        A = self._jacobian(lambda x: plant.derivative(x, u), self.x, n)
+        M = np.zeros((2 * n, 2 * n))
+        M[:n, :n] = A
+        M[:n, n:] = np.eye(n)
+        E = expm(M * T)
+        self.F, self.S = E[:n, :n], E[:n, n:]
+        N, W = self._noise_input()
+        G = np.zeros((n, N.shape[1]))
+        G[nq:2 * nq] = plant.inverse_mass(self.x[:nq], self.x[2 * nq:]) @ N
+        Gam = self.S @ G
+        Qd = (Gam * W) @ Gam.T
+        walk = [s.adapt_walk.get(nm, ADAPT_WALK[k]) for nm, k in
+                zip(plant.param_names, self._kinds)]
+        Qd[2 * nq:, 2 * nq:] += np.diag(np.square(walk) * T)
+        self.Qd = 0.5 * (Qd + Qd.T)
+        H = self._jacobian(lambda x: meas.outputs(self.measurements, plant, x, u),
+                           self.x, len(self.measurements))
+        if self.delays.any():
+            Finv = np.linalg.inv(self.F)
+            for r, d in enumerate(self.delays):
+                if d:
+                    H[r] = H[r] @ np.linalg.matrix_power(Finv, int(d))
+        self.H = H
+        self._since = 0
+
+    # ------------------------------------------------------------------ step
+    def step(self, u, y) -> Sample:
+        """Correct with the readings y at the current time (NaN: missing), report, then
+        predict to the next sample under the input u (held over the sample)."""
+        u = np.asarray(u, float)
+        every = int(self.settings.relinearize_every)
+        if self._since is None or (every and self._since >= every):
+            self.relinearize(u)
+        nu, Sk, used = self._correct(u, np.asarray(y, float))
+        sample = self._report(nu, Sk, used)
+        self._predict(u)
+        return sample
+
+    def _correct(self, u, y):
+        m = len(self.measurements)
+        nu, Sk = np.full(m, np.nan), np.full((m, m), np.nan)
+        used = np.flatnonzero(np.isfinite(y))
+        if used.size == 0:
+            self._past.append(self.x.copy())
+            return nu, Sk, used
+        h = meas.outputs(self.measurements, self.plant, self.x, u)
+        for r in used:
+            d = self.delays[r]
+            if d:
+                past = self._past[-d] if len(self._past) >= d else self._past[0] \
+                    if self._past else self.x
+                h[r] = meas.outputs([self.measurements[r]], self.plant, past, u)[0]
+        H = self.H[used]
+        v = y[used] - h[used]
+        S = H @ self.P @ H.T + np.diag(self.R[used])
+        K = np.linalg.solve(S, H @ self.P).T
+        self.x = self.x + K @ v
+        IKH = np.eye(self.n) - K @ H
+        self.P = IKH @ self.P @ IKH.T + (K * self.R[used]) @ K.T
+        self._project()
+        nu[used] = v
+        Sk[np.ix_(used, used)] = S
+        self._past.append(self.x.copy())
+        return nu, Sk, used
+
+    def _project(self) -> None:
+        """Adapted parameters onto their physical range (friction, mass >= 0)."""
+        off = 2 * self.plant.nq
+        for k, kind in enumerate(self._kinds):
+            self.x[off + k] = max(self.x[off + k], PARAMETER_FLOOR[kind])
+
+    def _predict(self, u) -> None:
+        self.x = self.x + self.S @ self.plant.derivative(self.x, u)
+        self.P = self.F @ self.P @ self.F.T + self.Qd
+        self.P = 0.5 * (self.P + self.P.T)
+        self.t += self.settings.sample_period
+        self.k += 1
+        self._since += 1
+
+    # ------------------------------------------------------------------ output
+    def _report(self, nu, Sk, used) -> Sample:
+        nis, dof = np.nan, int(used.size)
+        if dof:
+            vv = nu[used]
+            nis = float(vv @ np.linalg.solve(Sk[np.ix_(used, used)], vv))
+            self._nis_sum += nis
+            self._nis_count += 1
+            self._nis_in += nis <= _chi2_95(dof)
+        nq, P, x = self.plant.nq, self.P, self.x
+        q, v = x[:nq], x[nq:2 * nq]
+        Pq, Pv = P[:nq, :nq], P[nq:2 * nq, nq:2 * nq]
+        G, D, J = self._angle, self._defl, self.plant.tip_jacobian(q)
+        names = self.plant.param_names
+        pstd = np.sqrt(np.diag(P)[2 * nq:])
+        count = max(self._nis_count, 1)
+        return Sample(
+            t=self.t, q=q.copy(), v=v.copy(), state_cov=P.copy(),
+            joint_angles=self.plant.joint_angles(q), joint_rates=self.plant.joint_rates(v),
+            joint_angles_std=_std(G, Pq), joint_rates_std=_std(G, Pv),
+            tip_deflections=D @ q, tip_deflections_std=_std(D, Pq),
+            tip_position=self.plant.tip_position(q), tip_position_cov=J @ Pq @ J.T,
+            innovation=nu, innovation_cov=Sk, nis=nis, nis_dof=dof,
+            nis_mean=self._nis_sum / count if self._nis_count else np.nan,
+            nis_95_fraction=self._nis_in / count if self._nis_count else np.nan,
+            parameters=dict(zip(names, x[2 * nq:].tolist())),
+            parameter_std=dict(zip(names, pstd.tolist())))
+
+
+def _std(M, P) -> np.ndarray:
+    return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", M, P, M), 0.0))
+
+
+_CHI2 = {}
+
+
+def _chi2_95(dof: int) -> float:
+    if dof not in _CHI2:
+        _CHI2[dof] = float(chi2.ppf(0.95, dof))
+    return _CHI2[dof]

@@ -1,0 +1,93 @@
+"""The offline path: the live filter (Estimator.step) run over the arrays of a recording."""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from .filter import Estimator, EstimatorSettings, Sample
+
+#: Sample fields stacked over time in an EstimationResult (the dicts become arrays by name)
+_STACKED = [f.name for f in fields(Sample) if f.name not in ("parameters", "parameter_std")]
+
+
+@dataclass
+class EstimationResult:
+    """Arrays over time of the Sample fields (first axis: samples), ``parameters`` and
+    ``parameter_std`` as name -> array, ``names`` of the parameters and ``summary``."""
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    state_cov: np.ndarray
+    joint_angles: np.ndarray
+    joint_angles_std: np.ndarray
+    joint_rates: np.ndarray
+    joint_rates_std: np.ndarray
+    tip_deflections: np.ndarray
+    tip_deflections_std: np.ndarray
+    tip_position: np.ndarray
+    tip_position_cov: np.ndarray
+    innovation: np.ndarray
+    innovation_cov: np.ndarray
+    nis: np.ndarray
+    nis_dof: np.ndarray
+    nis_mean: np.ndarray
+    nis_95_fraction: np.ndarray
+    parameters: dict
+    parameter_std: dict
+    summary: dict
+
+
+def estimate_recording(model, times, inputs, measurements_array, measurements,
+                       settings: EstimatorSettings | None = None, q0=None, v0=None,
+                       P0=None) -> EstimationResult:
+    """Run the filter over a recording: ``times`` (N,), ``inputs`` (N, n_joints: torques,
+    or voltages on DC-motor joints), ``measurements_array`` (N, len(measurements), NaN =
+    missing). The sample period is the settings' (default: the median step of ``times``).
+    q0: default from the first joint-angle readings, the deformation zero."""
+    times = np.asarray(times, float)
+    inputs = np.atleast_2d(np.asarray(inputs, float))
+    Y = np.asarray(measurements_array, float).reshape(len(times), -1)
+    if inputs.shape[0] != len(times) or Y.shape[1] != len(measurements):
+        raise ValueError(f"estimate_recording: inputs {inputs.shape} and measurements "
+                         f"{Y.shape} must have {len(times)} rows and "
+                         f"{len(measurements)} measurement columns")
+    if settings is None:
+        settings = EstimatorSettings(sample_period=float(np.median(np.diff(times))))
+    est = Estimator(model, measurements, settings)
+    if q0 is None:
+        q0 = initial_q(est, Y[0])
+    est.reset(q0, v0, P0, t0=float(times[0]))
+    samples = [est.step(u, y) for u, y in zip(inputs, Y)]
+    return _stack(samples, est.plant.param_names)
+
+
+def initial_q(est: Estimator, y0) -> np.ndarray:
+    """q with the joint angles of the first joint-angle readings (others 0), undeformed."""
+    theta = np.zeros(est.plant.n_joints)
+    for m, val in zip(est.measurements, y0):
+        if m.kind == "joint_angle" and np.isfinite(val):
+            theta[m.index] = val
+    return est.plant.q_from_joint_angles(theta)
+
+
+def _stack(samples, names) -> EstimationResult:
+    arrays = {k: np.array([getattr(s, k) for s in samples]) for k in _STACKED}
+    params = {n: np.array([s.parameters[n] for s in samples]) for n in names}
+    pstd = {n: np.array([s.parameter_std[n] for s in samples]) for n in names}
+    return EstimationResult(**arrays, parameters=params, parameter_std=pstd,
+                            summary=summarize(arrays, params, pstd))
+
+
+def summarize(arrays, params, pstd) -> dict:
+    """nis_mean, nis_95_fraction, mean measurement dimension, final parameters."""
+    nis, dof = arrays["nis"], arrays["nis_dof"]
+    ok = np.isfinite(nis)
+    from .filter import _chi2_95
+    inside = [n <= _chi2_95(int(d)) for n, d in zip(nis[ok], dof[ok])]
+    return {"samples": int(len(nis)), "nis_mean": float(np.mean(nis[ok])) if ok.any() else None,
+            "nis_dof_mean": float(np.mean(dof[ok])) if ok.any() else None,
+            "nis_95_fraction": float(np.mean(inside)) if inside else None,
+            "parameters": {n: float(a[-1]) for n, a in params.items()},
+            "parameter_std": {n: float(a[-1]) for n, a in pstd.items()}}
