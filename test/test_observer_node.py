@@ -13,9 +13,11 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from flex_model.arm import load_arm
+from flex_model.cdr_messages import read_joint_state, read_joint_state_names
 from flex_model.dynamics import FlexArmModel
 from flex_model.model_node import _arm_argument
 from flex_model.observer_node import ObserverNode, measurements_named
@@ -160,18 +162,36 @@ def test_bad_messages_are_dropped_with_a_reason_and_the_node_runs_on(observer, t
     g.send(t[1], angles[1][:1], effort=u[1])                    # one value for two names
     g.send(t[1], angles[1], effort=u[1])
     g.send(t[1], angles[1], effort=u[1])                        # the same stamp again
+    g.pub.publish(b"\x00\x01\x00\x00" + bytes(12))           # cut short (raw bytes)
     g.send(t[3], angles[3], effort=u[3])                        # t[2] missing
     g.spin_until(lambda: len(g.got["js"]) == 3, "the three good samples")
-    g.spin_until(lambda: len(warnings(g)) == 4, "the four reasons")
+    g.spin_until(lambda: len(warnings(g)) == 5, "the five reasons")
     text = "\n".join(warnings(g))
     for reason in ("position: got non-finite values", "the joints ['joint2'] of the arm "
                    "are missing", "position: got 1 values for 2 names",
-                   "is not after the previous sample's"):
+                   "is not after the previous sample's", "a malformed JointState (16 bytes"):
         assert reason in text, text
-    assert g.node.counts["dropped"] == 3 and g.node.counts["late"] == 1
+    assert g.node.counts["dropped"] == 4 and g.node.counts["late"] == 1
     assert g.node.counts["missed"] == 1 and g.node.counts["samples"] == 3
     level, message, _ = g.node.health()
-    assert level == "warn" and "4 input(s) dropped" in message
+    assert level == "warn" and "5 input(s) dropped" in message
+
+
+def test_a_serialized_joint_state_is_read_as_rclpy_reads_it():
+    """cdr_messages.read_joint_state (the observer's raw subscription) against rclpy's
+    deserialization, with odd string lengths (padding) and an empty array."""
+    msg = JointState(name=["j", "elbow_joint"], position=[0.25, -1.5], velocity=[],
+                     effort=[3.0, 1e-9])
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 125_000_000
+    msg.header.frame_id = "base"
+    data = serialize_message(msg)
+    t, key, count, position, velocity, effort = read_joint_state(data)
+    assert (t, count, read_joint_state_names(data)) == (7.125, 2, ["j", "elbow_joint"])
+    np.testing.assert_array_equal(position, msg.position)
+    np.testing.assert_array_equal(effort, msg.effort)
+    assert velocity.size == 0
+    with pytest.raises(ValueError, match="malformed JointState"):
+        read_joint_state(data[:40])
 
 
 def test_measurement_names_and_their_errors():

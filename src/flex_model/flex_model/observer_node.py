@@ -57,6 +57,7 @@ takes samples, deactivate refuses them (counted as dropped), cleanup releases th
 from __future__ import annotations
 
 import math
+import time
 from collections import deque
 from dataclasses import replace
 
@@ -72,6 +73,7 @@ from std_msgs.msg import Float64MultiArray
 from . import ros_conversions as conv
 from . import urdf
 from .arm import load_arm
+from .cdr_messages import read_joint_state, read_joint_state_names
 from .dynamics import FlexArmModel
 from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
                        lean_node, read_parameters, run_node)
@@ -128,6 +130,10 @@ PARAMETERS = (
     Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
     Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
 )
+
+#: wall time (s) one joint_states callback goes on taking the samples queued behind its
+#: own (no executor wait set rebuilt per sample) before it returns to the executor
+DRAIN_SLICE = 0.02
 
 RANGES = {"vars_per_link": (0, INT_MAX, 2), "sample_period": (0.0, 0.1),
           "queue_depth": (1, INT_MAX), "max_gap": (0.0, FLOAT_MAX),
@@ -315,10 +321,15 @@ class ObserverNode(Managed, LifecycleNode):
         self.pub_tip = self.create_publisher(PoseWithCovarianceStamped,
                                              "flex/estimate/tip_pose", qos)
         self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(JointState, p["input_topic"], self.on_joint_state, qos)
+        # raw: the samples are read from their bytes (cdr_messages.read_joint_state)
+        self.sub_js = self.create_subscription(JointState, p["input_topic"],
+                                               self.on_joint_state, qos, raw=True)
+        self.sub_gauge = None
         if any(s[0] == "gauge" for s in self.sources):
-            self.create_subscription(Float64MultiArray, p["gauge_topic"], self.on_gauge,
-                                     qos)
+            self.sub_gauge = self.create_subscription(Float64MultiArray, p["gauge_topic"],
+                                                      self.on_gauge, qos)
+        self._needed = {"position": True, "effort": p["input"] == "effort",
+                        "velocity": any(s[0] == "velocity" for s in self.sources)}
         if p["input"] == "command":
             self.create_subscription(Float64MultiArray, "effort_controller/commands",
                                      self.on_command, qos)
@@ -374,28 +385,48 @@ class ObserverNode(Managed, LifecycleNode):
         self.counts[counter] += 1
         self.drops.warning(f"dropped {topic}: {why}")
 
-    def _joint_index(self, names) -> np.ndarray:
-        """Positions of the model's joints in a joint_states' ``names`` (cached per name
-        list); ValueError naming a missing joint."""
-        key = tuple(names)
+    def _joint_index(self, key, data) -> np.ndarray:
+        """Positions of the model's joints in a sample's name list (cached per serialized
+        list ``key``); ValueError naming a missing joint."""
         idx = self._index.get(key)
         if idx is None:
-            missing = [j for j in self.names if j not in key]
+            names = read_joint_state_names(data)
+            missing = [j for j in self.names if j not in names]
             if missing:
-                raise ValueError(f"name: got {list(key)}; the joints {missing} of the arm "
+                raise ValueError(f"name: got {names}; the joints {missing} of the arm "
                                  "are missing")
-            idx = self._index[key] = np.array([key.index(j) for j in self.names])
+            idx = self._index[key] = np.array([names.index(j) for j in self.names])
         return idx
 
-    def on_joint_state(self, msg: JointState) -> None:
-        """One sample of the real arm: one filter step, the estimate published."""
+    def on_joint_state(self, data: bytes) -> None:
+        """Samples of the real arm (serialized: a raw subscription, no message objects):
+        this one and those queued behind it, each one filter step with its estimate
+        published, for up to DRAIN_SLICE s; then back to the executor."""
+        self.on_sample(data)
+        sub, gauge = self.sub_js, self.sub_gauge
+        end = time.monotonic() + DRAIN_SLICE
+        with sub.handle:
+            while self.active and time.monotonic() < end:
+                if gauge is not None:  # a gauge reading sent before the next sample
+                    with gauge.handle:
+                        got = gauge.handle.take_message(gauge.msg_type, False)
+                    if got is not None:
+                        self.on_gauge(got[0])
+                got = sub.handle.take_message(sub.msg_type, True)
+                if got is None:
+                    return
+                self.on_sample(got[0])
+
+    def on_sample(self, data: bytes) -> None:
+        """One sample: checked (else dropped with the reason), gaps predicted over, one
+        filter step, the estimate published."""
         topic = self.p["input_topic"]
         if not self.active:
             return self._drop(topic, self._inactive())
         try:
-            t = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-            idx = self._joint_index(msg.name)
-            position, velocity, u = self._sample_arrays(msg, idx)
+            t, key, count, *fields = read_joint_state(data)
+            position, velocity, u = self._sample_arrays(fields, count,
+                                                        self._joint_index(key, data))
         except ValueError as exc:
             return self._drop(topic, str(exc))
         period = self.p["sample_period"]
@@ -421,29 +452,24 @@ class ObserverNode(Managed, LifecycleNode):
         self.last_t = t
         self._step(t, position, velocity)
 
-    def _sample_arrays(self, msg: JointState, idx):
-        """(joint angles, rates or None, input or None) of a sample in joint order, each
-        finite (ValueError naming the field)."""
-        n = len(self.names)
+    def _sample_arrays(self, fields, count: int, idx):
+        """(joint angles, rates or None, input or None) of a sample's (position, velocity,
+        effort) of ``count`` names in joint order, each finite (ValueError naming the
+        field)."""
         out = []
-        for field in ("position", "velocity", "effort"):
-            values = getattr(msg, field)
-            needed = field == "position" or (field == "effort" and
-                                             self.p["input"] == "effort") or \
-                (field == "velocity" and any(s[0] == "velocity" for s in self.sources))
-            if len(values) == 0 and not needed:
+        for field, values in zip(("position", "velocity", "effort"), fields):
+            needed = self._needed[field]
+            if not needed:
                 out.append(None)
                 continue
-            if len(values) != len(msg.name):
-                raise ValueError(f"{field}: got {len(values)} values for {len(msg.name)} "
-                                 f"names; expected one per name")
-            arr = np.frombuffer(values, float)[idx] if len(values) else np.zeros(n)
+            if len(values) != count:
+                raise ValueError(f"{field}: got {len(values)} values for {count} names; "
+                                 "expected one per name")
+            arr = values[idx]
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"{field}: got non-finite values {fmt(arr)}; expected "
                                  "finite numbers")
             out.append(arr)
-        if self.p["input"] != "effort":
-            out[2] = None
         return out
 
     def on_gauge(self, msg: Float64MultiArray) -> None:
