@@ -4,7 +4,7 @@ A bag (MCAP, flex_twin.bags.BagWriter) of ``--seconds`` (default 60) of 1 kHz
 /joint_states of a simulated arm (default the Quanser flexible link,
 quanser_cuboulder_calibrated: hub angle as position, the motor voltage as effort, a
 +-``--amplitude`` V square wave smoothed over 20 ms) is written once (cached under
-bench/results/observer/), then fed as fast as the observer takes it: one process, one
+runs/bench_observer/), then fed as fast as the observer takes it: one process, one
 SingleThreadedExecutor spinning a player node and the ObserverNode (its defaults: reliable
 QoS, depth 1000). The player publishes the bag's CDR bytes in batches of ``--batch``
 (< the depth, so nothing can be pushed out of the queue), waits until the observer has
@@ -36,14 +36,14 @@ os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))  # isolated a
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-CACHE = ROOT / "bench" / "results" / "observer"
+CACHE = ROOT / "runs" / "bench_observer"  # (runs/: not in git)
 TOPIC = "/joint_states"
 
 
 def square_wave(t, amplitude: float, period: float = 2.0, smooth: float = 0.02):
     """+-amplitude, switching every period / 2, smoothed by tanh over ``smooth`` s."""
-    return amplitude * np.tanh(np.sin(2 * np.pi * t / period) / (smooth * 2 * np.pi /
-                                                                   period))
+    width = smooth * 2 * np.pi / period
+    return amplitude * np.tanh(np.sin(2 * np.pi * t / period) / width)
 
 
 def write_bag(path: Path, arm: str, seconds: float, amplitude: float) -> None:
