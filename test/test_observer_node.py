@@ -211,3 +211,22 @@ def test_the_model_node_entry_point_dispatches_observer_mode():
     argv = ["model_node", "--ros-args", "-p", "mode:=observer", "-p", "arm:=thesis_example1"]
     assert _arm_argument(argv, "mode") == "observer"
     assert _arm_argument(argv) == "thesis_example1"
+
+
+def test_flex_twin_observe_and_up_start_the_observer():
+    """``flex-twin observe`` passes its options as the node's parameters; ``up`` starts
+    ObserverNode for a flex_model section with mode observer, and folds no controller
+    into it."""
+    from flex_twin.cli import build_parser
+    from flex_twin.ros_suite import in_loop_parameters, node_class, observer_arguments
+    args = build_parser().parse_args(["observe", "--arm", "thesis_example1", "--measure",
+                                      "q1,d1", "--namespace", "/arm1"])
+    argv = observer_arguments(args)
+    assert argv[:4] == ["flex-twin-observe", "--ros-args", "-r", "__ns:=/arm1"]
+    assert {"mode:=observer", "arm:=thesis_example1", "measure:=q1,d1", "adapt:=''"} <= \
+        set(argv)
+    assert node_class("flex_model", {"mode": "observer"}) == ("flex_model.observer_node",
+                                                              "ObserverNode")
+    assert node_class("flex_model", {"mode": "lockstep"})[1] == "ModelNode"
+    params = {"flex_model": {"mode": "observer"}, "flex_controller": {"rate_hz": 500.0}}
+    assert in_loop_parameters(params) == params

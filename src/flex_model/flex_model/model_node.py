@@ -206,7 +206,11 @@ PARAMETERS = (
     Param("vars_per_link", 0, "deformation variables per link (0: as in the arm file)",
           check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
     Param("kinematics", "", "joint-to-link kinematics override (empty: the arm's)"),
-    Param("mode", "realtime", "realtime | lockstep", check=_choice("realtime", "lockstep")),
+    Param("mode", "realtime", "realtime | lockstep (observer: flex_model.observer_node, "
+          "which the entry point starts for -p mode:=observer)",
+          check=lambda v: None if v in ("realtime", "lockstep") else
+          "realtime or lockstep (mode observer is flex_model.observer_node: started by "
+          "the entry point with -p mode:=observer, flex-twin observe, or flex-twin up)"),
     Param("rate", 1000.0, "model loop rate (Hz); lockstep: a command advances 1/rate",
           check=_positive),
     Param("publish_rate", 250.0, "rate of the state topics (Hz)", True, _positive),
