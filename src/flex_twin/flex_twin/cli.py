@@ -138,8 +138,8 @@ def _simulate(scenario_ref, args, label: str):
     # first, timed apart, so the CPU-s per simulated second are the integration's alone
     t0, c0 = time.perf_counter(), time.process_time()
     from dataclasses import replace
-    replace(sc, duration=min(sc.duration, 2 * sc.sample_period)).run(model=model,
-                                                                   advise=False)
+    replace(sc, duration=min(sc.duration, 2 * sc.sample_period)).run(
+        model=model, advise=False)
     load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
     t0, c0 = time.perf_counter(), time.process_time()
     res = sc.run(progress=Progress(label, not args.json), model=model, advise=False)
@@ -162,8 +162,8 @@ def _simulate(scenario_ref, args, label: str):
                "csv": str(csv),
                "final_joint_angles_deg": np.degrees(res.joint_angles[-1]).tolist(),
                "final_tip_m": res.tip_xy[-1].tolist(),
-               "max_abs_tip_deflection_mm": (1e3 * np.max(np.abs(res.tip_deflections),
-                                                         axis=0)).tolist()}
+               "max_abs_tip_deflection_mm": (
+                   1e3 * np.max(np.abs(res.tip_deflections), axis=0)).tolist()}
     if not args.no_plot:
         png = out_dir / f"{sc.name}.png"
         plot_simulation(res, png, title=f"{sc.name} ({sc.arm.name})")

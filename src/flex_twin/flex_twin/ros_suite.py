@@ -272,7 +272,6 @@ def add_up_parser(sub) -> None:
     sp.set_defaults(func=cmd_up)
 
 
-
 def observer_arguments(args) -> list[str]:
     """The ROS arguments of ``flex-twin observe``: the model node's observer mode with
     the options as parameters."""
