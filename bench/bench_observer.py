@@ -10,10 +10,12 @@ QoS, depth 1000). The player publishes the bag's CDR bytes in batches of ``--bat
 (< the depth, so nothing can be pushed out of the queue), waits until the observer has
 stepped them, then sends the next batch. Reported: samples sent, received (steps of the
 filter: a missed input shows here), wall time, real-time factor (bag seconds / wall
-seconds; the aim: >= 2), us per sample in total and split into the estimator's step, the
-publication of the estimate (serialized templates) and the rest (rclpy: taking the message,
-deserializing it, the executor's wait), the CPU time of the process per sample, and the
-estimator's step alone without ROS over the same samples. One core: the process pins
+seconds; the aim: >= 2), us per sample in total, the CPU time of the process per sample
+(every thread) and without the player's publishing (``observer_cpu_us``: what the node
+costs; the real arm's driver is another process), split into the estimator's step, the
+publication of the estimate (serialized templates) and the rest (taking and reading the
+samples, the executor, DDS), and the estimator's step alone without ROS over the same
+samples (wall and CPU time, and cProfile's top functions by own time). One core: the process pins
 itself to CPU 0 (``--cpu``) with single-threaded BLAS (set before numpy is imported).
 
     python bench/bench_observer.py [--seconds 60] [--arm ARM] [--measure q1] [--json]
@@ -136,6 +138,7 @@ def feed(bag: Path, arm: str, measure: str, batch: int) -> dict:
             ex.spin_once(timeout_sec=0.01)
         step = Timed(node.estimator, "step")
         publish = Timed(node, "publish")
+        feeder = Timed(pub, "publish")  # the player's share (another process in a lab)
         # (first steps compile/warm the model's kernels: not in the figures)
         cpu0, wall0 = time.process_time(), time.perf_counter()
         sent = 0
@@ -161,7 +164,10 @@ def feed(bag: Path, arm: str, measure: str, batch: int) -> dict:
             "estimator_step_us": 1e6 * step.wall / n, "estimator_step_cpu_us":
             1e6 * step.cpu / n, "publish_us": 1e6 * publish.wall / n,
             "publish_cpu_us": 1e6 * publish.cpu / n,
-            "rest_cpu_us": 1e6 * (cpu - step.cpu - publish.cpu) / n,
+            "feeder_cpu_us": 1e6 * feeder.cpu / n,
+            "observer_cpu_us": 1e6 * (cpu - feeder.cpu) / n,
+            "observer_cpu_real_time_factor": len(raw) * 1e-3 / (cpu - feeder.cpu),
+            "rest_cpu_us": 1e6 * (cpu - step.cpu - publish.cpu - feeder.cpu) / n,
             "health": f"{level}: {message}"}
 
 
