@@ -285,6 +285,9 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
         limit[int(e['target'][-1]) - 1] = e['parameters']['limit'] if sat_limits is None \
             else sat_limits[int(e['target'][-1]) - 1]
     payload = hidden['payload']['parameters']['mass'] if 'payload' in hidden else 0.0
+    change_at = float(case.get('change_at', 0.0))
+    if change_at > 0 and set(hidden) != {'joint_friction'}:
+        raise ValueError('%s: --change-at takes joint friction cases only' % case['id'])
     elastic = [None, None]
     if 'joint_elasticity' in hidden:
         e = hidden['joint_elasticity']
@@ -368,7 +371,8 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
                 r = poses[0] if state['static'] else ref_in_step(t)
                 cmd = kp[j] * (r[j] - (rot + bias[j])) - kd[j] * omega
             tau = clip(cmd, limit[j])
-            tau -= fric[j, 0] * omega + fric[j, 1] * math.tanh(omega / FRICTION_EPS)
+            if t >= change_at:   # a hidden change mid-run (--change-at): friction from then on
+                tau -= fric[j, 0] * omega + fric[j, 1] * math.tanh(omega / FRICTION_EPS)
             return -tau
         return uf
 
@@ -592,14 +596,22 @@ def case_truth(case, info=None):
          'kind': case['kind'], 'hidden': case['hidden'],
          'reference_seed': case['reference_seed'], 'noise_seed': case['noise_seed'],
          'expected': 'none' if not case['hidden'] else 'named'}
+    if case.get('change_at'):
+        t['change_at'] = case['change_at']
     if info:
         t['simulation'] = {k: info[k] for k in ('nel', 'h', 'wall_s', 'cpu_s', 'nODE2',
                                                 'peak_command', 'p99_command')}
     return t
 
 
-def write_case(case, out_dir, cols, data, info):
+def write_case(case, out_dir, cols, data, info, keep=None, crop_from=0.0):
+    """``keep``: the columns stored (default all), ``crop_from``: the rows from that time
+    on (small test data)."""
     import numpy as np
+    if keep:
+        idx = [cols.index(c) for c in ['t'] + [c for c in keep if c != 't']]
+        cols, data = [cols[i] for i in idx], data[:, idx]
+    data = data[data[:, 0] >= crop_from - 1e-9]
     d = os.path.join(out_dir, case['id'])
     os.makedirs(d, exist_ok=True)
     fmt = ['%.4f'] + ['%.8g'] * (len(cols) - 1)
@@ -654,7 +666,8 @@ def _load_peaks(out_dir):
 PEAKS_FILE = '_healthy_p99_command.json'
 
 
-def run(cases, out_dir, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, verbose=True):
+def run(cases, out_dir, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, verbose=True,
+        keep=None, crop_from=0.0):
     """Simulate and write the cases (healthy ones first: their peak commands set the
     saturation limits, kept in OUT/_healthy_peaks.json)."""
     times = {}
@@ -670,7 +683,7 @@ def run(cases, out_dir, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, verbos
             with open(os.path.join(out_dir, PEAKS_FILE), 'w') as f:
                 json.dump(merged, f, indent=1)
         cols, data, info = simulate(case, nel, h, duration, noise_scale)
-        write_case(case, out_dir, cols, data, info)
+        write_case(case, out_dir, cols, data, info, keep, crop_from)
         times[case['id']] = info['wall_s']
         if not case['hidden'] and default:
             _PEAKS[_peak_key(case)] = info['p99_command']
@@ -799,8 +812,18 @@ def main():
                     'limits in the manifest (default: the manifest folder)')
     ap.add_argument('--stored', nargs='*', default=None,
                     help='case ids stored with the manifest (default: the folders in DIR)')
+    ap.add_argument('--change-at', type=float, default=0.0, metavar='T',
+                    help='joint friction cases: the friction acts from T s on only (a change '
+                    'hidden mid-run; the case id gets -at<T>)')
+    ap.add_argument('--columns', help='comma-separated columns to store (default all)')
+    ap.add_argument('--crop-from', type=float, default=0.0, metavar='T0',
+                    help='store the rows from T0 s on only')
     a = ap.parse_args()
     cases = all_cases()
+    if a.change_at > 0:
+        cases = [dict(c, id='%s-at%g' % (c['id'], a.change_at), change_at=a.change_at,
+                      kind=c['kind'] + ' from %g s' % a.change_at)
+                 for c in cases if c['kind'] == 'joint_friction']
     if a.list:
         for c in cases:
             print(c['id'])
@@ -832,7 +855,8 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     if a.skip_existing:
         sel = [c for c in sel if not os.path.exists(os.path.join(a.out, c['id'], 'truth.yaml'))]
-    run(sel, a.out, a.nel, a.h, a.duration, a.noise)
+    run(sel, a.out, a.nel, a.h, a.duration, a.noise,
+        keep=a.columns.split(',') if a.columns else None, crop_from=a.crop_from)
     return 0
 
 

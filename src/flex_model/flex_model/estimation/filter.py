@@ -1,19 +1,22 @@
 """The extended Kalman filter of the flexible arm, gain-scheduled (docs/estimation.md).
 
 State x = [q; v; p] (p: adapted parameters as random walks). Every ``relinearize_every``
-samples the Jacobian A = df/dx is taken by central differences at the current estimate and
-the model is discretized over the sample period T by one matrix exponential
+samples the Jacobian A = df/dx is taken by central differences at the current estimate
+(the spatial plant: a structured one) and held: the estimate moves by the two-stage
+Rosenbrock method ROS2 (Verwer, Spee, Blom, Hundsdorfer 1999) with W = I - gamma T A,
 
-    expm([[A, I], [0, 0]] T) = [[F, S], [0, I]],   S = int_0^T expm(A s) ds,
+    k1 = W^-1 f(x, u),  k2 = W^-1 (f(x + T k1, u) - 2 k1),  x+ = x + T (3/2 k1 + 1/2 k2),
 
-so that between re-linearizations the estimate moves by the exponential Euler step
-x+ = x + S f(x, u) (exact for a linear model, stable on the stiff flexible modes) and the
-covariance by P+ = F P F^T + Q_d. Process noise: a torque error per joint and a modal force
-per deformation variable, each held over a sample (zero-order hold, as a digital
-command's error): Q_d = Gamma W Gamma^T with Gamma = S [0; B^-1 N], plus the parameters'
-random walk (std^2 T per sample). Correction (Joseph form) with the readings present (NaN =
-missing); a delayed reading is compared with the estimate of its time (a short buffer of
-past estimates) and mapped to the present through F^-d.
+second order whatever A is (a W-method: a stale Jacobian costs no order) and L-stable, so
+the flexible modes far above the sample rate (the spatial links' torsion, kHz) are damped
+instead of resolved. The covariance moves by P+ = F P F^T + Q_d with F the same step's
+derivative for the held A. Process noise: a torque error per joint and a force at each link's
+tip, each held over a sample (zero-order hold, as a digital command's error):
+Q_d = Gamma W Gamma^T with Gamma the step's map of the generalized force through B(q)^-1,
+plus the parameters' random walk (std^2 T per sample). Correction (Joseph form) with the
+readings present (NaN = missing); a delayed reading is compared with the estimate of its
+time (a short buffer of past estimates), with the present H (delays short against the
+arm's motion).
 """
 from __future__ import annotations
 
@@ -21,12 +24,14 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import expm
+from scipy.linalg import lu_factor, lu_solve
 from scipy.stats import chi2
 
 from . import measurements as meas
 from .plant import PARAMETER_FLOOR
 
+#: ROS2's gamma = 1 + 1/sqrt(2): L-stable, second order for any Jacobian (a W-method)
+GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 #: default initial std and random-walk std (per sqrt(s)) of the adapted parameters
 ADAPT_STD = {"coulomb_friction": 1.0, "viscous_friction": 2.0, "payload_mass": 0.3,
              "link_stiffness": 0.3}
@@ -38,7 +43,8 @@ ADAPT_WALK = {"coulomb_friction": 0.1, "viscous_friction": 0.2, "payload_mass": 
 class EstimatorSettings:
     """Settings of the filter (SI units). ``torque_noise``: std (N m) of the input torque
     error per joint held over a sample (a scalar for every joint, or one per joint);
-    ``modal_noise``: std (N, generalized force) on each deformation variable, held likewise;
+    ``modal_noise``: std (N) of a force at each link's tip normal to the link (what excites
+    its modes: the model-form error of the link), held likewise, scalar or one per link;
     ``adapt``: names of the adapted parameters (flex_model.estimation.plant), with optional
     ``adapt_initial``, ``adapt_std`` (initial std) and ``adapt_walk`` (random-walk std per
     sqrt(s)) by name; ``relinearize_every``: samples between Jacobians (0: only at reset)."""
@@ -46,7 +52,7 @@ class EstimatorSettings:
     sample_period: float = 1e-3
     adapt: tuple = ()
     torque_noise: float | tuple = 0.1
-    modal_noise: float = 0.0
+    modal_noise: float | tuple = 0.0
     relinearize_every: int = 10
     initial_angle_std: float = 0.01
     initial_deflection_std: float = 0.02
@@ -62,7 +68,8 @@ class EstimatorSettings:
         if int(self.relinearize_every) < 0:
             raise ValueError(f"relinearize_every: got {self.relinearize_every}; expected "
                              ">= 0 samples")
-        if np.any(np.asarray(self.torque_noise, float) < 0) or self.modal_noise < 0:
+        if np.any(np.asarray(self.torque_noise, float) < 0) or \
+                np.any(np.asarray(self.modal_noise, float) < 0):
             raise ValueError("torque_noise and modal_noise must be >= 0")
         object.__setattr__(self, "adapt", tuple(self.adapt))
 
@@ -97,7 +104,7 @@ def make_plant(model, settings):
     """PlanarPlant or SpatialPlant for a FlexArmModel or SpatialArmModel."""
     from ..spatial.dynamics import SpatialArmModel
     if isinstance(model, SpatialArmModel):
-        from .spatial_plant import SpatialPlant  # noqa: F401 (next commit)
+        from .spatial_plant import SpatialPlant
         return SpatialPlant(model, settings.adapt, settings.friction_smoothing)
     from .plant import PlanarPlant
     return PlanarPlant(model, settings.adapt, settings.friction_smoothing)
@@ -150,40 +157,42 @@ class Estimator:
         return np.diag(np.concatenate([sd, np.full(nq, s.initial_rate_std), sp]) ** 2)
 
     # ---------------------------------------------------------- linearization
-    def _jacobian(self, f, x, n_out) -> np.ndarray:
-        """Central differences of f at x (n_out x n)."""
-        J = np.empty((n_out, self.n))
-        for j in range(self.n):
+    def _jacobian(self, f, x, n_out, cols=None) -> np.ndarray:
+        """Central differences of f at x (n_out x len(cols); default all columns)."""
+        cols = range(self.n) if cols is None else cols
+        J = np.empty((n_out, len(cols)))
+        for c, j in enumerate(cols):
             h = 1e-6 * max(1.0, abs(x[j]))
             xp, xm = x.copy(), x.copy()
             xp[j] += h
             xm[j] -= h
-            J[:, j] = (f(xp) - f(xm)) / (2 * h)
+            J[:, c] = (f(xp) - f(xm)) / (2 * h)
         return J
+
+    def _state_jacobian(self, u) -> np.ndarray:
+        """df/dx by central differences."""
+        return self._jacobian(lambda x: self.plant.derivative(x, u), self.x, self.n)
 
     def _noise_input(self) -> tuple[np.ndarray, np.ndarray]:
         """(N, W): generalized-force directions of the process noise and their variances."""
         s, plant = self.settings, self.plant
-        flex = plant.flex_indices()
         tn = np.broadcast_to(np.asarray(s.torque_noise, float), (plant.n_joints,))
-        N = np.hstack([plant.actuator_map(), np.eye(plant.nq)[:, flex]])
-        W = np.concatenate([tn ** 2, np.full(len(flex), s.modal_noise ** 2)])
-        return N, W
+        mn = np.broadcast_to(np.asarray(s.modal_noise, float), (plant.n_links,))
+        L = plant.link_force_map(self.x[:plant.nq])
+        mn = np.repeat(mn, L.shape[1] // plant.n_links)  # spatial: two planes per link
+        return np.hstack([plant.actuator_map(), L]), np.concatenate([tn ** 2, mn ** 2])
 
     def relinearize(self, u) -> None:
         """A, F, S, Q_d and H at the current estimate (the gain schedule's update)."""
         s, plant, n, nq = self.settings, self.plant, self.n, self.plant.nq
         T = s.sample_period
-        A = self._jacobian(lambda x: plant.derivative(x, u), self.x, n)
-        M = np.zeros((2 * n, 2 * n))
-        M[:n, :n] = A
-        M[:n, n:] = np.eye(n)
-        E = expm(M * T)
-        self.F, self.S = E[:n, :n], E[:n, n:]
         N, W = self._noise_input()
-        G = np.zeros((n, N.shape[1]))
-        G[nq:2 * nq] = plant.inverse_mass(self.x[:nq], self.x[2 * nq:]) @ N
-        Gam = self.S @ G
+        B = np.zeros((n, N.shape[1]))
+        B[nq:2 * nq] = plant.inverse_mass(self.x[:nq], self.x[2 * nq:]) @ N
+        A = self._state_jacobian(u)
+        self._lu = lu_factor(np.eye(n) - GAMMA * T * A)
+        self.F = np.eye(n) + self._ros2_increment(A, A)
+        Gam = self._ros2_increment(A, B)
         Qd = (Gam * W) @ Gam.T
         walk = [s.adapt_walk.get(nm, ADAPT_WALK[k]) for nm, k in
                 zip(plant.param_names, self._kinds)]
@@ -191,11 +200,6 @@ class Estimator:
         self.Qd = 0.5 * (Qd + Qd.T)
         H = self._jacobian(lambda x: meas.outputs(self.measurements, plant, x, u),
                            self.x, len(self.measurements))
-        if self.delays.any():
-            Finv = np.linalg.inv(self.F)
-            for r, d in enumerate(self.delays):
-                if d:
-                    H[r] = H[r] @ np.linalg.matrix_power(Finv, int(d))
         self.H = H
         self._since = 0
 
@@ -245,8 +249,24 @@ class Estimator:
         for k, kind in enumerate(self._kinds):
             self.x[off + k] = max(self.x[off + k], PARAMETER_FLOOR[kind])
 
+    def _ros2_increment(self, A, G) -> np.ndarray:
+        """The ROS2 step's increment for the linear right-hand side G (columns): with
+        f = A x + G w, dx = T (3/2 k1 + 1/2 k2); F = I + increment(A), Gamma = increment(B)."""
+        T = self.settings.sample_period
+        k1 = lu_solve(self._lu, G)
+        k2 = lu_solve(self._lu, G + T * (A @ k1) - 2.0 * k1)
+        return T * (1.5 * k1 + 0.5 * k2)
+
     def _predict(self, u) -> None:
-        self.x = self.x + self.S @ self.plant.derivative(self.x, u)
+        """ROS2 (Verwer et al. 1999): k1 = W^-1 f(x), k2 = W^-1 (f(x + T k1) - 2 k1),
+        x+ = x + T (3/2 k1 + 1/2 k2), W = I - gamma T A with the held Jacobian."""
+        T, f = self.settings.sample_period, self.plant.derivative
+        if hasattr(self.plant, "step"):  # the plant's own implicit step (spatial)
+            self.x = self.plant.step(self.x, u, T)
+        else:
+            k1 = lu_solve(self._lu, f(self.x, u))
+            k2 = lu_solve(self._lu, f(self.x + T * k1, u) - 2.0 * k1)
+            self.x = self.x + T * (1.5 * k1 + 0.5 * k2)
         self.P = self.F @ self.P @ self.F.T + self.Qd
         self.P = 0.5 * (self.P + self.P.T)
         self.t += self.settings.sample_period

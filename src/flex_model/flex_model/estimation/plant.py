@@ -100,7 +100,8 @@ class PlanarPlant:
                 if kind == "coulomb_friction":  # keep the Stribeck excess F_s - F_c
                     jd[i, 6] = jd[i, 6] - jd[i, 5] + val
                     jd[i, 5] = val
-                    jd[i, 8] = max(jd[i, 8], self.smoothing)
+                    declared = self._jd0[i, 4:7].any()
+                    jd[i, 8] = max(jd[i, 8], self.smoothing) if declared else self.smoothing
                 else:
                     jd[i, 4] = val
         E[0], E[17] = K, jd
@@ -137,6 +138,22 @@ class PlanarPlant:
 
     def flex_indices(self) -> np.ndarray:
         return self.model.flex_indices
+
+    def link_force_map(self, q) -> np.ndarray:
+        """(nq, n_links): generalized force of a unit force at each link's tip, normal to
+        the link's root tangent (J_i^T n_i, J_i by central differences of the origins)."""
+        q = np.asarray(q, float)
+        J = np.empty((self.n_links + 1, 2, self.nq))
+        for j in range(self.nq):
+            dq = np.zeros(self.nq)
+            dq[j] = 1e-7
+            J[:, :, j] = (self.model.link_origins(q + dq)
+                          - self.model.link_origins(q - dq)) / 2e-7
+        out = np.empty((self.nq, self.n_links))
+        for i in range(self.n_links):
+            a = q[self.model.alpha_index(i)]
+            out[:, i] = J[i + 1].T @ np.array([-np.sin(a), np.cos(a)])
+        return out
 
     # ---------------------------------------------------------------- outputs
     def joint_angles(self, q):

@@ -57,19 +57,36 @@ def estimate_recording(model, times, inputs, measurements_array, measurements,
         settings = EstimatorSettings(sample_period=float(np.median(np.diff(times))))
     est = Estimator(model, measurements, settings)
     if q0 is None:
-        q0 = initial_q(est, Y[0])
+        q0 = initial_q(est, Y[0], inputs[0])
     est.reset(q0, v0, P0, t0=float(times[0]))
     samples = [est.step(u, y) for u, y in zip(inputs, Y)]
     return _stack(samples, est.plant.param_names)
 
 
-def initial_q(est: Estimator, y0) -> np.ndarray:
-    """q with the joint angles of the first joint-angle readings (others 0), undeformed."""
-    theta = np.zeros(est.plant.n_joints)
+def initial_q(est: Estimator, y0, u0) -> np.ndarray:
+    """q at rest with the joint angles of the first joint-angle readings (others 0) and
+    the links deflected in static balance (gravity, the first input): Newton on the
+    deformation rows of B(q) a(q, 0, u0) = 0 (Eq. 27 at rest)."""
+    plant = est.plant
+    theta = np.zeros(plant.n_joints)
     for m, val in zip(est.measurements, y0):
         if m.kind == "joint_angle" and np.isfinite(val):
             theta[m.index] = val
-    return est.plant.q_from_joint_angles(theta)
+    q = plant.q_from_joint_angles(theta)
+    flex, nq, p = plant.flex_indices(), plant.nq, est.x[2 * plant.nq:]
+    M = np.linalg.inv(plant.inverse_mass(q, p))
+
+    def balance(qf):
+        x = np.concatenate([q, np.zeros(nq), p])
+        x[flex] = qf
+        return (M @ plant.derivative(x, u0)[nq:2 * nq])[flex]
+    qf = q[flex].copy()
+    for _ in range(3):
+        J = np.column_stack([(balance(qf + h) - balance(qf - h)) / 2e-7
+                             for h in np.eye(len(flex)) * 1e-7])
+        qf = qf - np.linalg.solve(J, balance(qf))
+    q[flex] = qf
+    return q
 
 
 def _stack(samples, names) -> EstimationResult:
