@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 
@@ -117,6 +118,22 @@ class Fields:
             raise self.error(key, value, want)
         return [check_number(v, self.source, f"{self.sub(key)}[{i}]", unit=unit)
                 for i, v in enumerate(value)]
+
+    def joint_vector(self, key: str, length: int, default=MISSING, *,
+                     all_revolute: bool = True) -> np.ndarray:
+        """Joint values in SI (rad, or m on prismatic joints) from ``key``, or in degrees from
+        ``key + '_deg'`` (the user's edge; every joint revolute): one convention for set-points
+        and initial angles in every scenario format. Both given is refused."""
+        deg = key + "_deg"
+        self.used.update((key, deg))
+        if self.has(key) and self.has(deg):
+            raise self.error(deg, self.data[deg], f"'{key}' (rad) or '{deg}', not both")
+        if self.has(deg):
+            if not all_revolute:
+                raise self.error(deg, self.data[deg], f"'{key}' in rad or m (a prismatic "
+                                 "joint has no degrees)")
+            return np.radians(self.vector(deg, length, unit="deg"))
+        return np.array(self.vector(key, length, default, unit="rad or m"), float)
 
     def mapping(self, key: str, default=MISSING) -> "Fields":
         value = self.raw(key, default)

@@ -11,11 +11,11 @@ Example (shipped as preset ``thesis_three_link_pd``)::
     duration: 10.0                    # s
     sample_period: 0.005              # s
     initial:
-      joint_angles_deg: [-20, 20, -20]
+      joint_angles_deg: [-20, 20, -20]   # or joint_angles in rad (every angle key: either)
       joint_rates_deg_s: [0, 0, 0]    # optional
       state: undeformed               # or: static (start at the PD/clamped equilibrium)
     control:
-      pd: {kp: [...], kd: [...], setpoints_deg: [...]}       # N m/rad, N m s/rad
+      pd: {kp: [...], kd: [...], setpoints_deg: [...]}   # N m/rad, N m s/rad; or setpoints (rad)
       setpoint_schedule:              # steps and ramps of the PD set-points (needs pd)
         - {time: 1.0, setpoints_deg: [10, 0, 0]}               # a step at 1 s
         - {time: 2.0, setpoints_deg: [20, 0, 0], ramp: 0.5}    # a ramp over 2-2.5 s
@@ -243,7 +243,7 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
     if sample > duration:
         raise f.error("sample_period", sample, f"at most the duration ({duration} s)")
     ini = f.mapping("initial", {})
-    theta0 = np.radians(ini.vector("joint_angles_deg", nl, [0.0] * nl, unit="deg"))
+    theta0 = ini.joint_vector("joint_angles", nl, [0.0] * nl)
     dtheta0 = np.radians(ini.vector("joint_rates_deg_s", nl, [0.0] * nl, unit="deg/s"))
     start_static = ini.string("state", "undeformed", choices=["undeformed", "static"]) == \
         "static"
@@ -257,23 +257,10 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
         for key, val in (("kp", kp), ("kd", kd)):
             if np.any(val < 0):
                 raise p.error(key, val.tolist(), "gains >= 0")
-        sp = np.radians(p.vector("setpoints_deg", nl, list(np.degrees(theta0)), unit="deg"))
+        sp = p.joint_vector("setpoints", nl, list(theta0))
         p.done()
         pd = JointPD(kp, kd, sp)
-    schedule = []
-    for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
-        sf = Fields(raw, src, f"{ctl.sub('setpoint_schedule')}[{k}]")
-        if pd is None:
-            raise ctl.error("setpoint_schedule", raw, "control.pd as well (the schedule "
-                            "moves the PD's set-points)")
-        t = sf.number("time", nonnegative=True, unit="s")
-        ramp = sf.number("ramp", 0.0, nonnegative=True, unit="s")
-        if schedule and t < schedule[-1][0] + schedule[-1][2]:
-            end = schedule[-1][0] + schedule[-1][2]
-            raise sf.error("time", t, f"a time >= {end:.6g} s (the end of the previous step "
-                           "or ramp)")
-        schedule.append((t, np.radians(sf.vector("setpoints_deg", nl, unit="deg")), ramp))
-        sf.done()
+    schedule = setpoint_schedule(ctl, nl, pd is not None, "control.pd")
     table = None
     if ctl.has("torque_table"):
         tf = ctl.mapping("torque_table")
@@ -326,7 +313,28 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
                     theta0=theta0, dtheta0=dtheta0, start_static=start_static, pd=pd,
                     torque_table=table, pulses=pulses, method=method, rtol=rtol, step=step,
                     source=src, payload_changes=tuple(changes),
-                    setpoint_schedule=tuple(schedule), rho_inf=rho_inf)
+                    setpoint_schedule=schedule, rho_inf=rho_inf)
+
+
+def setpoint_schedule(ctl: Fields, n: int, has_pd: bool, pd_field: str,
+                      all_revolute: bool = True) -> tuple:
+    """``control.setpoint_schedule`` of either scenario format: (time, set-points in SI,
+    ramp) per entry, strictly increasing times, none inside the previous ramp."""
+    schedule = []
+    for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
+        sf = Fields(raw, ctl.source, f"{ctl.sub('setpoint_schedule')}[{k}]")
+        if not has_pd:
+            raise ctl.error("setpoint_schedule", raw, f"{pd_field} as well (the schedule "
+                            "moves the PD's set-points)")
+        t = sf.number("time", nonnegative=True, unit="s")
+        ramp = sf.number("ramp", 0.0, nonnegative=True, unit="s")
+        if schedule and (t <= schedule[-1][0] or t < schedule[-1][0] + schedule[-1][2]):
+            t0, r0 = schedule[-1][0], schedule[-1][2]
+            raise sf.error("time", t, f"a time >= {t0 + r0:.6g} s (the end of the previous "
+                           "ramp)" if r0 > 0 else f"a time > {t0:.6g} s (the previous step)")
+        schedule.append((t, sf.joint_vector("setpoints", n, all_revolute=all_revolute), ramp))
+        sf.done(["time", "setpoints", "setpoints_deg", "ramp"])
+    return tuple(schedule)
 
 
 def is_inf(value) -> bool:

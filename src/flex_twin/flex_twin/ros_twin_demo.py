@@ -28,6 +28,7 @@ from flex_model import ros_environment
 from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS
 
 WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
+ARM = "thesis_example1_motors"
 RECORDED = {"/joint_states": "sensor_msgs/msg/JointState",
             "/flex/deflections": "sensor_msgs/msg/JointState",
             "/flex/tip_pose": "geometry_msgs/msg/PoseStamped",
@@ -51,156 +52,197 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     import json
 
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from rclpy.qos import DurabilityPolicy, QoSProfile
-    from trajectory_msgs.msg import JointTrajectory
+    from rclpy.serialization import deserialize_message
 
-    from flex_control.controller_node import ControllerNode
-    from flex_planner.planner_node import PlannerNode
-    from flex_planner.ros_messages import waypoints_msg
-    from nav_msgs.msg import Path as PathMsg
-
-    from flex_model import ros_conversions as conv
-    from .bags import BagWriter, Recorder
-    from .bags.message_types import get_message
     from flex_model.control_loop import compile_ahead_in_background
-    from flex_model.errors import SimulationDivergedError
-    from flex_model.model_node import ModelNode
+    from flex_model.urdf import plane_rotation
+    from .bags.message_types import get_message
 
     out_dir = Path(out_dir or Path("runs") / f"{datetime.now():%Y%m%d-%H%M%S}-twin-demo")
     out_dir.mkdir(parents=True, exist_ok=True)
-    arm = "thesis_example1_motors"
     ctx = rclpy.Context()
     ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(context=ctx)
-    P = Parameter
-    # lean nodes (flex_model.ros_main.lean_node, as ros2_ws/params/suite.yaml): a faster loop
-    lean = [P(name, value=False) for name in (
-        "parameter_services", "qos_event_warnings", "start_type_description_service")]
-    nodes, ex = [], None
     wall0 = time.perf_counter()
     # the model's in-loop kernels compile on the second core while the planner compiles its
     # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo)
-    ahead = compile_ahead_in_background(arm, 1.0 / rate) if in_loop else None
+    ahead = compile_ahead_in_background(ARM, 1.0 / rate) if in_loop else None
+    demo = _Demo(ctx, rate, in_loop)
     try:
-        planner = PlannerNode(context=ctx, parameter_overrides=[
-            P("arm", value=arm), P("sample_period", value=1.0 / rate), *lean])
-        nodes.append(planner)
-        if not in_loop:
-            nodes.append(ControllerNode(context=ctx, parameter_overrides=[
-                P("h", value=[25.0, 25.0]), P("a", value=[5.0, 5.0]), P("rate_hz", value=rate),
-                P("use_sim_time", value=True), P("state_timeout", value=0.5), *lean]))
-        probe = rclpy.create_node("demo_probe", context=ctx)
-        nodes.append(probe)
-        ex = SingleThreadedExecutor(context=ctx)
-        for n in nodes:
-            ex.add_node(n)
-        plans = []
-        probe.create_subscription(JointTrajectory, "flex_planner/trajectory", plans.append, 1)
-        # the summary's topics as serialized messages (deserialized after the run): in
-        # the model's loop the recorder keeps them (one reader per topic, taken in one
-        # call per step); over topics the probe too (it has the state of t = 0, which the
-        # model publishes when it starts, before the recorder subscribes)
-        kept = {name: [] for name in KEPT}
-        if not in_loop:
-            for name, cls in KEPT.items():
-                probe.create_subscription(get_message(cls), name, kept[name].append, 1000,
-                                          raw=True)
-        # latched (transient local): the recorder, started later, records the waypoints too
-        pub = probe.create_publisher(PathMsg, "flex_planner/waypoints",
-                                     QoSProfile(depth=1,
-                                                durability=DurabilityPolicy.TRANSIENT_LOCAL))
-
-        def spin_until(pred, what, timeout=600.0):
-            end = time.monotonic() + timeout
-            while not pred():
-                if time.monotonic() > end:
-                    raise TimeoutError(f"twin demo: timed out waiting for {what}")
-                ex.spin_once(timeout_sec=0.01)
-        spin_until(lambda: pub.get_subscription_count() > 0, "the planner")
-        pub.publish(waypoints_msg([(x, y, t) for (x, y), t in zip(WAYPOINTS, TIMES)]))
-        spin_until(lambda: plans, "the plan")
-        first = np.degrees(plans[-1].points[0].positions)
-        own = [P("controller", value="eq95"), P("controller_rate", value=rate),
-               P("controller_params.h", value=[25.0]), P("controller_params.a", value=[5.0]),
-               P("start_paused", value=True)] if in_loop else []
+        demo.start()
+        plan = demo.plan()
         if ahead is not None:
             ahead.wait()
-        model = ModelNode(context=ctx, parameter_overrides=[
-            P("arm", value=arm), P("mode", value="lockstep"), P("rate", value=rate),
-            P("publish_rate", value=publish_rate),
-            P("initial_joint_angles_deg", value=list(first)),
-            P("start_static", value=True), P("lockstep_timeout", value=0.5), *lean, *own])
-        nodes.append(model)
-        ex.add_node(model)
-        if in_loop:  # the plan, handed over in-process from t = 0 (on flex_planner/trajectory
-            # it would start when it arrives); the demo steps the node itself, see below
-            model.loop.set_trajectory(conv.trajectory_from_msg(plans[-1], model.names), 0.0)
-        period, per_publish = 1.0 / rate, max(1, int(round(rate / publish_rate)))
-        n_periods, done = int(round(duration * rate)), 0
-        loop_wall = loop_cpu = 0.0
-        with BagWriter(out_dir / "bag") as bag:
-            # one time base, the simulation's: log time = the latest /clock (sim time from
-            # 0, as ``ros2 bag record --use-sim-time``), header stamps (the same sim time)
-            # for the stamped topics; bag duration = simulated duration
-            recorder = Recorder(probe, bag, RECORDED, use_sim_time=True, use_header_stamp=(
-                "/joint_states", "/flex/deflections", "/flex/tip_pose"),
-                keep=KEPT if in_loop else ())
-            kept = recorder.kept if in_loop else kept
-            next_mark = next_spin = 0.0
-            if in_loop:  # the start (the node published it before the recorder was there)
-                model.publish_state(full=True)
-                _load_compiled_loop(model.loop)
-            w0, c0 = time.perf_counter(), time.process_time()
-            while model.stepper.t < duration - 1e-9:
-                if in_loop:  # up to the next publication in one compiled call (paused node:
-                    # its own timer does not step), then the recorder takes the messages
-                    k = min(per_publish, n_periods - done)
-                    model.step(k * period)
-                    done += k
-                    if model.diverged is not None:
-                        raise SimulationDivergedError(
-                            f"twin demo: the model diverged: {model.diverged.message}")
-                    recorder.drain()  # the step's messages, without waking the executor
-                    if time.monotonic() >= next_spin:  # timers, services (the recorder's
-                        next_spin = time.monotonic() + SPIN_PERIOD  # 0.1 s poll)
-                        _drain(ex)
-                else:
-                    ex.spin_once(timeout_sec=0.01)
-                if progress is not None and model.stepper.t >= next_mark:
-                    progress(model.stepper.t, duration)
-                    next_mark += duration / 20
-            # the messages of the last step may still be queued: stop the model (no
-            # further step) and take them until none has come for QUIET s, so that the
-            # bag ends at the simulated duration
-            ex.remove_node(model)
-            _drain(ex, timeout_sec=QUIET)
-            loop_wall = time.perf_counter() - w0
-            loop_cpu = time.process_time() - c0
-            recorder.stop()
+        model = demo.start_model(plan, publish_rate)
+        loop_wall, loop_cpu = demo.record(model, out_dir / "bag", duration, publish_rate,
+                                          progress)
         wall = time.perf_counter() - wall0
     finally:
         if ahead is not None and ahead.poll() is None:   # the demo failed before the model
             ahead.kill()
             ahead.wait()
-        if ex is not None:
-            ex.shutdown()
-        for n in nodes:
-            n.destroy_node()
+        demo.close()
         rclpy.try_shutdown(context=ctx)
-    from flex_model.urdf import plane_rotation
     plane = plane_rotation(model.model.gravity)  # flex/tip_pose is in the base frame
-    from rclpy.serialization import deserialize_message
     tips, states, defl = ([deserialize_message(data, get_message(KEPT[name]))
-                           for data in kept[name]] for name in KEPT)
-    summary = _summarize(tips, states, defl, plans[-1], wall, duration, out_dir, plane)
+                           for data in demo.kept[name]] for name in KEPT)
+    summary = _summarize(tips, states, defl, plan, wall, duration, out_dir, plane)
     summary.update(controller="in the model's loop (eq95)" if in_loop
                    else "controller node over topics",
                    loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall,
                    loop_cpu_s=loop_cpu, loop_cpu_real_time_factor=duration / loop_cpu)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
+
+
+def _lean():
+    """Lean nodes (flex_model.ros_main.lean_node, as ros2_ws/params/suite.yaml): a faster
+    loop."""
+    from rclpy.parameter import Parameter
+    return [Parameter(name, value=False) for name in (
+        "parameter_services", "qos_event_warnings", "start_type_description_service")]
+
+
+class _Demo:
+    """The demo's nodes on one SingleThreadedExecutor: the planner, the controller node
+    (over topics only), a probe that sends the waypoints and keeps the plan, and later the
+    model."""
+
+    def __init__(self, ctx, rate: float, in_loop: bool):
+        from rclpy.executors import SingleThreadedExecutor
+        self.ctx, self.rate, self.in_loop, self.nodes = ctx, rate, in_loop, []
+        self.ex = SingleThreadedExecutor(context=ctx)
+        self.kept = {name: [] for name in KEPT}
+
+    def start(self) -> None:
+        """The planner, the controller node (over topics) and the probe."""
+        import rclpy
+        from rclpy.parameter import Parameter as P
+        from rclpy.qos import DurabilityPolicy, QoSProfile
+        from trajectory_msgs.msg import JointTrajectory
+        from nav_msgs.msg import Path as PathMsg
+
+        from flex_control.controller_node import ControllerNode
+        from flex_planner.planner_node import PlannerNode
+        from .bags.message_types import get_message
+        ctx, rate, in_loop = self.ctx, self.rate, self.in_loop
+        self._add(PlannerNode(context=ctx, parameter_overrides=[
+            P("arm", value=ARM), P("sample_period", value=1.0 / rate), *_lean()]))
+        if not in_loop:
+            self._add(ControllerNode(context=ctx, parameter_overrides=[
+                P("h", value=[25.0, 25.0]), P("a", value=[5.0, 5.0]), P("rate_hz", value=rate),
+                P("use_sim_time", value=True), P("state_timeout", value=0.5), *_lean()]))
+        self.probe = self._add(rclpy.create_node("demo_probe", context=ctx))
+        self.plans = []
+        self.probe.create_subscription(JointTrajectory, "flex_planner/trajectory",
+                                       self.plans.append, 1)
+        # the summary's topics as serialized messages (deserialized after the run): in
+        # the model's loop the recorder keeps them (one reader per topic, taken in one
+        # call per step); over topics the probe too (it has the state of t = 0, which the
+        # model publishes when it starts, before the recorder subscribes)
+        if not in_loop:
+            for name, cls in KEPT.items():
+                self.probe.create_subscription(get_message(cls), name,
+                                               self.kept[name].append, 1000, raw=True)
+        # latched (transient local): the recorder, started later, records the waypoints too
+        self.pub = self.probe.create_publisher(PathMsg, "flex_planner/waypoints", QoSProfile(
+            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+    def _add(self, node):
+        self.nodes.append(node)
+        self.ex.add_node(node)
+        return node
+
+    def spin_until(self, pred, what: str, timeout: float = 600.0) -> None:
+        end = time.monotonic() + timeout
+        while not pred():
+            if time.monotonic() > end:
+                raise TimeoutError(f"twin demo: timed out waiting for {what}")
+            self.ex.spin_once(timeout_sec=0.01)
+
+    def plan(self):
+        """Send the thesis Ch. V waypoints; the planner's joint trajectory."""
+        from flex_planner.ros_messages import waypoints_msg
+        self.spin_until(lambda: self.pub.get_subscription_count() > 0, "the planner")
+        self.pub.publish(waypoints_msg([(x, y, t) for (x, y), t in zip(WAYPOINTS, TIMES)]))
+        self.spin_until(lambda: self.plans, "the plan")
+        return self.plans[-1]
+
+    def start_model(self, plan, publish_rate: float):
+        """The model node in lockstep at the plan's start (static); in the loop: Eq. (95)
+        inside it, the plan handed over in-process from t = 0 (on flex_planner/trajectory
+        it would start when it arrives), paused (the demo steps it itself)."""
+        from rclpy.parameter import Parameter as P
+
+        from flex_model import ros_conversions as conv
+        from flex_model.model_node import ModelNode
+        own = [P("controller", value="eq95"), P("controller_rate", value=self.rate),
+               P("controller_params.h", value=[25.0]), P("controller_params.a", value=[5.0]),
+               P("start_paused", value=True)] if self.in_loop else []
+        model = self._add(ModelNode(context=self.ctx, parameter_overrides=[
+            P("arm", value=ARM), P("mode", value="lockstep"), P("rate", value=self.rate),
+            P("publish_rate", value=publish_rate),
+            P("initial_joint_angles_deg", value=list(np.degrees(plan.points[0].positions))),
+            P("start_static", value=True), P("lockstep_timeout", value=0.5), *_lean(), *own]))
+        if self.in_loop:
+            model.loop.set_trajectory(conv.trajectory_from_msg(plan, model.names), 0.0)
+        return model
+
+    def record(self, model, bag_dir: Path, duration: float, publish_rate: float,
+               progress=None) -> tuple:
+        """Run the model to ``duration`` while recording the bag; (loop wall s, loop CPU s).
+        One time base, the simulation's: log time = the latest /clock (sim time from 0, as
+        ``ros2 bag record --use-sim-time``), header stamps (the same sim time) for the
+        stamped topics; bag duration = simulated duration."""
+        from .bags import BagWriter, Recorder
+        with BagWriter(bag_dir) as bag:
+            recorder = Recorder(self.probe, bag, RECORDED, use_sim_time=True,
+                                use_header_stamp=("/joint_states", "/flex/deflections",
+                                                  "/flex/tip_pose"),
+                                keep=KEPT if self.in_loop else ())
+            if self.in_loop:  # the start (the node published it before the recorder was there)
+                self.kept = recorder.kept
+                model.publish_state(full=True)
+                _load_compiled_loop(model.loop)
+            w0, c0 = time.perf_counter(), time.process_time()
+            self._advance(model, recorder, duration, publish_rate, progress)
+            # the messages of the last step may still be queued: stop the model (no
+            # further step) and take them until none has come for QUIET s, so that the
+            # bag ends at the simulated duration
+            self.ex.remove_node(model)
+            _drain(self.ex, timeout_sec=QUIET)
+            walls = time.perf_counter() - w0, time.process_time() - c0
+            recorder.stop()
+        return walls
+
+    def _advance(self, model, recorder, duration: float, publish_rate: float, progress):
+        """In the loop: up to the next publication in one compiled call (paused node: its
+        own timer does not step), then the recorder takes the messages; over topics: spin."""
+        from flex_model.errors import SimulationDivergedError
+        period, per_publish = 1.0 / self.rate, max(1, int(round(self.rate / publish_rate)))
+        n_periods, done, next_mark, next_spin = int(round(duration * self.rate)), 0, 0.0, 0.0
+        while model.stepper.t < duration - 1e-9:
+            if self.in_loop:
+                k = min(per_publish, n_periods - done)
+                model.step(k * period)
+                done += k
+                if model.diverged is not None:
+                    raise SimulationDivergedError(
+                        f"twin demo: the model diverged: {model.diverged.message}")
+                recorder.drain()  # the step's messages, without waking the executor
+                if time.monotonic() >= next_spin:  # timers, services (the recorder's
+                    next_spin = time.monotonic() + SPIN_PERIOD  # 0.1 s poll)
+                    _drain(self.ex)
+            else:
+                self.ex.spin_once(timeout_sec=0.01)
+            if progress is not None and model.stepper.t >= next_mark:
+                progress(model.stepper.t, duration)
+                next_mark += duration / 20
+
+    def close(self) -> None:
+        self.ex.shutdown()
+        for n in self.nodes:
+            n.destroy_node()
 
 
 def _load_compiled_loop(loop) -> None:

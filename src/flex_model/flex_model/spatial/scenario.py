@@ -11,13 +11,14 @@ Example (preset ``seed000_3d_pd_step``, ``presets/spatial/scenarios/``)::
     sample_period: 0.005              # s, output rows (default: 0.005 s or the duration)
     rho_inf: 0.9                      # generalized-alpha spectral radius (1: no damping)
     initial:
-      joint_values: [0.0]             # rad (revolute) or m (prismatic), SI
+      joint_values: [0.0]             # rad (revolute) or m (prismatic), SI; or joint_values_deg
       joint_rates: [0.0]              # rad/s or m/s
       state: static                   # undeformed | static: the equilibrium under gravity
                                       # (joints held; with a PD: the PD's equilibrium)
     control:
       gravity_hold: true              # constant holding torques of the initial static state
       pd: {kp: [2.0], kd: [0.05], setpoints: [0.0]}    # N m/rad (N/m), N m s/rad, rad (m)
+      # (every set-point key also as setpoints_deg, in deg, when every joint is revolute)
       # or seed 000's Eq. (45): pd45: {kpp: [70.0], kpv: [50.0], setpoints: [0.0]}
       setpoint_schedule:              # set-point steps and ramps
         - {time: 0.5, setpoints: [0.2]}               # a step at 0.5 s
@@ -57,7 +58,7 @@ import numpy as np
 from ..config import ConfigError, Fields, read_yaml
 from ..errors import SimulationDivergedError, StaticConvergenceError
 from ..inputs import JointPD
-from ..scenario import is_inf, joint_index
+from ..scenario import is_inf, joint_index, setpoint_schedule
 from .description import SPATIAL_PRESET_DIR, SpatialArm
 from .loader import load_spatial_arm
 from .dynamics import SpatialArmModel
@@ -529,11 +530,12 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     rho_inf = f.number("rho_inf", 0.9, min_value=0.0, max_value=1.0)
     tol = f.number("newton_tol", 1e-10, positive=True, max_value=1e-4)
     ini = f.mapping("initial", {})
-    q0 = np.array(ini.vector("joint_values", n, [0.0] * n, unit="rad or m"))
+    revolute = all(lk.joint.type != "prismatic" for lk in arm.links)
+    q0 = ini.joint_vector("joint_values", n, [0.0] * n, all_revolute=revolute)
     v0 = np.array(ini.vector("joint_rates", n, [0.0] * n, unit="rad/s or m/s"))
     start_static = ini.string("state", "undeformed", choices=["undeformed", "static"]) == \
         "static"
-    ini.done(["joint_values", "joint_rates", "state"])
+    ini.done(["joint_values", "joint_values_deg", "joint_rates", "state"])
     ctl = f.mapping("control", {})
     hold = ctl.boolean("gravity_hold", False)
     locked = [lk.joint.name for lk in arm.links if lk.joint.motor == "locked"]
@@ -555,22 +557,11 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
             if bad:
                 raise p.error(key, val.tolist(), f"0 on the locked joints ({', '.join(bad)}: "
                               "a locked motor takes no torque)")
-        sp = np.array(p.vector("setpoints", n, q0.tolist(), unit="rad or m"))
-        p.done(list(keys) + ["setpoints"])
+        sp = p.joint_vector("setpoints", n, q0.tolist(), all_revolute=revolute)
+        p.done(list(keys) + ["setpoints", "setpoints_deg"])
         pd = SpatialPD(kp, kd, sp)
-    schedule = []
-    for k, raw in enumerate(ctl.items("setpoint_schedule", [])):
-        sf = Fields(raw, source, f"{ctl.sub('setpoint_schedule')}[{k}]")
-        if pd is None:
-            raise ctl.error("setpoint_schedule", raw, "control.pd or pd45 as well (the "
-                            "schedule steps the PD's set-points)")
-        t = sf.number("time", nonnegative=True, unit="s")
-        if schedule and t <= schedule[-1][0] + schedule[-1][2]:
-            raise sf.error("time", t, f"a time > {schedule[-1][0] + schedule[-1][2]:g} s "
-                           "(increasing, after the previous step or ramp)")
-        ramp = sf.number("ramp", 0.0, nonnegative=True, unit="s")
-        schedule.append((t, np.array(sf.vector("setpoints", n, unit="rad or m")), ramp))
-        sf.done(["time", "setpoints", "ramp"])
+    schedule = setpoint_schedule(ctl, n, pd is not None, "control.pd or pd45",
+                                 all_revolute=revolute)
     ctl.done(["gravity_hold", "pd", "pd45", "setpoint_schedule"])
     pulses = []
     for k, raw in enumerate(f.items("pulses", [])):
@@ -617,6 +608,6 @@ def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
     return SpatialScenario(name=name, arm=arm, duration=duration, step=step,
                            sample_period=sample, rho_inf=rho_inf, joint_values=q0,
                            joint_rates=v0, start_static=start_static, gravity_hold=hold,
-                           pd=pd, setpoint_schedule=tuple(schedule), pulses=tuple(pulses),
+                           pd=pd, setpoint_schedule=schedule, pulses=tuple(pulses),
                            tol=tol, source=source, payload_changes=tuple(changes),
                            tip_loads=tuple(loads))

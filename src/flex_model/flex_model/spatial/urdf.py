@@ -271,19 +271,9 @@ def flexible_from_element(u: "_Urdf", link, where: str) -> dict | None:
     return data
 
 
-def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
-                          flexible_links: dict | None = None, name: str | None = None,
-                          gravity=(0.0, 0.0, -9.81), side_source: str | None = None,
-                          description: str = "") -> SpatialArm:
-    """A SpatialArm from URDF text (``robot_description``); ``flexible_links`` maps link
-    names to their flexible data (the side YAML's ``flexible_links``)."""
-    u = _Urdf(source)
-    try:
-        robot = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise u.error("xml", str(exc), "well-formed URDF XML") from None
-    if robot.tag != "robot":
-        raise u.error("/", f"<{robot.tag}>", "a <robot> root element")
+def _serial_tree(u: _Urdf, robot) -> tuple:
+    """The URDF's links by name, its joints, each link's child joint and the root link;
+    refuses anything but one serial chain."""
     links = {}
     for el in robot.findall("link"):
         nm = el.get("name")
@@ -324,8 +314,14 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
                           f"a serial chain: link '{pl}' already has the child joint "
                           f"'{children[pl].get('name')}'")
         children[pl] = el
+    return links, joints, children, roots[0]
+
+
+def _flexible_links(u: _Urdf, links: dict, flexible_links: dict | None, side: str) -> tuple:
+    """The flexible data per link name, from the side file and the <flex:flexible> elements
+    (a link in both is refused), and the element path of those given in the URDF."""
+    source = u.source
     flex = dict(flexible_links or {})
-    side = side_source or source
     for ln in flex:
         if ln not in links:
             raise ConfigError(side, f"flexible_links.{ln}", ln,
@@ -344,10 +340,18 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
         flex[ln] = data
         from_element[ln] = f"{where}/flex:flexible"
 
+    return flex, from_element
+
+
+def _moving_links(u: _Urdf, links: dict, children: dict, root: str, joints: list,
+                  flex: dict, from_element: dict, side: str) -> tuple:
+    """Walk the chain from the root: per moving joint its joint, origin (fixed joints folded
+    in), bodies and flexible data; and the fixed transform after the last one (or None)."""
+    source = u.source
     eye = (np.eye(3), np.zeros(3))
     acc = eye                 # fixed transform from the current moving link's end frame
     out = []                  # per moving link: dict of its data
-    link = roots[0]
+    link = root
     while link in children:
         el = children[link]
         jn, kind = el.get("name"), el.get("type")
@@ -404,6 +408,13 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
                       "at least one revolute, continuous or prismatic joint")
     end_last = None if np.allclose(acc[0], np.eye(3), atol=0) and not np.any(acc[1]) else acc
 
+    return out, end_last
+
+
+def _spatial_links(u: _Urdf, out: list, end_last, from_element: dict, side: str) -> list:
+    """The SpatialLinks: a flexible link's end frame is its tip section frame, so what the
+    URDF places in the link frame moves by Trans_x(-L) (into the next origin)."""
+    source, eye = u.source, (np.eye(3), np.zeros(3))
     result = []
     shift_next = None         # Trans_x(-L) of a flexible link, moved into the next origin
     for i, d in enumerate(out):
@@ -451,6 +462,27 @@ def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
             name=d["name"], joint=d["joint"], flexible=beam, root_body=root, end_body=end,
             origin=(tuple(map(tuple, origin[0])), tuple(origin[1])),
             end_transform=tf))
+    return result
+
+
+def spatial_arm_from_urdf(text: str, source: str = "<robot_description>", *,
+                          flexible_links: dict | None = None, name: str | None = None,
+                          gravity=(0.0, 0.0, -9.81), side_source: str | None = None,
+                          description: str = "") -> SpatialArm:
+    """A SpatialArm from URDF text (``robot_description``); ``flexible_links`` maps link
+    names to their flexible data (the side YAML's ``flexible_links``)."""
+    u = _Urdf(source)
+    try:
+        robot = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise u.error("xml", str(exc), "well-formed URDF XML") from None
+    if robot.tag != "robot":
+        raise u.error("/", f"<{robot.tag}>", "a <robot> root element")
+    links, joints, children, root = _serial_tree(u, robot)
+    flex, from_element = _flexible_links(u, links, flexible_links, side_source or source)
+    out, end_last = _moving_links(u, links, children, root, joints, flex, from_element,
+                                  side_source or source)
+    result = _spatial_links(u, out, end_last, from_element, side_source or source)
     return SpatialArm(name=name or robot.get("name", "urdf_arm"), links=tuple(result),
                       gravity=tuple(float(g) for g in gravity), description=description,
                       source=source, convention="urdf")
