@@ -230,3 +230,31 @@ def test_flex_twin_observe_and_up_start_the_observer():
     assert node_class("flex_model", {"mode": "lockstep"})[1] == "ModelNode"
     params = {"flex_model": {"mode": "observer"}, "flex_controller": {"rate_hz": 500.0}}
     assert in_loop_parameters(params) == params
+
+
+def test_a_spatial_arm_is_observed_with_the_spatial_nodes_layout():
+    """seed003_like_arm (spatial, issue 25) held at zero joint angles: every sample gives
+    flex/deflections named and ordered as the spatial node's (ros_spatial), and the tip
+    pose with its covariance is the end frame of the estimated state (tip_frame)."""
+    from flex_model import ros_spatial as sr
+    from flex_model.spatial.dynamics import SpatialArmModel
+    from flex_model.spatial.loader import load_spatial_arm
+
+    g = ObserverGraph(arm="seed003_like_arm", measure="q")
+    try:
+        names = ("joint1", "joint2", "joint3")
+        for k in range(20):
+            g.send(k * T, [0.0, 0.0, 0.0], effort=[0.0, 0.0, 0.0], names=names)
+        g.spin_until(lambda: len(g.got["tip"]) == 20, "20 spatial estimates", 120.0)
+        model = SpatialArmModel(load_spatial_arm("seed003_like_arm"))
+        assert list(g.got["defl"][-1].name) == sr.deflection_names(model)
+        q = g.node._last_sample.q  # (the published sample: corrected, not yet predicted)
+        pose = g.got["tip"][-1].pose
+        p = pose.pose.position
+        np.testing.assert_allclose([p.x, p.y, p.z], model.tip_position(q), atol=1e-12)
+        cov = np.array(pose.covariance).reshape(6, 6)
+        np.testing.assert_allclose(cov, cov.T, atol=1e-15)
+        assert np.min(np.linalg.eigvalsh(cov)) > -1e-12 and cov[2, 2] > 0
+        assert warnings(g) == []
+    finally:
+        g.close()

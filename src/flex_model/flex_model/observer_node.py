@@ -9,7 +9,10 @@ the subscription callback, and the estimate goes out at once from messages seria
 start (flex_model.cdr_messages: only stamps and numbers are written per sample). No timer
 is in the hot path (one 1 s wall-clock timer publishes the filter's health).
 
-Topic names are relative (a namespace moves them); /diagnostics stays global.
+A planar arm (FlexArmModel) or a spatial one (issue 25: SpatialArmModel, loaded as the
+spatial node loads it; flex/deflections then in its layout, tip v, w and twist per flexible
+link, :mod:`flex_model.ros_spatial`). Topic names are relative (a namespace moves them);
+/diagnostics stays global.
 
 Subscriptions (reliable, depth ``queue_depth``: a burst of samples is queued, not lost):
     joint_states (``input_topic``)  sensor_msgs/JointState  the real arm: position (joint
@@ -28,10 +31,12 @@ Publications (stamps: the joint_states sample's):
                         input used
     flex/deflections    sensor_msgs/JointState  as the simulating model node:
                         link<i>/tip_deflection (m), tip_rotation (rad) and their rates
+                        (spatial: as the spatial node)
     flex/estimate/tip_pose  geometry_msgs/PoseWithCovarianceStamped  the tip in
                         ``frame_id`` (z up, as flex/tip_pose of the model node) with the
-                        6 x 6 covariance (x, y, z, rotation about x, y, z; the plane's
-                        (x, y, phi) block turned into the base frame); while subscribed
+                        6 x 6 covariance (x, y, z, rotation about x, y, z; planar: the
+                        plane's (x, y, phi) block turned into the base frame); while
+                        subscribed
     /diagnostics        diagnostic_msgs/DiagnosticArray  every second (wall time): the
                         filter's health over the last ``nis_window`` samples (NIS mean,
                         fraction inside the chi-square 95 % bound, samples, dropped, late,
@@ -57,6 +62,7 @@ takes samples, deactivate refuses them (counted as dropped), cleanup releases th
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections import deque
 from dataclasses import replace
@@ -158,39 +164,48 @@ def _with_sensor(m, arm):
     """``m`` with the noise, resolution and delay of the arm's sensor of its kind and
     joint or link (flex_model.sensors), where the arm file has one with noise or a
     resolution."""
-    targets = arm.joint_names if m.kind != "tip_deflection" else [lk.name
-                                                                  for lk in arm.links]
-    for s in arm.sensors:
+    targets = list(arm.joint_names) if m.kind != "tip_deflection" else [
+        lk.name for lk in arm.links]
+    for s in getattr(arm, "sensors", ()):
         if s.kind == SENSOR_KINDS.get(m.kind) and s.target == targets[m.index] and \
                 (s.noise > 0 or s.resolution > 0):
             return replace(m, std=s.noise, quantum=s.resolution, delay=s.delay)
     return m
 
 
+_NAME = re.compile(r"([qwmd])(\d*)([yzt]?)$")
+#: the component of a spatial tip deflection's suffix (d<i>y, d<i>z, d<i>t; d<i>: y)
+_SUFFIX = {"": 0, "y": 0, "z": 1, "t": 2}
+
+
 def measurements_named(model, names, stds=(0.0,)) -> list:
     """The Measurements of ``names``: q<i>, w<i>, m<i> joint i's angle, rate, motor angle
-    (q, w alone: every joint's), d<i> link i's tip deflection, ax, ay the tip's specific
-    force, px, py, pz its position. Noise, resolution (the quantum) and delay are those
-    of the arm file's sensor of that joint or link where it has one, else the default of
-    the kind (:data:`NAMED_KINDS`); ``stds`` one per measurement or one for all overrides
-    the std (0: keep it); ValueError naming a bad one."""
+    (q, w alone: every joint's), d<i> link i's tip deflection (spatial: d<i>y, d<i>z its
+    v, w, d<i>t its twist), ax, ay the tip's specific force, px, py, pz its position.
+    Noise, resolution (the quantum) and delay are those of the arm file's sensor of that
+    joint or link where it has one, else the default of the kind (:data:`NAMED_KINDS`);
+    ``stds`` one per measurement or one for all overrides the std (0: keep it);
+    ValueError naming a bad one."""
     from .estimation import Measurement
-    out = []
+    out, count = [], model.n_links
     for name in names:
         if name in NAMED_COMPONENTS:
             kind, comp, std = NAMED_COMPONENTS[name]
             out.append(Measurement(name=name, kind=kind, component=comp, std=std))
             continue
-        kind, std = NAMED_KINDS.get(name[:1], (None, 0.0))
-        count = model.n_links
-        if kind is None or not (name[1:].isdigit() or name in ("q", "w")):
+        match = _NAME.match(name)
+        if not match or not (match[2] or name in ("q", "w")) or \
+                (match[3] and match[1] != "d"):
             raise ValueError(f"got {name!r}; expected q<i>, w<i>, m<i> (joint i), d<i> "
-                             "(link i), q, w (every joint), ax, ay, px, py or pz")
-        idx = range(count) if len(name) == 1 else [int(name[1:]) - 1]
+                             "(link i; spatial also d<i>y, d<i>z, d<i>t), q, w (every "
+                             "joint), ax, ay, px, py or pz")
+        kind, std = NAMED_KINDS[match[1]]
+        idx = [int(match[2]) - 1] if match[2] else range(count)
         if not all(0 <= i < count for i in idx):
             raise ValueError(f"got {name!r}; the arm has {count} joints and links (1..{count})")
-        out += [_with_sensor(Measurement(name=f"{name[:1]}{i + 1}", kind=kind, index=i,
-                                         std=std), model.arm) for i in idx]
+        out += [_with_sensor(Measurement(
+            name=f"{match[1]}{i + 1}{match[3]}", kind=kind, index=i, std=std,
+            component=_SUFFIX[match[3]]), model.arm) for i in idx]
     if len(stds) not in (1, len(out)):
         raise ValueError(f"measure_std: got {fmt(stds)}; expected one per measurement "
                          f"({len(out)}) or one for all")
@@ -200,35 +215,66 @@ def measurements_named(model, names, stds=(0.0,)) -> list:
 
 class PlanarOutputs:
     """What the simulating model node publishes of a planar (q, v), for an estimate:
-    flex/deflections' values (per link deflection, rotation, then their rates, as
-    :meth:`flex_model.stepper.Stepper.deflections`) and the tip's (x, y, phi)
-    (:meth:`FlexArmModel.tip_pose`) with its covariance from the state's (first order:
-    J P_qq J^T, J the tip Jacobian and phi's row)."""
+    flex/deflections' names and values (per link deflection, rotation, then their rates,
+    as :meth:`flex_model.stepper.Stepper.deflections`) and the tip pose's values
+    (:meth:`FlexArmModel.tip_pose` turned by the plane's ``rotation`` into the base frame,
+    conv.tip_pose_values) with its 6 x 6 covariance from the state's (first order: J P_qq
+    J^T, J the tip Jacobian and phi's row, conv.planar_tip_covariance)."""
 
-    def __init__(self, model: FlexArmModel):
+    def __init__(self, model: FlexArmModel, rotation):
         n = model.n_links
-        self.model, self.nq = model, model.nq
+        self.model, self.nq, self.rotation = model, model.nq, rotation
+        self.names = conv.deflection_names([lk.name for lk in model.arm.links])
         self.tip_index = np.array([model.tip_deflection_index(i) for i in range(n)])
-        self.rotation = model.tip_rotation_matrix()
-        self.phi_row = self.rotation[-1].copy()
+        self.tip_rotation = model.tip_rotation_matrix()
+        self.phi_row = self.tip_rotation[-1].copy()
         self.phi_row[model.alpha_index(n - 1)] += 1.0
         self.values = np.empty(4 * n)
         self.jacobian = np.empty((3, model.nq))
 
     def deflections(self, q, v) -> np.ndarray:
-        n, out, r = len(self.tip_index), self.values, self.rotation
+        n, out, r = len(self.tip_index), self.values, self.tip_rotation
         out[0:2 * n:2], out[1:2 * n:2] = q[self.tip_index], r @ q
         out[2 * n::2], out[2 * n + 1::2] = v[self.tip_index], r @ v
         return out
 
-    def tip(self, q, state_cov):
-        """((x, y, phi), their 3 x 3 covariance) of the arm's end."""
+    def tip_values(self, q, state_cov, out) -> np.ndarray:
+        """``out`` (43) = position, orientation (x, y, z, w), covariance row-major."""
         x, y = self.model.link_origins(q)[-1]
-        phi = float(self.phi_row @ q)
         j = self.jacobian
         j[:2], j[2] = self.model.tip_jacobian(q), self.phi_row
         p = state_cov[:self.nq, :self.nq]
-        return (float(x), float(y), phi), j @ p @ j.T
+        out[:7] = conv.tip_pose_values(x, y, float(self.phi_row @ q), self.rotation)
+        out[7:] = conv.planar_tip_covariance(j @ p @ j.T, self.rotation).ravel()
+        return out
+
+
+class SpatialOutputs:
+    """The same for a spatial arm: flex/deflections as the spatial node publishes them
+    (ros_spatial: per flexible link tip v, w, twist, then their rates) and the end frame
+    (SpatialArmModel.tip_frame) with the covariance J P_qq J^T of its position and
+    rotation (J: the frame's 6 x nq Jacobian, linear then angular)."""
+
+    def __init__(self, model):
+        from . import ros_spatial as sr
+        self.model, self.nq = model, model.nq
+        self.names = sr.deflection_names(model)
+        index = sr.deflection_index(model)
+        self.present, self.index = index >= 0, index[index >= 0]
+        self.values = np.zeros(2 * len(index))
+
+    def deflections(self, q, v) -> np.ndarray:
+        m, out = len(self.present), self.values
+        out[:m][self.present], out[m:][self.present] = q[self.index], v[self.index]
+        return out
+
+    def tip_values(self, q, state_cov, out) -> np.ndarray:
+        frame = self.model.tip_frame(np.asarray(q, float))
+        j = np.real(np.vstack([frame.Jo, frame.Jw]))
+        out[:3] = np.real(frame.o)
+        out[3:7] = urdf.quaternion_from_matrix(np.real(frame.R))
+        out[7:] = (j @ state_cov[:self.nq, :self.nq] @ j.T).ravel()
+        return out
 
 
 class NisWindow:
@@ -276,15 +322,9 @@ class ObserverNode(Managed, LifecycleNode):
     def _configure(self) -> None:
         from .estimation import Estimator
         p = self.p = read_parameters(self, PARAMETERS, RANGES)
-        try:
-            arm = load_arm(p["arm"], p["vars_per_link"] or None)
-            if p["kinematics"]:
-                arm = arm.with_kinematics(p["kinematics"])
-        except (ValueError, OSError) as exc:
-            raise ParameterError(f"parameter arm: {exc}") from None
-        self.model = FlexArmModel(arm)
+        self.model, self.outputs = self._model(p)
         n = self.model.n_links
-        self.names = list(arm.joint_names)
+        self.names = list(self.model.arm.joint_names)
         self.measurements, self.sources = self._measurements(p)
         try:
             self.estimator = Estimator(self.model, self.measurements, self._settings(p))
@@ -296,13 +336,10 @@ class ObserverNode(Managed, LifecycleNode):
                                  f"expected {n} angles (deg) or one for every joint")
         self.theta0 = np.radians(np.broadcast_to(np.asarray(angles, float), (n,)))
         self._reset_filter(self.theta0)
-        self.outputs = PlanarOutputs(self.model)
-        self.plane = urdf.plane_rotation(self.model.gravity)
-        frames = urdf.Frames.of(self.model, p["frame_prefix"], p["frame_id"])
         self.cdr_js = conv.joint_state_cdr(self.names, n)
-        self.cdr_defl = conv.joint_state_cdr(
-            conv.deflection_names([lk.name for lk in arm.links]), 2 * n, effort=False)
-        self.cdr_tip = conv.tip_pose_cov_cdr(frames.base)
+        self.cdr_defl = conv.joint_state_cdr(self.outputs.names, len(self.outputs.names),
+                                             effort=False)
+        self.cdr_tip = conv.tip_pose_cov_cdr(p["frame_prefix"] + p["frame_id"])
         self._js_values = np.empty(3 * n)
         self._tip_values = np.empty(7 + 36)
         self._y = np.full(len(self.measurements), np.nan)
@@ -337,10 +374,29 @@ class ObserverNode(Managed, LifecycleNode):
                           clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.get_logger().info(
-            f"observer of arm {arm.name} ({self.model.nq} coordinates), measuring "
+            f"observer of arm {self.model.arm.name} ({self.model.nq} coordinates), measuring "
             f"{', '.join(m.name for m in self.measurements)} every "
             f"{p['sample_period'] * 1e3:g} ms from {self.resolve_topic_name(p['input_topic'])}"
             f", input {p['input']}" + (f", adapting {p['adapt']}" if p["adapt"] else ""))
+
+    @staticmethod
+    def _model(p):
+        """(model, outputs) of the ``arm`` parameter: a planar FlexArmModel, or a spatial
+        arm's SpatialArmModel (issue 25; loaded as the spatial node loads it)."""
+        from .spatial.description import is_spatial_arm
+        if is_spatial_arm(p["arm"]):
+            from .spatial.dynamics import SpatialArmModel
+            from .spatial_node import load_arm_parameter
+            model = SpatialArmModel(load_arm_parameter(p["arm"], False))
+            return model, SpatialOutputs(model)
+        try:
+            arm = load_arm(p["arm"], p["vars_per_link"] or None)
+            if p["kinematics"]:
+                arm = arm.with_kinematics(p["kinematics"])
+        except (ValueError, OSError) as exc:
+            raise ParameterError(f"parameter arm: {exc}") from None
+        model = FlexArmModel(arm)
+        return model, PlanarOutputs(model, urdf.plane_rotation(model.gravity))
 
     def _cleanup(self) -> None:
         self.estimator = self.model = None
@@ -371,7 +427,8 @@ class ObserverNode(Managed, LifecycleNode):
 
     def _reset_filter(self, theta) -> None:
         """The filter at rest at the joint angles ``theta`` (rad), links straight."""
-        self.estimator.reset(self.model.q_from_joint_angles(theta), np.zeros(self.model.nq))
+        self.estimator.reset(self.estimator.plant.q_from_joint_angles(theta),
+                             np.zeros(self.model.nq))
         self.last_t = None
 
     def _activate(self) -> None:
@@ -515,10 +572,7 @@ class ObserverNode(Managed, LifecycleNode):
         self.pub_defl.publish(self.cdr_defl.fill(t, self.outputs.deflections(s.q, s.v)))
         if not self.pub_tip.get_subscription_count():
             return
-        (x, y, phi), cov = self.outputs.tip(s.q, s.state_cov)
-        tip = self._tip_values
-        tip[:7] = conv.tip_pose_values(x, y, phi, self.plane)
-        tip[7:] = conv.planar_tip_covariance(cov, self.plane).ravel()
+        tip = self.outputs.tip_values(s.q, s.state_cov, self._tip_values)
         self.pub_tip.publish(self.cdr_tip.fill(t, tip))
 
     # ------------------------------------------------------------- health
