@@ -177,6 +177,24 @@ def test_bad_messages_are_dropped_with_a_reason_and_the_node_runs_on(observer, t
     assert level == "warn" and "5 input(s) dropped" in message
 
 
+def test_the_filter_starts_and_restarts_at_the_samples_joint_angles(observer):
+    """The first sample (stamp 100 s, joints at 0.5 and -0.3 rad) starts the filter there
+    (not at initial_joint_angles_deg, 0), a gap beyond max_gap (0.1 s) restarts it at the
+    next sample's angles, a 3-period gap is predicted over (2 missed)."""
+    g = observer
+    g.send(100.0, [0.5, -0.3], effort=[0.0, 0.0])
+    g.send(100.001, [0.5, -0.3], effort=[0.0, 0.0])
+    g.send(101.0, [-0.2, 0.4], effort=[0.0, 0.0])
+    g.send(101.003, [-0.2, 0.4], effort=[0.0, 0.0])
+    g.spin_until(lambda: len(g.got["js"]) == 4, "four estimates")
+    est = np.array([m.position for m in g.got["js"]])
+    # (within the encoder's 1 mrad: the arm, unheld, starts to fall under gravity)
+    np.testing.assert_allclose(est[:2], [[0.5, -0.3]] * 2, atol=2e-3)
+    np.testing.assert_allclose(est[2:], [[-0.2, 0.4]] * 2, atol=2e-3)
+    assert (g.node.counts["restarts"], g.node.counts["missed"]) == (1, 2)
+    assert any("a gap of 0.999 s (max_gap 0.1 s): filter restarted" in m for m in warnings(g))
+
+
 def test_a_serialized_joint_state_is_read_as_rclpy_reads_it():
     """cdr_messages.read_joint_state (the observer's raw subscription) against rclpy's
     deserialization, with odd string lengths (padding) and an empty array."""

@@ -48,7 +48,9 @@ Bad messages (wrong lengths, unknown joint names, non-finite values, a stamp not
 previous sample's: late) are dropped with the reason logged at most once a second per
 reason (ros_main.ReasonLog) and counted; the node keeps running. A gap of k > 1 sample
 periods is predicted over (k - 1 steps without measurements, counted as missed); a gap
-longer than ``max_gap`` restarts the filter at the next sample's joint angles.
+longer than ``max_gap`` restarts the filter at the next sample's joint angles, as the
+first sample after configure or activate does (at rest, the links in static balance:
+:func:`flex_model.estimation.recording.initial_q`, as ``estimate_recording`` starts).
 
 Parameters (:data:`PARAMETERS`): arm, vars_per_link, kinematics (as the model node), mode
 (observer), measure (comma-separated names, as ``flex-twin estimate --measure``), measure_std
@@ -81,6 +83,7 @@ from . import urdf
 from .arm import load_arm
 from .cdr_messages import read_joint_state, read_joint_state_names
 from .dynamics import FlexArmModel
+from .estimation.recording import initial_q
 from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
                        lean_node, read_parameters, run_node)
 
@@ -486,19 +489,19 @@ class ObserverNode(Managed, LifecycleNode):
                                                         self._joint_index(key, data))
         except ValueError as exc:
             return self._drop(topic, str(exc))
-        period = self.p["sample_period"]
-        if self.last_t is not None:
+        period, start = self.p["sample_period"], self.last_t is None
+        if not start:
             gap = t - self.last_t
             if gap <= 0.5 * period:
                 return self._drop(topic, f"stamp {t:.9f} s is not after the previous "
                                   f"sample's {self.last_t:.9f} s (late or repeated)", "late")
             k = int(round(gap / period))
             if gap > self.p["max_gap"]:
+                start = True
                 self.counts["restarts"] += 1
                 self.drops.warning(f"{topic}: a gap of {gap:.4g} s (max_gap "
                                    f"{self.p['max_gap']:g} s): filter restarted at the "
                                    "sample's joint angles")
-                self._reset_filter(position)
             elif k > 1:  # missed samples: predicted over, no measurement
                 self.counts["missed"] += k - 1
                 nan = np.full(len(self.measurements), np.nan)
@@ -507,7 +510,7 @@ class ObserverNode(Managed, LifecycleNode):
         if u is not None:
             self.u = u
         self.last_t = t
-        self._step(t, position, velocity)
+        self._step(t, position, velocity, start)
 
     def _sample_arrays(self, fields, count: int, idx):
         """(joint angles, rates or None, input or None) of a sample's (position, velocity,
@@ -546,7 +549,11 @@ class ObserverNode(Managed, LifecycleNode):
             self._drop("effort_controller/commands", str(exc))
 
     # ------------------------------------------------------------- the step
-    def _step(self, t: float, position, velocity) -> None:
+    def _step(self, t: float, position, velocity, start: bool = False) -> None:
+        """One filter step with the sample's readings; at the ``start`` (the first sample
+        after configure or activate, or after a gap beyond max_gap) the filter first
+        restarts at rest at its joint angles, the links in static balance under its input
+        (estimation.recording.initial_q: as estimate_recording starts)."""
         y = self._y
         gauge, self.gauge = self.gauge, None
         for k, (field, i) in enumerate(self.sources):
@@ -556,6 +563,8 @@ class ObserverNode(Managed, LifecycleNode):
                 y[k] = velocity[i]
             else:
                 y[k] = gauge[i] if gauge is not None else np.nan
+        if start:
+            self.estimator.reset(initial_q(self.estimator, y, self.u), t0=t)
         s = self._last_sample = self.estimator.step(self.u, y)
         self.counts["samples"] += 1
         self.nis.add(s.nis, s.nis_dof)
