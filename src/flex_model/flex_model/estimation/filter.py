@@ -13,21 +13,21 @@ instead of resolved. The covariance moves by P+ = F P F^T + Q_d with F the same 
 derivative for the held A. Process noise: a torque error per joint and a force at each link's
 tip, each held over a sample (zero-order hold, as a digital command's error):
 Q_d = Gamma W Gamma^T with Gamma the step's map of the generalized force through B(q)^-1,
-plus the parameters' random walk (std^2 T per sample). Correction (Joseph form) with the
-readings present (NaN = missing); a delayed reading is compared with the estimate of its
-time (a short buffer of past estimates), with the present H (delays short against the
-arm's motion).
+plus the parameters' random walk (std^2 T per sample). Correction P - K H P (symmetrized)
+with the readings present (NaN = missing); a delayed reading is compared with the estimate
+of its time (a short buffer of past estimates), with the present H (delays short against
+the arm's motion).
 """
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
-from scipy.linalg import lu_factor, lu_solve
 from scipy.stats import chi2
 
-from . import measurements as meas
+from .measurements import check, outputs
 from .plant import PARAMETER_FLOOR
 
 #: ROS2's gamma = 1 + 1/sqrt(2): L-stable, second order for any Jacobian (a W-method)
@@ -74,30 +74,73 @@ class EstimatorSettings:
         object.__setattr__(self, "adapt", tuple(self.adapt))
 
 
-@dataclass
-class Sample:
-    """The estimate at one sample (after its correction)."""
+#: the fields of a Sample (and, stacked over time, of an EstimationResult)
+FIELDS = ("t", "q", "v", "state_cov", "joint_angles", "joint_angles_std", "joint_rates",
+          "joint_rates_std", "tip_deflections", "tip_deflections_std", "tip_position",
+          "tip_position_cov", "innovation", "innovation_cov", "nis", "nis_dof", "nis_mean",
+          "nis_95_fraction", "parameters", "parameter_std")
 
-    t: float
-    q: np.ndarray
-    v: np.ndarray
-    state_cov: np.ndarray
-    joint_angles: np.ndarray
-    joint_angles_std: np.ndarray
-    joint_rates: np.ndarray
-    joint_rates_std: np.ndarray
-    tip_deflections: np.ndarray
-    tip_deflections_std: np.ndarray
-    tip_position: np.ndarray
-    tip_position_cov: np.ndarray
-    innovation: np.ndarray
-    innovation_cov: np.ndarray
-    nis: float
-    nis_dof: int
-    nis_mean: float
-    nis_95_fraction: float
-    parameters: dict
-    parameter_std: dict
+
+class Sample:
+    """The estimate at one sample (after its correction): the fields of FIELDS, the
+    derived ones (angles, deflections, tip, their stds) computed when first read (the live
+    path reads what it publishes)."""
+
+    def __init__(self, t, x, P, plant, maps, innovation, innovation_cov, nis, nis_dof,
+                 nis_mean, nis_95_fraction):
+        self.t, self._x, self.state_cov, self._plant, self._maps = t, x, P, plant, maps
+        self.innovation, self.innovation_cov = innovation, innovation_cov
+        self.nis, self.nis_dof, self.nis_mean = nis, nis_dof, nis_mean
+        self.nis_95_fraction = nis_95_fraction
+        nq = plant.nq
+        self.q, self.v = x[:nq], x[nq:2 * nq]
+        self._Pq, self._Pv = P[:nq, :nq], P[nq:2 * nq, nq:2 * nq]
+
+    def __repr__(self):
+        return f"Sample(t={self.t:.6g}, nis={self.nis:.3g}, parameters={self.parameters})"
+
+    @cached_property
+    def joint_angles(self):
+        return self._plant.joint_angles(self.q)
+
+    @cached_property
+    def joint_angles_std(self):
+        return _std(self._maps[0], self._Pq)
+
+    @cached_property
+    def joint_rates(self):
+        return self._plant.joint_rates(self.v)
+
+    @cached_property
+    def joint_rates_std(self):
+        return _std(self._maps[0], self._Pv)
+
+    @cached_property
+    def tip_deflections(self):
+        return self._maps[1] @ self.q
+
+    @cached_property
+    def tip_deflections_std(self):
+        return _std(self._maps[1], self._Pq)
+
+    @cached_property
+    def tip_position(self):
+        return self._plant.tip_position(self.q)
+
+    @cached_property
+    def tip_position_cov(self):
+        J = self._plant.tip_jacobian(self.q)
+        return J @ self._Pq @ J.T
+
+    @cached_property
+    def parameters(self):
+        return dict(zip(self._plant.param_names, self._x[2 * self._plant.nq:].tolist()))
+
+    @cached_property
+    def parameter_std(self):
+        nq = self._plant.nq
+        return dict(zip(self._plant.param_names,
+                        np.sqrt(np.diag(self.state_cov)[2 * nq:]).tolist()))
 
 
 def make_plant(model, settings):
@@ -117,7 +160,7 @@ class Estimator:
         self.settings = settings or EstimatorSettings()
         self.plant = make_plant(model, self.settings)
         self.measurements = list(measurements)
-        meas.check(self.measurements, self.plant)
+        check(self.measurements, self.plant)
         self.R = np.array([m.variance for m in self.measurements])
         T = self.settings.sample_period
         self.delays = np.array([int(round(m.delay / T)) for m in self.measurements])
@@ -190,7 +233,7 @@ class Estimator:
         B = np.zeros((n, N.shape[1]))
         B[nq:2 * nq] = plant.inverse_mass(self.x[:nq], self.x[2 * nq:]) @ N
         A = self._state_jacobian(u)
-        self._lu = lu_factor(np.eye(n) - GAMMA * T * A)
+        self._Winv = np.linalg.inv(np.eye(n) - GAMMA * T * A)
         self.F = np.eye(n) + self._ros2_increment(A, A)
         Gam = self._ros2_increment(A, B)
         Qd = (Gam * W) @ Gam.T
@@ -198,7 +241,7 @@ class Estimator:
                 zip(plant.param_names, self._kinds)]
         Qd[2 * nq:, 2 * nq:] += np.diag(np.square(walk) * T)
         self.Qd = 0.5 * (Qd + Qd.T)
-        H = self._jacobian(lambda x: meas.outputs(self.measurements, plant, x, u),
+        H = self._jacobian(lambda x: outputs(self.measurements, plant, x, u),
                            self.x, len(self.measurements))
         self.H = H
         self._since = 0
@@ -223,20 +266,21 @@ class Estimator:
         if used.size == 0:
             self._past.append(self.x.copy())
             return nu, Sk, used
-        h = meas.outputs(self.measurements, self.plant, self.x, u)
+        h = outputs(self.measurements, self.plant, self.x, u)
         for r in used:
             d = self.delays[r]
             if d:
                 past = self._past[-d] if len(self._past) >= d else self._past[0] \
                     if self._past else self.x
-                h[r] = meas.outputs([self.measurements[r]], self.plant, past, u)[0]
+                h[r] = outputs([self.measurements[r]], self.plant, past, u)[0]
         H = self.H[used]
         v = y[used] - h[used]
         S = H @ self.P @ H.T + np.diag(self.R[used])
-        K = np.linalg.solve(S, H @ self.P).T
+        HP = H @ self.P
+        K = np.linalg.solve(S, HP).T
         self.x = self.x + K @ v
-        IKH = np.eye(self.n) - K @ H
-        self.P = IKH @ self.P @ IKH.T + (K * self.R[used]) @ K.T
+        P = self.P - K @ HP            # = (I - K H) P; symmetrized (the Joseph form's
+        self.P = 0.5 * (P + P.T)       # guard at a third of the cost)
         self._project()
         nu[used] = v
         Sk[np.ix_(used, used)] = S
@@ -253,8 +297,8 @@ class Estimator:
         """The ROS2 step's increment for the linear right-hand side G (columns): with
         f = A x + G w, dx = T (3/2 k1 + 1/2 k2); F = I + increment(A), Gamma = increment(B)."""
         T = self.settings.sample_period
-        k1 = lu_solve(self._lu, G)
-        k2 = lu_solve(self._lu, G + T * (A @ k1) - 2.0 * k1)
+        k1 = self._Winv @ G
+        k2 = self._Winv @ (G + T * (A @ k1) - 2.0 * k1)
         return T * (1.5 * k1 + 0.5 * k2)
 
     def _predict(self, u) -> None:
@@ -264,8 +308,8 @@ class Estimator:
         if hasattr(self.plant, "step"):  # the plant's own implicit step (spatial)
             self.x = self.plant.step(self.x, u, T)
         else:
-            k1 = lu_solve(self._lu, f(self.x, u))
-            k2 = lu_solve(self._lu, f(self.x + T * k1, u) - 2.0 * k1)
+            k1 = self._Winv @ f(self.x, u)
+            k2 = self._Winv @ (f(self.x + T * k1, u) - 2.0 * k1)
             self.x = self.x + T * (1.5 * k1 + 0.5 * k2)
         self.P = self.F @ self.P @ self.F.T + self.Qd
         self.P = 0.5 * (self.P + self.P.T)
@@ -281,35 +325,23 @@ class Estimator:
             nis = float(vv @ np.linalg.solve(Sk[np.ix_(used, used)], vv))
             self._nis_sum += nis
             self._nis_count += 1
-            self._nis_in += nis <= _chi2_95(dof)
-        nq, P, x = self.plant.nq, self.P, self.x
-        q, v = x[:nq], x[nq:2 * nq]
-        Pq, Pv = P[:nq, :nq], P[nq:2 * nq, nq:2 * nq]
-        G, D, J = self._angle, self._defl, self.plant.tip_jacobian(q)
-        names = self.plant.param_names
-        pstd = np.sqrt(np.diag(P)[2 * nq:])
+            self._nis_in += nis <= chi2_95(dof)
         count = max(self._nis_count, 1)
-        return Sample(
-            t=self.t, q=q.copy(), v=v.copy(), state_cov=P.copy(),
-            joint_angles=self.plant.joint_angles(q), joint_rates=self.plant.joint_rates(v),
-            joint_angles_std=_std(G, Pq), joint_rates_std=_std(G, Pv),
-            tip_deflections=D @ q, tip_deflections_std=_std(D, Pq),
-            tip_position=self.plant.tip_position(q), tip_position_cov=J @ Pq @ J.T,
-            innovation=nu, innovation_cov=Sk, nis=nis, nis_dof=dof,
-            nis_mean=self._nis_sum / count if self._nis_count else np.nan,
-            nis_95_fraction=self._nis_in / count if self._nis_count else np.nan,
-            parameters=dict(zip(names, x[2 * nq:].tolist())),
-            parameter_std=dict(zip(names, pstd.tolist())))
+        return Sample(self.t, self.x.copy(), self.P.copy(), self.plant,
+                      (self._angle, self._defl), nu, Sk, nis, dof,
+                      self._nis_sum / count if self._nis_count else np.nan,
+                      self._nis_in / count if self._nis_count else np.nan)
 
 
 def _std(M, P) -> np.ndarray:
-    return np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", M, P, M), 0.0))
+    return np.sqrt(np.maximum(((M @ P) * M).sum(axis=1), 0.0))
 
 
 _CHI2 = {}
 
 
-def _chi2_95(dof: int) -> float:
+def chi2_95(dof: int) -> float:
+    """The chi2 95 % bound of a NIS with dof degrees of freedom (cached)."""
     if dof not in _CHI2:
         _CHI2[dof] = float(chi2.ppf(0.95, dof))
     return _CHI2[dof]

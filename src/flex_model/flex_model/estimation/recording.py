@@ -1,14 +1,14 @@
 """The offline path: the live filter (Estimator.step) run over the arrays of a recording."""
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
-from .filter import Estimator, EstimatorSettings, Sample
+from .filter import FIELDS, Estimator, EstimatorSettings, chi2_95
 
 #: Sample fields stacked over time in an EstimationResult (the dicts become arrays by name)
-_STACKED = [f.name for f in fields(Sample) if f.name not in ("parameters", "parameter_std")]
+_STACKED = [f for f in FIELDS if f not in ("parameters", "parameter_std")]
 
 
 @dataclass
@@ -101,8 +101,7 @@ def summarize(arrays, params, pstd) -> dict:
     """nis_mean, nis_95_fraction, mean measurement dimension, final parameters."""
     nis, dof = arrays["nis"], arrays["nis_dof"]
     ok = np.isfinite(nis)
-    from .filter import _chi2_95
-    inside = [n <= _chi2_95(int(d)) for n, d in zip(nis[ok], dof[ok])]
+    inside = [n <= chi2_95(int(d)) for n, d in zip(nis[ok], dof[ok])]
     return {"samples": int(len(nis)), "nis_mean": float(np.mean(nis[ok])) if ok.any() else None,
             "nis_dof_mean": float(np.mean(dof[ok])) if ok.any() else None,
             "nis_95_fraction": float(np.mean(inside)) if inside else None,

@@ -1,0 +1,168 @@
+"""Benchmark of the estimation filter (flex_model.estimation, issue 45): accuracy and
+coverage of the deflections estimated from the joint encoders alone on the Exudyn runs,
+adaptation of hidden friction and payload, NIS, and the cost per sample.
+
+    OPENBLAS_NUM_THREADS=1 python bench/bench_estimation.py [--only planar,change,two,spatial,cost]
+
+Prints one line per figure (docs/estimation.md quotes them). Data: test/data/independent_suite,
+test/data/estimation_change, test/data/spatial_independent (Exudyn, bench/independent_suite,
+bench/spatial_diagnosis). OPENBLAS_NUM_THREADS=1: on a shared machine OpenBLAS's threads
+make a 48 x 48 matrix exponential 30 x slower (25 ms against 0.9 ms)."""
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from flex_model.arm import load_arm
+from flex_model.dynamics import FlexArmModel
+from flex_model.estimation import Estimator, EstimatorSettings, Measurement, estimate_recording
+
+ROOT = Path(__file__).resolve().parents[1]
+SUITE = ROOT / "test" / "data" / "independent_suite"
+CHANGE = ROOT / "test" / "data" / "estimation_change" / "B-samp500-joint_friction-m1-s1-at10"
+SPATIAL = ROOT / "test" / "data" / "spatial_independent"
+
+
+def read(path, t_from=0.0, t_to=np.inf):
+    rec = np.genfromtxt(Path(path) / "recording.csv", delimiter=",", names=True)
+    return rec[(rec["t"] >= t_from - 1e-9) & (rec["t"] <= t_to + 1e-9)]
+
+
+def encoders(std):
+    return [Measurement(f"q{i + 1}", "joint_angle", i, std=std) for i in range(2)]
+
+
+def planar(case, vars_per_link=2, t_to=np.inf, **kw):
+    rec = read(SUITE / case if "/" not in str(case) else case, 0.0, t_to)
+    path = SUITE / case if "/" not in str(case) else Path(case)
+    model = FlexArmModel(load_arm(path / "arm.yaml", vars_per_link))
+    s = EstimatorSettings(sample_period=0.002, **{"torque_noise": 0.5, "modal_noise": 1.0,
+                                                  **kw})
+    t0 = time.perf_counter()
+    r = estimate_recording(model, rec["t"], np.column_stack([rec["tau1"], rec["tau2"]]),
+                           np.column_stack([rec["q1"], rec["q2"]]), encoders(5e-5), s)
+    return rec, r, (time.perf_counter() - t0) / len(rec) * 1e6
+
+
+def score(est, std, truth):
+    err = est - truth
+    return np.sqrt(np.mean(err ** 2)) / np.abs(truth).max(), np.mean(np.abs(err) <= 1.96 * std)
+
+
+def report_deflections(label, rec, r, us):
+    for i in range(2):
+        rel, cov = score(r.tip_deflections[:, i], r.tip_deflections_std[:, i],
+                         rec[f"w{i + 1}"])
+        print(f"{label} w{i + 1}: peak {1e3 * np.abs(rec[f'w{i + 1}']).max():.1f} mm, "
+              f"RMS error {100 * rel:.2f} % of peak, coverage {100 * cov:.1f} %")
+    print(f"{label}: NIS mean {r.summary['nis_mean']:.2f} (dimension 2), within chi2 95 %: "
+          f"{100 * r.summary['nis_95_fraction']:.1f} %, {us:.0f} us/sample (offline, "
+          f"with the result's bookkeeping)")
+
+
+def bench_planar():
+    for case, nv, tn in (("B-samp500-healthy-s1", 2, 0.5), ("B-samp500-healthy-s1", 4, 0.5),
+                         ("A-cont-healthy-s1", 2, 0.5), ("A-cont-healthy-s1", 2, 5.0)):
+        rec, r, us = planar(case, nv, torque_noise=tn)
+        report_deflections(f"planar {case} ({nv} variables/link, torque noise {tn:g} N m, "
+                           "20 s)", rec, r, us)
+
+
+def at(rec, series, t):
+    return series[min(np.searchsorted(rec["t"], t - 1e-9), len(rec) - 1)]
+
+
+def bench_change():
+    names = ("coulomb_friction:joint1", "viscous_friction:joint1")
+    for nv in (2, 4):
+        rec, r, us = planar(CHANGE, nv, adapt=names, adapt_walk={n: 1.0 for n in names})
+        for n, truth in zip(names, (2.0, 8.0)):
+            p, s = r.parameters[n], r.parameter_std[n]
+            line = ", ".join(f"t {t:g} s: {at(rec, p, t):.2f} +- {at(rec, s, t):.2f}"
+                             for t in (9.9, 11.0, 12.0, 15.0, 16.0))
+            print(f"change at 10 s ({nv} var/link) {n} (truth 0 -> {truth:g}): {line}")
+        report_deflections(f"change case ({nv} var/link, 6-16 s)", rec, r, us)
+
+
+def bench_two():
+    case = "B-samp500-two-joint_friction+payload-s1"
+    names = ("coulomb_friction:joint1", "viscous_friction:joint1", "payload_mass")
+    rec, r, us = planar(case, 2, adapt=names,
+                        adapt_walk={"coulomb_friction:joint1": 0.3,
+                                    "viscous_friction:joint1": 0.3, "payload_mass": 0.02})
+    for n, truth in zip(names, (2.0, 8.0, 0.3)):
+        p, s = r.parameters[n], r.parameter_std[n]
+        print(f"{case} {n}: {p[-1]:.3f} +- {s[-1]:.3f} at 20 s (truth {truth:g}; "
+              f"5 s: {at(rec, p, 5.0):.3f}, 10 s: {at(rec, p, 10.0):.3f})")
+    report_deflections(f"{case} (adapting)", rec, r, us)
+
+
+def bench_spatial():
+    from flex_model.spatial.dynamics import SpatialArmModel
+    from flex_model.spatial.loader import load_spatial_arm
+    model = SpatialArmModel(load_spatial_arm(SPATIAL / "arm.yaml"))
+    cols = ["link1_tip_deflection_y", "link1_tip_deflection_z", "link1_tip_twist",
+            "link2_tip_deflection_y", "link2_tip_deflection_z"]
+    for case in sorted(p.name for p in SPATIAL.iterdir() if p.is_dir()):
+        rec = read(SPATIAL / case)
+        s = EstimatorSettings(sample_period=0.005, torque_noise=0.1, modal_noise=0.5,
+                              relinearize_every=20, initial_deflection_std=1e-3)
+        t0 = time.perf_counter()
+        r = estimate_recording(model, rec["t"], np.column_stack([rec["tau1"], rec["tau2"]]),
+                               np.column_stack([rec["q1"], rec["q2"]]), encoders(1e-5), s)
+        us = (time.perf_counter() - t0) / len(rec) * 1e6
+        parts = []
+        for k, c in enumerate(cols):
+            rel, cov = score(r.tip_deflections[:, k], r.tip_deflections_std[:, k], rec[c])
+            parts.append(f"{c.replace('_tip_deflection', '').replace('_tip', '')} "
+                         f"{100 * rel:.1f} % ({100 * cov:.0f} %)")
+        print(f"spatial {case} (nominal twin, 4+4 var/link): RMS error % of peak "
+              f"(coverage): {', '.join(parts)}; NIS mean {r.summary['nis_mean']:.2f}; "
+              f"{us / 1e3:.1f} ms/sample")
+
+
+def cost(model, ms, s, n=2000):
+    est = Estimator(model, ms, s)
+    u, y = np.zeros(model.n_links), np.zeros(len(ms))
+    for _ in range(20):
+        est.step(u, y)
+    t0 = time.perf_counter()
+    for _ in range(n):
+        est.step(u, y)
+    return (time.perf_counter() - t0) / n * 1e6
+
+
+def bench_cost():
+    q = load_arm("quanser_cuboulder_flexible")
+    for arm, label in ((q, "Quanser flexible link (1 link)"),
+                       (load_arm(SUITE / "B-samp500-healthy-s1" / "arm.yaml"),
+                        "suite arm B (2 links)")):
+        for nv in (2, 4):
+            model = FlexArmModel(load_arm(arm.source, nv) if arm.source else arm)
+            ms = encoders(5e-5)[:model.n_links]
+            for k in (1, 10, 50):
+                s = EstimatorSettings(sample_period=1e-3, relinearize_every=k)
+                print(f"cost {label}, {nv} var/link (n = {2 * model.nq}), relinearized "
+                      f"every {k}: {cost(model, ms, s):.0f} us/sample")
+        s = EstimatorSettings(sample_period=1e-3, relinearize_every=10,
+                              adapt=("coulomb_friction:0", "viscous_friction:0"))
+        model = FlexArmModel(arm)
+        print(f"cost {label}, 2 var/link, + 2 adapted frictions, every 10: "
+              f"{cost(model, encoders(5e-5)[:model.n_links], s):.0f} us/sample")
+
+
+SECTIONS = {"planar": bench_planar, "change": bench_change, "two": bench_two,
+            "spatial": bench_spatial, "cost": bench_cost}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--only", default=",".join(SECTIONS),
+                    help=f"comma-separated sections of {', '.join(SECTIONS)}")
+    for name in ap.parse_args().only.split(","):
+        SECTIONS[name]()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,161 @@
+"""The estimation filter (flex_model.estimation) against closed forms: on a single flexible
+link at rest in a horizontal plane (linear to first order) the filter's Jacobian is the
+model's -B^-1 K, its transition the matrix exponential to ROS2's order, its covariance the
+stationary solution of the discrete Riccati equation (scipy.linalg.solve_discrete_are),
+and on runs of the simulator with the assumed noise its NIS has the measurement dimension
+as mean."""
+import numpy as np
+import pytest
+from scipy.linalg import expm, solve_discrete_are
+
+from flex_model.arm import arm_from_dict
+from flex_model.dynamics import FlexArmModel
+from flex_model.estimation import (Estimator, EstimatorSettings, Measurement,
+                                   estimate_recording)
+from flex_model.simulate import simulate
+
+T = 1e-3
+
+
+def _link(gravity=(0.0, 0.0)):
+    """2 m aluminium tube (first mode ~5 Hz clamped), hub 0.05 kg m^2."""
+    return FlexArmModel(arm_from_dict({"name": "one", "gravity": list(gravity), "links": [{
+        "length": 2.0, "material": {"E": 6.4e10, "rho": 2700.0},
+        "section": {"shape": "square_hollow", "side": 0.02, "wall": 0.001},
+        "end_masses": {"J_minus": 0.05}}]}))
+
+
+def _estimator(model, **kw):
+    ms = [Measurement("q1", "joint_angle", 0, std=1e-4),
+          Measurement("w1", "tip_deflection", 0, std=1e-3)]
+    s = EstimatorSettings(sample_period=T, torque_noise=0.05, modal_noise=0.02,
+                          relinearize_every=0, **kw)
+    return Estimator(model, ms, s)
+
+
+def test_jacobian_at_rest_is_the_linear_model():
+    model = _link()
+    est = _estimator(model)
+    nq = model.nq
+    A = est._state_jacobian(np.zeros(1))
+    Binv = np.linalg.inv(model.mass_matrix(np.zeros(nq)))
+    assert np.allclose(A[:nq, nq:], np.eye(nq), atol=1e-9)
+    assert np.allclose(A[nq:, :nq], -Binv @ model.K, rtol=1e-6, atol=1e-6 * np.abs(
+        Binv @ model.K).max())
+    # on the resolved modes (|lambda T| < 0.1: the rigid one and the first bending mode,
+    # 5 Hz) the ROS2 transition is the matrix exponential to third order in lambda T
+    est.relinearize(np.zeros(1))
+    lam, V = np.linalg.eig(A)
+    slow = (np.abs(lam * T) < 0.1) & (np.abs(lam) > 1e-3)  # the bending mode (5 Hz)
+    assert slow.sum() == 2
+    ref = V[:, slow] * np.exp(lam[slow] * T)
+    # ROS2's stability function R(z) = (1 + (1 - 2g) z + (g^2 - 2g + 1/2) z^2) / (1 - g z)^2
+    g, z = 1 + 1 / np.sqrt(2), lam[slow] * T
+    R = (1 + (1 - 2 * g) * z + (g * g - 2 * g + 0.5) * z * z) / (1 - g * z) ** 2
+    assert np.abs(est.F @ V[:, slow] - V[:, slow] * R).max() < 1e-9 * np.abs(ref).max()
+    assert np.abs(R - np.exp(z)).max() < 2 * np.abs(z).max() ** 3   # second order: 1e-3
+    assert np.abs(expm(A * T) @ V[:, slow] - ref).max() < 1e-9 * np.abs(ref).max()
+    rigid = np.zeros(len(A))  # the rigid rotation at a rate: angle T, rate 1
+    rigid[[0, nq]] = 1.0
+    assert np.allclose(est.F @ rigid, expm(A * T) @ rigid, atol=1e-12)
+
+
+def test_covariance_converges_to_the_discrete_riccati_solution():
+    """Linearized once at rest and fed zero readings, the filter's predicted covariance
+    is the stabilizing solution of P = F P F' - F P H' (H P H' + R)^-1 H P F' + Q_d."""
+    est = _estimator(_link())
+    est.reset(np.zeros(est.plant.nq))
+    for _ in range(4000):
+        est.step(np.zeros(1), np.zeros(2))
+    R = np.diag(est.R)
+    P = solve_discrete_are(est.F.T, est.H.T, est.Qd, R)
+    assert np.abs(est.P - P).max() < 1e-9 * np.abs(P).max()
+    K = P @ est.H.T @ np.linalg.inv(est.H @ P @ est.H.T + R)
+    Pp = est.P
+    Kf = Pp @ est.H.T @ np.linalg.inv(est.H @ Pp @ est.H.T + R)
+    assert np.abs(K - Kf).max() < 1e-9 * np.abs(K).max()
+
+
+def _run(n, std_tau=0.05, seed=7):
+    """A dopri5 run of the link under a random torque held per sample: (model, result,
+    torques, rng)."""
+    model = _link()
+    rng = np.random.default_rng(seed)
+    taus = rng.normal(0.0, std_tau, n + 1)
+    res = simulate(model, np.zeros(model.nq), t_final=n * T, sample_period=T,
+                   policy=lambda t, x: np.array([taus[min(int(round(t / T)), n)]]),
+                   control_period=T)
+    return model, res, taus, rng
+
+
+def test_nis_mean_is_the_measurement_dimension_on_data_with_the_assumed_noise():
+    """The simulator's own run (dopri5, not the filter's ROS2) under a random torque held
+    per sample with the filter's torque noise, read with the filter's sensor noise: NIS
+    mean 2 (chi2 with 2 dof: 2 +- 0.1 over 3000 samples) and ~95 % inside the bound."""
+    n, std_tau = 3000, 0.05
+    model, res, taus, rng = _run(n, std_tau)
+    y = np.column_stack([res.joint_angles[:, 0] + rng.normal(0, 1e-4, n + 1),
+                         res.tip_deflections[:, 0] + rng.normal(0, 1e-3, n + 1)])
+    ms = [Measurement("q1", "joint_angle", 0, std=1e-4),
+          Measurement("w1", "tip_deflection", 0, std=1e-3)]
+    s = EstimatorSettings(sample_period=T, torque_noise=std_tau, modal_noise=0.0,
+                          initial_angle_std=1e-4, initial_deflection_std=1e-3,
+                          initial_rate_std=1e-3)
+    r = estimate_recording(model, res.t, taus[:, None], y, ms, s, q0=np.zeros(model.nq))
+    assert r.summary["nis_mean"] == pytest.approx(2.0, abs=0.15)
+    assert 0.93 < r.summary["nis_95_fraction"] < 0.97
+    err = r.tip_deflections[:, 0] - res.tip_deflections[:, 0]
+    inside = np.abs(err) <= 1.96 * r.tip_deflections_std[:, 0]
+    assert 0.9 < inside.mean() <= 1.0
+
+
+def test_missing_and_delayed_readings():
+    """NaN readings are skipped (NIS dimension 1), and the settings refuse bad values."""
+    est = _estimator(_link())
+    est.reset(np.zeros(est.plant.nq))
+    s = est.step(np.zeros(1), np.array([0.0, np.nan]))
+    assert s.nis_dof == 1 and np.isnan(s.innovation[1])
+    with pytest.raises(ValueError, match="sample_period"):
+        EstimatorSettings(sample_period=0.0)
+    with pytest.raises(ValueError, match="adapt"):
+        Estimator(_link(), [], EstimatorSettings(adapt=("stiction:0",)))
+    with pytest.raises(ValueError, match="kind"):
+        Measurement("x", "gyro")
+
+
+def test_readings_are_the_sensor_models_and_a_delay_is_read_against_its_time():
+    """The filter's readings at a state are flex_model.sensors' signals (joint encoder,
+    strain gauge, tip position, tip gauge); a tip gauge 5 ms late, declared, keeps
+    the NIS at its dimension, undeclared it does not."""
+    from flex_model.estimation import measurements as meas
+    from flex_model.sensors import Sensor, true_signal
+    n = 1500
+    model, res, taus, rng = _run(n)
+    est = _estimator(model)
+    k = 700
+    x = np.concatenate([res.q[k], res.v[k]])
+    ms = [Measurement("q", "joint_angle", 0),
+          Measurement("e", "strain", 0, position=0.5, surface_distance=0.01),
+          Measurement("x", "tip_position", component=0),
+          Measurement("y", "tip_position", component=1),
+          Measurement("w", "tip_deflection", 0)]
+    got = meas.outputs(ms, est.plant, x, taus[k:k + 1])
+    sensors = [Sensor("q", "joint_encoder", "joint1"),
+               Sensor("e", "strain_gauge", "link1", position=0.5, surface_distance=0.01),
+               Sensor("t", "tip_position"), Sensor("w", "tip_deflection", "link1")]
+    want = np.concatenate([true_signal(sn, res)[k] for sn in sensors])
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-15)
+    d = 5
+    w = np.concatenate([np.full(d, res.tip_deflections[0, 0]), res.tip_deflections[:-d, 0]])
+    y = np.column_stack([res.joint_angles[:, 0] + rng.normal(0, 1e-4, n + 1),
+                         w + rng.normal(0, 1e-4, n + 1)])
+    nis = []
+    for delay in (d * T, 0.0):
+        ms = [Measurement("q1", "joint_angle", 0, std=1e-4),
+              Measurement("w1", "tip_deflection", 0, std=1e-4, delay=delay)]
+        s = EstimatorSettings(sample_period=T, torque_noise=0.05, initial_angle_std=1e-4,
+                              initial_deflection_std=1e-4, initial_rate_std=1e-3)
+        r = estimate_recording(model, res.t, taus[:, None], y, ms, s, q0=np.zeros(model.nq))
+        nis.append(r.summary["nis_mean"])
+    assert nis[0] == pytest.approx(2.0, abs=0.3)
+    assert nis[1] > nis[0] + 0.2          # 2.33 against 2.01
