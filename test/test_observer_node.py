@@ -214,7 +214,7 @@ def test_a_serialized_joint_state_is_read_as_rclpy_reads_it():
 
 def test_measurement_names_and_their_errors():
     model = FlexArmModel(load_arm(ARM))
-    ms = measurements_named(model, ["q", "w2", "d1", "ax"], [1e-3, 2e-3, 0.1, 0.2, 0.3])
+    ms = measurements_named(model, ["q", "v2", "w1", "ax"], [1e-3, 2e-3, 0.1, 0.2, 0.3])
     assert [(m.kind, m.index, m.std) for m in ms[:4]] == [
         ("joint_angle", 0, 1e-3), ("joint_angle", 1, 2e-3), ("joint_rate", 1, 0.1),
         ("tip_deflection", 0, 0.2)]
@@ -238,10 +238,10 @@ def test_flex_twin_observe_and_up_start_the_observer():
     from flex_twin.cli import build_parser
     from flex_twin.ros_suite import in_loop_parameters, node_class, observer_arguments
     args = build_parser().parse_args(["observe", "--arm", "thesis_example1", "--measure",
-                                      "q1,d1", "--namespace", "/arm1"])
+                                      "q1,w1", "--namespace", "/arm1"])
     argv = observer_arguments(args)
     assert argv[:4] == ["flex-twin-observe", "--ros-args", "-r", "__ns:=/arm1"]
-    assert {"mode:=observer", "arm:=thesis_example1", "measure:=q1,d1", "adapt:=''"} <= \
+    assert {"mode:=observer", "arm:=thesis_example1", "measure:=q1,w1", "adapt:=''"} <= \
         set(argv)
     assert node_class("flex_model", {"mode": "observer"}) == ("flex_model.observer_node",
                                                               "ObserverNode")

@@ -94,7 +94,7 @@ def _positive(v):
 
 def _names(v):
     return None if all(s.strip() for s in v.split(",")) else \
-        "comma-separated names without empty ones (e.g. q1,w1)"
+        "comma-separated names without empty ones (e.g. q1,v1)"
 
 
 #: the observer's parameters (name, default, description, changeable at run time, check)
@@ -108,8 +108,9 @@ PARAMETERS = (
           "(flex_model.model_node)", check=lambda v: None if v == "observer" else
           "observer (realtime and lockstep are the simulating model node's)"),
     Param("measure", "q", "measurements, comma-separated, as flex-twin estimate --measure "
-          "(q: every joint angle; q1, w1: joint 1's angle, rate, from joint_states; the "
-          "others from gauge_topic in this order)", check=_names),
+          "(q: every joint angle; q1, v1: joint 1's angle, rate, from joint_states; the "
+          "others, e.g. w1 link 1's tip deflection, from gauge_topic in this order)",
+          check=_names),
     Param("measure_std", [0.0], "noise standard deviation per measurement, or one for all "
           "(SI units; 0: the estimator's default)",
           check=lambda v: None if v and all(x >= 0 for x in v) else "numbers >= 0"),
@@ -149,13 +150,14 @@ RANGES = {"vars_per_link": (0, INT_MAX, 2), "sample_period": (0.0, 0.1),
           "nis_window": (10, INT_MAX)}
 
 
-#: measurement names (flex-twin estimate --measure): prefix -> (kind, default std, SI)
-NAMED_KINDS = {"q": ("joint_angle", 1e-3), "w": ("joint_rate", 1e-2),
-               "m": ("motor_angle", 1e-3), "d": ("tip_deflection", 1e-4)}
+#: measurement names (the recording channels of flex-twin estimate --measure: q<i>, v<i>,
+#: w<i> tip deflection, tip_x, tip_y): prefix -> (kind, default std, SI)
+NAMED_KINDS = {"q": ("joint_angle", 1e-3), "v": ("joint_rate", 1e-2),
+               "m": ("motor_angle", 1e-3), "w": ("tip_deflection", 1e-4)}
 #: names without an index: (kind, component, default std)
 NAMED_COMPONENTS = {"ax": ("tip_acceleration", 0, 0.1), "ay": ("tip_acceleration", 1, 0.1),
-                    "px": ("tip_position", 0, 1e-3), "py": ("tip_position", 1, 1e-3),
-                    "pz": ("tip_position", 2, 1e-3)}
+                    "tip_x": ("tip_position", 0, 1e-3),
+                    "tip_y": ("tip_position", 1, 1e-3), "tip_z": ("tip_position", 2, 1e-3)}
 
 
 #: measurement kinds read by an arm file's sensor kind (flex_model.sensors)
@@ -176,15 +178,16 @@ def _with_sensor(m, arm):
     return m
 
 
-_NAME = re.compile(r"([qwmd])(\d*)([yzt]?)$")
-#: the component of a spatial tip deflection's suffix (d<i>y, d<i>z, d<i>t; d<i>: y)
+_NAME = re.compile(r"([qvmw])(\d*)([yzt]?)$")
+#: the component of a spatial tip deflection's suffix (w<i>y, w<i>z, w<i>t; w<i>: y)
 _SUFFIX = {"": 0, "y": 0, "z": 1, "t": 2}
 
 
 def measurements_named(model, names, stds=(0.0,)) -> list:
-    """The Measurements of ``names``: q<i>, w<i>, m<i> joint i's angle, rate, motor angle
-    (q, w alone: every joint's), d<i> link i's tip deflection (spatial: d<i>y, d<i>z its
-    v, w, d<i>t its twist), ax, ay the tip's specific force, px, py, pz its position.
+    """The Measurements of ``names`` (the recording channels' names): q<i>, v<i>, m<i>
+    joint i's angle, rate, motor angle (q, v alone: every joint's), w<i> link i's tip
+    deflection (spatial: w<i>y, w<i>z its v, w, w<i>t its twist), ax, ay the tip's
+    specific force, tip_x, tip_y, tip_z its position.
     Noise, resolution (the quantum) and delay are those of the arm file's sensor of that
     joint or link where it has one, else the default of the kind (:data:`NAMED_KINDS`);
     ``stds`` one per measurement or one for all overrides the std (0: keep it);
@@ -197,11 +200,11 @@ def measurements_named(model, names, stds=(0.0,)) -> list:
             out.append(Measurement(name=name, kind=kind, component=comp, std=std))
             continue
         match = _NAME.match(name)
-        if not match or not (match[2] or name in ("q", "w")) or \
-                (match[3] and match[1] != "d"):
-            raise ValueError(f"got {name!r}; expected q<i>, w<i>, m<i> (joint i), d<i> "
-                             "(link i; spatial also d<i>y, d<i>z, d<i>t), q, w (every "
-                             "joint), ax, ay, px, py or pz")
+        if not match or not (match[2] or name in ("q", "v")) or \
+                (match[3] and match[1] != "w"):
+            raise ValueError(f"got {name!r}; expected q<i>, v<i>, m<i> (joint i), w<i> "
+                             "(link i; spatial also w<i>y, w<i>z, w<i>t), q, v (every "
+                             "joint), ax, ay, tip_x, tip_y or tip_z")
         kind, std = NAMED_KINDS[match[1]]
         idx = [int(match[2]) - 1] if match[2] else range(count)
         if not all(0 <= i < count for i in idx):

@@ -298,8 +298,9 @@ def add_observe_parser(sub) -> None:
     sp.add_argument("--arm", default="quanser_cuboulder_calibrated",
                     help="arm preset or YAML: the model of the real arm")
     sp.add_argument("--measure", default="q", help="measurements, comma-separated: q<i>, "
-                    "w<i> (joint_states position, velocity), d<i>, m<i>, ax, ay, px, py, pz "
-                    "(flex/gauges, in this order); q: every joint angle")
+                    "v<i> (joint_states position, velocity), w<i> (tip deflection), m<i>, "
+                    "ax, ay, tip_x, tip_y, tip_z (flex/gauges, in this order); q: every "
+                    "joint angle")
     sp.add_argument("--input", choices=("effort", "command"), default="effort",
                     help="the model's input: joint_states' effort, or the last "
                     "effort_controller/commands")
