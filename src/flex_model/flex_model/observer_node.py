@@ -20,10 +20,12 @@ Subscriptions (reliable, depth ``queue_depth``: a burst of samples is queued, no
                         joint_rate measurements, effort (joint torques, or motor voltages
                         when the arm has a motor effect) is the model's input with
                         ``input: effort``; joints matched by name (any order, any extras)
-    flex/gauges (``gauge_topic``)   std_msgs/Float64MultiArray  the measurements that are
-                        not on joint_states (tip deflection, strain, tip acceleration ...),
-                        in the order of ``measure``; the latest one is used once, by the
-                        next joint_states sample, and missing ones are NaN (not measured)
+    flex/gauges (``gauge_topic``)   sensor_msgs/JointState  the measurements that are not
+                        on joint_states (tip deflection w<i>, tip acceleration ...): name =
+                        their names in ``measure``, position = the readings; each is paired
+                        with the joint_states sample of its stamp (within half a sample
+                        period; send it before that sample); a sample without one is
+                        corrected with the other readings (NaN: not measured)
     effort_controller/commands      std_msgs/Float64MultiArray  the input with ``input:
                         command`` (held until the next one)
 Publications (stamps: the joint_states sample's):
@@ -125,8 +127,9 @@ PARAMETERS = (
           "until the first sample (one per joint or one for all)"),
     Param("input_topic", "joint_states", "the real arm's sensor_msgs/JointState",
           check=lambda v: None if v else "a topic name"),
-    Param("gauge_topic", "flex/gauges", "std_msgs/Float64MultiArray of the measurements not "
-          "on joint_states, in the order of measure",
+    Param("gauge_topic", "flex/gauges", "sensor_msgs/JointState of the measurements not on "
+          "joint_states (name: their names in measure; position: the readings), paired with "
+          "the joint_states sample of the same stamp",
           check=lambda v: None if v else "a topic name"),
     Param("queue_depth", 1000, "depth of the reliable input subscriptions (samples queued "
           "while a step runs)", check=lambda v: None if v >= 1 else "an integer >= 1"),
@@ -332,6 +335,7 @@ class ObserverNode(Managed, LifecycleNode):
         n = self.model.n_links
         self.names = list(self.model.arm.joint_names)
         self.measurements, self.sources = self._measurements(p)
+        self.n_gauges = sum(1 for s in self.sources if s[0] == "gauge")
         try:
             self.estimator = Estimator(self.model, self.measurements, self._settings(p))
         except ValueError as exc:
@@ -351,9 +355,10 @@ class ObserverNode(Managed, LifecycleNode):
         self._y = np.full(len(self.measurements), np.nan)
         self._index = {}  # tuple of joint_states names -> their positions in joint order
         self.u = np.zeros(n)
-        self.gauge = None  # the latest gauge values, used once
+        self.gauges = deque(maxlen=int(p["queue_depth"]))  # (stamp, values in gauge order)
+        self._gauge_index = {}  # serialized gauge names -> (positions, their gauge slots)
         self.counts = dict.fromkeys(("samples", "dropped", "late", "missed", "restarts",
-                                     "gauge_dropped"), 0)
+                                     "gauge_dropped", "gauge_late"), 0)
         self.reported = dict(self.counts)
         self.nis = NisWindow(int(p["nis_window"]))
         self.drops = ReasonLog(self)
@@ -369,8 +374,8 @@ class ObserverNode(Managed, LifecycleNode):
                                                self.on_joint_state, qos, raw=True)
         self.sub_gauge = None
         if any(s[0] == "gauge" for s in self.sources):
-            self.sub_gauge = self.create_subscription(Float64MultiArray, p["gauge_topic"],
-                                                      self.on_gauge, qos)
+            self.sub_gauge = self.create_subscription(JointState, p["gauge_topic"],
+                                                      self.on_gauge, qos, raw=True)
         self._needed = {"position": True, "effort": p["input"] == "effort",
                         "velocity": any(s[0] == "velocity" for s in self.sources)}
         if p["input"] == "command":
@@ -470,11 +475,12 @@ class ObserverNode(Managed, LifecycleNode):
         end = time.monotonic() + DRAIN_SLICE
         with sub.handle:
             while self.active and time.monotonic() < end:
-                if gauge is not None:  # a gauge reading sent before the next sample
+                while gauge is not None:  # the gauge readings sent before the sample
                     with gauge.handle:
-                        got = gauge.handle.take_message(gauge.msg_type, False)
-                    if got is not None:
-                        self.on_gauge(got[0])
+                        got = gauge.handle.take_message(gauge.msg_type, True)
+                    if got is None:
+                        break
+                    self.on_gauge(got[0])
                 got = sub.handle.take_message(sub.msg_type, True)
                 if got is None:
                     return
@@ -535,14 +541,48 @@ class ObserverNode(Managed, LifecycleNode):
             out.append(arr)
         return out
 
-    def on_gauge(self, msg: Float64MultiArray) -> None:
-        n = sum(1 for s in self.sources if s[0] == "gauge")
+    def on_gauge(self, data: bytes) -> None:
+        """A gauge reading (serialized JointState), queued by its stamp for its sample."""
         try:
-            values = conv.finite_array(msg.data, n, "gauges", "the measurements not on "
-                                       "joint_states, in the order of measure")
+            t, key, count, position, _, _ = read_joint_state(data)
+            idx, slots = self._gauge_slots(key, data)
+            if len(position) != count:
+                raise ValueError(f"position: got {len(position)} values for {count} names; "
+                                 "expected one per name")
+            values = np.full(self.n_gauges, np.nan)
+            values[slots] = position[idx]
+            if not np.all(np.isfinite(values[slots])):
+                raise ValueError(f"position: got non-finite values {fmt(values)}")
         except ValueError as exc:
             return self._drop(self.p["gauge_topic"], str(exc), "gauge_dropped")
-        self.gauge = values
+        self.gauges.append((t, values))
+
+    def _gauge_slots(self, key, data):
+        """(positions in the message, slots among the gauge measurements) of a gauge name
+        list (cached); ValueError naming an unknown name."""
+        found = self._gauge_index.get(key)
+        if found is None:
+            names = read_joint_state_names(data)
+            order = [m.name for m, s in zip(self.measurements, self.sources)
+                     if s[0] == "gauge"]
+            unknown = [n for n in names if n not in order]
+            if unknown:
+                raise ValueError(f"name: got {unknown}; expected gauge measurements of "
+                                 f"measure: {order}")
+            found = self._gauge_index[key] = (np.arange(len(names)),
+                                              np.array([order.index(n) for n in names]))
+        return found
+
+    def _gauge_at(self, t: float):
+        """The gauge values stamped within half a sample period of ``t`` (older ones are
+        dropped, counted as gauge_late: their sample has gone), or None."""
+        half, q = 0.5 * self.p["sample_period"], self.gauges
+        while q and q[0][0] < t - half:
+            q.popleft()
+            self.counts["gauge_late"] += 1
+        if q and q[0][0] <= t + half:
+            return q.popleft()[1]
+        return None
 
     def on_command(self, msg: Float64MultiArray) -> None:
         try:
@@ -558,7 +598,7 @@ class ObserverNode(Managed, LifecycleNode):
         restarts at rest at its joint angles, the links in static balance under its input
         (estimation.recording.initial_q: as estimate_recording starts)."""
         y = self._y
-        gauge, self.gauge = self.gauge, None
+        gauge = self._gauge_at(t) if self.sub_gauge is not None else None
         for k, (field, i) in enumerate(self.sources):
             if field == "position":
                 y[k] = position[i]
