@@ -52,8 +52,6 @@ from .simulate import JointPD, Pulse, SimulationResult, fixed_step, simulate
 from .statics import static_equilibrium
 
 SCENARIO_DIR = PRESET_DIR / "scenarios"
-#: the step-halving check of the fixed step runs this long past the first jump (s)
-HALVING_WINDOW = 0.3
 
 
 @dataclass
@@ -128,9 +126,9 @@ class Scenario:
 
     def run(self, progress=None, model: FlexArmModel | None = None,
             advise: bool = True) -> SimulationResult:
-        """Simulate the scenario; with ``advise`` a step the arm's excited modes need finer
-        (:meth:`advice`) is a ``UserWarning`` naming the step to use (the CLI prints the
-        same line itself)."""
+        """Simulate the scenario; with ``advise`` a run estimated more than 2 % off
+        (:meth:`advice`; it runs the scenario's first second about 6 times over) is a
+        ``UserWarning`` naming the setting to use (the CLI prints the same line itself)."""
         model = model or self.model()
         if advise:
             warning = self.advice(model).warning
@@ -155,31 +153,38 @@ class Scenario:
                         rtol=self.rtol, dt=self.step, rho_inf=self.rho_inf,
                         payload_changes=self.payload_changes, progress=progress)
 
-    def advice(self, model: FlexArmModel | None = None):
-        """:func:`flex_model.step_advice.step_advice` for this scenario's arm, start and
-        integrator; in the fixed mode, where the modal rule is quiet but fewer than
-        ``PROBE_STEPS_PER_PERIOD`` steps fall in a period of the highest excited mode,
-        the scenario's first :data:`HALVING_WINDOW` s after its first jump (set-point
-        step or pulse) run at the step and at half of it (``step_halving_error``)."""
+    def advice(self, model: FlexArmModel | None = None, check: bool = True):
+        """:func:`flex_model.step_advice.step_advice` (the arm's excited modes) for this
+        scenario; its warning is the a-posteriori estimate (step_advice.estimate_error
+        over step_advice.probe_window: the run, the run at a quarter of the step (variable
+        mode: rtol / 16) and that run with twice the variables per link; the variable mode
+        keeps the modal rule's warning and is not checked where the arm is stiff for the
+        explicit method). ``check`` False: no estimate (fixed mode: no warning)."""
         from . import step_advice as sa
         model = model or self.model()
         h = fixed_step(self.sample_period, self.step)[0]   # the step simulate takes
         adv = sa.step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
                              method=self.method, step=h,
                              kp=None if self.pd is None else self.pd.kp)
-        if (self.method != "fixed" or adv.warning is not None
-                or adv.highest_excited_mode_hz * h * sa.PROBE_STEPS_PER_PERIOD <= 1.0):
-            return adv
+        fixed = self.method == "fixed"
+        if not check or (not fixed and adv.warning):   # explicit and stiff: not checked
+            return adv if not fixed else replace(adv, warning=None)
         jumps = [p.start for p in self.pulses] + [t for t, _, _ in self.setpoint_schedule]
-        window = min(self.duration, min(jumps, default=0.0) + HALVING_WINDOW)
-        window = self.sample_period * max(1, round(window / self.sample_period))
+        window = sa.probe_window(self.duration, self.sample_period, jumps)
+        finer = replace(self.arm, links=tuple(replace(lk, n_vars=2 * lk.n_vars)
+                                              for lk in self.arm.links))
 
-        def tips(step):
-            probe = replace(self, duration=window, step=step)
-            return probe.run(model=model, advise=False).tip_deflections
-        err = sa.step_halving_error(tips, h)
-        return replace(adv, tip_error=tuple(float(e) for e in err),
-                       warning=sa.halving_warning(h, err, window))
+        def tips(divisor, factor):   # variable mode: the error follows rtol (DOPRI)
+            probe = replace(self, duration=window, step=h / divisor if fixed else self.step,
+                            rtol=self.rtol if fixed else self.rtol / divisor ** 2,
+                            arm=finer if factor > 1 else self.arm)
+            return probe.run(model=None if factor > 1 else model,
+                             advise=False).tip_deflections
+        est = sa.estimate_error(tips, window)
+        nv = sorted({lk.n_vars for lk in self.arm.links})
+        label = f"{'/'.join(map(str, nv))} variables per link"
+        warning = sa.error_warning(est, h, label, rtol=None if fixed else self.rtol)
+        return replace(adv, estimate=est, warning=warning)
 
 
 def scenario_names() -> list[str]:

@@ -109,7 +109,10 @@ def test_simulate_cli_step_rho_inf_and_load_time_apart(tmp_path, capsys):
                  "--no-plot", "--out", str(tmp_path)]) == 0
     s = json.loads(capsys.readouterr().out)
     assert (s["method"], s["step_s"], s["rho_inf"], s["steps"]) == ("fixed", 5e-4, 0.5, 400)
-    assert s["load_compile_cpu_s"] >= 0 and s["cpu_s"] >= 0 and s["warning"] is None
+    assert s["load_compile_cpu_s"] >= 0 and s["cpu_s"] >= 0
+    # 2 variables per link are 12.5 % off (8 variables at 1/16 ms): the advice says so
+    assert "2 variables per link" in s["warning"] and \
+        s["estimated_tip_error"]["variables"] > 0.1
     assert main(["simulate", str(sc), "--step", "0.02", "--no-plot",
                  "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err

@@ -12,6 +12,7 @@ with ``--bag``, a bag (:mod:`flex_twin.spatial_bags`).
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 
@@ -169,8 +170,8 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
     if args.duration is not None:
         if not args.duration > 0:
             raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
-        sc = replace(sc, duration=args.duration, sample_period=min(sc.sample_period,
-                                                                  args.duration))
+        sc = replace(sc, duration=args.duration,
+                     sample_period=min(sc.sample_period, args.duration))
     if getattr(args, "step", None) is not None:
         if not 0 < args.step <= sc.sample_period:
             raise ValueError(f"--step: got {args.step}; expected a step > 0 s and at most "
@@ -185,6 +186,10 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
     t0, c0 = time.perf_counter(), time.process_time()
     sc.run(model=model, duration=sc.sample_period)
     load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
+    warning, est = (None, None) if getattr(args, "no_advice", False) else \
+        sc.advice(model)   # the step and variables advice (step_advice)
+    if warning:
+        print(f"flex-twin: warning: {warning}", file=sys.stderr)
     t0, c0 = time.perf_counter(), time.process_time()
     res = sc.run(model=model, progress=Progress(label, not args.json))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -204,7 +209,10 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
                "load_compile_wall_s": load_wall, "load_compile_cpu_s": load_cpu,
                "csv": str(csv), "joint_names": sc.arm.joint_names,
                "final_joint_values": res.joint_values[-1].tolist(),
-               "final_tip_m": tip[-1].tolist(), "max_abs_tip_deflection": defl}
+               "final_tip_m": tip[-1].tolist(), "max_abs_tip_deflection": defl,
+               "warning": warning, "estimated_tip_error": None if est is None else {
+                   "step": est.step_error, "variables": est.vars_error,
+                   "window_s": est.window, "cost_s": est.cost_s}}
     if not args.no_plot:
         png = out_dir / f"{sc.name}.png"
         plot_spatial_run(res, png, f"{sc.name} ({sc.arm.name})")

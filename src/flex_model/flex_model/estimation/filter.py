@@ -254,18 +254,19 @@ class Estimator:
         every = int(self.settings.relinearize_every)
         if self._since is None or (every and self._since >= every):
             self.relinearize(u)
-        nu, Sk, used = self._correct(u, np.asarray(y, float))
-        sample = self._report(nu, Sk, used)
+        nu, Sk, used, nis = self._correct(u, np.asarray(y, float))
+        sample = self._report(nu, Sk, used, nis)
         self._predict(u)
         return sample
 
     def _correct(self, u, y):
+        """(innovation, its covariance, indices of the readings used, NIS)."""
         m = len(self.measurements)
         nu, Sk = np.full(m, np.nan), np.full((m, m), np.nan)
         used = np.flatnonzero(np.isfinite(y))
         if used.size == 0:
-            self._past.append(self.x.copy())
-            return nu, Sk, used
+            self._remember()
+            return nu, Sk, used, np.nan
         h = outputs(self.measurements, self.plant, self.x, u)
         for r in used:
             d = self.delays[r]
@@ -275,17 +276,22 @@ class Estimator:
                 h[r] = outputs([self.measurements[r]], self.plant, past, u)[0]
         H = self.H[used]
         v = y[used] - h[used]
-        S = H @ self.P @ H.T + np.diag(self.R[used])
         HP = H @ self.P
-        K = np.linalg.solve(S, HP).T
+        S = HP @ H.T + np.diag(self.R[used])
+        sol = np.linalg.solve(S, np.column_stack([HP, v]))
+        K = sol[:, :-1].T
         self.x = self.x + K @ v
-        P = self.P - K @ HP            # = (I - K H) P; symmetrized (the Joseph form's
-        self.P = 0.5 * (P + P.T)       # guard at a third of the cost)
+        self.P = self.P - K @ HP       # = (I - K H) P, symmetrized after the prediction
         self._project()
         nu[used] = v
         Sk[np.ix_(used, used)] = S
-        self._past.append(self.x.copy())
-        return nu, Sk, used
+        self._remember()
+        return nu, Sk, used, float(v @ sol[:, -1])
+
+    def _remember(self) -> None:
+        """The corrected estimate into the buffer of past ones (delayed readings)."""
+        if self._past.maxlen > 1:
+            self._past.append(self.x.copy())
 
     def _project(self) -> None:
         """Adapted parameters onto their physical range (friction, mass >= 0)."""
@@ -318,11 +324,9 @@ class Estimator:
         self._since += 1
 
     # ------------------------------------------------------------------ output
-    def _report(self, nu, Sk, used) -> Sample:
-        nis, dof = np.nan, int(used.size)
+    def _report(self, nu, Sk, used, nis) -> Sample:
+        dof = int(used.size)
         if dof:
-            vv = nu[used]
-            nis = float(vv @ np.linalg.solve(Sk[np.ix_(used, used)], vv))
             self._nis_sum += nis
             self._nis_count += 1
             self._nis_in += nis <= chi2_95(dof)

@@ -12,6 +12,11 @@ Parameter names (``adapt``): ``coulomb_friction:<joint>``, ``viscous_friction:<j
 (N m, N m s/rad, on the actuator coordinate, the joint's total), ``payload_mass`` (kg, at
 the last link's tip), ``link_stiffness:<link>`` (scale on the link's EI: its first-mode
 frequency scales with its square root). ``<joint>``/``<link>``: index or name.
+
+The filter's joint friction is the arm's with its tanh regularization at least
+``friction_smoothing`` (default 0.02 rad/s): the model's 1e-4-1e-6 rad/s make the Jacobian
+at rest a stiff switch (the calibrated Quanser twin: lambda T = 89 at 1 kHz) that a
+linearization held over samples cannot follow.
 """
 from __future__ import annotations
 
@@ -68,6 +73,9 @@ class PlanarPlant:
         self._E = list(input_data(self.model, None, (), np.zeros(self.n_joints)))
         self._K0 = self.model.K.copy()
         self._jd0 = self.model.joint_data.copy()
+        rubbing = self._jd0[:, 4:7].any(axis=1)   # the filter's friction: tanh over at
+        self._jd0[rubbing, 8] = np.maximum(self._jd0[rubbing, 8], friction_smoothing)
+        self._E[17] = self._jd0                   # least friction_smoothing (rad/s)
         self._payload = self.model.payload
         self._P_cache = (self._payload[0], self.model.P)
 
@@ -100,8 +108,8 @@ class PlanarPlant:
                 if kind == "coulomb_friction":  # keep the Stribeck excess F_s - F_c
                     jd[i, 6] = jd[i, 6] - jd[i, 5] + val
                     jd[i, 5] = val
-                    declared = self._jd0[i, 4:7].any()
-                    jd[i, 8] = max(jd[i, 8], self.smoothing) if declared else self.smoothing
+                    declared = self._jd0[i, 4:7].any()   # (its eps is floored already)
+                    jd[i, 8] = jd[i, 8] if declared else self.smoothing
                 else:
                     jd[i, 4] = val
         E[0], E[17] = K, jd

@@ -49,6 +49,7 @@ it cannot follow), so that a planar arm embedded in 3D follows the planar run.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -309,6 +310,45 @@ class SpatialScenario:
         return SpatialSimulation(model=model, t=t, q=Q, v=V, tau=tau,
                                  stats={"dt": h, "steps": n_total, "newton_iterations": iters,
                                         "restarts": len(bounds) - 1})
+
+    # ------------------------------------------------------------ advice
+    def tips(self, model: SpatialArmModel | None = None) -> np.ndarray:
+        """(samples, flexible links, 2) tip deflections y, z of a run (m)."""
+        d = self.run(model=model).tip_deflections()
+        return np.stack([np.column_stack([v["y"], v["z"]]) for v in d.values()], axis=1)
+
+    def with_finer_variables(self) -> "SpatialScenario":
+        """The scenario with twice the variables (bending and torsion) on every beam."""
+        def finer(beam):
+            return dataclasses.replace(beam, variables=2 * beam.variables,
+                                       torsion_variables=2 * beam.torsion_variables)
+        links = tuple(lk if lk.flexible is None else
+                      dataclasses.replace(lk, flexible=finer(lk.flexible))
+                      for lk in self.arm.links)
+        return dataclasses.replace(self, arm=dataclasses.replace(self.arm, links=links))
+
+    def advice(self, model: SpatialArmModel | None = None):
+        """(warning or None, step_advice.ErrorEstimate): the a-posteriori estimate of the
+        planar scenario (flex_model.scenario.Scenario.advice) over step_advice.probe_window:
+        the run, the run at a quarter of the step and that run with twice the variables."""
+        from .. import step_advice as sa
+        h = self.grid()[0]
+        jumps = [p.start for p in self.pulses] + [e[0] for e in self.setpoint_schedule] + \
+            [a for _, a, _ in self.tip_loads]
+        window = sa.probe_window(self.duration, self.sample_period, jumps)
+        beams = [lk.flexible for lk in self.arm.links if lk.flexible is not None]
+        if not beams:
+            return None, None
+        finer = self.with_finer_variables()
+
+        def tips(divisor, factor):
+            sc = dataclasses.replace(finer if factor > 1 else self, duration=window,
+                                     step=h / divisor)
+            return sc.tips(None if factor > 1 else model)
+        est = sa.estimate_error(tips, window)
+        nv = sorted({b.variables for b in beams})
+        label = f"{'/'.join(map(str, nv))} variables per bending plane"
+        return sa.error_warning(est, h, label), est
 
 
 def _ramp(t, t0: float, r: float):
