@@ -19,7 +19,6 @@ samples (wall and CPU time, and cProfile's top functions by own time). One core:
 itself to CPU 0 (``--cpu``) with single-threaded BLAS (set before numpy is imported).
 
     python bench/bench_observer.py [--seconds 60] [--arm ARM] [--measure q1] [--json]
-    python bench/bench_observer.py --what-if    # the estimator's step, and what would cut it
 
 The machine is shared (2 cores, other jobs): figures vary; the load average is printed.
 """
@@ -216,78 +215,6 @@ def step_alone(bag: Path, arm: str, measure: str, count: int) -> dict:
             "estimator_step_alone_cpu_us": 1e6 * alone_cpu, "own_time_us_per_sample": where}
 
 
-def what_if(arm: str, measure: str, count: int = 3000) -> dict:
-    """CPU time (this thread) of the estimator's step per sample on ``arm`` as it is, and
-    as it would be with W^-1 kept dense from each re-linearization (one product per ROS2
-    stage instead of scipy's lu_solve) and, in addition, a light report (state,
-    covariance, joint angles and rates, NIS), re-linearizing every 10 and 50 samples; and
-    the step of a spatial arm (seed003_like_arm, its own implicit step per sample)."""
-    import types
-
-    from flex_model.arm import load_arm
-    from flex_model.dynamics import FlexArmModel
-    from flex_model.estimation import Estimator, EstimatorSettings
-    from flex_model.estimation import filter as flt
-    from flex_model.observer_node import measurements_named
-
-    class Dense(Estimator):
-        def _state_jacobian(self, u):
-            self._a = super()._state_jacobian(u)
-            return self._a
-
-        def relinearize(self, u):
-            super().relinearize(u)
-            self._winv = np.linalg.inv(np.eye(self.n) - flt.GAMMA *
-                                       self.settings.sample_period * self._a)
-
-        def _predict(self, u):
-            T, f, w = self.settings.sample_period, self.plant.derivative, self._winv
-            k1 = w @ f(self.x, u)
-            k2 = w @ (f(self.x + T * k1, u) - 2.0 * k1)
-            self.x = self.x + T * (1.5 * k1 + 0.5 * k2)
-            self.P = self.F @ self.P @ self.F.T + self.Qd
-            self.P = 0.5 * (self.P + self.P.T)
-            self.t, self.k, self._since = self.t + T, self.k + 1, self._since + 1
-
-    class Light(Dense):
-        def _report(self, nu, Sk, used):
-            nq, vv = self.plant.nq, nu[used]
-            nis = float(vv @ np.linalg.solve(Sk[np.ix_(used, used)], vv))
-            return types.SimpleNamespace(
-                q=self.x[:nq].copy(), v=self.x[nq:2 * nq].copy(), state_cov=self.P,
-                joint_angles=self.plant.joint_angles(self.x[:nq]),
-                joint_rates=self.plant.joint_rates(self.x[nq:2 * nq]), nis=nis)
-
-    def cpu_per_step(cls, model, settings, n):
-        ms = measurements_named(model, measure.split(","))
-        est = cls(model, ms, settings)
-        est.reset(est.plant.q_from_joint_angles(np.zeros(model.n_links)),
-                  np.zeros(model.nq))
-        u, y = np.full(model.n_links, 1.0), np.zeros(len(ms))
-        for _ in range(20):
-            est.step(u, y)
-        c0 = time.thread_time()
-        for _ in range(n):
-            est.step(u, y)
-        return round(1e6 * (time.thread_time() - c0) / n)
-
-    model = FlexArmModel(load_arm(arm))
-    out = {}
-    for every in (10, 50):
-        s = EstimatorSettings(sample_period=1e-3, relinearize_every=every)
-        out[f"relinearize_every_{every}_us"] = {
-            name: cpu_per_step(cls, model, s, count)
-            for name, cls in (("as_is", Estimator), ("dense_W_inverse", Dense),
-                              ("and_light_report", Light))}
-    from flex_model.spatial.dynamics import SpatialArmModel
-    from flex_model.spatial.loader import load_spatial_arm
-    spatial = SpatialArmModel(load_spatial_arm("seed003_like_arm"))
-    measure = "q"
-    out["spatial_seed003_like_arm_us"] = cpu_per_step(
-        Estimator, spatial, EstimatorSettings(sample_period=1e-3), 100)
-    return {"what_if": out}
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0)
@@ -297,19 +224,14 @@ def main(argv=None) -> int:
     ap.add_argument("--batch", type=int, default=500)
     ap.add_argument("--cpu", type=int, default=0, help="pin to this CPU (-1: no pinning)")
     ap.add_argument("--profile-samples", type=int, default=2000)
-    ap.add_argument("--what-if", action="store_true", help="only the estimator's step: as "
-                    "it is and with a dense W^-1 and a light report (what_if)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     if args.cpu >= 0 and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {args.cpu})
     out = {"arm": args.arm, "measure": args.measure, "load_average": os.getloadavg()[0]}
-    if args.what_if:
-        out.update(what_if(args.arm, args.measure))
-    else:
-        bag = bag_path(args.arm, args.seconds, args.amplitude)
-        out.update(feed(bag, args.arm, args.measure, args.batch))
-        out.update(step_alone(bag, args.arm, args.measure, args.profile_samples))
+    bag = bag_path(args.arm, args.seconds, args.amplitude)
+    out.update(feed(bag, args.arm, args.measure, args.batch))
+    out.update(step_alone(bag, args.arm, args.measure, args.profile_samples))
     if args.json:
         print(json.dumps(out, indent=1))
     else:
