@@ -77,8 +77,9 @@ class EstimatorSettings:
 #: the fields of a Sample (and, stacked over time, of an EstimationResult)
 FIELDS = ("t", "q", "v", "state_cov", "joint_angles", "joint_angles_std", "joint_rates",
           "joint_rates_std", "tip_deflections", "tip_deflections_std", "tip_position",
-          "tip_position_cov", "innovation", "innovation_cov", "nis", "nis_dof", "nis_mean",
-          "nis_95_fraction", "parameters", "parameter_std")
+          "tip_position_cov", "tip_orientation", "tip_pose_cov", "innovation",
+          "innovation_cov", "nis", "nis_dof", "nis_mean", "nis_95_fraction", "parameters",
+          "parameter_std")
 
 
 class Sample:
@@ -130,6 +131,18 @@ class Sample:
     @cached_property
     def tip_position_cov(self):
         J = self._plant.tip_jacobian(self.q)
+        return J @ self._Pq @ J.T
+
+    @cached_property
+    def tip_orientation(self):
+        """(x, y, z, w) quaternion of the tip frame (planar: the tip tangent about z)."""
+        return np.array(self._plant.tip_orientation(self.q))
+
+    @cached_property
+    def tip_pose_cov(self):
+        """6 x 6 covariance of (x, y, z, rotation about x, y, z), base frame: the order of
+        geometry_msgs/PoseWithCovariance."""
+        J = self._plant.tip_pose_jacobian(self.q)
         return J @ self._Pq @ J.T
 
     @cached_property
@@ -262,11 +275,10 @@ class Estimator:
     def _correct(self, u, y):
         """(innovation, its covariance, indices of the readings used, NIS)."""
         m = len(self.measurements)
-        nu, Sk = np.full(m, np.nan), np.full((m, m), np.nan)
         used = np.flatnonzero(np.isfinite(y))
         if used.size == 0:
             self._remember()
-            return nu, Sk, used, np.nan
+            return np.full(m, np.nan), np.full((m, m), np.nan), used, np.nan
         h = outputs(self.measurements, self.plant, self.x, u)
         for r in used:
             d = self.delays[r]
@@ -283,8 +295,12 @@ class Estimator:
         self.x = self.x + K @ v
         self.P = self.P - K @ HP       # = (I - K H) P, symmetrized after the prediction
         self._project()
-        nu[used] = v
-        Sk[np.ix_(used, used)] = S
+        if used.size == m:
+            nu, Sk = v, S
+        else:
+            nu, Sk = np.full(m, np.nan), np.full((m, m), np.nan)
+            nu[used] = v
+            Sk[np.ix_(used, used)] = S
         self._remember()
         return nu, Sk, used, float(v @ sol[:, -1])
 

@@ -70,7 +70,9 @@ class PlanarPlant:
         self.params = [parse_parameter(a, self.joint_names, self.link_names) for a in adapt]
         self.param_names = list(adapt)
         self.smoothing = friction_smoothing
-        self._E = list(input_data(self.model, None, (), np.zeros(self.n_joints)))
+        self._u = np.zeros(self.n_joints)
+        self._E = list(input_data(self.model, None, (), self._u))
+        self._cached = (None, None, None)
         self._K0 = self.model.K.copy()
         self._jd0 = self.model.joint_data.copy()
         rubbing = self._jd0[:, 4:7].any(axis=1)   # the filter's friction: tanh over at
@@ -128,10 +130,14 @@ class PlanarPlant:
     def derivative(self, x, u) -> np.ndarray:
         """[v; a; 0] at state x = [q; v; p] and input u (joint torques or voltages)."""
         nq = self.nq
-        P, E = self._data(x[2 * nq:])
-        E[8] = np.asarray(u, float)
+        key = tuple(x[2 * nq:])
+        if self._cached[0] != key:   # (P, E) for these parameter values
+            P, E = self._data(x[2 * nq:])
+            self._cached = (key, P, tuple(E))
+        self._u[:] = u               # E[8], the held input, shared by every E
         out = np.zeros(len(x))
-        out[:2 * nq] = derivative(0.0, np.ascontiguousarray(x[:2 * nq]), P, tuple(E))
+        out[:2 * nq] = derivative(0.0, np.ascontiguousarray(x[:2 * nq]), self._cached[1],
+                                  self._cached[2])
         return out
 
     def inverse_mass(self, q, p) -> np.ndarray:
@@ -205,6 +211,18 @@ class PlanarPlant:
     def tip_jacobian(self, q) -> np.ndarray:
         """(3, nq): d tip position / d q (z row zero)."""
         return np.vstack([self.model.tip_jacobian(q), np.zeros((1, self.nq))])
+
+    def tip_orientation(self, q) -> tuple:
+        """(x, y, z, w): the tip tangent's rotation about z (FlexArmModel.tip_pose)."""
+        from ..urdf import yaw_quaternion
+        return yaw_quaternion(self.model.tip_pose(q)[2])
+
+    def tip_pose_jacobian(self, q) -> np.ndarray:
+        """(6, nq): d(tip position, rotation about x, y, z)/dq, base frame."""
+        J = np.zeros((6, self.nq))
+        J[:2] = self.model.tip_jacobian(q)
+        J[5] = self.model.tip_torque_vector()   # d phi / dq = e_alpha_nu + R_nu
+        return J
 
     def q_from_joint_angles(self, theta) -> np.ndarray:
         return self.model.q_from_joint_angles(theta)
