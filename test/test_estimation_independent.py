@@ -98,6 +98,9 @@ def test_spatial_deflections_from_the_encoders_alone(case):
         rel, cover = score(r.tip_deflections[:, k], r.tip_deflections_std[:, k], rec[name])
         assert rel < 0.05, (name, rel)
         assert cover >= 0.9, (name, cover)
+    C = r.tip_pose_cov[-1]     # the end frame's pose covariance (6 x 6) holds the position's
+    assert np.allclose(C[:3, :3], r.tip_position_cov[-1])
+    assert np.linalg.norm(r.tip_orientation[-1]) == pytest.approx(1.0)
 
 
 for _p in (PLANAR, CHANGE, SPATIAL):

@@ -37,7 +37,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .integrators import joint_tangent, galpha_parameters, joint_passive_forces, joint_torques
+from .integrators import (joint_tangent, galpha_parameters, joint_passive_forces,
+                          joint_torques, restart_choice)
 from .kernels import solve_spd
 
 _CACHE = True
@@ -440,6 +441,33 @@ def derivative(t, x, X, E):
     out[:n] = x[n:2 * n]
     out[n:] = solve_spd(B, rhs)
     return out
+
+
+@njit(cache=_CACHE)
+def iteration_matrix(x, h, rho_inf, X, E):
+    """(S, G): the fixed step's iteration matrix S = B + gamma' (D + C_j) + beta' (K + K_j)
+    at state x and its damping part G = gamma' (D + C_j) (Arnold-Bruls form)."""
+    n = E[0].shape[0]
+    B = terms(x[:n], x[n:2 * n], 0.0, 0.0, X)[0]
+    am, af, gam, beta = galpha_parameters(rho_inf)
+    ratio = (1.0 - af) / (1.0 - am)
+    Kj, Cj = joint_tangent(x[n:2 * n], E)
+    G = h * gam * ratio * (E[1] + Cj)
+    return B + G + h * h * beta * ratio * (E[0] + Kj), G
+
+
+@njit(cache=_CACHE)
+def restart_acceleration(t, x, a, h, rho_inf, X, E):
+    """(a1, filtered): the start acceleration (a = abar = a1) of the fixed step after a
+    jump of the applied forces with exact kinematics, a the step's before it:
+    integrators.restart_choice between the consistent B^-1 (Q - c) and the part
+    a + S^-1 B dA of the jump the step follows (filtered True), S = iteration_matrix."""
+    n = E[0].shape[0]
+    B, rhs = balance(t, x[:n], x[n:2 * n], X, E)
+    ac = solve_spd(B, rhs)
+    S = iteration_matrix(x, h, rho_inf, X, E)[0]
+    a1 = restart_choice(a, ac, B, S, h, rho_inf)[0]
+    return a1, not np.array_equal(a1, ac)
 
 
 @njit(cache=_CACHE)

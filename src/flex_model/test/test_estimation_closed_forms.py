@@ -180,3 +180,26 @@ def test_a_voltage_driven_arm_is_estimated_through_its_motor_model():
     r = estimate_recording(model, res.t, volts[:, None], y, ms, s, q0=np.zeros(model.nq))
     err = r.tip_deflections[:, 0] - res.tip_deflections[:, 0]
     assert np.sqrt(np.mean(err ** 2)) < 0.05 * np.abs(res.tip_deflections[:, 0]).max()
+
+
+def test_the_tip_pose_and_its_covariance():
+    """Planar: the orientation is the tip tangent's yaw (FlexArmModel.tip_pose), the 6 x 6
+    pose covariance holds the position's 3 x 3 and, on the yaw, the variance of
+    alpha + gamma_tip; a finite-difference check of the pose Jacobian."""
+    model = _link()
+    est = _estimator(model)
+    q0 = model.q_from_joint_angles([0.3], flex=np.array([0.01, 0.004]))
+    est.reset(q0)
+    s = est.step(np.zeros(1), np.array([0.3, 0.01]))
+    phi = model.tip_pose(s.q)[2]
+    assert np.allclose(s.tip_orientation, [0, 0, np.sin(phi / 2), np.cos(phi / 2)])
+    C = s.tip_pose_cov
+    assert np.allclose(C[:3, :3], s.tip_position_cov, rtol=1e-12, atol=0)
+    e = np.zeros(model.nq)
+    for k in range(model.nq):
+        dq = np.zeros(model.nq)
+        dq[k] = 1e-7
+        e[k] = (model.tip_pose(s.q + dq)[2] - model.tip_pose(s.q - dq)[2]) / 2e-7
+    Pq = s.state_cov[:model.nq, :model.nq]
+    assert C[5, 5] == pytest.approx(e @ Pq @ e, rel=1e-6)
+    assert np.all(np.linalg.eigvalsh(0.5 * (C + C.T)) > -1e-15)

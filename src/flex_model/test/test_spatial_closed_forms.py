@@ -108,8 +108,12 @@ def test_seed000_arm_in_3d():
                 np.linalg.norm(md.shapes_q[:, k])]
     exact = cantilever_tip_mass_omega(EIv, rhoA, L, M, 0) / (2 * np.pi)   # 158.49 Hz
     assert exact < vertical[0] < exact * (1 + 5e-6)
+    # the gravity preload (the 11 um droop) couples the horizontal bending and the twist
+    # through the droop's curvature (the second-order curvature energy, issue 47):
+    # 2.5e-5 on these modes, no longer zero
     preloaded = natural_modes(model, gravity_preload=True).frequencies_hz
-    assert preloaded[:4] == pytest.approx(md.frequencies_hz[:4], rel=1e-9)
+    assert preloaded[:4] == pytest.approx(md.frequencies_hz[:4], rel=1e-4)
+    assert not preloaded[:4] == pytest.approx(md.frequencies_hz[:4], rel=1e-6)
 
 
 PLANAR = ["thesis_example1", "thesis_three_link", "thesis_example2", "thesis_example4",

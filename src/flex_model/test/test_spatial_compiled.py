@@ -1,7 +1,9 @@
 """The compiled spatial kernels (numba, analytic Newton-Euler velocity terms) against the
 Python reference (complex-step velocity terms): M, c, inverse dynamics and the compiled
-generalized-alpha loop, on arms covering DH (dh_x, aux_z), prismatic joints, torsion and
-a URDF arm (general axes, link_x beam, merged fixed links, effort limits)."""
+generalized-alpha loop, on arms covering DH (dh_x, aux_z), prismatic joints, torsion,
+bending rotary inertia and a URDF arm (general axes, link_x beam, merged fixed links,
+effort limits)."""
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +19,7 @@ from flex_model.spatial.limits import clip_efforts
 AUX = {"name": "aux", "gravity": [0.5, -2.0, -9.81], "links": [
     {"joint": {"type": "revolute", "alpha": -1.2, "d": 0.2, "a": 0.1},
      "end_body": {"mass": 0.7, "inertia": [[0.01, 0.002, 0.0], [0.002, 0.02, 0.001],
-                                          [0.0, 0.001, 0.015]], "offset": [0.02, 0.03, -0.01]}},
+                                           [0.0, 0.001, 0.015]], "offset": [0.02, 0.03, -0.01]}},
     {"joint": {"type": "prismatic", "alpha": 0.7, "theta": 0.4, "d": 0.1}},
     {"joint": {"type": "revolute", "a": 0.05, "alpha": 0.3, "d": 0.02},
      "flexible": {"placement": "aux_z", "length": 0.6, "variables": 4, "torsion_variables": 2,
@@ -31,10 +33,20 @@ AUX = {"name": "aux", "gravity": [0.5, -2.0, -9.81], "links": [
      "end_body": {"mass": 0.1}}]}
 
 
+def _rotary_aux() -> dict:
+    """AUX with bending rotary inertia on both beams (one twisting, one not)."""
+    arm = copy.deepcopy(AUX)
+    for lk in arm["links"][2:]:
+        lk["flexible"]["rotary_inertia"] = True
+    arm["links"][3]["flexible"]["section"]["rhoJ"] = 2e-3
+    return arm
+
+
 def _models():
     effects = read_yaml(Path(__file__).with_name("data_spatial_effects_arm.yaml"))
     return {"seed000": SpatialArmModel(load_spatial_arm("seed000_real_arm_3d")),
             "aux_prismatic": SpatialArmModel(spatial_arm_from_dict(AUX)),
+            "aux_rotary": SpatialArmModel(spatial_arm_from_dict(_rotary_aux())),
             "urdf_6_joint": SpatialArmModel(load_spatial_arm("ur5_like_flexible_forearm")),
             "effects": SpatialArmModel(spatial_arm_from_dict(effects))}
 
@@ -44,7 +56,8 @@ def models():
     return _models()
 
 
-@pytest.mark.parametrize("name", ["seed000", "aux_prismatic", "urdf_6_joint", "effects"])
+@pytest.mark.parametrize("name", ["seed000", "aux_prismatic", "aux_rotary", "urdf_6_joint",
+                                  "effects"])
 def test_compiled_terms_equal_the_python_reference(models, name):
     """M, c (velocity terms + gravity) and M a + c (inverse dynamics) at random states:
     the analytic recursion equals the complex-step reference to 1e-10 (relative)."""

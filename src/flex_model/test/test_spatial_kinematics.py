@@ -29,8 +29,9 @@ def eq17(a, alpha, d, theta):
 
 
 def eq19(v, w, dv, dw, phi, length):
-    """Seed 000 Eq. 19 in the beam frame: Rx(phi) Ry(-w') Rz(v') and (L, v, w)."""
-    E = rot("x", phi) @ rot("y", -dw) @ rot("z", dv)
+    """Seed 000 Eq. 19 in the beam frame with the twist about the tangent (issue 47):
+    Ry(-w') Rz(v') Rx(phi) and (L, v, w)."""
+    E = rot("y", -dw) @ rot("z", dv) @ rot("x", phi)
     E[:3, 3] = [length, v, w]
     return E
 

@@ -409,8 +409,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_presets)
     from .bag_cli import add_bag_parsers  # record, play, bag info (rclpy imported lazily)
     add_bag_parsers(sub)
-    from .ros_suite import add_up_parser  # up: the nodes from a parameter file
+    from .ros_suite import add_observe_parser, add_up_parser  # (rclpy imported lazily)
     add_up_parser(sub)
+    add_observe_parser(sub)
     from flex_control.cli import add_control_parser
     from flex_planner.cli import add_plan_parser
 

@@ -25,9 +25,11 @@ tip_acceleration, tip_position (``component``). Variance std^2 + quantum^2 / 12;
 ``Sample`` (after the sample's correction): t, q, v, state_cov (the full covariance of
 [q; v; p]), joint_angles(_std), joint_rates(_std), tip_deflections(_std) (planar: per
 link; spatial: per link x (v, w, twist)), tip_position (3, base frame), tip_position_cov
-(3 x 3), innovation and innovation_cov (over all measurements, NaN where missing), nis and
-nis_dof of the sample, nis_mean and nis_95_fraction (running: the fraction of samples with
-NIS below the chi2 95 % bound of their dimension), parameters and parameter_std (name ->
+(3 x 3), tip_orientation (quaternion x, y, z, w) and tip_pose_cov (6 x 6: x, y, z, rotation
+about x, y, z, as geometry_msgs/PoseWithCovariance), innovation and innovation_cov (over all
+measurements, NaN where missing), nis and nis_dof of the sample, nis_mean and
+nis_95_fraction (running: the fraction of samples with NIS below the chi2 95 % bound of
+their dimension), parameters and parameter_std (name ->
 value). ``EstimationResult``: the same fields as arrays over time (parameters: name ->
 array) and ``summary`` (samples, nis_mean, nis_dof_mean, nis_95_fraction, final
 parameters and stds).

@@ -77,8 +77,9 @@ class EstimatorSettings:
 #: the fields of a Sample (and, stacked over time, of an EstimationResult)
 FIELDS = ("t", "q", "v", "state_cov", "joint_angles", "joint_angles_std", "joint_rates",
           "joint_rates_std", "tip_deflections", "tip_deflections_std", "tip_position",
-          "tip_position_cov", "innovation", "innovation_cov", "nis", "nis_dof", "nis_mean",
-          "nis_95_fraction", "parameters", "parameter_std")
+          "tip_position_cov", "tip_orientation", "tip_pose_cov", "innovation",
+          "innovation_cov", "nis", "nis_dof", "nis_mean", "nis_95_fraction", "parameters",
+          "parameter_std")
 
 
 class Sample:
@@ -130,6 +131,18 @@ class Sample:
     @cached_property
     def tip_position_cov(self):
         J = self._plant.tip_jacobian(self.q)
+        return J @ self._Pq @ J.T
+
+    @cached_property
+    def tip_orientation(self):
+        """(x, y, z, w) quaternion of the tip frame (planar: the tip tangent about z)."""
+        return np.array(self._plant.tip_orientation(self.q))
+
+    @cached_property
+    def tip_pose_cov(self):
+        """6 x 6 covariance of (x, y, z, rotation about x, y, z), base frame: the order of
+        geometry_msgs/PoseWithCovariance."""
+        J = self._plant.tip_pose_jacobian(self.q)
         return J @ self._Pq @ J.T
 
     @cached_property

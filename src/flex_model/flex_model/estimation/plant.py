@@ -212,5 +212,17 @@ class PlanarPlant:
         """(3, nq): d tip position / d q (z row zero)."""
         return np.vstack([self.model.tip_jacobian(q), np.zeros((1, self.nq))])
 
+    def tip_orientation(self, q) -> tuple:
+        """(x, y, z, w): the tip tangent's rotation about z (FlexArmModel.tip_pose)."""
+        from ..urdf import yaw_quaternion
+        return yaw_quaternion(self.model.tip_pose(q)[2])
+
+    def tip_pose_jacobian(self, q) -> np.ndarray:
+        """(6, nq): d(tip position, rotation about x, y, z)/dq, base frame."""
+        J = np.zeros((6, self.nq))
+        J[:2] = self.model.tip_jacobian(q)
+        J[5] = self.model.tip_torque_vector()   # d phi / dq = e_alpha_nu + R_nu
+        return J
+
     def q_from_joint_angles(self, theta) -> np.ndarray:
         return self.model.q_from_joint_angles(theta)

@@ -28,6 +28,8 @@ class EstimationResult:
     tip_deflections_std: np.ndarray
     tip_position: np.ndarray
     tip_position_cov: np.ndarray
+    tip_orientation: np.ndarray
+    tip_pose_cov: np.ndarray
     innovation: np.ndarray
     innovation_cov: np.ndarray
     nis: np.ndarray

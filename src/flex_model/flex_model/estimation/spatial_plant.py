@@ -163,6 +163,15 @@ class SpatialPlant:
     def tip_jacobian(self, q) -> np.ndarray:
         return self.model.tip_jacobian(q)[:3]
 
+    def tip_orientation(self, q) -> tuple:
+        """(x, y, z, w) of the end frame's rotation (base frame)."""
+        from ..urdf import quaternion_from_matrix
+        return quaternion_from_matrix(np.real(self.model.tip_frame(q).R))
+
+    def tip_pose_jacobian(self, q) -> np.ndarray:
+        """(6, nq): the end frame's linear and angular velocity per q-dot."""
+        return self.model.tip_jacobian(q)
+
     def angle_map(self) -> np.ndarray:
         G = np.zeros((self.n_joints, self.nq))
         G[np.arange(self.n_joints), self.model.off] = 1.0

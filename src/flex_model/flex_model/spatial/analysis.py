@@ -48,7 +48,8 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
     F = np.zeros(3) if tip_force is None else np.asarray(tip_force, float)
 
     def residual(q):
-        r = -model.K @ q - model.gravity_force(q) + model.contact_load(q)
+        r = -model.K @ q - model.gravity_force(q) + model.contact_load(q) + \
+            model.curvature_load(q)
         if np.any(F):
             r += model.tip_jacobian(q)[:3].T @ F
         return r[free]
@@ -59,8 +60,8 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
         if not len(free):            # a rigid arm: nothing deforms
             it = 0
             break
-        Kt = (model.K + model.gravity_stiffness(q) +
-              model.contact_tangent(q)[0])[np.ix_(free, free)]
+        Kt = (model.K + model.gravity_stiffness(q) + model.contact_tangent(q)[0] +
+              model.curvature_tangent(q))[np.ix_(free, free)]
         if np.any(F) and not linear:  # load stiffness of the tip force (central diff.)
             h = 1e-7
             for c, j in enumerate(free):
@@ -79,7 +80,7 @@ def static_equilibrium(model: SpatialArmModel, joint_values=None, *, tip_force=N
             break
     else:
         raise StaticConvergenceError(f"no static equilibrium after {max_iter} Newton steps "
-                           f"(largest residual {np.max(np.abs(r)):.3e})")
+                                     f"(largest residual {np.max(np.abs(r)):.3e})")
     tip = model.tip_frame(q)
     pos = np.real(tip.o)
     if linear:  # the linearized output as well (as the planar static --linear)
@@ -110,7 +111,7 @@ def natural_modes(model: SpatialArmModel, joint_values=None, *, joints: str = "c
         raise ValueError(f"joints: got {joints!r}; expected clamped or hinged")
     if gravity_preload:
         q0 = static_equilibrium(model, joint_values).q
-        Kt = model.K + model.gravity_stiffness(q0)
+        Kt = model.K + model.gravity_stiffness(q0) + model.curvature_tangent(q0)
     else:
         q0 = _q_at(model, joint_values)
         Kt = model.K

@@ -21,7 +21,8 @@ at zero q-ddot, i.e. dJ/dt v) of its origin, a_o, and its rotation, alpha:
 
 The model data is a tuple of arrays built once by :func:`pack` (per link: joint type and
 axis, the fixed transforms before and after the joint and the beam, bodies; per beam
-Gauss point: mass and polar weights and the sampled bases, padded).
+Gauss point: mass weights, the section inertia weights rhoJ ds, rho I_y ds, rho I_z ds
+(the last two zero without rotary inertia) and the sampled bases, padded).
 """
 from __future__ import annotations
 
@@ -66,6 +67,8 @@ def pack(model: SpatialArmModel) -> tuple:
     maxnt = max([b.nt for b in beams] + [1])
     zs, mw, pw, Wv, dWv, Ww, dWw, Pt = [], [], [], [], [], [], [], []
     Sv, Sw = [], []                  # second_order: S(z) per plane at the mass points
+    CF, CW = [], []
+    maxn = max([b.n for b in beams] + [1])
     SL = np.zeros((n, 2, maxnv, maxnv))   # and at the tip
     count = 0
     for i, (lk, b) in enumerate(zip(arm.links, model.beams)):
@@ -90,7 +93,18 @@ def pack(model: SpatialArmModel) -> tuple:
             npt = len(b.z)
             zs.append(b.z)
             mw.append(b.mass_w)
-            pw.append(b.polar_w)
+            cf = np.zeros((npt, 5, maxn))   # curvature coupling (BeamData._coupling)
+            cw = np.zeros((npt, 3))
+            if b.coupling is not None:
+                cf[:, :, :b.n] = b.coupling[0].transpose(1, 0, 2)
+                cw[:] = np.column_stack(b.coupling[1:])
+            CF.append(cf)
+            CW.append(cw)
+            pwk = np.zeros((npt, 3))      # rhoJ ds, rho I_y ds, rho I_z ds
+            pwk[:, 0] = b.polar_w
+            if b.rotary is not None:
+                pwk[:, 1:] = b.rotary
+            pw.append(pwk)
             for dst, src in ((Wv, b.Wv), (dWv, b.dWv), (Ww, b.Ww), (dWw, b.dWw)):
                 a = np.zeros((npt, maxnv))
                 a[:, :src.shape[1]] = src
@@ -121,19 +135,21 @@ def pack(model: SpatialArmModel) -> tuple:
     def cat(parts, width=None):
         if parts:
             return np.ascontiguousarray(np.concatenate(parts))
-        return np.zeros((0,) if width is None else (0, width))
+        if width is None:
+            return np.zeros((0,))
+        return np.zeros((0,) + (tuple(width) if isinstance(width, tuple) else (width,)))
 
     # joint effects: rotor (J_r, n, spin coordinate or -1) per joint, constant motor inertias
     rot = np.array([[jr, ratio, spin] for jr, ratio, spin in model.rotors], float)
     # a writable copy: np.diag gives a read-only view, another numba signature (recompiles)
     mdiag = np.diag(model.M_const).copy()
     return (jtype, koff, axis, T, P, flex, nv, nt, fstart, length, bm, bc, bI, pstart,
-            cat(zs), cat(mw), cat(pw), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
+            cat(zs), cat(mw), cat(pw, 3), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
             cat(dWw, maxnv), cat(Pt, maxnt), np.asarray(model.gravity, float),
             int(model.nq), rot.reshape(n, 3), mdiag,
             np.ascontiguousarray(np.concatenate(Sv)) if Sv else np.zeros((0, maxnv, maxnv)),
             np.ascontiguousarray(np.concatenate(Sw)) if Sw else np.zeros((0, maxnv, maxnv)),
-            SL, int(so))
+            SL, int(so), cat(CF, (5, maxn)), cat(CW, 3))
 
 
 # ------------------------------------------------------------------ small vector helpers
@@ -275,24 +291,27 @@ def _rotate_axis(R, u, t, W):
 
 @njit(cache=_CACHE)
 def _section(phi, dv, dw, phid, dvd, dwd):
-    """Section rotation Rs = Rx(phi) Ry(-w') Rz(v'), its axes a_w, a_v (beam frame) and
-    the relative angular velocity and bias acceleration (beam frame)."""
-    Rx = _rotx(phi)
-    Rxy = _mm(Rx, _roty(-dw))
-    Rs = _mm(Rxy, _rotz(dv))
-    aw = np.empty(3)
+    """Section rotation Rs = Ry(-w') Rz(v') Rx(phi) (the twist about the tangent), its
+    axes a_w, a_v, a_t (beam frame) and the relative angular velocity and bias
+    acceleration (beam frame)."""
+    Ry = _roty(-dw)
+    Ryz = _mm(Ry, _rotz(dv))
+    Rs = _mm(Ryz, _rotx(phi))
+    aw = np.array([0.0, -1.0, 0.0])
     av = np.empty(3)
+    at = np.empty(3)
     for a in range(3):
-        aw[a] = -Rx[a, 1]
-        av[a] = Rxy[a, 2]
-    w1 = np.array([phid, 0.0, 0.0])
+        av[a] = Ry[a, 2]
+        at[a] = Ryz[a, 0]
+    w1 = np.empty(3)
     w2 = np.empty(3)
     w3 = np.empty(3)
     w12 = np.empty(3)
     wrel = np.empty(3)
     for a in range(3):
-        w2[a] = aw[a] * dwd
-        w3[a] = av[a] * dvd
+        w1[a] = aw[a] * dwd
+        w2[a] = av[a] * dvd
+        w3[a] = at[a] * phid
         w12[a] = w1[a] + w2[a]
         wrel[a] = w12[a] + w3[a]
     t1 = np.zeros(3)
@@ -301,7 +320,7 @@ def _section(phi, dv, dw, phid, dvd, dwd):
     _cross(w12, w3, t2)
     for a in range(3):
         t1[a] += t2[a]
-    return Rs, aw, av, wrel, t1
+    return Rs, aw, av, at, wrel, t1
 
 
 @njit(cache=_CACHE)
@@ -474,7 +493,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     points and rotors of a link are lumped per frame into a spatial inertia (mass, first
     and second moments) so that M costs one J6^T I6 J6 product per frame group."""
     (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so) = Pm
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so, CF, CW) = Pm
     M = np.zeros((nq, nq))
     c = np.zeros(nq)
     R = np.eye(3)
@@ -490,6 +509,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     acc = np.zeros(3)
     rv = np.zeros(3)
     xv = np.zeros(3)
+    ek = np.zeros((3, 3))
     tau = np.zeros(3)
     t1 = np.zeros(3)
     t2 = np.zeros(3)
@@ -580,9 +600,14 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         # per point, in scalars (no temporaries): the own columns of a point are
         # x_j = b_y Wv_j (v) and b_z Ww_j (w), orthonormal directions, and those of a
         # section's rotation are a_v dWv_j, a_w dWw_j, b_x Pt_j with the rank-one section
-        # inertia rhoJ ds a a^T (a the section's x axis)
+        # inertia rhoJ ds a a^T (a the section's x axis; with rotary inertia also
+        # rho I_y ds and rho I_z ds about the section's y and z axes)
         n2 = 2 * nv
         sown = np.zeros(n2 + nt)
+        # section inertia axes per point: 1 (rhoJ about x) or 3 (rotary inertia too)
+        nk = 1
+        if pstart[i + 1] > pstart[i] and (pw[pstart[i], 1] != 0.0 or pw[pstart[i], 2] != 0.0):
+            nk = 3
         sva = np.zeros(nv)
         swa = np.zeros(nv)
         for p in range(pstart[i], pstart[i + 1]):
@@ -686,7 +711,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                 for jj in range(j, nv):
                     M[jv, s0 + jj] += wv * Wv[p, jj]
                     M[jw, s0 + nv + jj] += ww * Ww[p, jj]
-            if nt:
+            if nt or nk == 3:
                 phi = 0.0
                 sphi = 0.0
                 for j in range(nt):
@@ -698,82 +723,98 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                 cf, sf = np.cos(phi), np.sin(phi)
                 cp, sp = np.cos(ydw), -np.sin(ydw)          # Ry(-w')
                 ct, st = np.cos(ydv), np.sin(ydv)
-                # beam-frame axes: a_w = -Rx e_y, a_v = Rx Ry e_z, section x axis
-                aw0, aw1, aw2 = 0.0, -cf, -sf
-                av0, av1, av2 = sp, -sf * cp, cf * cp
-                xs0 = ct * cp
-                xs1 = ct * sf * sp + st * cf
-                xs2 = -ct * cf * sp + st * sf
+                # Rs = Ry(-w') Rz(v') Rx(phi), beam-frame axes: a_w = -e_y, a_v = Ry e_z,
+                # a_t = Ry Rz e_x (the tangent: the section's x axis), c1 = Ry Rz e_y
+                aw0, aw1, aw2 = 0.0, -1.0, 0.0
+                av0, av1, av2 = sp, 0.0, cp
+                at0, at1, at2 = cp * ct, st, -sp * ct
+                c10, c11, c12 = -cp * st, ct, sp * st
                 # relative angular velocity and bias acceleration (beam frame)
-                wr0 = sphi + aw0 * sdw + av0 * sdv
-                wr1 = aw1 * sdw + av1 * sdv
-                wr2 = aw2 * sdw + av2 * sdv
                 e0, e1, e2 = aw0 * sdw, aw1 * sdw, aw2 * sdw         # a_w dw'
                 f0, f1, f2 = av0 * sdv, av1 * sdv, av2 * sdv         # a_v dv'
-                # (phi' e_x) x e + (phi' e_x + e) x f
-                ar0 = (e1 * f2 - e2 * f1)
-                ar1 = -sphi * e2 + (e2 * f0 - (sphi + e0) * f2)
-                ar2 = sphi * e1 + ((sphi + e0) * f1 - e1 * f0)
-                # plus the second derivatives: e_x phi'' + a_w dw'' + a_v dv''
-                ar0 += aphi + aw0 * adw + av0 * adv
-                ar1 += aw1 * adw + av1 * adv
-                ar2 += aw2 * adw + av2 * adv
+                h0, h1, h2 = at0 * sphi, at1 * sphi, at2 * sphi      # a_t phi'
+                wr0, wr1, wr2 = e0 + f0 + h0, e1 + f1 + h1, e2 + f2 + h2
+                # e x f + (e + f) x h
+                ar0 = (e1 * f2 - e2 * f1) + ((e1 + f1) * h2 - (e2 + f2) * h1)
+                ar1 = (e2 * f0 - e0 * f2) + ((e2 + f2) * h0 - (e0 + f0) * h2)
+                ar2 = (e0 * f1 - e1 * f0) + ((e0 + f0) * h1 - (e1 + f1) * h0)
+                # plus the second derivatives: a_t phi'' + a_w dw'' + a_v dv''
+                ar0 += at0 * aphi + aw0 * adw + av0 * adv
+                ar1 += at1 * aphi + aw1 * adw + av1 * adv
+                ar2 += at2 * aphi + aw2 * adw + av2 * adv
                 # to base axes
-                awb0 = Rb[0, 1] * aw1 + Rb[0, 2] * aw2
-                awb1 = Rb[1, 1] * aw1 + Rb[1, 2] * aw2
-                awb2 = Rb[2, 1] * aw1 + Rb[2, 2] * aw2
+                awb0 = Rb[0, 1] * aw1
+                awb1 = Rb[1, 1] * aw1
+                awb2 = Rb[2, 1] * aw1
                 avb0 = Rb[0, 0] * av0 + Rb[0, 1] * av1 + Rb[0, 2] * av2
                 avb1 = Rb[1, 0] * av0 + Rb[1, 1] * av1 + Rb[1, 2] * av2
                 avb2 = Rb[2, 0] * av0 + Rb[2, 1] * av1 + Rb[2, 2] * av2
+                atb0 = Rb[0, 0] * at0 + Rb[0, 1] * at1 + Rb[0, 2] * at2
+                atb1 = Rb[1, 0] * at0 + Rb[1, 1] * at1 + Rb[1, 2] * at2
+                atb2 = Rb[2, 0] * at0 + Rb[2, 1] * at1 + Rb[2, 2] * at2
                 wb0 = Rb[0, 0] * wr0 + Rb[0, 1] * wr1 + Rb[0, 2] * wr2
                 wb1 = Rb[1, 0] * wr0 + Rb[1, 1] * wr1 + Rb[1, 2] * wr2
                 wb2 = Rb[2, 0] * wr0 + Rb[2, 1] * wr1 + Rb[2, 2] * wr2
                 ab0 = Rb[0, 0] * ar0 + Rb[0, 1] * ar1 + Rb[0, 2] * ar2
                 ab1 = Rb[1, 0] * ar0 + Rb[1, 1] * ar1 + Rb[1, 2] * ar2
                 ab2 = Rb[2, 0] * ar0 + Rb[2, 1] * ar1 + Rb[2, 2] * ar2
-                x0 = Rb[0, 0] * xs0 + Rb[0, 1] * xs1 + Rb[0, 2] * xs2
-                x1 = Rb[1, 0] * xs0 + Rb[1, 1] * xs1 + Rb[1, 2] * xs2
-                x2 = Rb[2, 0] * xs0 + Rb[2, 1] * xs1 + Rb[2, 2] * xs2
+                # section axes (base): x = a_t, y = cf c1 + sf a_v, z = -sf c1 + cf a_v;
+                # inertia pw[p, k] e_k e_k^T (rhoJ about x; with rotary inertia rho I_y
+                # about y, rho I_z about z)
+                ys0, ys1, ys2 = cf * c10 + sf * av0, cf * c11 + sf * av1, cf * c12 + sf * av2
+                zs0, zs1, zs2 = -sf * c10 + cf * av0, -sf * c11 + cf * av1, \
+                    -sf * c12 + cf * av2
+                for a in range(3):
+                    ek[0, a] = Rb[a, 0] * at0 + Rb[a, 1] * at1 + Rb[a, 2] * at2
+                    ek[1, a] = Rb[a, 0] * ys0 + Rb[a, 1] * ys1 + Rb[a, 2] * ys2
+                    ek[2, a] = Rb[a, 0] * zs0 + Rb[a, 1] * zs1 + Rb[a, 2] * zs2
                 wp0, wp1, wp2 = w[0] + wb0, w[1] + wb1, w[2] + wb2
                 lp0 = al[0] + (w[1] * wb2 - w[2] * wb1) + ab0
                 lp1 = al[1] + (w[2] * wb0 - w[0] * wb2) + ab1
                 lp2 = al[2] + (w[0] * wb1 - w[1] * wb0) + ab2
-                pj = pw[p]
-                xw = x0 * wp0 + x1 * wp1 + x2 * wp2
-                xl = x0 * lp0 + x1 * lp1 + x2 * lp2
-                # tau = pj (x (x . alpha) + (x . w) w x x)
-                tau[0] = pj * (x0 * xl + xw * (wp1 * x2 - wp2 * x1))
-                tau[1] = pj * (x1 * xl + xw * (wp2 * x0 - wp0 * x2))
-                tau[2] = pj * (x2 * xl + xw * (wp0 * x1 - wp1 * x0))
-                xv[0] = x0
-                xv[1] = x1
-                xv[2] = x2
+                tau[0] = 0.0
+                tau[1] = 0.0
+                tau[2] = 0.0
+                nown = n2 + nt
+                for k in range(nk):
+                    pj = pw[p, k]
+                    x0, x1, x2 = ek[k, 0], ek[k, 1], ek[k, 2]
+                    xw = x0 * wp0 + x1 * wp1 + x2 * wp2
+                    xl = x0 * lp0 + x1 * lp1 + x2 * lp2
+                    # tau += pj (x (x . alpha) + (x . w) w x x)
+                    tau[0] += pj * (x0 * xl + xw * (wp1 * x2 - wp2 * x1))
+                    tau[1] += pj * (x1 * xl + xw * (wp2 * x0 - wp0 * x2))
+                    tau[2] += pj * (x2 * xl + xw * (wp0 * x1 - wp1 * x0))
+                    for a in range(3):
+                        for b in range(3):
+                            G[4 + 3 * a + b] += pj * ek[k, a] * ek[k, b]
+                    if not want_m:
+                        continue
+                    Av = x0 * avb0 + x1 * avb1 + x2 * avb2
+                    Aw = x0 * awb0 + x1 * awb1 + x2 * awb2
+                    Ax = x0 * atb0 + x1 * atb1 + x2 * atb2
+                    for j in range(nv):
+                        sown[j] = Av * dWv[p, j]
+                        sown[nv + j] = Aw * dWw[p, j]
+                    for j in range(nt):
+                        sown[n2 + j] = Ax * Pt[p, j]
+                    for j in range(nown):
+                        sj = pj * sown[j]
+                        C6[3, s0 + j] += sj * x0
+                        C6[4, s0 + j] += sj * x1
+                        C6[5, s0 + j] += sj * x2
+                        for jj in range(j, nown):
+                            M[s0 + j, s0 + jj] += sj * sown[jj]
                 for a in range(3):
-                    for b in range(3):
-                        G[4 + 3 * a + b] += pj * xv[a] * xv[b]
                     G[16 + a] += tau[a]
-                Av = x0 * avb0 + x1 * avb1 + x2 * avb2
-                Aw = x0 * awb0 + x1 * awb1 + x2 * awb2
-                Ax = x0 * bx[0] + x1 * bx[1] + x2 * bx[2]
                 Tv = avb0 * tau[0] + avb1 * tau[1] + avb2 * tau[2]
                 Tw = awb0 * tau[0] + awb1 * tau[1] + awb2 * tau[2]
-                Tx = bx[0] * tau[0] + bx[1] * tau[1] + bx[2] * tau[2]
+                Tx = atb0 * tau[0] + atb1 * tau[1] + atb2 * tau[2]
                 for j in range(nv):
-                    sown[j] = Av * dWv[p, j]
-                    sown[nv + j] = Aw * dWw[p, j]
                     c[s0 + j] += Tv * dWv[p, j]
                     c[s0 + nv + j] += Tw * dWw[p, j]
                 for j in range(nt):
-                    sown[n2 + j] = Ax * Pt[p, j]
                     c[s0 + n2 + j] += Tx * Pt[p, j]
-                nown = n2 + nt
-                for j in range(nown if want_m else 0):
-                    sj = pj * sown[j]
-                    C6[3, s0 + j] += sj * x0
-                    C6[4, s0 + j] += sj * x1
-                    C6[5, s0 + j] += sj * x2
-                    for jj in range(j, nown):
-                        M[s0 + j, s0 + jj] += sj * sown[jj]
         _flush(G, C6, s0, s1, Jo, Jw, ncols, M, c, X6, want_m)
         # tip frame (seed 000 Eq. 19)
         L = length[i]
@@ -802,25 +843,25 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
             Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
             Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
-        Rs, aw, av, wrel, arel = _section(phi, tdv, tdw, sphi, sdv, sdw)
+        Rs, aw, av, at, wrel, arel = _section(phi, tdv, tdw, sphi, sdv, sdw)
         awb = _mv(Rb, aw)
         avb = _mv(Rb, av)
+        atb = _mv(Rb, at)
         for a in range(3):
             Jo[a, s0 + nv - 2] += by[a]
             Jo[a, s0 + 2 * nv - 2] += bz[a]
             Jw[a, s0 + nv - 1] += avb[a]
             Jw[a, s0 + 2 * nv - 1] += awb[a]
             if nt:
-                Jw[a, s0 + 2 * nv + nt - 2] += bx[a]
+                Jw[a, s0 + 2 * nv + nt - 2] += atb[a]
             if so:
                 for j in range(nv):
                     Jo[a, s0 + j] -= sva[j] * bx[a]
                     Jo[a, s0 + nv + j] -= swa[j] * bx[a]
         wb = _mv(Rb, wrel)
         _cross(w, wb, tmp)
-        arel[0] += aphi
         for a in range(3):
-            arel[a] += aw[a] * adw + av[a] * adv
+            arel[a] += at[a] * aphi + aw[a] * adw + av[a] * adv
         ab = _mv(Rb, arel)
         for a in range(3):
             al[a] += tmp[a] + ab[a]
@@ -840,7 +881,6 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         for b in range(a + 1, nq):
             M[b, a] = M[a, b]
     return M, c
-
 
 
 @njit(cache=_CACHE)
@@ -989,7 +1029,7 @@ def tip_point(Pm, q):
     translational Jacobian (3 x nq): the kinematic part of spatial_eval's pass
     (SpatialArmModel.tip_frame), without the rates."""
     (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so) = Pm
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so, CF, CW) = Pm
     R = np.eye(3)
     o = np.zeros(3)
     Jo = np.zeros((3, nq))
@@ -1050,9 +1090,10 @@ def tip_point(Pm, q):
             Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
             Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
             Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
-        Rs, aw, av, _, _ = _section(phi, tdv, tdw, 0.0, 0.0, 0.0)
+        Rs, aw, av, at, _, _ = _section(phi, tdv, tdw, 0.0, 0.0, 0.0)
         awb = _mv(Rb, aw)
         avb = _mv(Rb, av)
+        atb = _mv(Rb, at)
         for a in range(3):
             o[a] += rv[a]
             Jo[a, s0 + nv - 2] += Rb[a, 1]
@@ -1060,7 +1101,7 @@ def tip_point(Pm, q):
             Jw[a, s0 + nv - 1] += avb[a]
             Jw[a, s0 + 2 * nv - 1] += awb[a]
             if nt:
-                Jw[a, s1 - 2] += Rb[a, 0]
+                Jw[a, s1 - 2] += atb[a]
         R[:, :] = _mm(Rb, Rs)
         _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], s1, W)
     return o, Jo
@@ -1125,6 +1166,62 @@ def _hold(S, r, held):
 
 
 @njit(cache=_CACHE)
+def _coupling(Pm, q, g, Hc, want_h):
+    """g += dU/dq and (want_h) Hc += d^2U/dq^2 of the second-order curvature energy of
+    the twisting links (dynamics.BeamData.curvature_coupling; CF, CW of pack)."""
+    flex, nvs, nts, fstart, pstart = Pm[5], Pm[6], Pm[7], Pm[8], Pm[13]
+    CF, CW = Pm[30], Pm[31]
+    x = np.zeros(5)
+    du = np.zeros(5)
+    h = np.zeros((5, 5))
+    for i in range(flex.shape[0]):
+        if not flex[i] or nts[i] == 0:
+            continue
+        n = 2 * nvs[i] + nts[i]
+        s0 = fstart[i]
+        T = np.zeros((5, n))
+        for p in range(pstart[i], pstart[i + 1]):
+            for k in range(5):
+                x[k] = 0.0
+                for j in range(n):
+                    x[k] += CF[p, k, j] * q[s0 + j]
+            a, b, c, pp, e = x[0], x[1], x[2], x[3], x[4]
+            gw, y, z = CW[p, 0], CW[p, 1], CW[p, 2]
+            dz = z - y
+            du[0] = -gw * b * c
+            du[1] = gw * (-a * c + b * c * c)
+            du[2] = gw * (-a * b + b * b * c) + dz * pp * e + z * pp * pp * c
+            du[3] = dz * e * c + pp * (y * e * e + z * c * c)
+            du[4] = dz * pp * c + y * pp * pp * e
+            for j in range(n):
+                for k in range(5):
+                    g[s0 + j] += CF[p, k, j] * du[k]
+            if not want_h:
+                continue
+            h[:, :] = 0.0
+            h[0, 1], h[0, 2] = -gw * c, -gw * b
+            h[1, 1], h[1, 2] = gw * c * c, gw * (2 * b * c - a)
+            h[2, 2], h[2, 3], h[2, 4] = gw * b * b + z * pp * pp, dz * e + 2 * z * pp * c, \
+                dz * pp
+            h[3, 3], h[3, 4] = y * e * e + z * c * c, dz * c + 2 * y * pp * e
+            h[4, 4] = y * pp * pp
+            for k in range(5):
+                for m in range(k):
+                    h[k, m] = h[m, k]
+            for k in range(5):
+                for m in range(n):
+                    T[k, m] = 0.0
+                    for l_ in range(5):
+                        T[k, m] += h[k, l_] * CF[p, l_, m]
+            for j in range(n):
+                for m in range(n):
+                    acc_ = 0.0
+                    for k in range(5):
+                        acc_ += CF[p, k, j] * T[k, m]
+                    Hc[s0 + j, s0 + m] += acc_
+
+
+@njit(cache=_CACHE)
 def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, held, H,
                 effort, q0, v0, h, tau, rho_inf, tol, max_iter, acc, start):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
@@ -1178,6 +1275,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
     has_t = tipf.shape[0] > 0
     has_s = stops.shape[0] > 0
     has_p = pdc.shape[0] > 0
+    has_k = Pm[31].shape[0] > 0 and np.any(Pm[31] != 0.0)   # curvature coupling
     if has_c or has_s or has_p:
         has_f = True
     skt = np.zeros(stops.shape[0])
@@ -1223,6 +1321,9 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
     if has_p:
         _pd_clip(pdc, u, q, v, Qe, pact)
     Hu, Kq, Dv = _matvec(H, u), _matvec(K, q), _matvec(D, v)
+    Hc = np.zeros((nq, nq))
+    if has_k:
+        _coupling(Pm, q, Kq, Hc, False)
     for j in range(nq):
         r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
     _hold(M, r, held)
@@ -1273,6 +1374,10 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
             if has_p:
                 _pd_clip(pdc, u, q1, v1, Qe, pact)
             Kq = _matvec(K, q1)
+            if has_k:      # its tangent at the first iterate (integrate.simulate_fixed)
+                if it == 0:
+                    Hc[:, :] = 0.0
+                _coupling(Pm, q1, Kq, Hc, it == 0)
             if has_d:
                 Dv = _matvec(D, v1)
             for j in range(nq):
@@ -1294,7 +1399,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
             if it == 0:
                 for j in range(nq):
                     for b_ in range(nq):
-                        S0[j, b_] = M1[j, b_] + cq * K[j, b_] + cv * D[j, b_]
+                        S0[j, b_] = M1[j, b_] + cq * (K[j, b_] + Hc[j, b_]) + cv * D[j, b_]
             if it == 0 or has_f:      # friction: its slope refreshed every iteration
                 for j in range(nq):
                     for b_ in range(nq):

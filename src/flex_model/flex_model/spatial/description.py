@@ -26,6 +26,7 @@ Example (seed 000's real arm, vertical joint axis)::
           section: {EI_y: 248.0, EI_z: 0.70656, GJ: 1.0, rhoA: 0.1289, rhoJ: 1.0e-7}
           variables: 8                   # per bending plane, (deflection, rotation) pairs
           torsion_variables: 8           # even (+1: the root twist rate); 0: rigid
+          rotary_inertia: false          # true: the sections' bending rotary inertia
         end_body: {mass: 0.025607, inertia: [0, 0, 0], offset: [0, 0, 0]}
 
 A flexible link's beam frame has x along the beam, y in the plane normal to the joint
@@ -187,6 +188,10 @@ class FlexibleBeam:
     variables: int = 4
     torsion_variables: int = 4
     placement: str = "dh_x"
+    #: bending rotary inertia (Rayleigh beam): the sections' inertia rho I_y, rho I_z about
+    #: the bending axes, rho I = rhoJ EI / (EI_y + EI_z) per plane (a homogeneous section,
+    #: rhoJ = rho (I_y + I_z): the planar timoshenko effect's rho I = (rho / E) EI)
+    rotary_inertia: bool = False
 
 
 @dataclass(frozen=True)
@@ -411,7 +416,8 @@ def _flexible(f: Fields, joint: SpatialJoint) -> FlexibleBeam:
     else:
         length = f.number("length", positive=True, unit="m")
     beam = flexible_beam(f, length, placement)
-    f.done(["placement", "length", "section", "variables", "torsion_variables"])
+    f.done(["placement", "length", "section", "variables", "torsion_variables",
+            "rotary_inertia"])
     return beam
 
 
@@ -431,8 +437,8 @@ def _profile(pieces, stiffness: str, mass: str) -> SectionProfile:
 def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
     """The beam of a flexible link from its ``section`` (SECTION_FIELDS, each a number or
     [root, tip]; or a list of such sections, each with its ``length``, root first, the
-    lengths adding up to the beam's), ``variables`` and ``torsion_variables`` fields (the
-    YAML arm file and the URDF side file share them)."""
+    lengths adding up to the beam's), ``variables``, ``torsion_variables`` and
+    ``rotary_inertia`` fields (the YAML arm file and the URDF side file share them)."""
     raw = f.raw("section")
     if isinstance(raw, list):
         pieces = []
@@ -456,14 +462,16 @@ def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
         sec_err = sec
     nv = f.integer("variables", 4, min_value=2, max_value=200, even=True)
     nt = f.integer("torsion_variables", nv, min_value=0, max_value=200, even=True)
-    if nt and min(max(v["rhoJ"]) for _, v in pieces) <= 0:
+    rotary = f.boolean("rotary_inertia", False)
+    if (nt or rotary) and min(max(v["rhoJ"]) for _, v in pieces) <= 0:
         raise sec_err.error("rhoJ", 0.0, "a polar mass moment per length > 0 (kg m) when "
-                            "the link twists (torsion_variables > 0)")
+                            "the link twists (torsion_variables > 0) or has rotary_inertia")
     return FlexibleBeam(length=length,
                         bend_v=_profile(pieces, "EI_z", "rhoA"),
                         bend_w=_profile(pieces, "EI_y", "rhoA"),
                         torsion=_profile(pieces, "GJ", "rhoJ"),
-                        variables=nv, torsion_variables=nt, placement=placement)
+                        variables=nv, torsion_variables=nt, placement=placement,
+                        rotary_inertia=rotary)
 
 
 #: DH conventions of a YAML arm file

@@ -7,8 +7,9 @@ f_i = [v-variables, w-variables, phi-variables] of the wavelet basis of thesis C
 (basis.py, one basis per bending plane with its EI; the same Hermite wavelets for the
 torsion angle, whose root rate phi'(0) is free). The kinetic energy is that of point
 masses rhoA ds at the Gauss points of the centre line, the sections' polar mass moment
-rhoJ ds about the beam axis (torsional rotary inertia; Euler-Bernoulli: no bending rotary
-inertia) and the rigid root/end bodies:
+rhoJ ds about the beam axis (torsional rotary inertia), with ``rotary_inertia`` also the
+bending rotary inertia rho I_y ds, rho I_z ds about the section's y and z axes (a Rayleigh
+beam; Euler-Bernoulli without it: description.FlexibleBeam) and the rigid root/end bodies:
 
     M = sum m Jp^T Jp + sum Jw^T I Jw,
     c = sum m Jp^T (dJp/dt v) + sum Jw^T (I dJw/dt v + w x I w) - sum m Jp^T g,
@@ -153,7 +154,11 @@ class BeamData:
         self.bw = link_basis(beam.bend_w, nv // 2)
         self.bt = link_basis(beam.torsion, nt // 2) if nt else None
         h1 = self.bt.nodes[1] if nt else 1.0
-        cuts = [self.bv.nodes, beam.bend_v.breaks, beam.bend_w.breaks, beam.torsion.breaks]
+        # the torsion basis's own nodes too: its Hermite pieces (and the root function on
+        # [0, h1]) have kinked slopes there; with more torsion than bending intervals a
+        # Gauss rule across them left int GJ phi'^2 inexact (2.3 % on a shaft's frequency)
+        cuts = [self.bv.nodes, self.bw.nodes, beam.bend_v.breaks, beam.bend_w.breaks,
+                beam.torsion.breaks] + ([self.bt.nodes] if nt else [])
         cuts = np.unique(np.round(np.concatenate(cuts), 14))
         # tapered sections: non-polynomial wavelets (moments of 1/EI), finer quadrature
         tapered = any(sg.tapered for p in (beam.bend_v, beam.bend_w, beam.torsion)
@@ -168,6 +173,12 @@ class BeamData:
         self.mass_w = self.w * beam.bend_v.properties(self.z)[1]        # rhoA ds
         gj, rhoj, _ = beam.torsion.properties(self.z)
         self.polar_w = self.w * rhoj                                      # rhoJ ds
+        #: bending rotary inertia (rho I_y ds, rho I_z ds) per point, rho I = rhoJ EI /
+        #: (EI_y + EI_z) (description.FlexibleBeam.rotary_inertia); None without
+        self.rotary = None
+        if beam.rotary_inertia:
+            eiz, eiy = beam.bend_v.properties(self.z)[0], beam.bend_w.properties(self.z)[0]
+            self.rotary = np.column_stack([eiy, eiz]) * (self.polar_w / (eiy + eiz))[:, None]
         self.Wv, self.dWv = self.bv.shape_matrix(self.z), self.bv.slope_matrix(self.z)
         self.Ww, self.dWw = self.bw.shape_matrix(self.z), self.bw.slope_matrix(self.z)
         n = 2 * nv + nt
@@ -182,8 +193,10 @@ class BeamData:
             self.Pt = np.column_stack([root, self.bt.shape_matrix(self.z)])
             dPt = np.column_stack([droot, self.bt.slope_matrix(self.z)])
             K[2 * nv:, 2 * nv:] = (dPt * (self.w * gj)[:, None]).T @ dPt
+            self._coupling(dPt, gj)
         else:
             self.Pt = np.zeros((len(self.z), 0))
+            self.coupling = None
         self.K = 0.5 * (K + K.T)
         self.length = L
         # tip: deflection and slope are the last pair of each basis (clamped root)
@@ -194,6 +207,46 @@ class BeamData:
         #: second_order kinematics: S(z) = int_0^z w' w'^T ds of each plane at the mass
         #: points and at the tip (None: small deflections)
         self.Sv = self.Sw = self.SvL = self.SwL = None
+
+    def _coupling(self, dPt, gj):
+        """The point samples of curvature_coupling: F (5, points, n) maps the link's
+        variables to (phi', v', w'', phi, v''); the weights GJ ds, EI_y ds, EI_z ds."""
+        nv, npt = self.nv, len(self.z)
+        F = np.zeros((5, npt, self.n))
+        F[0, :, 2 * nv:] = dPt
+        F[1, :, :nv] = self.dWv
+        F[2, :, nv:2 * nv] = self.bw.curvature_matrix(self.z)
+        F[3, :, 2 * nv:] = self.Pt
+        F[4, :, :nv] = self.bv.curvature_matrix(self.z)
+        eiz, eiy = (p.properties(self.z)[0] for p in (self.beam.bend_v, self.beam.bend_w))
+        self.coupling = (F, self.w * gj, self.w * eiy, self.w * eiz)
+
+    def curvature_coupling(self, f):
+        """(U, dU/df, d^2U/df^2): the second-order part of the strain energy 1/2 int
+        (GJ k_x^2 + EI_y k_y^2 + EI_z k_z^2) ds beyond the quadratic one of K, with the
+        curvatures of the section rotation Ry(-w') Rz(v') Rx(phi) (Eq. 19 with the twist
+        about the centre line's tangent) to second order: k_x = phi' - v' w'',
+        k_y = -(w'' - phi v''), k_z = v'' + phi w''. Per point, x = (phi', v', w'', phi,
+        v''): u = GJ (-x0 x1 x2 + x1^2 x2^2 / 2) + (EI_z - EI_y) x3 x4 x2
+        + (EI_y x4^2 + EI_z x2^2) x3^2 / 2."""
+        F, g, y, z = self.coupling
+        a, b, c, p, e = F @ f                           # (n_points,) each
+        dz = z - y
+        U = float(np.sum(g * (-a * b * c + 0.5 * b * b * c * c) + dz * p * e * c
+                         + 0.5 * p * p * (y * e * e + z * c * c)))
+        du = np.array([-g * b * c, g * (-a * c + b * c * c),
+                       g * (-a * b + b * b * c) + dz * p * e + z * p * p * c,
+                       dz * e * c + p * (y * e * e + z * c * c), dz * p * c + y * p * p * e])
+        h = np.zeros((5, 5, len(g)))
+        h[0, 1], h[0, 2] = -g * c, -g * b
+        h[1, 1], h[1, 2] = g * c * c, g * (2 * b * c - a)
+        h[2, 2], h[2, 3], h[2, 4] = g * b * b + z * p * p, dz * e + 2 * z * p * c, dz * p
+        h[3, 3], h[3, 4] = y * e * e + z * c * c, dz * c + 2 * y * p * e
+        h[4, 4] = y * p * p
+        h = h + np.tril(np.ones((5, 5)), -1)[:, :, None] * h.transpose(1, 0, 2)
+        grad = np.einsum("kpn,kp->n", F, du)
+        H = np.einsum("kpn,klp,lpm->nm", F, h, F)
+        return U, grad, 0.5 * (H + H.T)
 
     def second_order(self):
         """Sample the shortening matrices (basis.LinkBasis.shortening_matrix)."""
@@ -399,8 +452,8 @@ class SpatialArmModel:
     def effect_force(self, v, q=None) -> np.ndarray:
         """Generalized force of the joint effects that is not in K and D: the locked
         motors' spring preload and the friction torques (N m or N); with ``q``, the
-        backlash correction of the gear springs and the contact surface's J^T F (module
-        docstring)."""
+        backlash correction of the gear springs, the contact surface's J^T F and the
+        second-order curvature load of twisting links (module docstring)."""
         Q = self.Q_const.copy()
         for a, f in self.friction:
             Q[a] += float(f.torque(v[a]))
@@ -408,6 +461,8 @@ class SpatialArmModel:
             Q += self.contact_load(q, v)
         if q is not None and self.stops:
             Q += self.stop_load(q, v)
+        if q is not None and self.coupled:
+            Q += self.curvature_load(q)
         if q is not None:
             for qi, m, k, b, half, smooth, locked_at, x, xd in self._gaps(q, v):
                 dz, sl = dead_zone(x, half, smooth)
@@ -512,6 +567,30 @@ class SpatialArmModel:
             Kb[np.ix_(idx, idx)] += kt * blk
             Db[np.ix_(idx, idx)] += b * (sl - 1.0) * blk
         return Kb, Db
+
+    @property
+    def coupled(self) -> bool:
+        """True with a twisting flexible link (BeamData.curvature_coupling)."""
+        return any(b is not None and b.coupling is not None for b in self.beams)
+
+    def curvature_load(self, q) -> np.ndarray:
+        """-dU/dq of the second-order curvature energy (BeamData.curvature_coupling) of
+        every twisting link (nq)."""
+        Q = np.zeros(self.nq)
+        for i, b in enumerate(self.beams):
+            if b is not None and b.coupling is not None:
+                s = self.flex_slice(i)
+                Q[s] -= b.curvature_coupling(np.asarray(q, float)[s])[1]
+        return Q
+
+    def curvature_tangent(self, q) -> np.ndarray:
+        """d^2U/dq^2 of that energy (nq x nq, the tangent of -curvature_load)."""
+        Kc = np.zeros((self.nq, self.nq))
+        for i, b in enumerate(self.beams):
+            if b is not None and b.coupling is not None:
+                s = self.flex_slice(i)
+                Kc[s, s] = b.curvature_coupling(np.asarray(q, float)[s])[2]
+        return Kc
 
     def effect_force_slope(self, v) -> np.ndarray:
         """d effect_force / dv (diagonal): the friction slopes (<= 0, but > 0 on the
@@ -637,18 +716,25 @@ class SpatialArmModel:
                 Jp[:, :, cols[:nv]] -= Rb[None, :, 0, None] * Svf[:, None, :]
                 Jp[:, :, cols[nv:2 * nv]] -= Rb[None, :, 0, None] * Swf[:, None, :]
             points.append((b.mass_w, p, Jp))
-            if b.nt:
+            if b.nt or b.rotary is not None:
                 phi, dv, dw = b.Pt @ ft, b.dWv @ fv, b.dWw @ fw
-                Rx = rot_x(phi)
-                Rxy = Rx @ rot_y(-dw)
-                ax_w = -Rx[:, :, 1]                       # d omega / d w'  (beam frame)
-                ax_v = Rxy[:, :, 2]                       # d omega / d v'
+                Ry = rot_y(-dw)
+                Ryz = Ry @ rot_z(dv)
+                ax_w = np.zeros((n, 3)) + np.array([0.0, -1.0, 0.0])   # d omega / d w'
+                ax_v = Ry[:, :, 2]                                     # d omega / d v'
+                ax_t = Ryz[:, :, 0]            # d omega / d phi: the centre line's tangent
+                Rsec = Ryz @ rot_x(phi)
                 Jw = np.broadcast_to(F.Jw, (n, 3, self.nq)).copy()
                 Jw[:, :, cols[:nv]] += (ax_v @ Rb.T)[:, :, None] * b.dWv[:, None, :]
                 Jw[:, :, cols[nv:2 * nv]] += (ax_w @ Rb.T)[:, :, None] * b.dWw[:, None, :]
-                Jw[:, :, cols[2 * nv:]] += Rb[None, :, 0, None] * b.Pt[:, None, :]
-                a = (Rb @ (Rxy @ rot_z(dv))[:, :, 0].T).T   # section x axis, base frame
+                Jw[:, :, cols[2 * nv:]] += (ax_t @ Rb.T)[:, :, None] * b.Pt[:, None, :]
+                Rs = Rb @ Rsec                             # section axes, base frame
+                a = Rs[:, :, 0]
                 I = b.polar_w[:, None, None] * a[:, :, None] * a[:, None, :]
+                if b.rotary is not None:    # rho I_y y y^T + rho I_z z z^T
+                    for k in (1, 2):
+                        e = Rs[:, :, k]
+                        I = I + b.rotary[:, k - 1, None, None] * e[:, :, None] * e[:, None, :]
                 rotors.append((I, Jw))
         # tip frame
         L = b.length
@@ -665,14 +751,14 @@ class SpatialArmModel:
         if b.Sv is not None:
             Jo[:, cols[:nv]] -= Rb[:, 0, None] * Svf[None, :]
             Jo[:, cols[nv:2 * nv]] -= Rb[:, 0, None] * Swf[None, :]
-        Rx = rot_x(phi)
-        Rxy = Rx @ rot_y(-dw)
         Jw = F.Jw.copy()
-        Jw[:, cols[nv - 1]] += Rb @ Rxy[:, 2]
-        Jw[:, cols[2 * nv - 1]] += Rb @ (-Rx[:, 1])
+        Ry = rot_y(-dw)
+        Ryz = Ry @ rot_z(dv)
+        Jw[:, cols[nv - 1]] += Rb @ Ry[:, 2]
+        Jw[:, cols[2 * nv - 1]] += -Rb[:, 1]
         if b.nt:
-            Jw[:, cols[-2]] += Rb[:, 0]
-        return Frame(Rb @ Rxy @ rot_z(dv), F.o + rl, Jo, Jw)
+            Jw[:, cols[-2]] += Rb @ Ryz[:, 0]
+        return Frame(Rb @ Ryz @ rot_x(phi), F.o + rl, Jo, Jw)
 
     def frames(self, q) -> list[np.ndarray]:
         """4 x 4 pose of every link's end frame i (base frame), seed 000 Eqs. 20-22."""
@@ -780,6 +866,9 @@ class SpatialArmModel:
                    k * (dead_zone_energy(x, half, smooth) - 0.5 * x * x)
                    for _, _, k, _, half, smooth, _, x, _ in self._gaps(q, v))),
                "gravity": self.gravity_potential(q)}
+        out["elastic"] += sum(b.curvature_coupling(q[self.flex_slice(i)])[0]
+                              for i, b in enumerate(self.beams)
+                              if b is not None and b.coupling is not None)
         if self.contact is not None:
             delta = self._contact(q)[1]
             out["contact"] = 0.5 * self.contact[2] * max(delta, 0.0) ** 2

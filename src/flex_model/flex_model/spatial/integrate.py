@@ -135,7 +135,7 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
     contact = model.contact is not None
     nonlinear = bool(model.friction) or bool(model.motors) or \
         bool(model.backlash) or contact or bool(model.stops)     # as the compiled loop
-    gaps = bool(model.backlash) or contact or bool(model.stops)
+    gaps = bool(model.backlash) or contact or bool(model.stops) or model.coupled
 
     def residual(t, q, v, a, n):
         M, c = model.terms(q, v)
@@ -181,8 +181,8 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
                 iters += 1
                 continue
             rprev, back = rn, 0
-            if lu is None:
-                S0 = M1 + cq * K + cv * D
+            if lu is None:     # (the curvature coupling's tangent at the first iterate)
+                S0 = M1 + cq * (K + model.curvature_tangent(q1)) + cv * D
             if lu is None or nonlinear:  # iteration matrix, frozen for the step but
                 # for the friction and motor slopes (steep tanh: from the current iterate)
                 S = S0 - cv * np.diag(slope)

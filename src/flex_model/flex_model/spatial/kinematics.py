@@ -5,10 +5,12 @@ a point at r from a frame's origin has J_p = Jo + Jw x r. A revolute joint adds 
 column z_{i-1} to Jw, a prismatic one adds z_{i-1} to Jo. A flexible link's tip is the
 transform of seed 000 Eq. 19,
 
-    E = [Rx(phi) Ry(-w') Rz(v') | (L, v, w)]      (beam frame: x along the beam)
+    E = [Ry(-w') Rz(v') Rx(phi) | (L, v, w)]      (beam frame: x along the beam)
 
 with small-deflection kinematics (thesis Eq. 1): the centre line at arc length s lies at
-(s, v(s), w(s)); the section frame is rotated by Rx(phi(s)) Ry(-w'(s)) Rz(v'(s)).
+(s, v(s), w(s)); the section frame is rotated by Ry(-w'(s)) Rz(v'(s)) Rx(phi(s)): the
+twist last, about the centre line's tangent (issue 47: Eq. 19's Rx(phi) first turns the
+section's x axis off the tangent by phi times the slopes; docs/model.md).
 Every function is analytic in q (no abs, no conjugate) so that a complex step q + i h v
 gives the time derivatives of the Jacobians exactly (used for the velocity terms).
 """
@@ -89,9 +91,9 @@ def dh_transform(a: float, alpha: float, d: float, theta: float) -> np.ndarray:
 
 
 def flex_transform(v, w, dv, dw, phi, length) -> np.ndarray:
-    """Seed 000 Eq. 19 in the beam frame: tip rotation Rx(phi) Ry(-w') Rz(v') and
-    displacement (L, v, w) (4 x 4)."""
-    R = rot_x(phi) @ rot_y(-dw) @ rot_z(dv)
+    """Seed 000 Eq. 19 in the beam frame, the twist about the tangent: tip rotation
+    Ry(-w') Rz(v') Rx(phi) and displacement (L, v, w) (4 x 4)."""
+    R = rot_y(-dw) @ rot_z(dv) @ rot_x(phi)
     return homogeneous(R, np.array([length, v, w]))
 
 

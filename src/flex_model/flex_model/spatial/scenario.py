@@ -395,9 +395,9 @@ def pd_static_equilibrium(model: SpatialArmModel, K_pd, u, start=None, tol: floa
     f = joint_input_matrix(model) @ np.asarray(u, float) + model.Q_const
     for _ in range(max_iter):
         r = (f - Kt0 @ q - model.gravity_force(q) + model.contact_load(q)
-             + model.stop_load(q))[free]
+             + model.stop_load(q) + model.curvature_load(q))[free]
         Kt = (Kt0 + model.gravity_stiffness(q) + model.contact_tangent(q)[0]
-              + model.stop_tangent(q)[0])[np.ix_(free, free)]
+              + model.stop_tangent(q)[0] + model.curvature_tangent(q))[np.ix_(free, free)]
         dq = np.linalg.solve(Kt, r)
         q[free] += dq
         if np.max(np.abs(dq)) < tol * max(1.0, np.max(np.abs(q))):

@@ -24,7 +24,7 @@ serial chain (each link has at most one child joint). Mapping:
   basis of thesis Ch. II. Its length defaults to the x coordinate of the next joint's
   origin. Everything beyond (child joint origins, merged fixed links) is fixed to the tip
   section: the link's end frame is the tip frame E (seed 000 Eq. 19: at (L, v, w), rotated
-  by Rx(phi) Ry(-w') Rz(v')) and the URDF's transforms from the link frame are applied
+  by Ry(-w') Rz(v') Rx(phi)) and the URDF's transforms from the link frame are applied
   after Trans_x(-L) (the rigid limit is the URDF's kinematics). ``end_body`` of the side
   YAML is in the tip frame. The URDF
   ``<inertial>`` of a flexible link is **ignored** (the section's rhoA gives the beam's
@@ -175,7 +175,8 @@ def _flexible(f: Fields, default_length, link_name: str, u: _Urdf):
     beam = flexible_beam(f, length, "link_x")
     root = rigid_body(f.mapping("root_body")) if f.has("root_body") else RigidBody()
     end = rigid_body(f.mapping("end_body")) if f.has("end_body") else RigidBody()
-    f.done(["length", "section", "variables", "torsion_variables", "root_body", "end_body"])
+    f.done(["length", "section", "variables", "torsion_variables", "rotary_inertia",
+            "root_body", "end_body"])
     return beam, root, end
 
 
