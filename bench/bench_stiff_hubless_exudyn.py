@@ -74,8 +74,14 @@ OUR_REF = (16, 1e-3 / 64)
 
 
 # ------------------------------------------------------------------ Exudyn (peer venv)
-def exudyn_run(nel: int, h: float, duration: float) -> dict:
-    """Runs inside bench/.venv-peer: the scenario in Exudyn; samples every 1 ms."""
+def exudyn_run(nel: int, h: float, duration: float, ea_scale: float = 1.0,
+               abs_tol: float = 1e-5, rel_tol: float | None = None, modified: bool = True,
+               glue_mass: float = GLUE_MASS, glue_inertia: float = GLUE_INERTIA,
+               rho_inf: float = 0.9) -> dict:
+    """Runs inside bench/.venv-peer: the scenario in Exudyn; samples every 1 ms. The
+    keywords change one thing at a time (bench/bench_hubless_floor.py): the axial
+    stiffness EA x ea_scale, Newton's absolute / relative tolerance, full Newton
+    (modified False), the glued end bodies, the spectral radius."""
     import numpy as np
     import exudyn as exu
     from exudyn.utilities import (ObjectGround, MarkerBodyRigid, MarkerBodyPosition,
@@ -95,7 +101,7 @@ def exudyn_run(nel: int, h: float, duration: float) -> dict:
 
     def glue(pos, element, local_x):
         n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[pos[0], pos[1], 0.0]))
-        mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=GLUE_MASS, inertia=GLUE_INERTIA))
+        mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=glue_mass, inertia=glue_inertia))
         m_el = mbs.AddMarker(MarkerBodyRigid(bodyNumber=element, localPosition=[local_x, 0, 0]))
         mbs.AddObject(ObjectJointGeneric(markerNumbers=[m_el, mbs.AddMarker(
             MarkerNodeRigid(nodeNumber=n))], constrainedAxes=[1, 1, 0, 0, 0, 1],
@@ -106,7 +112,8 @@ def exudyn_run(nel: int, h: float, duration: float) -> dict:
     for i in range(2):   # both links straight along x: joint angles 0
         x0, x1 = i * L_LINK, (i + 1) * L_LINK
         tmpl = ObjectANCFCable2D(massPerLength=RHO * A, bendingStiffness=E_MOD * I,
-                                 axialStiffness=E_MOD * A, useReducedOrderIntegration=0)
+                                 axialStiffness=ea_scale * E_MOD * A,
+                                 useReducedOrderIntegration=0)
         d = GenerateBeamElementsAlongLine(mbs, [x0, 0, 0], [x1, 0, 0], nel, tmpl,
                                           gravity=[0, -GRAVITY, 0])
         roots.append(glue((x0, 0.0), d["elements"][0], 0.0))
@@ -167,9 +174,11 @@ def exudyn_run(nel: int, h: float, duration: float) -> dict:
     ti.startTime, ti.endTime, ti.numberOfSteps = 0.0, duration, n_steps
     ti.verboseMode = 0
     ti.stepInformation = 0
-    ti.generalizedAlpha.spectralRadius = 0.9
-    ti.newton.useModifiedNewton = True
-    ti.newton.absoluteTolerance = 1e-5
+    ti.generalizedAlpha.spectralRadius = rho_inf
+    ti.newton.useModifiedNewton = modified
+    ti.newton.absoluteTolerance = abs_tol
+    if rel_tol is not None:
+        ti.newton.relativeTolerance = rel_tol
     ti.adaptiveStep = False
     mbs.SetPreStepUserFunction(pre_step)
     ok, err = True, ""
@@ -187,22 +196,23 @@ def exudyn_run(nel: int, h: float, duration: float) -> dict:
             "cpu_s": cpu - state["reading_cpu"], "wall_s": wall,
             "cpu_static_s": cpu_static, "cpu_reading_s": state["reading_cpu"],
             "nODE2": len(mbs.systemData.GetODE2Coordinates()),
-            "data": rec.tolist() if ok else None}
+            "data": rec.tolist() if ok else None, "first": rec[0].tolist()}
 
 
 def _peer_main(args) -> int:
     runs = json.loads(args.peer)
     out = []
-    for nel, h, rep in runs:
+    for nel, h, rep, *opts in runs:
         best = None
         for _ in range(rep):
-            r = exudyn_run(int(nel), float(h), args.duration)
+            r = exudyn_run(int(nel), float(h), args.duration, **(opts[0] if opts else {}))
             if best is None or (r["ok"] and r["cpu_s"] < best["cpu_s"]):
                 best = r
             if not r["ok"]:
                 break
         best["repeats"] = rep
         out.append(best)
+    sys.stdout.write("\n")
     json.dump(out, sys.stdout)
     return 0
 
@@ -217,18 +227,18 @@ def call_peer(runs, duration) -> list | None:
     if r.returncode != 0:
         print("Exudyn peer failed:\n" + r.stderr[-2000:])
         return None
-    return json.loads(r.stdout)
+    return json.loads(r.stdout.strip().splitlines()[-1])  # after Exudyn's own messages
 
 
 # ------------------------------------------------------------------ ours (main venv)
 def our_run(nv: int, step: float, duration: float, repeat: int = 1,
-            rho_inf: float = 0.9) -> dict:
+            rho_inf: float = 0.9, kinematics: str = "second_order") -> dict:
     """The scenario of bench_stiff_hubless.py; CPU of the integration (static solve apart)."""
     import numpy as np
     if BENCH_DIR not in sys.path:
         sys.path.insert(0, BENCH_DIR)
     from bench_stiff_hubless import scenario
-    sc = scenario(duration, nv, step, rho_inf)
+    sc = scenario(duration, nv, step, rho_inf, kinematics)
     model = sc.model()
     best = None
     for _ in range(repeat):

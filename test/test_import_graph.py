@@ -170,7 +170,8 @@ def test_imports_of_the_studies_are_found(tmp_path):
 
 
 #: the ROS adapters of flex_model: the only modules of the core package that import rclpy
-ROS_ADAPTERS = {"flex_model.model_node", "flex_model.spatial_node", "flex_model.ros_main",
+ROS_ADAPTERS = {"flex_model.model_node", "flex_model.spatial_node", "flex_model.observer_node",
+                "flex_model.ros_main",
                 "flex_model.ros_trajectory_action"}
 
 

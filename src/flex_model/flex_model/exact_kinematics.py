@@ -39,7 +39,7 @@ from numba import njit
 
 from .integrators import (LINE_SEARCH_HALVINGS, NEWTON_MAX_ITER, joint_passive_forces,
                           joint_tangent, joint_torques)
-from .solvers.galpha import Step, galpha_coefficients, galpha_state, step_status
+from .solvers.galpha import Step, galpha_coefficients, galpha_state, restart_choice, step_status
 from .solvers.newton import backtrack_done, residual_norm
 from .solvers.status import FINISHED
 from .kernels import solve_spd
@@ -444,6 +444,32 @@ def derivative(t, x, X, E):
     out[:n] = x[n:2 * n]
     out[n:] = solve_spd(B, rhs)
     return out
+
+
+@njit(cache=_CACHE)
+def iteration_matrix(x, h, rho_inf, X, E):
+    """(S, G): the fixed step's iteration matrix S = B + gamma' (D + C_j) + beta' (K + K_j)
+    at state x and its damping part G = gamma' (D + C_j) (Arnold-Bruls form)."""
+    n = E[0].shape[0]
+    B = terms(x[:n], x[n:2 * n], 0.0, 0.0, X)[0]
+    c = galpha_coefficients(rho_inf, h)
+    Kj, Cj = joint_tangent(x[n:2 * n], E)
+    G = c.gp * (E[1] + Cj)
+    return B + G + c.bp * (E[0] + Kj), G
+
+
+@njit(cache=_CACHE)
+def restart_acceleration(t, x, a, h, rho_inf, X, E):
+    """(a1, filtered): the start acceleration (a = abar = a1) of the fixed step after a
+    jump of the applied forces with exact kinematics, a the step's before it:
+    solvers.galpha.restart_choice between the consistent B^-1 (Q - c) and the part
+    a + S^-1 B dA of the jump the step follows (filtered True), S = iteration_matrix."""
+    n = E[0].shape[0]
+    B, rhs = balance(t, x[:n], x[n:2 * n], X, E)
+    ac = solve_spd(B, rhs)
+    S = iteration_matrix(x, h, rho_inf, X, E)[0]
+    a1 = restart_choice(a, ac, B, S, h, rho_inf)[0]
+    return a1, not np.array_equal(a1, ac)
 
 
 @njit(cache=_CACHE)
