@@ -10,13 +10,15 @@ ENV := source $(ROOT)/scripts/env.sh
 # one-off studies beside the packages).
 TEST_DIRS = $(wildcard test src/*/test studies/test)
 PYTEST_ARGS ?=
+# pytest-xdist workers (one per core of the 2-core CI machine; TEST_WORKERS=0: one process)
+TEST_WORKERS ?= 2
 DEMO_ARGS ?=
 
 .PHONY: help venv test demo bench clean distclean
 
 help:
 	@echo "make venv    create/refresh .venv (pinned by constraints.txt)"
-	@echo "make test    run the test suite (PYTEST_ARGS='-k foo' to narrow)"
+	@echo "make test    run the test suite (PYTEST_ARGS='-k foo' to narrow, TEST_WORKERS=2)"
 	@echo "make demo    the twin demo over ROS: 'flex-twin twin-demo' (DEMO_ARGS='...')"
 	@echo "make bench   run bench/run_all.py if present"
 	@echo "make clean   remove build/test artefacts (keeps .venv); distclean also removes .venv"
@@ -25,7 +27,8 @@ venv:
 	bash $(ROOT)/scripts/bootstrap.sh
 
 test: venv
-	cd $(ROOT) && $(ENV) && ROS_PYTHON_CHECK_FIELDS=1 python -m pytest $(PYTEST_ARGS) $(TEST_DIRS)
+	cd $(ROOT) && $(ENV) && ROS_PYTHON_CHECK_FIELDS=1 \
+	    python -m pytest -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS) $(TEST_DIRS)
 
 demo: venv
 	cd $(ROOT) && $(ENV) && flex-twin twin-demo $(DEMO_ARGS)

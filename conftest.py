@@ -15,7 +15,9 @@ Runs at import time, i.e. before any test module (or anything it imports) loads 
   Its kernels are cached apart (NUMBA_CACHE_DIR=.numba_test_cache unless set).
 
 When a session collects most of the suite, test/numba_warmup.py compiles the loops that
-later tests need in a background process (the second core; FLEX_TWIN_NUMBA_WARMUP=0: off).
+later tests need in a background process (the second core; FLEX_TWIN_NUMBA_WARMUP=0: off),
+except under pytest-xdist (``make test`` runs two workers, ``-n 2 --dist loadfile``: the two
+workers keep both cores busy; each worker gets a ROS_DOMAIN_ID of its own, 50 apart).
 """
 import os
 import subprocess
@@ -28,6 +30,11 @@ import pytest
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; RANGE above is authoritative
 os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+#: pytest-xdist worker index (make test runs two workers: gw0, gw1); -1 without xdist
+XDIST_WORKER = int(os.environ.get("PYTEST_XDIST_WORKER", "gw-1")[2:])
+if XDIST_WORKER > 0:   # each worker a domain of its own, 50 apart, still in 1..101
+    os.environ["ROS_DOMAIN_ID"] = str(1 + (int(os.environ["ROS_DOMAIN_ID"]) - 1
+                                           + 50 * XDIST_WORKER) % 101)
 os.environ.setdefault("ROS_PYTHON_CHECK_FIELDS", "1")
 if "NUMBA_OPT" not in os.environ:
     os.environ["NUMBA_OPT"] = "1"
@@ -75,7 +82,7 @@ WARMUP_MIN_TESTS = 300
 
 
 def pytest_collection_finish(session):
-    if len(session.items) < WARMUP_MIN_TESTS or \
+    if len(session.items) < WARMUP_MIN_TESTS or XDIST_WORKER >= 0 or \
             os.environ.get("FLEX_TWIN_NUMBA_WARMUP", "1") == "0":
         return
     session.config._numba_warmup = subprocess.Popen(

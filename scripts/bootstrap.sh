@@ -23,7 +23,7 @@ REQUIREMENTS=(
   numpy scipy numba pyyaml matplotlib
   mcap mcap-ros2-support rosbags
   distributed
-  pytest
+  pytest pytest-xdist  # make test runs on two workers (pytest -n)
   foxglove-sdk websockets  # live view (flex-twin view), its tests' WebSocket client
 )
 

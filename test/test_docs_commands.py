@@ -155,7 +155,8 @@ def node_parameters(package: str) -> set:
     lean = set(list(inspect.signature(lean_node).parameters)[1:])  # after ``node``
     if package == "flex_model":
         from flex_model.model_node import PARAMETERS
-        names = {p.name for p in PARAMETERS}
+        from flex_model.observer_node import PARAMETERS as OBSERVER  # (-p mode:=observer)
+        names = {p.name for p in PARAMETERS + OBSERVER}
     elif package == "flex_control":
         from flex_control.controller_node import NODE_PARAMETERS
         from flex_control.params import ControllerParams

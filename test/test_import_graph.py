@@ -170,7 +170,8 @@ def test_imports_of_the_studies_are_found(tmp_path):
 
 
 #: the ROS adapters of flex_model: the only modules of the core package that import rclpy
-ROS_ADAPTERS = {"flex_model.model_node", "flex_model.spatial_node", "flex_model.ros_main",
+ROS_ADAPTERS = {"flex_model.model_node", "flex_model.spatial_node", "flex_model.observer_node",
+                "flex_model.ros_main",
                 "flex_model.ros_trajectory_action"}
 
 
@@ -190,3 +191,33 @@ def _all_imports(path: Path) -> list[str]:
         elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
             out.append(node.module)
     return out
+
+
+#: the generalized-alpha formulas (issue 43: one solver layer): Chung-Hulbert's alpha_m,
+#: alpha_f from rho_inf and the Arnold-Bruls update of abar from the iterate a1
+GALPHA_FORMULAS = {"alpha_m": r"\(2(\.0)? \* rho_inf - 1(\.0)?\) / \(rho_inf \+ 1",
+                   "alpha_f": r"rho_inf / \(rho_inf \+ 1",
+                   "abar update": r"\(1(\.0)? - (c\.)?af\) \* a1"}
+GALPHA_HOME = "flex_model.solvers.galpha"
+
+
+def formula_sites(files: dict) -> dict[str, set[str]]:
+    """Formula name -> the modules whose source writes it."""
+    import re
+    return {key: {name for name, path in files.items() if re.search(rx, path.read_text())}
+            for key, rx in GALPHA_FORMULAS.items()}
+
+
+def test_one_generalized_alpha_implementation():
+    """Only flex_model.solvers.galpha writes the parameters of generalized-alpha and its
+    update: every fixed-step loop (planar, exact kinematics, spatial, the planner's
+    prescribed-motion loops) calls it."""
+    sites = formula_sites(module_files())
+    assert sites == {key: {GALPHA_HOME} for key in GALPHA_FORMULAS}
+
+
+def test_a_second_copy_of_the_formulas_is_found(tmp_path):
+    copy = tmp_path / "copy.py"
+    copy.write_text("am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)\naf = rho_inf / (rho_inf + 1)\n"
+                    "abar1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)\n")
+    assert formula_sites({"copy": copy}) == {key: {"copy"} for key in GALPHA_FORMULAS}

@@ -37,8 +37,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .integrators import (joint_tangent, galpha_parameters, joint_passive_forces,
-                          joint_torques, restart_choice)
+from .integrators import (LINE_SEARCH_HALVINGS, NEWTON_MAX_ITER, joint_passive_forces,
+                          joint_tangent, joint_torques)
+from .solvers.galpha import Step, galpha_coefficients, galpha_state, restart_choice, step_status
+from .solvers.newton import backtrack_done, residual_norm
+from .solvers.status import FINISHED
 from .kernels import solve_spd
 
 _CACHE = True
@@ -449,18 +452,17 @@ def iteration_matrix(x, h, rho_inf, X, E):
     at state x and its damping part G = gamma' (D + C_j) (Arnold-Bruls form)."""
     n = E[0].shape[0]
     B = terms(x[:n], x[n:2 * n], 0.0, 0.0, X)[0]
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    ratio = (1.0 - af) / (1.0 - am)
+    c = galpha_coefficients(rho_inf, h)
     Kj, Cj = joint_tangent(x[n:2 * n], E)
-    G = h * gam * ratio * (E[1] + Cj)
-    return B + G + h * h * beta * ratio * (E[0] + Kj), G
+    G = c.gp * (E[1] + Cj)
+    return B + G + c.bp * (E[0] + Kj), G
 
 
 @njit(cache=_CACHE)
 def restart_acceleration(t, x, a, h, rho_inf, X, E):
     """(a1, filtered): the start acceleration (a = abar = a1) of the fixed step after a
     jump of the applied forces with exact kinematics, a the step's before it:
-    integrators.restart_choice between the consistent B^-1 (Q - c) and the part
+    solvers.galpha.restart_choice between the consistent B^-1 (Q - c) and the part
     a + S^-1 B dA of the jump the step follows (filtered True), S = iteration_matrix."""
     n = E[0].shape[0]
     B, rhs = balance(t, x[:n], x[n:2 * n], X, E)
@@ -471,30 +473,31 @@ def restart_acceleration(t, x, a, h, rho_inf, X, E):
 
 
 @njit(cache=_CACHE)
-def _residual(a1, a, abar, q, v, t, h, af, am, gam, beta, X, E):
-    abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
-    v1 = v + h * ((1.0 - gam) * abar + gam * abar1)
-    q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
-    B, rhs = balance(t, q1, v1, X, E)
+def _residual(a1, st, c, X, E):
+    """Residual B(q1) a1 - (Q - c) of a generalized-alpha step (solvers.galpha.Step st,
+    coefficients c) with :func:`balance`, and B, v1 (no bristle states)."""
+    q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
+    B, rhs = balance(st.t, q1, v1, X, E)
     return B @ a1 - rhs, B, v1
+
+
+@njit(cache=_CACHE)
+def _tangent(B, v1, c, E):
+    """B(q1) + gamma' (D + C_joints) + beta' (K + K_joints)."""
+    Kj, Cj = joint_tangent(v1, E)
+    return B + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj)
 
 
 @njit(cache=_CACHE)
 def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, X, E):
     """Fixed-step generalized-alpha with exact kinematics: integrators.generalized_alpha
-    (Chung-Hulbert in the Arnold-Bruls form, the same parameters, full Newton on
-    B(q1) + gamma' (D + C_joints) + beta' (K + K_joints) with backtracking, pulses at
-    mid-step) on :func:`balance`; no bristle states. Same returns and status codes."""
-    K, D = E[0], E[1]
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    ratio = (1.0 - af) / (1.0 - am)
-    bp = h * h * beta * ratio
-    gp = h * gam * ratio
-    n = K.shape[0]
+    (flex_model.solvers: the same coefficients, update, backtracking and status; full
+    Newton, pulses at mid-step) on :func:`balance`; no bristle states. Same returns."""
+    c = galpha_coefficients(rho_inf, h)
+    n = E[0].shape[0]
     X_out = np.full((n_steps // every + 1, 2 * n), np.nan)
     X_out[0] = x0
-    q = x0[:n].copy()
-    v = x0[n:2 * n].copy()
+    q, v = x0[:n].copy(), x0[n:2 * n].copy()
     a = a0.copy()
     abar = abar0.copy()
     t = t0
@@ -502,43 +505,36 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     iters = 0
     for s in range(1, n_steps + 1):
         t1 = t0 + s * h
-        tm = t1 - 0.5 * h
+        st = Step(q, v, np.zeros(0), a, abar, t1 - 0.5 * h)
         a1 = a.copy()
+        res, B, v1 = _residual(a1, st, c, X, E)
+        norm = residual_norm(res)
         ok = False
-        res, B, v1 = _residual(a1, a, abar, q, v, tm, h, af, am, gam, beta, X, E)
-        norm = np.sqrt(np.sum(res * res))
-        for it in range(50):
-            Kj, Cj = joint_tangent(v1, E)
-            da = solve_spd(B + gp * (D + Cj) + bp * (K + Kj), -res)
+        for it in range(NEWTON_MAX_ITER):
+            da = solve_spd(_tangent(B, v1, c, E), -res)
             lam = 1.0
-            for ls in range(30):
+            for ls in range(LINE_SEARCH_HALVINGS):
                 a_try = a1 + lam * da
-                r_try, B_try, v_try = _residual(a_try, a, abar, q, v, tm, h, af, am, gam,
-                                                beta, X, E)
-                n_try = np.sqrt(np.sum(r_try * r_try))
-                if n_try <= (1.0 - 1e-4 * lam) * norm or n_try < 1e-300 or ls == 29:
+                r_try, B_try, v_try = _residual(a_try, st, c, X, E)
+                n_try = residual_norm(r_try)
+                if backtrack_done(n_try, norm, lam, ls, LINE_SEARCH_HALVINGS):
                     break
                 lam *= 0.5
             a1, res, B, v1, norm = a_try, r_try, B_try, v_try, n_try
             iters += 1
-            if np.max(np.abs(da)) * lam * bp <= tol:
+            if np.max(np.abs(da)) * lam * c.bp <= tol:
                 ok = True
                 break
-        abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
-        q = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
-        v = v + h * ((1.0 - gam) * abar + gam * abar1)
-        a = a1
-        abar = abar1
-        t = t1
+        q, v, abar = galpha_state(q, v, a, abar, a1, c)
+        a, t = a1, t1
         x = np.concatenate((q, v))
-        if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > limit:
-            return X_out, 1, t, x, a, abar, iters
-        if not ok:
-            return X_out, 2, t, x, a, abar, iters
+        status = step_status(x, limit, ok)
+        if status != FINISHED:
+            return X_out, status, t, x, a, abar, iters
         if s % every == 0:
             X_out[r] = x
             r += 1
-    return X_out, 0, t, np.concatenate((q, v)), a, abar, iters
+    return X_out, FINISHED, t, np.concatenate((q, v)), a, abar, iters
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
@@ -547,9 +543,11 @@ def _guard_caches():
     from . import integrators, iteration_matrix, kernels
     from .effects import stick_slip
     from .numba_cache import guard
-    guard([obj for obj in globals().values() if hasattr(obj, "py_func")],
+    from .solvers import galpha, newton
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")
+           and obj.py_func.__module__ == __name__],
           [integrators.__file__, kernels.__file__, stick_slip.__file__,
-           iteration_matrix.__file__])
+           iteration_matrix.__file__, galpha.__file__, newton.__file__])
 
 
 _guard_caches()

@@ -33,10 +33,17 @@ from numba import njit
 
 from .effects.stick_slip import bristle_rate, bristle_step
 from .iteration_matrix import empty_factor, factor_solve, structured_factor
+from .solvers.status import DIVERGED, FINISHED, NO_CONVERGENCE
+from .solvers.galpha import (Step, finite_within, galpha_coefficients, galpha_parameters,
+                             galpha_state, restart_choice, step_status)
+from .solvers.newton import backtrack_done, residual_norm
 from .kernels import (band_matvec, cholesky, inverse_dynamics, link_origins, mass_matrix,
                       solve_spd, tip_jacobian)
 
 _CACHE = True
+#: full Newton (generalized_alpha): iterations a step, halvings of its line search
+NEWTON_MAX_ITER = 50
+LINE_SEARCH_HALVINGS = 30
 
 #: first column of the stick_slip_friction data in joint_data (FlexArmModel.JOINT_DATA)
 SS = 19
@@ -48,21 +55,6 @@ THETA_REFRESH = 0.003
 #: approximation (contraction about 0.002 on the hub-less arm): a fresh one would not
 #: contract faster
 THETA_REFRESH_STRUCTURED = 0.03
-#: restart_acceleration filters a force jump when more than this share of its acceleration
-#: jump lies in modes the step cannot follow (the 26303 restarts of test_simulate,
-#: test_simplified_newton, test_linear_cost, test_effects, test_sensors,
-#: test_scenario_users_asks, the control laws' and the planner's tests: at most 0.28;
-#: issue 24's hub-less arm: 0.97-1.0 at 0.125-1 ms and 2-16 variables per link)
-RESTART_SHARE = 0.5
-#: ... and when the consistent restart would move those modes by more than this (m or
-#: rad; calibrated on issue 24's hub-less arm, 15 deg set-point step, tip deflections of
-#: link 2 over 0.3 s off a 1/32 ms run, consistent / filtered: 2 variables per link at
-#: 0.5 ms, overshoot 0.011: 0.58 / 1.08 %; 4 at 0.25 ms, 0.016: 0.51 / 0.61 %; 8 at
-#: 0.125 ms, 0.033: 0.36 / 0.23 %; 6 at 0.25 ms, 0.055: 0.67 / 0.38 %; 8 at 0.25 ms, 0.13:
-#: 1.80 / 0.35 %; 16 at 0.125 ms, 0.27: 685 / 0.16 %). Section F's Eq. (95) policy (new
-#: held torques every 1 ms) stays below 6e-6: the consistent restart is the better there
-#: (4e-6 against 6e-5 rad of joint angle off a 1/8 ms run)
-RESTART_OVERSHOOT = 0.03
 
 
 @njit(cache=_CACHE)
@@ -327,8 +319,8 @@ def _stick_slip_tangent(Kj, Cj, v1, z0, z1, g, h, E):
 def _balance(t, q, v, z, zd, P, E):
     """Mass matrix and right-hand side of B(q) a = Q - c(q, v)."""
     n = q.shape[0]
-    rhs = applied_force(t, q, v, z, zd, P, E) - inverse_dynamics(q, v, np.zeros(n), E[3],
-                                                                  E[4], P)
+    rhs = applied_force(t, q, v, z, zd, P, E) - \
+        inverse_dynamics(q, v, np.zeros(n), E[3], E[4], P)
     return mass_matrix(q, P), rhs
 
 
@@ -354,15 +346,6 @@ def derivative(t, x, P, E):
     deflections of stick_slip_friction joints, none without them)."""
     _check_state(x, E)
     return _derivative(t, x, P, E)
-
-
-@njit(cache=_CACHE)
-def _finite(x, limit):
-    """False when a component is non-finite or beyond ``limit`` (a diverging state)."""
-    for i in range(x.shape[0]):
-        if not np.isfinite(x[i]) or abs(x[i]) > limit:
-            return False
-    return True
 
 
 @njit(cache=_CACHE)
@@ -404,10 +387,11 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
         k2 = _derivative(t + c2 * hh, x + hh * a21 * k1, P, E)
         k3 = _derivative(t + c3 * hh, x + hh * (a31 * k1 + a32 * k2), P, E)
         k4 = _derivative(t + c4 * hh, x + hh * (a41 * k1 + a42 * k2 + a43 * k3), P, E)
-        k5 = _derivative(t + c5 * hh, x + hh * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4),
-                        P, E)
-        k6 = _derivative(t + hh, x + hh * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4
-                                          + a65 * k5), P, E)
+        k5 = _derivative(t + c5 * hh,
+                         x + hh * (a51 * k1 + a52 * k2 + a53 * k3 + a54 * k4), P, E)
+        k6 = _derivative(t + hh,
+                         x + hh * (a61 * k1 + a62 * k2 + a63 * k3 + a64 * k4 + a65 * k5),
+                         P, E)
         xn = x + hh * (b1 * k1 + b3 * k3 + b4 * k4 + b5 * k5 + b6 * k6)
         k7 = _derivative(t + hh, xn, P, E)
         err = hh * (e1 * k1 + e3 * k3 + e4 * k4 + e5 * k5 + e6 * k6 + e7 * k7)
@@ -427,7 +411,7 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
             t = t_out[j] if land else t + hh
             x = xn
             k1 = k7
-            if not _finite(x, limit):
+            if not finite_within(x, limit):
                 return X, 1, t, x, h, steps, rejected
             while j < nout and t_out[j] <= t:
                 X[j] = x
@@ -470,9 +454,9 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
     restart would add to it, k = :func:`restart_kick` (1/2 - beta from rho_inf = 0.721 up;
     issue 47: 1/2 - beta everywhere was <= 0 below rho_inf = sqrt(2) - 1, which never
     filtered: tip deflections 1588 % off at 0.5 ms, rho_inf 0). When both exceed
-    RESTART_SHARE and RESTART_OVERSHOOT the restart filters the jump, a = abar = a + da; otherwise it is the
-    consistent one (results as before: smooth commands, arms with hub or rotor inertia,
-    bristle states).
+    solvers.galpha.RESTART_SHARE and RESTART_OVERSHOOT the restart filters the jump,
+    a = abar = a + da; otherwise it is the consistent one (results as before: smooth
+    commands, arms with hub or rotor inertia, bristle states).
     """
     ac = consistent_acceleration(t, x, P, E)
     n = E[0].shape[0]
@@ -488,80 +472,40 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
 
 
 @njit(cache=_CACHE)
-def restart_choice(a, ac, B, S, h, rho_inf):
-    """(start acceleration, share, overshoot) after a force jump: a + da, the part
-    da = S^-1 B (ac - a) of the jump the step follows (S its iteration matrix), where
-    ``share`` > RESTART_SHARE and either ``overshoot`` > RESTART_OVERSHOOT or the
-    consistent restart's kick is mostly the velocity one (:func:`restart_kick`: below
-    rho_inf = 0.721; it grows with h omega, not with the jump's size: 2 variables per
-    link, 0.25 ms, rho_inf 0: link 2 13 % off consistent, 1.1 % filtered), else the
-    consistent ac (:func:`restart_acceleration`; the planar and the spatial fixed step's
-    restart, spatial.compiled.galpha_loop)."""
-    jump = ac - a
-    Bj = B @ jump
-    full = jump @ Bj
-    if not full > 0.0:
-        return ac, 0.0, 0.0
-    da = np.linalg.solve(S, Bj)
-    e = jump - da
-    share = np.sqrt(max(e @ (B @ e), 0.0) / full)
-    overshoot = h * h * restart_kick(rho_inf) * np.max(np.abs(e))
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    velocity_kick = gam - 0.5 > 0.5 - beta
-    if share > RESTART_SHARE and (overshoot > RESTART_OVERSHOOT or velocity_kick):
-        return a + da, share, overshoot
-    return ac, share, overshoot
+def _alpha_residual(a1, st, c, P, E):
+    """Residual B(q1) a1 - (Q - c) of a generalized-alpha step (solvers.galpha.Step st,
+    coefficients c) for the guess a1, with B, v1, the bristle deflections z1 at the
+    step's end and their slopes g (stick-slip joints)."""
+    q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
+    z1 = st.z
+    g = st.z
+    zd = st.z
+    if st.z.shape[0] > 0:
+        z1, g = bristle_update(c.h, st.v, v1, st.z, E)
+        zd = (z1 - st.z) / c.h
+    B, rhs = _balance(st.t, q1, v1, z1, zd, P, E)
+    return B @ a1 - rhs, B, v1, z1, g
 
 
 @njit(cache=_CACHE)
-def restart_kick(rho_inf):
-    """Coefficient k of the position k h^2 |dA - da| a consistent restart adds to the modes
-    a step cannot follow (restart_acceleration's ``overshoot``): max(1/2 - beta,
-    gamma - 1/2) of Chung & Hulbert's (1993) parameters for rho_inf.
-
-    1/2 - beta is the share of the old acceleration in the position update (h^2 (1/2 -
-    beta) abar_n in Arnold & Bruls's (2007) form); it is 0.223 at rho_inf = 0.9 but 0 at
-    rho_inf = sqrt(2) - 1 and negative below, where a consistent restart still kicks
-    the unresolved modes, through the velocity update h ((1 - gamma) abar_n + gamma
-    abar_n+1): gamma - 1/2 = (1 - rho_inf) / (1 + rho_inf) is the scheme's numerical
-    damping, 1 at rho_inf = 0 (single mode h omega = 30: the consistent restart's
-    velocity 7.5 times the exact solution's largest at rho_inf = 0, 0.9 times at 0.9).
-    From rho_inf = 0.721 up the first term is the larger (decisions as before)."""
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    return max(0.5 - beta, gam - 0.5)
+def _alpha_tangent(B, v1, z1, g, st, c, P, E):
+    """Newton iteration matrix B + gamma' (D + C_j) + beta' (K + K_j) of
+    :func:`_alpha_residual` (PD gains, joint springs, friction slope and back-EMF at v1;
+    the bristles' slope and damping)."""
+    Kj, Cj = joint_tangent(v1, E)
+    if st.z.shape[0] > 0:
+        _stick_slip_tangent(Kj, Cj, v1, st.z, z1, g, c.h, E)
+    return B + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj)
 
 
 @njit(cache=_CACHE)
-def _alpha_residual(a1, a, abar, q, v, z, t, h, af, am, gam, beta, P, E):
-    """Residual B(q1) a1 - (Q - c) of a generalized-alpha step for the guess a1, with the
-    bristle deflections z1 at the step's end and their slopes (stick-slip joints)."""
-    abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
-    v1 = v + h * ((1.0 - gam) * abar + gam * abar1)
-    q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
-    z1 = z
-    g = z
-    zd = z
-    if z.shape[0] > 0:
-        z1, g = bristle_update(h, v, v1, z, E)
-        zd = (z1 - z) / h
-    B, rhs = _balance(t, q1, v1, z1, zd, P, E)
-    return B @ a1 - rhs, B, q1, v1, z1, g
-
-
-@njit(cache=_CACHE)
-def _alpha_residual_id(a1, a, abar, q, v, t, h, af, am, gam, beta, P, E):
+def _alpha_residual_id(a1, st, c, P, E):
     """Residual of :func:`_alpha_residual` without the mass matrix (no bristles): one
     inverse-dynamics pass gives B(q1) a1 + c(q1, v1) (thesis Eq. 27) directly."""
-    n = a1.shape[0]
-    q1 = np.empty(n)
-    v1 = np.empty(n)
-    for i in range(n):  # as in _alpha_residual, element by element (no temporaries)
-        abar1 = ((1.0 - af) * a1[i] + af * a[i] - am * abar[i]) / (1.0 - am)
-        v1[i] = v[i] + h * ((1.0 - gam) * abar[i] + gam * abar1)
-        q1[i] = q[i] + h * v[i] + h * h * ((0.5 - beta) * abar[i] + beta * abar1)
+    q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     z = np.zeros(0)
     return (inverse_dynamics(q1, v1, a1, E[3], E[4], P)
-            - applied_force(t, q1, v1, z, z, P, E)), q1, v1
+            - applied_force(st.t, q1, v1, z, z, P, E)), q1, v1
 
 
 @njit(cache=_CACHE)
@@ -581,7 +525,7 @@ def _iteration_factor(q1, v1, gp, bp, P, E):
 
 
 @njit(cache=_CACHE)
-def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, F, P, E):
+def _simplified_step(a1, st, c, tol, F, P, E):
     """One generalized-alpha step by simplified Newton (Hairer-Wanner IV.8): the factor F
     of the iteration matrix is kept from earlier steps, refreshed here (at the predictor)
     when the corrections contract by less than half per iteration. The iterations stop,
@@ -593,7 +537,7 @@ def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, F,
     theta = 0.0
     for attempt in range(2):
         x1 = a1.copy()
-        res = _alpha_residual_id(x1, a, abar, q, v, t, h, af, am, gam, beta, P, E)[0]
+        res = _alpha_residual_id(x1, st, c, P, E)[0]
         prev = 0.0
         for it in range(12):
             da = factor_solve(F, -res)
@@ -601,7 +545,7 @@ def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, F,
             for i in range(da.shape[0]):
                 x1[i] += da[i]
                 nd = max(nd, abs(da[i]))
-            nd *= bp
+            nd *= c.bp
             iters += 1
             if not np.isfinite(nd):
                 break
@@ -612,25 +556,14 @@ def _simplified_step(a1, a, abar, q, v, t, h, af, am, gam, beta, gp, bp, tol, F,
             if nd <= tol:
                 return x1, F, theta, iters, True
             prev = nd
-            res = _alpha_residual_id(x1, a, abar, q, v, t, h, af, am, gam, beta, P, E)[0]
+            res = _alpha_residual_id(x1, st, c, P, E)[0]
         # slow or diverging: a fresh factor at the predictor's state, once
-        _, q1, v1 = _alpha_residual_id(a1, a, abar, q, v, t, h, af, am, gam, beta, P, E)
-        F = _iteration_factor(q1, v1, gp, bp, P, E)
+        _, q1, v1 = _alpha_residual_id(a1, st, c, P, E)
+        F = _iteration_factor(q1, v1, c.gp, c.bp, P, E)
         theta = 0.0
         if F[0].shape[0] == 0:
             break
     return a1, F, theta, iters, False
-
-
-@njit(cache=_CACHE)
-def galpha_parameters(rho_inf):
-    """(alpha_m, alpha_f, gamma, beta) of generalized-alpha with the spectral radius
-    ``rho_inf`` at infinite frequency (Chung-Hulbert: second order, optimal damping of
-    the high modes)."""
-    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
-    af = rho_inf / (rho_inf + 1.0)
-    gam = 0.5 + af - am
-    return am, af, gam, 0.25 * (gam + 0.5) ** 2
 
 
 @njit(cache=_CACHE)
@@ -653,20 +586,11 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     not converge in 50 iterations (with backtracking line search).
     """
     _check_state(x0, E)
-    K, D = E[0], E[1]
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    ratio = (1.0 - af) / (1.0 - am)
-    bp = h * h * beta * ratio
-    gp = h * gam * ratio
-    nx = x0.shape[0]
-    n = K.shape[0]
-    nrec = n_steps // every + 1
-    X = np.full((nrec, nx), np.nan)
+    c = galpha_coefficients(rho_inf, h)
+    n = E[0].shape[0]
+    X = np.full((n_steps // every + 1, x0.shape[0]), np.nan)
     X[0] = x0
-    q = x0[:n].copy()
-    v = x0[n:2 * n].copy()
-    z = x0[2 * n:].copy()
-    nz = z.shape[0]
+    q, v, z = x0[:n].copy(), x0[n:2 * n].copy(), x0[2 * n:].copy()
     a = a0.copy()
     abar = abar0.copy()
     t = t0
@@ -674,49 +598,37 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     iters = 0
     for s in range(1, n_steps + 1):
         t1 = t0 + s * h
+        st = Step(q, v, z, a, abar, t1 - 0.5 * h)
+        # full Newton with backtracking on the residual norm (solvers.newton.backtrack)
         a1 = a.copy()
+        res, B, v1, z1, g = _alpha_residual(a1, st, c, P, E)
+        norm = residual_norm(res)
         ok = False
-        res, B, _, v1, z1, g = _alpha_residual(a1, a, abar, q, v, z, t1 - 0.5 * h, h, af,
-                                                am, gam, beta, P, E)
-        norm = np.sqrt(np.sum(res * res))
-        for it in range(50):
-            Kj, Cj = joint_tangent(v1, E)
-            if nz > 0:
-                _stick_slip_tangent(Kj, Cj, v1, z, z1, g, h, E)
-            da = solve_spd(B + gp * (D + Cj) + bp * (K + Kj), -res)
-            # backtracking on the residual: regularized friction is nearly flat outside
-            # its narrow zone, where full Newton steps overshoot across it
+        for it in range(NEWTON_MAX_ITER):
+            da = solve_spd(_alpha_tangent(B, v1, z1, g, st, c, P, E), -res)
             lam = 1.0
-            for ls in range(30):
+            for ls in range(LINE_SEARCH_HALVINGS):
                 a_try = a1 + lam * da
-                r_try, B_try, _, v_try, z_try, g_try = _alpha_residual(
-                    a_try, a, abar, q, v, z, t1 - 0.5 * h, h, af, am, gam, beta, P, E)
-                n_try = np.sqrt(np.sum(r_try * r_try))
-                if n_try <= (1.0 - 1e-4 * lam) * norm or n_try < 1e-300 or ls == 29:
+                r_try, B_try, v_try, z_try, g_try = _alpha_residual(a_try, st, c, P, E)
+                n_try = residual_norm(r_try)
+                if backtrack_done(n_try, norm, lam, ls, LINE_SEARCH_HALVINGS):
                     break
                 lam *= 0.5
-            a1, res, B, v1, norm = a_try, r_try, B_try, v_try, n_try
-            z1, g = z_try, g_try
+            a1, res, B, v1, norm, z1, g = a_try, r_try, B_try, v_try, n_try, z_try, g_try
             iters += 1
-            if np.max(np.abs(da)) * lam * bp <= tol:
+            if np.max(np.abs(da)) * lam * c.bp <= tol:
                 ok = True
                 break
-        abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
-        q = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
-        v = v + h * ((1.0 - gam) * abar + gam * abar1)
-        a = a1
-        abar = abar1
-        z = z1
-        t = t1
+        q, v, abar = galpha_state(q, v, a, abar, a1, c)
+        a, z, t = a1, z1, t1
         x = np.concatenate((q, v, z))
-        if not _finite(x, limit):
-            return X, 1, t, x, a, abar, iters
-        if not ok:
-            return X, 2, t, x, a, abar, iters
+        status = step_status(x, limit, ok)
+        if status != FINISHED:
+            return X, status, t, x, a, abar, iters
         if s % every == 0:
             X[r] = x
             r += 1
-    return X, 0, t, np.concatenate((q, v, z)), a, abar, iters
+    return X, FINISHED, t, np.concatenate((q, v, z)), a, abar, iters
 
 
 @njit(cache=_CACHE)
@@ -734,10 +646,7 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
     if x0.shape[0] > 2 * n:
         return generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
                                  P, E)
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    ratio = (1.0 - af) / (1.0 - am)
-    bp = h * h * beta * ratio
-    gp = h * gam * ratio
+    c = galpha_coefficients(rho_inf, h)
     nrec = n_steps // every + 1
     X = np.full((nrec, x0.shape[0]), np.nan)
     X[0] = x0
@@ -755,21 +664,19 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
         tm = t1 - 0.5 * h
         a1 = a.copy()
         ok = False
+        st = Step(q, v, np.zeros(0), a, abar, tm)
         if F[0].shape[0] == 0:
-            _, q1, v1 = _alpha_residual_id(a1, a, abar, q, v, tm, h, af, am, gam, beta, P, E)
-            F = _iteration_factor(q1, v1, gp, bp, P, E)
+            _, q1, v1 = _alpha_residual_id(a1, st, c, P, E)
+            F = _iteration_factor(q1, v1, c.gp, c.bp, P, E)
         if s > 1:  # linear extrapolation of the acceleration as the predictor
             a1 = 2.0 * a - a_old
         if F[0].shape[0] > 0:
-            a1, F, theta, it, ok = _simplified_step(a1, a, abar, q, v, tm, h, af, am, gam,
-                                                    beta, gp, bp, tol, F, P, E)
+            a1, F, theta, it, ok = _simplified_step(a1, st, c, tol, F, P, E)
             iters += it
             if ok and theta > (THETA_REFRESH_STRUCTURED if F[6] == 1 else THETA_REFRESH):
                 F = empty_factor()  # contracting slowly: a fresh factor next step
         if ok:
-            abar1 = ((1.0 - af) * a1 + af * a - am * abar) / (1.0 - am)
-            q = q + h * v + h * h * ((0.5 - beta) * abar + beta * abar1)
-            v = v + h * ((1.0 - gam) * abar + gam * abar1)
+            q, v, abar1 = galpha_state(q, v, a, abar, a1, c)
             a_old = a
             a = a1
             abar = abar1
@@ -784,15 +691,15 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
             a_old = a
             a = a1
             abar = abar1
-            if status == 2:
-                return X, 2, t1, x, a, abar, iters
+            if status == NO_CONVERGENCE:
+                return X, NO_CONVERGENCE, t1, x, a, abar, iters
         t = t1
-        if not _finite(x, limit):
-            return X, 1, t, x, a, abar, iters
+        if not finite_within(x, limit):
+            return X, DIVERGED, t, x, a, abar, iters
         if s % every == 0:
             X[r] = x
             r += 1
-    return X, 0, t, np.concatenate((q, v)), a, abar, iters
+    return X, FINISHED, t, np.concatenate((q, v)), a, abar, iters
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
@@ -802,8 +709,11 @@ def _guard_caches():
     from . import iteration_matrix, kernels
     from .numba_cache import guard
     from .effects import stick_slip
-    guard([obj for obj in globals().values() if hasattr(obj, "py_func")],
-          [kernels.__file__, stick_slip.__file__, iteration_matrix.__file__])
+    from .solvers import galpha, newton
+    guard([obj for obj in globals().values() if hasattr(obj, "py_func")
+           and obj.py_func.__module__ == __name__],
+          [kernels.__file__, stick_slip.__file__, iteration_matrix.__file__, galpha.__file__,
+           newton.__file__])
 
 
 _guard_caches()

@@ -206,7 +206,11 @@ PARAMETERS = (
     Param("vars_per_link", 0, "deformation variables per link (0: as in the arm file)",
           check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
     Param("kinematics", "", "joint-to-link kinematics override (empty: the arm's)"),
-    Param("mode", "realtime", "realtime | lockstep", check=_choice("realtime", "lockstep")),
+    Param("mode", "realtime", "realtime | lockstep (observer: flex_model.observer_node, "
+          "which the entry point starts for -p mode:=observer)",
+          check=lambda v: None if v in ("realtime", "lockstep") else
+          "realtime or lockstep (mode observer is flex_model.observer_node: started by "
+          "the entry point with -p mode:=observer, flex-twin observe, or flex-twin up)"),
     Param("rate", 1000.0, "model loop rate (Hz); lockstep: a command advances 1/rate",
           check=_positive),
     Param("publish_rate", 250.0, "rate of the state topics (Hz)", True, _positive),
@@ -537,8 +541,8 @@ class ModelNode(Managed, LifecycleNode):
 
     def on_payload(self, msg: Float64MultiArray) -> None:
         try:
-            m, j = (float(v) for v in conv.finite_array(msg.data, 2,
-                                                          "payload [mass, inertia]"))
+            m, j = (float(v) for v in conv.finite_array(
+                msg.data, 2, "payload [mass, inertia]"))
             for value, name, limit, unit in (
                     (m, "mass", "max_payload_mass", "kg"),
                     (j, "inertia", "max_payload_inertia", "kg m^2")):
@@ -855,18 +859,24 @@ class ModelNode(Managed, LifecycleNode):
             self.pub_tf.publish(self.cdr_tf.fill(t, rows.ravel()))
 
 
-def _arm_argument(argv) -> str | None:
-    """The value of ``-p arm:=...`` among the ROS arguments (the last one wins)."""
-    arm = None
+def _arm_argument(argv, name: str = "arm") -> str | None:
+    """The value of ``-p <name>:=...`` (default the arm) among the ROS arguments (the last
+    one wins)."""
+    value, prefix = None, name + ":="
     for a, b in zip(argv, list(argv[1:]) + [""]):
-        if a in ("-p", "--param") and b.startswith("arm:="):
-            arm = b[len("arm:="):]
-    return arm
+        if a in ("-p", "--param") and b.startswith(prefix):
+            value = b[len(prefix):]
+    return value
 
 
 def main(args=None) -> None:
-    """A spatial arm (issue 25) goes to :mod:`flex_model.spatial_node`."""
-    arm = _arm_argument(sys.argv if args is None else args)
+    """A spatial arm (issue 25) goes to :mod:`flex_model.spatial_node`, ``mode:=observer``
+    (issue 45) to :mod:`flex_model.observer_node`."""
+    argv = sys.argv if args is None else args
+    if _arm_argument(argv, "mode") == "observer":
+        from .observer_node import main as observer_main
+        return observer_main(args)
+    arm = _arm_argument(argv)
     if arm:
         from .spatial.description import is_spatial_arm
         if is_spatial_arm(arm):

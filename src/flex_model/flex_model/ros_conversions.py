@@ -7,7 +7,7 @@ from array import array
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseStamped, TransformStamped
+from geometry_msgs.msg import Point, PoseStamped, PoseWithCovarianceStamped, TransformStamped
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import ColorRGBA, Header
 from trajectory_msgs.msg import JointTrajectory
@@ -161,6 +161,30 @@ def tip_pose_values(x, y, phi, rotation=None) -> list[float]:
     return [float(r[0, 0] * x + r[0, 1] * y), float(r[1, 0] * x + r[1, 1] * y),
             float(r[2, 0] * x + r[2, 1] * y),
             qx * c + qy * s, qy * c - qx * s, qz * c + qw * s, qw * c - qz * s]
+
+
+def tip_pose_cov_cdr(frame: str) -> CdrTemplate:
+    """The estimated tip pose (PoseWithCovarianceStamped in ``frame``) as a CDR template:
+    stamp; position x, y, z, orientation x, y, z, w (:func:`tip_pose_values`), then the
+    6 x 6 covariance row-major (x, y, z, rotations about x, y, z)."""
+    return CdrTemplate(PoseWithCovarianceStamped(header=Header(frame_id=frame)),
+                       ["header.stamp"], ["pose.pose.position", "pose.pose.orientation",
+                                          "pose.covariance"])
+
+
+def planar_tip_covariance(cov_xy_phi, rotation=None) -> np.ndarray:
+    """The 6 x 6 pose covariance (x, y, z, rx, ry, rz) of a planar tip whose (x, y, phi)
+    in the arm's plane has the 3 x 3 covariance ``cov_xy_phi``; with ``rotation`` (R,
+    flex_model.urdf.plane_rotation) in the base frame: the position block R C R^T, the
+    rotation about the plane's normal R e_z (first-order, as the mean in
+    :func:`tip_pose_values`)."""
+    c = np.asarray(cov_xy_phi, float)
+    t = np.zeros((6, 3))  # d(position, rotation vector) / d(x, y, phi)
+    t[0, 0] = t[1, 1] = t[5, 2] = 1.0
+    if rotation is not None:
+        r = np.asarray(rotation, float)
+        t[:3, :2], t[3:, 2] = r[:, :2], r[:, 2]
+    return t @ c @ t.T
 
 
 def clock_cdr() -> CdrTemplate:

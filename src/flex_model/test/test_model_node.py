@@ -348,8 +348,8 @@ def test_startup_parameters_accept_ints_and_refuse_bad_values_in_one_line():
                  "time >= 0 s"),
                 ({"rate": "fast"}, "parameter rate: got 'fast'; expected a finite number"),
                 ({"max_step": 0.0}, "parameter max_step: got 0; expected a step in (0, 0.1]"),
-                ({"mode": "turbo"}, "parameter mode: got 'turbo'; expected one of realtime, "
-                 "lockstep")):
+                ({"mode": "turbo"}, "parameter mode: got 'turbo'; expected realtime or "
+                 "lockstep (mode observer is flex_model.observer_node")):
             with pytest.raises(ParameterError) as err:
                 ModelNode(context=ctx, namespace=f"/b{uuid.uuid4().hex[:8]}",
                           parameter_overrides=[Parameter(k, value=v)

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from flex_model.inputs import input_data
-from flex_model.integrators import (RESTART_OVERSHOOT, RESTART_SHARE,
-                                    consistent_acceleration, generalized_alpha_simplified,
+from flex_model.integrators import (consistent_acceleration, generalized_alpha_simplified,
                                     restart_acceleration)
 from flex_model.scenario import scenario_from_dict
+from flex_model.solvers.galpha import RESTART_OVERSHOOT, RESTART_SHARE
 from flex_model.simulate import DIVERGENCE_LIMIT
 
 T_JUMP = 0.02

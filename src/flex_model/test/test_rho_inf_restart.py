@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flex_model.integrators import galpha_parameters, restart_kick
 from flex_model.scenario import scenario_from_dict
+from flex_model.solvers.galpha import galpha_parameters, restart_kick
 
 T_JUMP = 0.02
 T_END = 0.1
@@ -63,7 +63,7 @@ def converged2():
 
 @pytest.mark.parametrize("rho_inf, bound", [(0.0, 0.02), (0.5, 0.01)])
 def test_a_small_rho_inf_filters_where_the_consistent_restart_kicks(converged2, rho_inf,
-                                                                     bound):
+                                                                    bound):
     """2 variables per link, 0.25 ms: the jump is resolved enough for the overshoot test
     (below 0.03), but below rho_inf 0.721 the consistent restart's velocity kick grows with
     h omega (integrators.restart_choice). Link 2, % of its largest: 0.87 at rho_inf 0 and

@@ -33,7 +33,8 @@ from numba import njit
 from flex_model import kernels
 from flex_model import integrators, iteration_matrix
 from flex_model.dynamics import FlexArmModel
-from flex_model.integrators import galpha_parameters
+from flex_model.solvers import galpha as solvers_galpha
+from flex_model.solvers.galpha import galpha_abar, galpha_coefficients
 from flex_model.kernels import inverse_dynamics, link_origins, tip_jacobian
 from flex_model.statics import TipLoad, static_equilibrium
 
@@ -69,8 +70,6 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
     """
     n_s, nq = t.shape[0], St.shape[0]
     nf = Sf.shape[1]
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    ratio = (1.0 - af) / (1.0 - am)
     Q = np.zeros((n_s, nq))
     V = np.zeros((n_s, nq))
     A = np.zeros((n_s, nq))
@@ -90,8 +89,8 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
     age = refresh
     for k in range(1, n_s):
         h = t[k] - t[k - 1]
-        bp = h * h * beta * ratio
-        gp = h * gam * ratio
+        c = galpha_coefficients(rho_inf, h)
+        bp, gp, beta, gam = c.bp, c.gp, c.beta, c.gam
         if h != h_used or age >= refresh:
             M = SfT @ kernels.mass_matrix(Q[k - 1], P) @ Sf
             inv = np.ascontiguousarray(np.linalg.inv(M + gp * Dff + bp * Kff))
@@ -106,7 +105,7 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
         a1 = acc.copy()
         ok = False
         for it in range(40):
-            abar1 = ((1.0 - af) * a1 + af * acc - am * abar) / (1.0 - am)
+            abar1 = galpha_abar(a1, acc, abar, c)
             q1 = q_base + Sf @ (zf_pred + h * h * beta * abar1)
             v1 = v_base + Sf @ (vf_pred + h * gam * abar1)
             res = SfT @ _generalized_force(q1, v1, a_base + Sf @ a1, K, D, gx, gy, P,
@@ -120,7 +119,7 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
             return Q, V, A, tau, tip, 0.0, 1, k
         if it > 2:
             age = refresh  # slow convergence: refresh the iteration matrix next step
-        abar1 = ((1.0 - af) * a1 + af * acc - am * abar) / (1.0 - am)
+        abar1 = galpha_abar(a1, acc, abar, c)
         zf = zf_pred + h * h * beta * abar1
         vf = vf_pred + h * gam * abar1
         acc = a1
@@ -137,8 +136,9 @@ def _integrate(t, th, thd, thdd, zf0, vf0, St, Sf, K, D, Kff, Dff, torque_map, g
     return Q, V, A, tau, tip, worst, 0, 0
 
 
-_numba_cache.guard([_generalized_force, _integrate], [kernels.__file__, integrators.__file__,
-                                                     iteration_matrix.__file__])
+_numba_cache.guard([_generalized_force, _integrate],
+                   [kernels.__file__, integrators.__file__, iteration_matrix.__file__,
+                    solvers_galpha.__file__])
 
 
 @dataclass

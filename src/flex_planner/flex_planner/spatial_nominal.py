@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flex_model.integrators import galpha_parameters
+from flex_model.solvers.galpha import galpha_abar, galpha_coefficients
 
 from .nominal_input import REFRESH_EVERY, STEP_TOLERANCE
 from .trajectories import SampledTrajectory
@@ -82,8 +82,6 @@ def spatial_nominal_input(model, traj: SampledTrajectory, flex0=None, flex_rate0
     zf = static_equilibrium(model, th[0]).q[free] if flex0 is None else \
         np.asarray(flex0, float).copy()
     vf = np.zeros(len(free)) if flex_rate0 is None else np.asarray(flex_rate0, float).copy()
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    ratio = (1.0 - af) / (1.0 - am)
     n_s, nq = len(t), model.nq
     Q, V, A = np.zeros((n_s, nq)), np.zeros((n_s, nq)), np.zeros((n_s, nq))
 
@@ -107,7 +105,8 @@ def spatial_nominal_input(model, traj: SampledTrajectory, flex0=None, flex_rate0
     h_used, age = -1.0, REFRESH_EVERY
     for k in range(1, n_s):
         h = t[k] - t[k - 1]
-        bp, gp = h * h * beta * ratio, h * gam * ratio
+        c = galpha_coefficients(rho_inf, h)
+        bp, gp, beta, gam = c.bp, c.gp, c.beta, c.gam
         if h != h_used or age >= REFRESH_EVERY:
             M = spatial_eval(data, Q[k - 1], V[k - 1], A[k - 1], True)[0]
             inv = np.linalg.inv(M[np.ix_(free, free)] + gp * Dff + bp * Kff)
@@ -117,7 +116,7 @@ def spatial_nominal_input(model, traj: SampledTrajectory, flex0=None, flex_rate0
         vf_pred = vf + h * (1.0 - gam) * abar
         a1 = acc.copy()
         for it in range(40):
-            abar1 = ((1.0 - af) * a1 + af * acc - am * abar) / (1.0 - am)
+            abar1 = galpha_abar(a1, acc, abar, c)
             q1, v1, a_full = state(k, zf_pred + h * h * beta * abar1,
                                    vf_pred + h * gam * abar1, a1)
             da = -(inv @ force(q1, v1, a_full)[free])
@@ -129,7 +128,7 @@ def spatial_nominal_input(model, traj: SampledTrajectory, flex0=None, flex_rate0
                                f"(step {h:.3g} s); reduce the integration step")
         if it > 2:
             age = REFRESH_EVERY
-        abar1 = ((1.0 - af) * a1 + af * acc - am * abar) / (1.0 - am)
+        abar1 = galpha_abar(a1, acc, abar, c)
         zf = zf_pred + h * h * beta * abar1
         vf = vf_pred + h * gam * abar1
         acc, abar = a1, abar1

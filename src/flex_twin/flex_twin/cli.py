@@ -409,18 +409,21 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_presets)
     from .bag_cli import add_bag_parsers  # record, play, bag info (rclpy imported lazily)
     add_bag_parsers(sub)
-    from .ros_suite import add_up_parser  # up: the nodes from a parameter file
+    from .ros_suite import add_observe_parser, add_up_parser  # (rclpy imported lazily)
     add_up_parser(sub)
+    add_observe_parser(sub)
     from flex_control.cli import add_control_parser
     from flex_planner.cli import add_plan_parser
 
     from .comparison.cli import add_compare_parser
     from .diagnosis.cli import add_diagnose_parser
+    from .estimate_cli import add_estimate_parser
     from .real_arms.cli import add_real_arm_parsers
     from .real_arms.modal_cli import add_modal_parsers
     from .sweep import add_sweep_parser
     from .view_cli import add_view_parser
-    for add in (add_compare_parser, add_diagnose_parser, add_real_arm_parsers,
+    for add in (add_compare_parser, add_diagnose_parser, add_estimate_parser,
+                add_real_arm_parsers,
                 add_modal_parsers, add_sweep_parser, add_plan_parser, add_control_parser,
                 add_view_parser):
         add(sub)

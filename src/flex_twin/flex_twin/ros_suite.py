@@ -28,6 +28,8 @@ from pathlib import Path
 from flex_model import ros_environment
 from flex_model.config import ConfigError, read_yaml
 
+#: the model node in observer mode (``mode: observer`` in its section, issue 45)
+OBSERVER = ("flex_model.observer_node", "ObserverNode")
 NODES = {"flex_model": ("flex_model.model_node", "ModelNode"),
          "flex_controller": ("flex_control.controller_node", "ControllerNode"),
          "flex_planner": ("flex_planner.planner_node", "PlannerNode")}
@@ -75,7 +77,8 @@ def in_loop_parameters(params: dict) -> dict:
     for key, body in params.items():
         ns, name = split_name(key)
         model, ctl = keys.get((ns, "flex_model")), keys.get((ns, "flex_controller"))
-        if model is None or ctl is None or params[model].get("controller"):
+        if model is None or ctl is None or params[model].get("controller") or \
+                params[model].get("mode") == "observer":
             out[key] = body
         elif name == "flex_model":
             out[key] = _with_controller(body, params[ctl])
@@ -162,14 +165,15 @@ def run_in_one_process(params: dict, duration: float | None = None, progress=Non
         with stop_on_signals() as stop:
             for key, values in params.items():
                 ns, name = split_name(key)
-                module, cls = NODES[name]
+                module, cls = node_class(name, values)
                 node_cls = getattr(importlib.import_module(module), cls)
                 nodes[key] = node_cls(context=ctx, namespace=ns or None, parameter_overrides=[
                     Parameter(k, value=v) for k, v in values.items()])
             ex = SingleThreadedExecutor(context=ctx)
             for n in nodes.values():
                 ex.add_node(n)
-            models = [n for k, n in nodes.items() if split_name(k)[1] == "flex_model"]
+            models = [n for k, n in nodes.items() if split_name(k)[1] == "flex_model"
+                      and hasattr(n, "stepper")]  # (an observer follows its arm's time)
             next_mark = 0.0
             while ctx.ok() and not stop.is_set():
                 ex.spin_once(timeout_sec=0.01)
@@ -204,17 +208,26 @@ def _die_with_parent():
         pass
 
 
-def run_in_processes(path, names) -> int:
+def node_class(name: str, values: dict) -> tuple[str, str]:
+    """(module, class) of the node ``name`` with parameters ``values``: the model node in
+    observer mode is flex_model.observer_node's."""
+    if name == "flex_model" and values.get("mode") == "observer":
+        return OBSERVER
+    return NODES[name]
+
+
+def run_in_processes(path, names, values=None) -> int:
     """One process per node (``python -m`` its module, which works in a pip and in a colcon
     install alike) with the same parameter file; the nodes end with this process. Ctrl-C
     (SIGINT) stops them even where it was inherited ignored (a background job of a
-    non-interactive shell, as in CI)."""
+    non-interactive shell, as in CI). ``values``: the parameters per node name (a model
+    in observer mode runs flex_model.observer_node)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)
-    procs = []
+    procs, values = [], values or {}
     for key in names:
         ns, name = split_name(key)
         procs.append(subprocess.Popen(
-            [sys.executable, "-m", NODES[name][0], "--ros-args"]
+            [sys.executable, "-m", node_class(name, values.get(key, {}))[0], "--ros-args"]
             + (["-r", f"__ns:={ns}"] if ns else []) + ["--params-file", str(path)],
             preexec_fn=_die_with_parent if sys.platform == "linux" else None))
     try:
@@ -241,7 +254,7 @@ def cmd_up(args) -> int:
     if args.processes:
         with tempfile.TemporaryDirectory(prefix="flex-twin-up-") as tmp:
             path = write_parameter_file(params, Path(tmp) / "params.yaml")
-            return run_in_processes(path, list(params))
+            return run_in_processes(path, list(params), params)
     run_in_one_process(params, args.duration)
     return 0
 
@@ -258,3 +271,42 @@ def add_up_parser(sub) -> None:
                     "process)")
     sp.set_defaults(func=cmd_up)
 
+
+def observer_arguments(args) -> list[str]:
+    """The ROS arguments of ``flex-twin observe``: the model node's observer mode with
+    the options as parameters."""
+    params = {"mode": "observer", "arm": args.arm, "measure": args.measure,
+              "input": args.input, "adapt": args.adapt, "sample_period": args.sample_period,
+              "input_topic": args.input_topic}
+    out = ["flex-twin-observe", "--ros-args"]
+    if args.namespace:
+        out += ["-r", f"__ns:={args.namespace}"]
+    for name, value in params.items():
+        out += ["-p", f"{name}:={value}" if value != "" else f"{name}:=''"]
+    return out
+
+
+def cmd_observe(args) -> int:
+    from flex_model.observer_node import main
+    main(observer_arguments(args))
+    return 0
+
+
+def add_observe_parser(sub) -> None:
+    sp = sub.add_parser("observe", help="the model node in observer mode: estimate a real "
+                        "arm's state from its joint_states (issue 45; docs/ros.md)")
+    sp.add_argument("--arm", default="quanser_cuboulder_calibrated",
+                    help="arm preset or YAML: the model of the real arm")
+    sp.add_argument("--measure", default="q", help="measurements, comma-separated: q<i>, "
+                    "v<i> (joint_states position, velocity), w<i> (tip deflection), m<i>, "
+                    "ax, ay, tip_x, tip_y, tip_z (flex/gauges, in this order); q: every "
+                    "joint angle")
+    sp.add_argument("--input", choices=("effort", "command"), default="effort",
+                    help="the model's input: joint_states' effort, or the last "
+                    "effort_controller/commands")
+    sp.add_argument("--adapt", default="", help="parameters adapted online, comma-separated "
+                    "(coulomb_friction:0, viscous_friction:0, payload_mass, link_stiffness:0)")
+    sp.add_argument("--sample-period", type=float, default=1e-3, help="s (the arm's)")
+    sp.add_argument("--input-topic", default="joint_states")
+    sp.add_argument("--namespace", default="", help="ROS namespace of the node")
+    sp.set_defaults(func=cmd_observe)

@@ -29,9 +29,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from typing import NamedTuple
+
 from .. import integrators, kernels
-from ..integrators import dead_zone, galpha_parameters, restart_choice
+from ..integrators import dead_zone
 from ..kernels import cholesky, solve_chol
+from ..solvers import galpha, newton
+from ..solvers.galpha import galpha_coefficients, galpha_update, restart_choice
+from ..solvers.newton import spatial_converged
+from ..solvers.status import FINISHED, NO_CONVERGENCE
 from .dynamics import SpatialArmModel
 
 _CACHE = True
@@ -1141,17 +1147,6 @@ def _contact(Pm, ct, q, v, Q, gc):
 
 
 @njit(cache=_CACHE)
-def _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1):
-    """The generalized-alpha predictor-corrector (Arnold-Bruels): ab1 from the iterate a1,
-    then q1, v1 (explicit loops: numba array expressions compile slowly)."""
-    for j in range(q.shape[0]):
-        b = ((1 - af) * a1[j] + af * a[j] - am * abar[j]) / (1 - am)
-        ab1[j] = b
-        q1[j] = q[j] + h * v[j] + h * h * ((0.5 - beta) * abar[j] + beta * b)
-        v1[j] = v[j] + h * ((1 - gam) * abar[j] + gam * b)
-
-
-@njit(cache=_CACHE)
 def _hold(S, r, held):
     """Held coordinates: identity rows and columns of S (if given) and zero residual."""
     n = r.shape[0]
@@ -1163,6 +1158,26 @@ def _hold(S, r, held):
                     S[j, b] = 0.0
                     S[b, j] = 0.0
                 S[j, j] = 1.0
+
+
+class LoopInputs(NamedTuple):
+    """The joint effects and inputs of :func:`galpha_loop` by name (integrate.
+    simulate_fixed_compiled builds them): K, D (nq x nq), Q0 the constant generalized
+    force, fric, motors, blash, contact, stops, pdc, tipf (rows as in galpha_loop's
+    docstring), held (nq, 0/1), H (nq x n_joints), effort (n_joints)."""
+    K: np.ndarray
+    D: np.ndarray
+    Q0: np.ndarray
+    fric: np.ndarray
+    motors: np.ndarray
+    blash: np.ndarray
+    contact: np.ndarray
+    stops: np.ndarray
+    pdc: np.ndarray
+    tipf: np.ndarray
+    held: np.ndarray
+    H: np.ndarray
+    effort: np.ndarray
 
 
 @njit(cache=_CACHE)
@@ -1222,8 +1237,7 @@ def _coupling(Pm, q, g, Hc, want_h):
 
 
 @njit(cache=_CACHE)
-def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, held, H,
-                effort, q0, v0, h, tau, rho_inf, tol, max_iter, acc, start):
+def galpha_loop(Pm, inp, q0, v0, h, tau, st, acc, start):
     """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
     integrate.simulate_fixed: Newton on the accelerations with
     M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
@@ -1241,28 +1255,28 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
     (N, base frame) at the tip (the origin of the last link's end frame), row n over step
     n: J_tip^T F at the current iterate (its dJ/dq F tangent left out, as the contact's);
     with any of these nonlinear effects a
-    Newton step that raises the largest residual is halved, up to 8 times in a row, from
-    the 20th iteration of a step on (integrate.LINE_SEARCH_HALVINGS: the steep tanh of
-    Coulomb friction otherwise makes the iteration cycle; steps that converge within 20
-    iterations are untouched), and from the 20th iteration on a step whose correction
-    stagnates (no longer halves) within 1e3 x tol is accepted (integrate.STAGNATION: the
-    round-off floor of the accelerations); ``held`` (nq, 0/1):
+    Newton step that raises the largest residual is halved, up to ``st.halvings`` (8)
+    times in a row, from iteration ``st.line_search_from`` (20) of a step on (the steep
+    tanh of Coulomb friction otherwise makes the iteration cycle; steps that converge
+    earlier are untouched), and from then on a step whose correction stagnates is
+    accepted (solvers.newton.spatial_converged); ``held`` (nq, 0/1):
     coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
     the method, read as the start when ``start`` is 1 (a continued run), the step's
-    acceleration before an input jump when 2 (the restart of integrators.restart_choice,
+    acceleration before an input jump when 2 (the restart of solvers.galpha.restart_choice,
     as the planar fixed step's: the part of the jump the step follows where the rest
     would kick modes it cannot follow), else unused (0: the consistent acceleration
-    restarts it); overwritten with the last step's. Returns (q, v) at
-    every step (n_steps + 1, nq) and the Newton iteration count (-1 - n: no convergence
-    at step n; acc[0, 0] then holds the iterations done). A Newton matrix made indefinite
-    by a friction slope > 0 (a Stribeck peak's negative damping) is rebuilt without those
-    slopes."""
+    restarts it); overwritten with the last step's. ``inp``: :class:`LoopInputs`, ``st``:
+    solvers.status.Settings (rho_inf, tol, max_iter, the line search). Returns (q, v) at
+    every step done (n + 1, nq), the Newton iteration count and the status
+    (solvers.status: FINISHED, or NO_CONVERGENCE at step n = len(q) - 1). A Newton matrix
+    made indefinite by a friction slope > 0 (a Stribeck peak's negative damping) is
+    rebuilt without those slopes."""
     nq = q0.shape[0]
     n_steps = tau.shape[0]
     nj = tau.shape[1]
-    am, af, gam, beta = galpha_parameters(rho_inf)
-    cq = h * h * beta * (1 - af) / (1 - am)
-    cv = h * gam * (1 - af) / (1 - am)
+    K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, held, H, effort = inp
+    ga = galpha_coefficients(st.rho_inf, h)
+    cq, cv = ga.bp, ga.gp
     has_d = False
     for a_ in range(nq):
         for b_ in range(nq):
@@ -1333,16 +1347,15 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
     else:
         Lc = cholesky(M)
         if Lc.shape[0] != nq:   # not positive definite
-            return qs[:1], vs[:1], -1
+            return qs[:1], vs[:1], 0, NO_CONVERGENCE
         a = solve_chol(Lc, r)
         if start == 2:
             S = M + cq * K + cv * D
             _hold(S, r, held)
-            a = restart_choice(acc[0].copy(), a, M, S, h, rho_inf)[0]
+            a = restart_choice(acc[0].copy(), a, M, S, h, st.rho_inf)[0]
         abar = a.copy()
     a1 = a.copy()
     da = np.zeros(nq)
-    n_half = 8       # integrate.LINE_SEARCH_HALVINGS
     iters = 0
     for n in range(n_steps):
         for j in range(nj):
@@ -1356,8 +1369,8 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
         rprev = np.inf
         back = 0
         dprev = np.inf
-        for it in range(max_iter):
-            _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1)
+        for it in range(st.max_iter):
+            galpha_update(q, v, a, abar, a1, ga, q1, v1, ab1)
             # residual M a + c + K q + D v - Q - Q_e by inverse dynamics; M once a step
             M1, f1 = spatial_eval(Pm, q1, v1, a1, it == 0)
             _effects(Q0, fric, v1, Qe, slope)
@@ -1387,7 +1400,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
                 for j in range(nq):
                     if not held[j]:
                         rn = max(rn, abs(r[j]))
-                if it >= 20 and rn > rprev and back < n_half:
+                if it >= st.line_search_from and rn > rprev and back < st.halvings:
                     for j in range(nq):
                         da[j] *= 0.5
                         a1[j] += da[j]
@@ -1443,17 +1456,14 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
             iters += 1
             if not finite:
                 break
-            if it >= 20 and dmax <= 1e3 * tol * amax and dmax >= 0.5 * dprev:
-                ok = True        # stagnated at the round-off floor (integrate.STAGNATION)
+            ok, stagnated = spatial_converged(it, dmax, amax, dprev, st.tol,
+                                              st.line_search_from, st.stagnation)
+            if ok:
                 break
             dprev = dmax
-            if dmax <= tol * amax:
-                ok = True
-                break
         if not ok:
-            acc[0, 0] = iters     # the iterations so far (for the caller's count)
-            return qs[:n + 1], vs[:n + 1], -1 - n
-        _galpha_state(q, v, a, a1, abar, h, af, am, beta, gam, q1, v1, ab1)
+            return qs[:n + 1], vs[:n + 1], iters, NO_CONVERGENCE
+        galpha_update(q, v, a, abar, a1, ga, q1, v1, ab1)
         for j in range(nq):
             q[j] = q1[j]
             v[j] = v1[j]
@@ -1464,7 +1474,7 @@ def galpha_loop(Pm, K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, he
     for j in range(nq):
         acc[0, j] = a[j]
         acc[1, j] = abar[j]
-    return qs, vs, iters
+    return qs, vs, iters, FINISHED
 
 
 class CompiledSpatialModel:
@@ -1492,7 +1502,8 @@ class CompiledSpatialModel:
 def _guard_caches():
     from ..numba_cache import guard
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
-           and obj.py_func.__module__ == __name__], [kernels.__file__, integrators.__file__])
+           and obj.py_func.__module__ == __name__],
+          [kernels.__file__, integrators.__file__, galpha.__file__, newton.__file__])
 
 
 _guard_caches()

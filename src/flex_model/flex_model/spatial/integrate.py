@@ -32,7 +32,9 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..errors import SimulationDivergedError
-from ..integrators import galpha_parameters
+from ..solvers.galpha import galpha_coefficients, galpha_state
+from ..solvers.newton import spatial_converged
+from ..solvers.status import FINISHED, NO_CONVERGENCE, Settings, message
 from .dynamics import SpatialArmModel
 
 
@@ -99,16 +101,14 @@ def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: f
 
 
 #: Newton with the nonlinear joint effects (friction, motors, backlash, contact, stops): from
-#: iteration LINE_SEARCH_FROM of a step on, a step that raises the largest residual is
-#: halved, up to LINE_SEARCH_HALVINGS times in a row (the steep tanh of Coulomb friction
-#: otherwise makes the iteration cycle; steps that converge earlier are untouched)
-LINE_SEARCH_FROM = 20
-LINE_SEARCH_HALVINGS = 8
-#: from iteration LINE_SEARCH_FROM on, a Newton correction that no longer halves and is
-#: within STAGNATION x tol (relative) is accepted: the accelerations of light deformation
-#: variables have a round-off floor above tol = 1e-10 at a static start or once a stiff
-#: joint loop settles (seed 000's Eq. 45 arm, seed 002's springs 1e4 N m/rad)
-STAGNATION = 1e3
+#: iteration Settings.line_search_from (20) of a step on, a step that raises the largest
+#: residual is halved, up to Settings.halvings (8) times in a row (the steep tanh of Coulomb
+#: friction otherwise makes the iteration cycle; steps that converge earlier are
+#: untouched); from then on a correction that no longer halves and is within
+#: Settings.stagnation (1e3) x tol (relative) is accepted: the accelerations of light
+#: deformation variables have a round-off floor above tol = 1e-10 at a static start or
+#: once a stiff joint loop settles (seed 000's Eq. 45 arm, seed 002's springs 1e4 N m/rad)
+SETTINGS = Settings()
 
 
 def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force=None,
@@ -123,7 +123,6 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
     voltages on dc_motor joints), row n held over step n (row 0 also at t = 0), as
     :func:`simulate_fixed_compiled`'s ``joint_torques``, through ``model.actuator_force``
     (clipped to the URDF effort limits when ``clip_to_effort``)."""
-    am, af, gam, beta = galpha_parameters(rho_inf)
     D = model.D + (0.0 if damping is None else np.asarray(damping, float))
     K = model.K
     held = model.held
@@ -159,8 +158,8 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
     a = _solve_free(model, M, Q0)
     abar = a.copy()
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
-    cq = h * h * beta * (1 - af) / (1 - am)
-    cv = h * gam * (1 - af) / (1 - am)
+    ga = galpha_coefficients(float(rho_inf), float(h))
+    cq, cv, st = ga.bp, ga.gp, SETTINGS
     iters = 0
     for n in range(n_steps):
         t1 = (n + 1) * h
@@ -168,13 +167,11 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
         lu = None
         rprev, back, da, dprev = np.inf, 0, np.zeros(model.nq), np.inf
         for it in range(max_iter):
-            ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
-            q1 = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
-            v1 = v + h * ((1 - gam) * abar + gam * ab1)
+            q1, v1, _ = galpha_state(q, v, a, abar, a1, ga)
             r, M1, slope = residual(t1, q1, v1, a1, n)
             rn = np.max(np.abs(r))
-            if nonlinear and it >= LINE_SEARCH_FROM and rn > rprev and \
-                    back < LINE_SEARCH_HALVINGS:
+            if nonlinear and it >= st.line_search_from and rn > rprev and \
+                    back < st.halvings:
                 da *= 0.5       # the step raised the residual: take half of it back
                 a1 -= da
                 back += 1
@@ -208,18 +205,14 @@ def simulate_fixed(model: SpatialArmModel, q0, v0, h: float, n_steps: int, force
             a1 += da
             iters += 1
             dmax, amax = np.max(np.abs(da)), max(1.0, np.max(np.abs(a1)))
-            if it >= LINE_SEARCH_FROM and dmax <= STAGNATION * tol * amax and \
-                    dmax >= 0.5 * dprev:
-                break            # stagnated at the round-off floor of the accelerations
-            dprev = dmax
-            if dmax <= tol * amax:
+            if spatial_converged(it, dmax, amax, dprev, tol, st.line_search_from,
+                                 st.stagnation)[0]:
                 break
+            dprev = dmax
         else:
-            raise SimulationDivergedError(f"generalized-alpha: no convergence at t = {t1:.6g} s")
-        ab1 = ((1 - af) * a1 + af * a - am * abar) / (1 - am)
-        q = q + h * v + h * h * ((0.5 - beta) * abar + beta * ab1)
-        v = v + h * ((1 - gam) * abar + gam * ab1)
-        a, abar = a1, ab1
+            raise SimulationDivergedError(f"generalized-alpha: {message(NO_CONVERGENCE, t1)}")
+        q, v, abar = galpha_state(q, v, a, abar, a1, ga)
+        a = a1
         ts.append(t1)
         qs.append(q.copy())
         vs.append(v.copy())
@@ -258,7 +251,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     before an input jump at (q0, v0): the restart then takes the part of the jump the
     step can follow where the rest would kick modes it cannot (integrators.restart_choice,
     as the planar fixed step), instead of the consistent acceleration."""
-    from .compiled import galpha_loop, pack
+    from .compiled import LoopInputs, galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
     if data is None:
@@ -295,41 +288,43 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     tipf = np.zeros((0, 3)) if tip_force is None else np.array(np.broadcast_to(
         np.asarray(tip_force, float), (n_steps, 3)), order="C")
 
+    settings = Settings(rho_inf=float(rho_inf), tol=float(tol), max_iter=int(max_iter),
+                        substeps=int(substeps))
+
     def loop(q, v, hh, rows, acc, warm, forces):
-        return galpha_loop(data, K, np.ascontiguousarray(D), model.Q_const.copy(), fric,
-                           motors, blash, contact, stops, pdc, forces, held, H, effort,
-                           np.asarray(q, float).copy(), np.asarray(v, float).copy(),
-                           float(hh), rows, float(rho_inf), float(tol), int(max_iter), acc,
-                           warm)
+        inputs = LoopInputs(K, np.ascontiguousarray(D), model.Q_const.copy(), fric, motors,
+                            blash, contact, stops, pdc, forces, held, H, effort)
+        return galpha_loop(data, inputs, np.asarray(q, float).copy(),
+                           np.asarray(v, float).copy(), float(hh), rows, settings, acc, warm)
 
     def forces(a, b, repeat=1):
         return tipf if not len(tipf) else np.array(np.repeat(tipf[a:b], repeat, axis=0),
                                                    order="C")
 
-    qs, vs, iters = loop(q0, v0, h, tau, acc, warm, tipf)
-    if iters >= 0:
+    qs, vs, iters, status = loop(q0, v0, h, tau, acc, warm, tipf)
+    if status == FINISHED:
         return SpatialRun(h * np.arange(len(qs)), qs, vs, int(iters), acc)
     # a step whose Newton iteration failed: again as `substeps` steps from a restart
     # (consistent acceleration), then on with a restart (runs that never fail: unchanged)
     out_q, out_v, pos, total = [qs[:1]], [vs[:1]], 0, 0
     while True:
-        k = -1 - iters if iters < 0 else len(qs) - 1     # steps done by this call
+        k = len(qs) - 1     # steps done by this call
         out_q.append(qs[1:k + 1])
         out_v.append(vs[1:k + 1])
         pos += k
-        total += iters if iters >= 0 else int(acc[0, 0])  # the loop's count so far
-        if iters >= 0:
+        total += iters
+        if status == FINISHED:
             break
         if not substeps:
             raise SimulationDivergedError(
-                f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s")
+                f"generalized-alpha: {message(status, (pos + 1) * h)}")
         sub = np.array(np.repeat(tau[pos:pos + 1], substeps, axis=0), order="C")
         acc = np.zeros((2, model.nq))
-        qs2, vs2, it2 = loop(qs[k], vs[k], h / substeps, sub, acc, 0,
-                             forces(pos, pos + 1, substeps))
-        if it2 < 0:
+        qs2, vs2, it2, status = loop(qs[k], vs[k], h / substeps, sub, acc, 0,
+                                     forces(pos, pos + 1, substeps))
+        if status != FINISHED:
             raise SimulationDivergedError(
-                f"generalized-alpha: no convergence at t = {(pos + 1) * h:.6g} s, nor in "
+                f"generalized-alpha: {message(status, (pos + 1) * h)}, nor in "
                 f"{substeps} substeps")
         out_q.append(qs2[-1:])
         out_v.append(vs2[-1:])
@@ -339,7 +334,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
             acc = None
             break
         acc = np.zeros((2, model.nq))
-        qs, vs, iters = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"), acc, 0,
-                             forces(pos, n_steps))
+        qs, vs, iters, status = loop(qs2[-1], vs2[-1], h, np.array(tau[pos:], order="C"),
+                                     acc, 0, forces(pos, n_steps))
     qs, vs = np.vstack(out_q), np.vstack(out_v)
     return SpatialRun(h * np.arange(len(qs)), qs, vs, int(total), acc)

@@ -19,7 +19,7 @@ MOVED_STUDIES = {"stick-slip": "stick_slip_study", "units": "unit_calibration",
                  "holds": "stuck_holds", "link-response": "link_response",
                  "floor": "run_floor", "servo-split": "servo_split",
                  "two-mass": "two_mass_study", "transfer": "transfer"}
-KEPT_ACTIONS = ("calibrate", "report", "diagnose")
+KEPT_ACTIONS = ("calibrate", "report", "diagnose", "estimate")
 
 
 def lab_policy():
@@ -182,6 +182,28 @@ def cmd_diagnose(args) -> int:
     return engine_diagnose(ns)
 
 
+def cmd_estimate(args) -> int:
+    """The tip estimated from hub encoder and voltage on the held-out runs (issue 45)."""
+    from .quanser_estimate import HELD_OUT, estimate_held_out
+    from .quanser_twin import data_root
+    out = Path(args.out) if args.out else None
+    report = estimate_held_out(data_root(args.data), args.runs or HELD_OUT,
+                               progress=None if args.json else print_progress, out=out,
+                               workers=args.workers)
+    if out is not None:
+        (out / "estimate.json").write_text(json.dumps(report, indent=1, default=float))
+    if args.json:
+        print(json.dumps(report, indent=1, default=float))
+        return 0
+    s = report["summary"]
+    print(f"{s['runs']} runs on {report['arm']} (noise levels tuned on "
+          f"{', '.join(report['tuned_on'])}): tip RMS median {s['tip_rms_median_mm']:.2f} mm "
+          f"({s['tip_rms_from_first_step_median_mm']:.2f} mm from the first step on), hub "
+          f"{s['hub_rms_median_rad']:.4f} rad, gauge in the 95 % band "
+          f"{100 * s['coverage_95']:.1f} %")
+    return 0
+
+
 def moved_study(args) -> int:
     """A sub-command that moved to ``studies/``: one line saying where to run it now."""
     module = MOVED_STUDIES[args.action]
@@ -269,4 +291,14 @@ def add_real_arm_parsers(sub) -> None:
     dp.add_argument("--no-plots", action="store_true")
     dp.add_argument("--json", action="store_true")
     dp.set_defaults(func=cmd_diagnose)
+    ep = rsub.add_parser("estimate", help="the tip deflection estimated from the hub "
+                         "encoder and the voltage (Kalman filter on the stored calibrated "
+                         "twin) on the held-out flexible runs, against the lab's gauge")
+    add_data_option(ep)
+    ep.add_argument("--runs", nargs="*", default=None, metavar="RUN", help="CU Boulder run "
+                    "names (default: the held-out flexible runs of CUBOULDER_SPLIT)")
+    ep.add_argument("--out", default=None, help="write estimate.json and a PNG per run here")
+    ep.add_argument("--workers", type=int, default=1, help="parallel processes (one run each)")
+    ep.add_argument("--json", action="store_true")
+    ep.set_defaults(func=cmd_estimate)
     add_moved_studies(rsub)

@@ -1,0 +1,213 @@
+"""The live twin on the Quanser lab runs (issue 45): the tip deflection estimated from the
+hub encoder and the voltage alone, compared with the lab's tip gauge.
+
+The filter is flex_model.estimation's extended Kalman filter on the stored calibrated twin
+(``quanser_cuboulder_calibrated``, fitted to the link-fit runs of CUBOULDER_SPLIT only); its
+input is the logged voltage (the twin's ``dc_motor``), its one measurement the hub encoder
+(4096 counts per turn: quantum 2 pi / 4096). The gauge never enters the filter: it is read
+only to score the estimate, as :mod:`.replay` scores the open-loop twin, through the twin's
+gauge (:func:`.replay.gauge_reading`: its sign, bias and lag, 37.4 ms in the stored twin).
+The filter's noise levels (:data:`TUNED`) were chosen on the link-fit runs (:data:`TUNED_ON`)
+and never on a held-out run. ``coverage_95``: the fraction of gauge samples within 1.96
+sqrt(estimate variance + the log's 1 mm rounding variance, 1 mm^2 / 12).
+"""
+from __future__ import annotations
+
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from flex_model.dynamics import FlexArmModel
+from flex_model.estimation import EstimatorSettings, Measurement, estimate_recording
+from flex_model.sensors import delayed
+from ..estimate import Z95, coverage_95
+from .calibration import CUBOULDER_SPLIT
+from .quanser_data import CUBOULDER, cuboulder_files, read_cuboulder_file
+from .quanser_twin import stored_calibrated_arm
+from .replay import GAUGE_RESOLUTION, gauge_reading, rms, transient_share, twin_gauge, \
+    TRANSIENT
+
+#: the SRV02's output-shaft encoder: 4096 counts per turn
+HUB_QUANTUM = 2 * np.pi / 4096
+#: the log's 1 mm rounding as a std (m)
+GAUGE_STD = GAUGE_RESOLUTION / np.sqrt(12)
+#: the filter's settings, tuned on the link-fit runs TUNED_ON (docs/estimation.md)
+#: initial_deflection_std: the link's ringing at rest before the first step of the fit runs
+#: (gauge RMS 2.0-5.3 mm), not the 20 mm default, which let the filter swing the link by
+#: 150 mm to explain the encoder's first counts
+TUNED = {"torque_noise": 0.01, "modal_noise": 0.0, "relinearize_every": 20, "adapt": (),
+         "initial_deflection_std": 0.005}
+#: the encoder's noise std (rad) on top of its rounding: one count. At rest it flips by a
+#: count; read as rounding alone (0.44 mrad) the filter took each flip for motion and
+#: swung the link by it (fit runs' tip median 4.28 -> 3.89 mm with torque noise 0.01)
+HUB_STD = 2 * np.pi / 4096
+TUNED_ON = CUBOULDER_SPLIT["link_fit"]
+#: the link's model error (m): added to the filter's variance in the band, chosen so that
+#: the band holds 95 % of the TUNED_ON runs' gauge samples (bench/bench_quanser_estimate.py
+#: --tune); the filter's own band (coverage_95_filter) is far narrower
+TIP_MODEL_STD = 0.004215
+#: the held-out flexible runs (CUBOULDER_SPLIT); those without a gauge are skipped
+HELD_OUT = CUBOULDER_SPLIT["link_holdout"]
+
+
+def hub_encoder() -> Measurement:
+    """The hub encoder as the filter reads it: quantum 2 pi / 4096 and :data:`HUB_STD`."""
+    return Measurement("theta", "joint_angle", 0, std=HUB_STD, quantum=HUB_QUANTUM)
+
+
+def settings_for(run, **overrides) -> EstimatorSettings:
+    """:data:`TUNED` at the run's sample period, with ``overrides``."""
+    return EstimatorSettings(sample_period=run.dt, **{**TUNED, **overrides})
+
+
+@dataclass
+class RunEstimate:
+    """One lab run's estimate: the tip as the gauge would read it (lab sign, bias, lag),
+    its std, and the figures against the gauge."""
+
+    run: object
+    result: object
+    tip_reading: np.ndarray
+    tip_reading_std: np.ndarray
+    metrics: dict = field(default_factory=dict)
+    model_std: float = 0.0
+
+
+def estimate_run(model: FlexArmModel, run, settings: EstimatorSettings | None = None,
+                 model_std: float | None = None):
+    """Estimate a lab run from its encoder and voltage; score against its gauge (the band
+    with ``model_std``, default :data:`TIP_MODEL_STD`)."""
+    settings = settings or settings_for(run)
+    q0 = model.q_from_joint_angles([run.theta[0]])   # at rest, undeformed (no gravity)
+    res = estimate_recording(model, run.t, run.voltage[:, None], run.theta[:, None],
+                             [hub_encoder()], settings, q0=q0)
+    gauge = twin_gauge(model)
+    d = delayed(run.t, res.tip_deflections[:, 0], gauge.delay)
+    sd = delayed(run.t, res.tip_deflections_std[:, 0], gauge.delay) * abs(gauge.gain)
+    out = RunEstimate(run, res, gauge_reading(model, run, d), sd)
+    out.model_std = TIP_MODEL_STD if model_std is None else model_std
+    out.metrics = score(run, res, out.tip_reading, sd, out.model_std)
+    return out
+
+
+def score(run, res, tip, tip_std, model_std: float) -> dict:
+    """Hub and tip RMS, coverage, and where the tip error lies (before the first step:
+    ringing the stuck hub cannot show; the TRANSIENT s after each step)."""
+    m = {"run": run.name, "duration_s": float(run.t[-1]),
+         "hub_rms_rad": rms(res.joint_angles[:, 0] - run.theta),
+         "nis_mean": res.summary["nis_mean"], "nis_95_fraction": res.summary["nis_95_fraction"],
+         "parameters": res.summary["parameters"]}
+    if not run.has_gauge:
+        return m
+    err = tip - run.deflection
+    steps = run.step_indices()
+    k0 = int(steps[0]) if len(steps) else len(err)
+    m.update(tip_rms_mm=1e3 * rms(err),
+             tip_rms_from_first_step_mm=1e3 * rms(err[k0:]) if k0 < len(err) else None,
+             before_first_step_share=float(np.sum(err[:k0] ** 2) / np.sum(err ** 2)),
+             transient_share=transient_share(err, steps, int(round(TRANSIENT / run.dt))),
+             gauge_rms_mm=1e3 * rms(run.deflection - run.gauge_bias()),
+             tip_std_median_mm=1e3 * float(np.median(tip_std)),
+             coverage_95_filter=coverage_95(err, tip_std, GAUGE_STD),
+             coverage_95=coverage_95(err, np.hypot(tip_std, model_std), GAUGE_STD))
+    return m
+
+
+def estimate_named(root, name: str, settings: dict | None = None, out=None,
+                   errors: bool = False, model_std: float | None = None) -> dict:
+    """The metrics of one CU Boulder run (by name) on the stored calibrated twin; with
+    ``out``, its PNG there; ``errors``: also the tip error and the filter's std over time
+    (``tip_error_m``, ``tip_std_m``). A module-level function: a worker process runs it."""
+    run = read_cuboulder_file(next(p for p in cuboulder_files(Path(root) / CUBOULDER)
+                                   if p.name == name))
+    model = FlexArmModel(stored_calibrated_arm("flexible"))
+    est = estimate_run(model, run, settings_for(run, **(settings or {})), model_std)
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        plot_run_estimate(est, Path(out) / f"estimate-{name.replace('.', '_')}.png")
+    if errors:
+        return {**est.metrics, "tip_error_m": est.tip_reading - run.deflection,
+                "tip_std_m": est.tip_reading_std}
+    return est.metrics
+
+
+def estimate_held_out(root, names=HELD_OUT, settings: dict | None = None, progress=None,
+                      out=None, workers: int = 1, errors: bool = False,
+                      model_std: float | None = None) -> dict:
+    """The estimate on the named CU Boulder runs with a gauge (default: the held-out
+    flexible runs), ``workers`` processes; with ``out``, a PNG per run there; the band with
+    ``model_std`` (default :data:`TIP_MODEL_STD`). Returns
+    {"runs": [per-run metrics], "summary": {...}, "settings": ..., "tuned_on": ...}."""
+    known = {p.name: p for p in cuboulder_files(Path(root) / CUBOULDER)}
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise ValueError(f"runs: unknown {', '.join(unknown)}; known: {', '.join(known)}")
+    names = [n for n in names if read_cuboulder_file(known[n]).has_gauge]
+    rows = []
+    with ProcessPoolExecutor(workers) if workers > 1 else nullcontext() as pool:
+        jobs = [(pool.submit if pool else _now)(estimate_named, root, n, settings, out,
+                                                errors, model_std) for n in names]
+        for name, job in zip(names, jobs):
+            rows.append(job.result())
+            if progress:
+                progress(f"  {name}: tip RMS {rows[-1]['tip_rms_mm']:.2f} mm, in the 95 % "
+                         f"band {100 * rows[-1]['coverage_95']:.1f} %")
+    return {"arm": stored_calibrated_arm("flexible").name,
+            "settings": {**TUNED, **(settings or {})}, "tuned_on": list(TUNED_ON),
+            "tip_model_std_m": TIP_MODEL_STD if model_std is None else model_std,
+            "runs": rows, "summary": summarize(rows)}
+
+
+class _now:
+    """A finished job (the serial path of :func:`estimate_held_out`)."""
+
+    def __init__(self, fn, *args):
+        self.value = fn(*args)
+
+    def result(self):
+        return self.value
+
+
+def summarize(rows) -> dict:
+    """tip_rms_median_mm, hub_rms_median_rad, coverage_95 (pooled over the samples),
+    runs, and the medians of the error's location."""
+    if not rows:
+        return {"runs": 0}
+    n = np.array([r["duration_s"] for r in rows])
+    med = {k: float(np.median([r[k] for r in rows])) for k in (
+        "tip_rms_mm", "tip_rms_from_first_step_mm", "before_first_step_share",
+        "transient_share", "tip_std_median_mm")}
+    return {"tip_rms_median_mm": med["tip_rms_mm"],
+            "hub_rms_median_rad": float(np.median([r["hub_rms_rad"] for r in rows])),
+            "coverage_95": float(np.sum(n * [r["coverage_95"] for r in rows]) / n.sum()),
+            "coverage_95_filter": float(np.sum(n * [r["coverage_95_filter"] for r in rows])
+                                        / n.sum()),
+            "runs": len(rows),
+            "tip_rms_from_first_step_median_mm": med["tip_rms_from_first_step_mm"],
+            "before_first_step_share_median": med["before_first_step_share"],
+            "transient_share_median": med["transient_share"],
+            "tip_std_median_mm": med["tip_std_median_mm"]}
+
+
+def plot_run_estimate(est: RunEstimate, path) -> None:
+    """Tip: the gauge, the estimate as the gauge would read it and its 95 % band; hub:
+    the encoder and the estimate."""
+    from flex_model.plots import finish_figure, plt
+    run, t = est.run, est.run.t
+    fig, ax = plt.subplots(2, 1, figsize=(10, 5.2), sharex=True)
+    band = Z95 * np.sqrt(est.tip_reading_std ** 2 + est.model_std ** 2 + GAUGE_STD ** 2)
+    ax[0].fill_between(t, 1e3 * (est.tip_reading - band), 1e3 * (est.tip_reading + band),
+                       alpha=0.3, color="C0", label="95 % band")
+    ax[0].plot(t, 1e3 * est.tip_reading, "C0", lw=1.0, label="estimate (hub + voltage)")
+    ax[0].plot(t, 1e3 * run.deflection, "k", lw=0.8, label="lab gauge (held out)")
+    ax[0].set_ylabel("tip deflection (mm)")
+    ax[1].plot(t, run.theta, "k", lw=0.8, label="encoder")
+    ax[1].plot(t, est.result.joint_angles[:, 0], "C0", lw=0.8, label="estimate")
+    ax[1].set_ylabel("hub angle (rad)")
+    ax[1].set_xlabel("t (s)")
+    m = est.metrics
+    finish_figure(fig, ax, path, f"{run.name}: tip RMS {m.get('tip_rms_mm', 0):.2f} mm, "
+                  f"in band {100 * m.get('coverage_95', 0):.0f} %")
