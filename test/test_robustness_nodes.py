@@ -92,6 +92,9 @@ class Suite:
         self.send_state([0.1, -0.2], [0.0, 0.0])
         self.spin_until(lambda: self.ctrl.names is not None and self.commands,
                         "the controller's first command")
+        # the model's first lockstep step compiles its kernels (a fresh clone: tens of s
+        # with the other test worker compiling too): before any case waits 20 s for a state
+        self.model_alive(timeout=600.0)
 
     def spin_until(self, pred, what, timeout=20.0):
         end = time.monotonic() + timeout
@@ -111,11 +114,12 @@ class Suite:
         rclpy.try_shutdown(context=self.ctx)
 
     # ---------------------------------------------------------------- liveness
-    def model_alive(self):
+    def model_alive(self, timeout=20.0):
         """A valid command steps the lockstep model: a new state is published."""
         n = len(self.states)
         self.pub["command"].publish(Float64MultiArray(data=[0.0, 0.0]))
-        self.spin_until(lambda: len(self.states) > n, "a model state after the bad input")
+        self.spin_until(lambda: len(self.states) > n, "a model state after the bad input",
+                        timeout)
         assert self.model.diverged is None
 
     def ctrl_alive(self):

@@ -477,16 +477,16 @@ def test_report_summarizes_the_labs_ring_down_spread_over_held_out_runs():
 
 
 def test_real_arm_lists_what_it_keeps_and_points_moved_studies_at_studies(capsys):
-    """``flex-twin real-arm --help`` lists calibrate, report and diagnose only; a study that
-    moved out of the package (issue 43) exits 2 with one line naming its new command, its
-    arguments kept."""
+    """``flex-twin real-arm --help`` lists calibrate, report, diagnose and estimate only; a
+    study that moved out of the package (issue 43) exits 2 with one line naming its new
+    command, its arguments kept."""
     from flex_twin.cli import main
     from flex_twin.real_arms.cli import MOVED_STUDIES
     with pytest.raises(SystemExit) as done:
         main(["real-arm", "--help"])
     assert done.value.code == 0
     listed = capsys.readouterr().out
-    assert "{calibrate,report,diagnose}" in listed
+    assert "{calibrate,report,diagnose,estimate}" in listed
     assert not any(f" {old} " in listed for old in MOVED_STUDIES)
     assert len(MOVED_STUDIES) == 8
     assert main(["real-arm", "servo-split", "--kt-tolerance", "0.3", "--help"]) == 2
