@@ -125,12 +125,11 @@ from visualization_msgs.msg import MarkerArray
 
 from . import ros_conversions as conv
 from . import urdf
-from .arm import load_arm
 from .control_loop import ControlLoop
 from .controller_interface import load_controller
 from .dynamics import FlexArmModel
 from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
-                       lean_node, read_parameters, run_node)
+                       lean_node, planar_arm_parameter, read_parameters, run_node)
 from .stepper import Stepper
 from .ros_trajectory_action import action_server
 from .trajectory_action import INVALID_GOAL
@@ -298,12 +297,7 @@ class ModelNode(Managed, LifecycleNode):
         """Read and check the parameters, load the arm, make the publishers,
         subscriptions, services and the in-loop controller."""
         p = read_parameters(self, PARAMETERS, RANGES)
-        try:
-            arm = load_arm(p["arm"], p["vars_per_link"] or None)
-            if p["kinematics"]:
-                arm = arm.with_kinematics(p["kinematics"])
-        except (ValueError, OSError) as exc:
-            raise ParameterError(f"parameter arm: {exc}") from None
+        arm = planar_arm_parameter(p)
         self.model = FlexArmModel(arm)
         n = self.model.n_links
         angles = p["initial_joint_angles_deg"]

@@ -82,12 +82,11 @@ from std_msgs.msg import Float64MultiArray
 
 from . import ros_conversions as conv
 from . import urdf
-from .arm import load_arm
 from .cdr_messages import read_joint_state, read_joint_state_names
 from .dynamics import FlexArmModel
 from .estimation.recording import initial_q
 from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
-                       lean_node, read_parameters, run_node)
+                       lean_node, planar_arm_parameter, read_parameters, run_node)
 
 
 def _positive(v):
@@ -400,13 +399,7 @@ class ObserverNode(Managed, LifecycleNode):
             from .spatial_node import load_arm_parameter
             model = SpatialArmModel(load_arm_parameter(p["arm"], False))
             return model, SpatialOutputs(model)
-        try:
-            arm = load_arm(p["arm"], p["vars_per_link"] or None)
-            if p["kinematics"]:
-                arm = arm.with_kinematics(p["kinematics"])
-        except (ValueError, OSError) as exc:
-            raise ParameterError(f"parameter arm: {exc}") from None
-        model = FlexArmModel(arm)
+        model = FlexArmModel(planar_arm_parameter(p))
         return model, PlanarOutputs(model, urdf.plane_rotation(model.gravity))
 
     def _cleanup(self) -> None:

@@ -85,6 +85,17 @@ class ParameterError(ValueError):
     what is allowed (:func:`run_node` prints it and exits with status 2, no traceback)."""
 
 
+def planar_arm_parameter(p: dict):
+    """The planar arm of a node's ``arm``, ``vars_per_link`` (0: the arm file's) and
+    ``kinematics`` ('': the arm file's) parameters; a ParameterError naming ``arm``."""
+    from .arm import load_arm
+    try:
+        arm = load_arm(p["arm"], p["vars_per_link"] or None)
+        return arm.with_kinematics(p["kinematics"]) if p["kinematics"] else arm
+    except (ValueError, OSError) as exc:
+        raise ParameterError(f"parameter arm: {exc}") from None
+
+
 def fmt(value) -> str:
     """A value as a user reads it: plain floats (``nan``, ``1e+04``, not
     ``np.float64(nan)``), lists of them, strings quoted."""
