@@ -268,8 +268,7 @@ def run_case(case: Path, out: Path, executor, progress: bool = False) -> dict:
     truth = yaml.safe_load((case / "truth.yaml").read_text())
     row = {"case": case.name, "hidden": truth.get("hidden") or [],
            "expected": truth.get("expected")}
-    run = RunSpec(case.name, str(case / "recording.csv"), str(case / "arm.yaml"),
-                  str(case / "controller.yaml"))
+    run = RunSpec.from_case_dir(case)
     t0, c0 = time.perf_counter(), _cpu_s(executor)
     try:
         s = diagnose_run(run, str(out / case.name), plots=False, executor=executor,

@@ -21,8 +21,7 @@ CASE = Path(__file__).resolve().parent / "data" / "independent_suite" / \
 def test_a_link_stiffness_absorbed_at_its_tolerance_bound_is_named(tmp_path):
     truth = yaml.safe_load((CASE / "truth.yaml").read_text())
     E_true = truth["hidden"][0]["parameters"]["E"]
-    run = RunSpec(CASE.name, str(CASE / "recording.csv"), str(CASE / "arm.yaml"),
-                  str(CASE / "controller.yaml"))
+    run = RunSpec.from_case_dir(CASE)
     pool = default_executor()
     try:
         s = diagnose_run(run, str(tmp_path), plots=False, executor=pool)

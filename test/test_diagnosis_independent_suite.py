@@ -21,8 +21,7 @@ def test_a_healthy_run_of_an_independent_simulator_is_no_material_discrepancy(tm
     case = SUITE / HEALTHY
     truth = yaml.safe_load((case / "truth.yaml").read_text())
     assert truth["expected"] == "none" and truth["hidden"] == []
-    run = RunSpec(HEALTHY, str(case / "recording.csv"), str(case / "arm.yaml"),
-                  str(case / "controller.yaml"))
+    run = RunSpec.from_case_dir(case)
     pool = default_executor()
     try:
         s = diagnose_run(run, str(tmp_path), plots=False, executor=pool)

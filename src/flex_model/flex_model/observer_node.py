@@ -66,7 +66,6 @@ takes samples, deactivate refuses them (counted as dropped), cleanup releases th
 from __future__ import annotations
 
 import math
-import re
 import time
 from collections import deque
 from dataclasses import replace
@@ -84,6 +83,7 @@ from . import ros_conversions as conv
 from . import urdf
 from .cdr_messages import read_joint_state, read_joint_state_names
 from .dynamics import FlexArmModel
+from .estimation.measurements import NAME_PATTERN
 from .estimation.recording import initial_q
 from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
                        lean_node, planar_arm_parameter, read_parameters, run_node)
@@ -180,7 +180,6 @@ def _with_sensor(m, arm):
     return m
 
 
-_NAME = re.compile(r"([qvmw])(\d*)([yzt]?)$")
 #: the component of a spatial tip deflection's suffix (w<i>y, w<i>z, w<i>t; w<i>: y)
 _SUFFIX = {"": 0, "y": 0, "z": 1, "t": 2}
 
@@ -201,7 +200,7 @@ def measurements_named(model, names, stds=(0.0,)) -> list:
             kind, comp, std = NAMED_COMPONENTS[name]
             out.append(Measurement(name=name, kind=kind, component=comp, std=std))
             continue
-        match = _NAME.match(name)
+        match = NAME_PATTERN.match(name)
         if not match or not (match[2] or name in ("q", "v")) or \
                 (match[3] and match[1] != "w"):
             raise ValueError(f"got {name!r}; expected q<i>, v<i>, m<i> (joint i), w<i> "

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from flex_model.estimation import EstimatorSettings, Measurement, estimate_recording
+from flex_model.estimation.measurements import NAME_PATTERN
 
 #: channel kind -> (estimator kind, default reading std in SI units)
 CHANNELS = {"q": ("joint_angle", 1e-4), "v": ("joint_rate", 1e-2),
@@ -29,9 +30,9 @@ def channel_kind(name: str) -> tuple[str, int]:
     """('q'|'v'|'w'|'tip_x'|'tip_y', 0-based index) of a channel name, or a ValueError."""
     if name in ("tip_x", "tip_y"):
         return name, "xy".index(name[-1])
-    kind, num = name[:1], name[1:]
-    if kind in ("q", "v", "w") and num.isdigit() and int(num) >= 1:
-        return kind, int(num) - 1
+    match = NAME_PATTERN.match(name)
+    if match and match[1] in "qvw" and match[2] and int(match[2]) >= 1 and not match[3]:
+        return match[1], int(match[2]) - 1
     raise ValueError(f"measure: channel {name!r}; expected q<i>, v<i>, w<i>, tip_x or tip_y")
 
 

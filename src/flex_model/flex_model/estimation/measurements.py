@@ -10,6 +10,7 @@ deflection delta_n, spatial: ``component`` 0 = v, 1 = w, 2 = twist), ``strain`` 
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,11 @@ KINDS = ("joint_angle", "joint_rate", "motor_angle", "tip_deflection", "strain",
 PLANAR_KINDS = KINDS
 SPATIAL_KINDS = ("joint_angle", "joint_rate", "motor_angle", "tip_deflection",
                  "tip_position")
+#: the name of an indexed measurement (recording channels, ``flex-twin estimate --measure``,
+#: the observer node): q<i>, v<i>, m<i> joint i's angle, rate, motor angle, w<i> link i's
+#: tip deflection (spatial: w<i>y, w<i>z, w<i>t); groups prefix, index (1-based; empty:
+#: every joint), suffix
+NAME_PATTERN = re.compile(r"([qvmw])(\d*)([yzt]?)$")
 
 
 @dataclass(frozen=True)

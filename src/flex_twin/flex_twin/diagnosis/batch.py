@@ -48,6 +48,14 @@ class RunSpec:
     holdout: str | None = None
     link_topic: str | None = None
 
+    @classmethod
+    def from_case_dir(cls, case) -> "RunSpec":
+        """The run of a case directory (recording.csv, arm.yaml, controller.yaml: the
+        independent suite's layout, bench/independent_suite/generate.py)."""
+        case = Path(case)
+        return cls(case.name, str(case / "recording.csv"), str(case / "arm.yaml"),
+                   str(case / "controller.yaml"))
+
     def __post_init__(self):
         t = self.link_topic
         if t is not None and (not t.startswith("/") or any(c.isspace() for c in t)):
@@ -251,4 +259,3 @@ def write_summary(out: Path, rows: list) -> None:
                      f"{r['final_holdout_J']:.3g} | {100 * r['holdout_error_reduction']:.1f} % "
                      f"| {r['wall_s']:.0f} |")
     (out / "summary.md").write_text("\n".join(lines) + "\n")
-
