@@ -183,14 +183,21 @@ def default_after(scenario) -> float:
     return max(ends, default=0.0)
 
 
+#: the scenario fields that change the discretization: a sweep over one of them checks the
+#: step advice at every point, otherwise once (run_sweep)
+DISCRETIZATION = ("integrator", "vars_per_link", "kinematics")
+
+
 def run_point(task) -> dict:
-    """A sweep task: (doc, base_dir, source, vary, point, after) -> the point's row."""
-    doc, base_dir, source, vary, point, after = task
+    """A sweep task: (doc, base_dir, source, vary, point, after, advise) -> the point's row
+    (``advice``: the point's step-advice warning when ``advise``, else empty)."""
+    doc, base_dir, source, vary, point, after, advise = task
     t0 = time.perf_counter()
-    row = dict(point)
+    row = dict(point, advice="")
     try:
         sc = point_scenario(doc, base_dir, source, vary, point)
-        res = sc.run()
+        row["advice"] = (sc.advice().warning or "") if advise else ""
+        res = sc.run(advise=False)
         row.update(metrics(res, sc.pd.setpoints if sc.pd is not None else None,
                            default_after(sc) if after is None else after))
         row["error"] = ""
@@ -213,8 +220,18 @@ def run_sweep(scenario, vary_items, out, executor, samples: int = 20, seed: int 
     if samples < 1:
         raise ValueError(f"--samples: got {samples}; expected >= 1")
     pts = points(vary, samples, seed)
-    point_scenario(doc, base_dir, source, vary, pts[0])   # a bad path fails here, at once
-    futures = {executor.submit(run_point, (doc, base_dir, source, vary, p, after)): i
+    first = point_scenario(doc, base_dir, source, vary, pts[0])   # a bad path fails here
+    # the step advice (Scenario.advice: the run's window about 10 times over) once, on the
+    # first point, unless the sweep varies the discretization itself
+    each = any(keys[0] in DISCRETIZATION for _, keys, _ in vary)
+    try:
+        advice = None if each else first.advice().warning
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError, SimulationDivergedError,
+            StaticConvergenceError) as exc:   # the first point's row reports it too
+        advice = f"not checked: {type(exc).__name__}: {exc}"
+    if advice and log:
+        log(f"step advice (the discretization of every point): {advice}")
+    futures = {executor.submit(run_point, (doc, base_dir, source, vary, p, after, each)): i
                for i, p in enumerate(pts)}
     rows = [None] * len(pts)
     for done, fut in enumerate(as_completed(futures), 1):
@@ -225,14 +242,14 @@ def run_sweep(scenario, vary_items, out, executor, samples: int = 20, seed: int 
                 + f": {what}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cols = list(pts[0]) + list(METRICS) + ["wall_s", "error"]
+    cols = list(pts[0]) + list(METRICS) + ["wall_s", "advice", "error"]
     with open(out / "sweep.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, cols)
         w.writeheader()
         w.writerows(rows)
     (out / "sweep.json").write_text(json.dumps(
         {"scenario": source, "vary": vary_items, "samples": samples, "seed": seed,
-         "points": rows}, indent=1, default=float))
+         "advice": advice, "points": rows}, indent=1, default=float))
     if plot:
         plot_sweep(rows, list(pts[0]), out / "sweep.png", Path(source).stem)
     return rows
