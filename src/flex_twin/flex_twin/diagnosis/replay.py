@@ -32,7 +32,8 @@ import numpy as np
 from numba import njit
 
 from flex_model.dynamics import FlexArmModel
-from flex_model.integrators import consistent_acceleration, generalized_alpha
+from flex_model.integrators import (consistent_acceleration, generalized_alpha,
+                                    generalized_alpha_simplified)
 from flex_model.kernels import link_origins
 from flex_model.inputs import JointPD, input_data
 from flex_model.simulate import SimulationDivergedError
@@ -42,16 +43,21 @@ from .controller import ControllerDescription
 DEFAULT_STEP = 1e-3
 #: steps per step of a control period retried after a Newton failure
 SUBSTEPS = 4
+#: replays on second-order kinematics by simplified Newton (_closed_loop, _continuous_loop)
+SIMPLIFIED = True
 # (the compiled loops pass their integer constants to the integrator as np.int64: a bare
 # literal is its own numba type, and each one compiled generalized_alpha once more)
 
 
 @njit(cache=True)
 def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff, bias,
-                 delay, sdelay, out_stride):
+                 delay, sdelay, out_stride, simplified):
     """Run n_periods control periods of per_period steps; return the states every
     out_stride steps, the commands at the n_periods + 1 instants (the last one at the
-    final state) and a status (0 ok, 1 diverged, 2 Newton failed)."""
+    final state) and a status (0 ok, 1 diverged, 2 Newton failed). ``simplified``
+    (second-order kinematics): each period's first attempt by simplified Newton
+    (:func:`flex_model.integrators.generalized_alpha_simplified`, the same results to the
+    Newton tolerance), the retry of a stalled period by full Newton."""
     nx = x0.shape[0]
     n = E[0].shape[0]   # x = [q; v; z]: z the bristle deflections of stick-slip joints
     nj = Kp.shape[0]
@@ -82,8 +88,12 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
             u[j] = cmd[k - delay[j], j] if k >= delay[j] else 0.0
         t = k * per_period * h
         a0 = consistent_acceleration(t, x, P, E)
-        Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-            t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+        if simplified:
+            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha_simplified(
+                t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+        else:
+            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
+                t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
         if status == 2:   # Newton stalled (a sharp corner: backlash, friction): the period
             # again in SUBSTEPS steps per step from the last accepted state x and its
             # consistent acceleration a0, not the failed attempt's (bit-identical runs
@@ -102,28 +112,19 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
 
 
 @njit(cache=True)
-def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride):
-    """Run n_periods sample periods of per_period steps under the compiled joint PD of E
-    with the held input E[8] = U[k] on period k; return the states every out_stride steps,
-    a status (0 ok, 1 diverged, 2 Newton failed) and the time reached. The method runs on
-    through the periods (bit-identical to one call) and restarts with a consistent
-    acceleration where the held input changes (a set-point step)."""
-    nx = x0.shape[0]
-    n_steps = n_periods * per_period
-    n_out = n_steps // out_stride + 1
-    X = np.full((n_out, nx), np.nan)
+def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_stride, X):
+    """Periods k .. k + m - 1 of :func:`_continuous_loop` one by one by full Newton (the
+    held input E[8] = U[k] on period k; a period whose Newton iterations stall again in
+    SUBSTEPS steps per step, from the last accepted state and its consistent acceleration).
+    Writes the states into X; returns (status, time reached, x, a, abar)."""
     u = E[8]
-    x = x0.copy()
-    X[0] = x
-    a = np.zeros(E[0].shape[0])
-    abar = a.copy()
-    for k in range(n_periods):
-        t = k * per_period * h
-        restart = k == 0
+    for kk in range(k, k + m):
+        t = kk * per_period * h
+        restart = kk == 0
         for j in range(u.shape[0]):
-            if u[j] != U[k, j]:
+            if u[j] != U[kk, j]:
                 restart = True
-            u[j] = U[k, j]
+            u[j] = U[kk, j]
         if restart:
             a = consistent_acceleration(t, x, P, E)
             abar = a.copy()
@@ -135,14 +136,69 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride)
                 t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
                 rho_inf, 1e-10, 1e6, P, E)
         if status != 0:
-            return X, status, t_stop
+            return status, t_stop, x, a, abar
         a = a1
         abar = abar1
         for s in range(1, per_period + 1):
-            g = k * per_period + s
+            g = kk * per_period + s
             if g % out_stride == 0:
                 X[g // out_stride] = Xs[s]
         x = x_stop
+    return 0, (k + m) * per_period * h, x, a, abar
+
+
+@njit(cache=True)
+def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
+                     simplified):
+    """Run n_periods sample periods of per_period steps under the compiled joint PD of E
+    with the held input E[8] = U[k] on period k; return the states every out_stride steps,
+    a status (0 ok, 1 diverged, 2 Newton failed) and the time reached. The method runs on
+    through the periods (bit-identical to one call) and restarts with a consistent
+    acceleration where the held input changes (a set-point step).
+
+    ``simplified`` (second-order kinematics): each stretch of periods with one held input
+    is one call of simplified Newton (:func:`flex_model.integrators.generalized_alpha_simplified`:
+    its iteration matrix kept across the stretch, the same results to the Newton
+    tolerance, a fraction of the cost); a stretch it does not finish is integrated again
+    period by period by full Newton (:func:`_continuous_periods`), as without it."""
+    nx = x0.shape[0]
+    n_steps = n_periods * per_period
+    n_out = n_steps // out_stride + 1
+    X = np.full((n_out, nx), np.nan)
+    u = E[8]
+    x = x0.copy()
+    X[0] = x
+    a = np.zeros(E[0].shape[0])
+    abar = a.copy()
+    if not simplified:
+        status, t_stop, x, a, abar = _continuous_periods(
+            x, a, abar, 0, n_periods, P, E, h, per_period, rho_inf, U, out_stride, X)
+        return X, status, t_stop
+    k = 0
+    while k < n_periods:
+        m = 1   # the stretch of periods with the held input of period k
+        while k + m < n_periods and np.all(U[k + m] == U[k]):
+            m += 1
+        t = k * per_period * h
+        u[:] = U[k]
+        a = consistent_acceleration(t, x, P, E)
+        abar = a.copy()
+        Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha_simplified(
+            t, x, a, abar, h, m * per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+        if status == 0:
+            for s in range(1, m * per_period + 1):
+                g = k * per_period + s
+                if g % out_stride == 0:
+                    X[g // out_stride] = Xs[s]
+            x = x_stop
+        else:   # period by period, by full Newton (E[8] as before this stretch)
+            if k > 0:
+                u[:] = U[k - 1]
+            status, t_stop, x, a1, abar1 = _continuous_periods(
+                x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_stride, X)
+            if status != 0:
+                return X, status, t_stop
+        k += m
     return X, 0, n_steps * h
 
 
@@ -285,7 +341,8 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
         np.asarray(x0, float), model.P, E, h, per_period, n_periods, rho_inf, C,
         np.ascontiguousarray(controller.gains), np.ascontiguousarray(controller.rate_gains),
         np.ascontiguousarray(ref), np.ascontiguousarray(ff_at_instants[:n_periods + 1]),
-        bias, _delay_periods(model, period), sdelay, stride)
+        bias, _delay_periods(model, period), sdelay, stride,
+        bool(SIMPLIFIED and model.P[0] == 1))
     if status != 0:
         raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
                                       f"(status {status}: diverged or Newton failed)")
@@ -315,7 +372,8 @@ def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
                     np.zeros(model.n_links))
     U = np.ascontiguousarray(ff + (ref - bias) @ controller.gains.T)
     X, status, t_stop = _continuous_loop(np.asarray(x0, float), model.P, E, h, per_period,
-                                         n_periods, rho_inf, U, per_period)
+                                         n_periods, rho_inf, U, per_period,
+                                         bool(SIMPLIFIED and model.P[0] == 1))
     if status != 0:
         raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
                                       f"(status {status}: diverged or Newton failed)")
