@@ -125,6 +125,6 @@ def test_a_stretch_simplified_newton_does_not_finish_is_replayed_by_full_newton(
         return np.full((n_steps + 1, x.shape[0]), np.nan), 2, t + h, x, a, abar, 0
     monkeypatch.setattr(replay, "generalized_alpha_simplified", stalls)
     X, status, _ = replay._continuous_loop.py_func(x0, m.P, E, 1e-3, 2, len(U), 0.9, U, 2,
-                                                  True)
+                                                   True)
     assert status == 0
     np.testing.assert_array_equal(X, X_full)

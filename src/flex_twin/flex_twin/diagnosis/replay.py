@@ -369,7 +369,7 @@ def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
     ff = np.asarray(ff_at_instants[:n_periods + 1], float)
     kp, kd = controller.joint_pd()
     E = input_data(model, JointPD(kp, kd, np.zeros(model.n_links)), (),
-                    np.zeros(model.n_links))
+                   np.zeros(model.n_links))
     U = np.ascontiguousarray(ff + (ref - bias) @ controller.gains.T)
     X, status, t_stop = _continuous_loop(np.asarray(x0, float), model.P, E, h, per_period,
                                          n_periods, rho_inf, U, per_period,
