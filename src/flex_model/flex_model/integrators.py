@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .effects.friction import friction_law_compiled
 from .effects.stick_slip import bristle_rate, bristle_step
 from .iteration_matrix import empty_factor, factor_solve, structured_factor
 from .solvers.status import DIVERGED, FINISHED, NO_CONVERGENCE
@@ -137,8 +138,7 @@ def joint_passive_forces(q, v, E):
         tf = 0.0
         if jd[i, 4] > 0.0 or jd[i, 5] > 0.0 or jd[i, 6] > 0.0:
             w = Ga[i] @ v
-            g = jd[i, 5] + (jd[i, 6] - jd[i, 5]) * np.exp(-(w / jd[i, 7]) ** 2)
-            tf -= jd[i, 4] * w + g * np.tanh(w / jd[i, 8])
+            tf += friction_law_compiled(w, jd[i, 4], jd[i, 5], jd[i, 6], jd[i, 7], jd[i, 8])[0]
         if jd[i, 16] != 0.0:
             wn = jd[i, 17] * jd[i, 15]
             tf += jd[i, 16] * np.sin(wn * (Ga[i] @ q) + jd[i, 18])
