@@ -703,17 +703,17 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
-# function it calls from kernels.py (or effects/stick_slip.py) does: flush these caches
-# when they change.
+# function it calls from kernels.py (or effects/stick_slip.py, effects/friction.py) does:
+# flush these caches when they change.
 def _guard_caches():
     from . import iteration_matrix, kernels
     from .numba_cache import guard
-    from .effects import stick_slip
+    from .effects import friction, stick_slip
     from .solvers import galpha, newton
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
-          [kernels.__file__, stick_slip.__file__, iteration_matrix.__file__, galpha.__file__,
-           newton.__file__])
+          [kernels.__file__, stick_slip.__file__, friction.__file__, iteration_matrix.__file__,
+           galpha.__file__, newton.__file__])
 
 
 _guard_caches()

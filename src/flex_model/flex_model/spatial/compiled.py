@@ -1498,10 +1498,12 @@ class CompiledSpatialModel:
 # numba re-compiles a cached function when its own file changes, not when a compiled
 # function it calls from kernels.py or integrators.py does: flush these caches then
 def _guard_caches():
+    from ..effects import friction
     from ..numba_cache import guard
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
-          [kernels.__file__, integrators.__file__, galpha.__file__, newton.__file__])
+          [kernels.__file__, integrators.__file__, galpha.__file__, newton.__file__,
+           friction.__file__])
 
 
 _guard_caches()
