@@ -448,10 +448,10 @@ def residuals(rec, pred: Prediction) -> dict:
 # kernels it calls change (flex_model.numba_cache): flush these caches then
 def _guard_caches():
     from flex_model import integrators, iteration_matrix, kernels, numba_cache
-    from flex_model.effects import stick_slip
+    from flex_model.effects import friction, stick_slip
     numba_cache.guard([_closed_loop, _continuous_loop, _tips],
                       [integrators.__file__, kernels.__file__, stick_slip.__file__,
-                       iteration_matrix.__file__])
+                       friction.__file__, iteration_matrix.__file__])
 
 
 _guard_caches()
