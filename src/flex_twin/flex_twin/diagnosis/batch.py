@@ -152,12 +152,23 @@ def _manifest_runs(path: Path, arm, controller, link_topic=None) -> list:
     return out
 
 
+def load_any_arm(path):
+    """A planar arm, or a spatial one (a DH table or URDF side file: the engine takes it
+    through spatial_loop.py)."""
+    from flex_model.arm import load_arm
+    from flex_model.spatial.description import is_spatial_arm
+    if is_spatial_arm(path):
+        from flex_model.spatial.loader import load_spatial_arm
+        return load_spatial_arm(path)
+    return load_arm(path)
+
+
 def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
                  segment: float | None = None, plots: bool = True, executor=None,
                  progress: bool = False, floor: bool = True) -> dict:
     """Diagnose one run (the workflow of ``flex-twin diagnose``) into ``out_dir``; returns
     the report's summary (diagnosis.json) with the wall time."""
-    from flex_model.arm import load_arm, resolve_preset
+    from flex_model.arm import resolve_preset
 
     from .controller import check_integrable, load_controller
     from .engine import DEFAULT_GATE, diagnose
@@ -166,7 +177,7 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
 
     t0 = time.perf_counter()
     arm_path = resolve_preset(run.arm)
-    arm = load_arm(arm_path)
+    arm = load_any_arm(arm_path)
     controller = load_controller(run.controller)
     if controller.n_joints != arm.n_links:
         raise ValueError(f"{run.controller}: {controller.n_joints} joints in the controller, "
