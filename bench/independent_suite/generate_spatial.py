@@ -193,8 +193,8 @@ def build(mbs, exu, hidden):
     m_ground = mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground))
     ends = [dict(b.END1, inertia=b.END1['inertia'][:2] + [END1_IZZ]),
             dict(b.END2, mass=b.END2['mass'] + payload)]
-    links = [(np.zeros(3), _rot_z(0.0), b.L1), (np.array([b.L1, 0.0, 0.0]), _rot_z(np.pi / 2),
-                                                 b.L2)]
+    links = [(np.zeros(3), _rot_z(0.0), b.L1),
+             (np.array([b.L1, 0.0, 0.0]), _rot_z(np.pi / 2), b.L2)]
     roots, tips = [], []
     for (p0, R, L), sec, end in zip(links, secs, ends):
         sd = exu.BeamSection()
@@ -366,8 +366,8 @@ def simulate(case, noise_scale=1.0, duration=DURATION):
     try:
         mbs.SolveDynamic(ss, solverType=exu.DynamicSolverType.GeneralizedAlpha)
     except exu.SolverError as exc:
-        raise RuntimeError('%s: Exudyn failed at t = %.4f s (%s)' % (case['id'], state['t'],
-                                                                   exc)) from None
+        raise RuntimeError('%s: Exudyn failed at t = %.4f s (%s)'
+                           % (case['id'], state['t'], exc)) from None
     sample(n_steps)
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     out[:, 5:7] = out_cmd + (0.0 if sampled else nz['tau'])
@@ -423,8 +423,8 @@ def write_case(case, out_dir, cols, data, info):
         f.write(arm_yaml())
     with open(os.path.join(d, 'controller.yaml'), 'w') as f:
         f.write(controller_yaml(case['controller']))
-    truth = {'id': case['id'], 'arm': 'S', 'controller': dict(CONTROLLERS[case['controller']],
-                                                                id=case['controller']),
+    ctrl = dict(CONTROLLERS[case['controller']], id=case['controller'])
+    truth = {'id': case['id'], 'arm': 'S', 'controller': ctrl,
              'kind': case['kind'], 'hidden': case['hidden'],
              'reference_seed': case['reference_seed'], 'noise_seed': case['noise_seed'],
              'expected': 'none' if not case['hidden'] else 'named',

@@ -170,6 +170,7 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
     the report's summary (diagnosis.json) with the wall time."""
     from flex_model.arm import resolve_preset
 
+    from . import spatial_loop
     from .controller import check_integrable, load_controller
     from .engine import DEFAULT_GATE, diagnose
     from .sources import load_recording
@@ -197,9 +198,10 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
     if executor is None:
         from ..cluster import SerialExecutor
         executor = SerialExecutor()
+    step = {"dt": spatial_loop.MAX_STEP} if spatial_loop.is_spatial(arm) else {}
     d = diagnose(arm, controller, fit, holdout, executor=executor,
                  gate=DEFAULT_GATE if gate is None else gate, segment=segment,
-                 progress=progress, floor=floor)
+                 progress=progress, floor=floor, **step)
     s = write_report(Path(out_dir), arm_path, d, plots=plots)
     s["wall_s"] = time.perf_counter() - t0
     return s

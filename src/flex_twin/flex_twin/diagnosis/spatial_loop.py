@@ -37,9 +37,10 @@ import numpy as np
 
 from flex_model.sections import SectionProfile
 
-#: the spatial replay's largest step (s): the engine's default 2 ms leaves a healthy
-#: Exudyn run of the spatial suite at J 3.4 (model form of the step: 1.35 at 1 ms, 0.81 at
-#: 0.5 ms, S-cont-healthy-s1), above the gate on its own
+#: the spatial replay's largest step (s; batch.diagnose_run diagnoses spatial arms at it):
+#: the engine's default 2 ms leaves a healthy Exudyn run of the spatial suite at J 3.4
+#: (model form of the step: 1.35 at 1 ms, 0.81 at 0.5 ms, S-cont-healthy-s1), above the
+#: gate on its own
 MAX_STEP = 1e-3
 #: the spatial hypotheses' kinds: link stiffness per plane and torsion (relative change)
 PLANE_KINDS = {"bending_stiffness_z": "bend_v", "bending_stiffness_y": "bend_w",
