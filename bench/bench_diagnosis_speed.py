@@ -3,6 +3,11 @@
 
     python bench/bench_diagnosis_speed.py [--suite runs/independent_suite] [--workers 2]
         [--cases ID,ID,...] [--out bench/results/diagnosis_speed]
+    python bench/bench_diagnosis_speed.py --replay ID [--more-variables N]
+
+``--replay``: CPU seconds of one replay of the case's whole recording by the nominal twin
+at a floor setting (second-order kinematics, 1 ms, ``--more-variables`` per link), by full
+and by simplified Newton (diagnosis.replay.SIMPLIFIED), and how far the two differ.
 
 The cases (:data:`CASES`) cover the runs of issue 44 (arm C: the hub-less arm with
 Kelvin-Voigt damping under a continuous PD; healthy, link 2 20 % softer, joint-2
@@ -56,7 +61,11 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "diagnosis_speed"))
     ap.add_argument("--progress", action="store_true")
+    ap.add_argument("--replay", default=None, help="time one case's replay (see above)")
+    ap.add_argument("--more-variables", type=int, default=0)
     args = ap.parse_args(argv)
+    if args.replay:
+        return replay_timing(case_dir(Path(args.suite), args.replay), args.more_variables)
     from flex_twin.cluster import local_executor
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -82,6 +91,39 @@ def main(argv=None) -> int:
             ex.shutdown()
     (out / "results.json").write_text(json.dumps({"runs": rows}, indent=1, default=float))
     print(table(rows))
+    return 0
+
+
+def replay_timing(case: Path, more: int, repeat: int = 3) -> int:
+    """Print the CPU seconds per replay by full and simplified Newton (see the module
+    docstring)."""
+    import time
+    from flex_model.arm import load_arm
+    from flex_twin.diagnosis import evaluation, replay
+    from flex_twin.diagnosis.baseline import baseline_parameters
+    from flex_twin.diagnosis.controller import load_controller
+    from flex_twin.diagnosis.floor import Setting
+    from flex_twin.diagnosis.recording import load_csv
+    arm = load_arm(str(case / "arm.yaml"))
+    setting = Setting(tuple(lk.n_vars + more for lk in arm.links), "second_order", 1e-3)
+    nominal = setting.arm(arm)
+    params = baseline_parameters(nominal)
+    ctx = evaluation.Context.build(nominal, load_controller(str(case / "controller.yaml")),
+                                   load_csv(str(case / "recording.csv"), arm.n_links),
+                                   params, dt=setting.dt)
+    task = (ctx, np.ones(len(params)), [])
+    r = {}
+    for simplified in (False, True):
+        replay.SIMPLIFIED = simplified
+        evaluation.evaluate(task)   # compiled, warm
+        c0 = time.process_time()
+        for _ in range(repeat):
+            r[simplified] = evaluation.evaluate(task)
+        print(f"{case.name}, {setting.label()}: {'simplified' if simplified else 'full'} "
+              f"Newton {(time.process_time() - c0) / repeat:.3f} CPU-s per replay, "
+              f"J {evaluation.cost(r[simplified]):.10g}")
+    print(f"largest residual difference {np.max(np.abs(r[True] - r[False])):.3g} (noise "
+          "units)")
     return 0
 
 
