@@ -101,6 +101,7 @@ import numpy as np
 from ..basis import link_basis
 from ..integrators import dead_zone, dead_zone_energy
 from .description import SpatialArm
+from .exact import curvature_energies, dense_rule, tangent_rule, tangents
 from .kinematics import P_AUX, Frame, cross, point_jacobians, rot_x, rot_y, rot_z, skew
 
 _XI, _WXI = np.polynomial.legendre.leggauss(6)
@@ -197,6 +198,7 @@ class BeamData:
         else:
             self.Pt = np.zeros((len(self.z), 0))
             self.coupling = None
+        self._gj = gj
         self.K = 0.5 * (K + K.T)
         self.length = L
         # tip: deflection and slope are the last pair of each basis (clamped root)
@@ -207,6 +209,9 @@ class BeamData:
         #: second_order kinematics: S(z) = int_0^z w' w'^T ds of each plane at the mass
         #: points and at the tip (None: small deflections)
         self.Sv = self.Sw = self.SvL = self.SwL = None
+        #: exact kinematics (exact.py): the tangent rule (nodes, weights, nfull, rows of
+        #: the mass points and the tip), the slopes at the nodes, C; None otherwise
+        self.rule = None
 
     def _coupling(self, dPt, gj):
         """The point samples of curvature_coupling: F (5, points, n) maps the link's
@@ -230,6 +235,12 @@ class BeamData:
         v''): u = GJ (-x0 x1 x2 + x1^2 x2^2 / 2) + (EI_z - EI_y) x3 x4 x2
         + (EI_y x4^2 + EI_z x2^2) x3^2 / 2."""
         F, g, y, z = self.coupling
+        if self.rule is not None:      # exact kinematics: the exact curvatures (exact.py)
+            X = np.ascontiguousarray((F @ f).T)
+            DU, H = np.zeros_like(X), np.zeros(X.shape + (5,))
+            U = curvature_energies(X, g, y, z, DU, H)
+            Hq = np.einsum("kpn,pkl,lpm->nm", F, H, F)
+            return float(U), np.einsum("kpn,pk->n", F, DU), 0.5 * (Hq + Hq.T)
         a, b, c, p, e = F @ f                           # (n_points,) each
         dz = z - y
         U = float(np.sum(g * (-a * b * c + 0.5 * b * b * c * c) + dz * p * e * c
@@ -247,6 +258,29 @@ class BeamData:
         grad = np.einsum("kpn,kp->n", F, du)
         H = np.einsum("kpn,klp,lpm->nm", F, h, F)
         return U, grad, 0.5 * (H + H.T)
+
+    def exact(self, inner: int = 8):
+        """Tables of the exact kinematics (exact.py): the tangent rule on the pieces
+        between both bending bases' interval ends and the section breaks, and the
+        curvature energy on every link (twisting or not)."""
+        beam = self.beam
+        cuts = np.unique(np.round(np.concatenate(
+            [self.bv.nodes, self.bw.nodes, beam.bend_v.breaks, beam.bend_w.breaks]), 14))
+        nodes, wts, nfull, rows = tangent_rule(cuts, np.append(self.z, self.length), inner)
+        self.rule = (nodes, wts, nfull, rows)
+        self.ndv, self.ndw = self.bv.slope_matrix(nodes), self.bw.slope_matrix(nodes)
+        self.C = dense_rule(wts, nfull, rows)
+        if self.coupling is None:
+            self._coupling(np.zeros((len(self.z), 0)), self._gj)
+
+    def exact_points(self, fv, fw):
+        """(r (points + tip, 3), dr/df_v, dr/df_w (points + tip, 3, nv)) in the beam frame
+        (exact.py; analytic in f: complex steps pass)."""
+        t, tb, ta = tangents(self.ndw @ fw, self.ndv @ fv)
+        r = self.C @ t
+        Jv = np.einsum("pk,ka,kj->paj", self.C, tb, self.ndv)
+        Jw = np.einsum("pk,ka,kj->paj", self.C, ta, self.ndw)
+        return r, Jv, Jw
 
     def second_order(self):
         """Sample the shortening matrices (basis.LinkBasis.shortening_matrix)."""
@@ -266,10 +300,11 @@ class SpatialArmModel:
         self.arm = arm
         self.beams = [BeamData(lk.flexible) if lk.flexible is not None else None
                       for lk in arm.links]
-        if getattr(arm, "kinematics", "small_deflection") == "second_order":
+        kin = getattr(arm, "kinematics", "small_deflection")
+        if kin in ("second_order", "exact"):
             for b in self.beams:
                 if b is not None:
-                    b.second_order()
+                    b.second_order() if kin == "second_order" else b.exact()
         sizes = [1 + (b.n if b is not None else 0) for b in self.beams]
         self.off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
         self.nq_arm = int(np.sum(sizes))
@@ -709,9 +744,15 @@ class SpatialArmModel:
                 Svf, Swf = b.Sv @ fv, b.Sw @ fw
                 x = x - 0.5 * (Svf @ fv + Swf @ fw)
             r = np.stack([x, v, w], axis=1)
+            if b.rule is not None:     # exact: r(s) = int t ds (exact.py)
+                r, Jv, Jw = (a[:-1] for a in b.exact_points(fv, fw))
             p, Jp = point_jacobians(Fb, r)
-            Jp[:, :, cols[:nv]] += Rb[None, :, 1, None] * b.Wv[:, None, :]
-            Jp[:, :, cols[nv:2 * nv]] += Rb[None, :, 2, None] * b.Ww[:, None, :]
+            if b.rule is not None:
+                Jp[:, :, cols[:nv]] += np.einsum("ab,pbj->paj", Rb, Jv)
+                Jp[:, :, cols[nv:2 * nv]] += np.einsum("ab,pbj->paj", Rb, Jw)
+            else:
+                Jp[:, :, cols[:nv]] += Rb[None, :, 1, None] * b.Wv[:, None, :]
+                Jp[:, :, cols[nv:2 * nv]] += Rb[None, :, 2, None] * b.Ww[:, None, :]
             if b.Sv is not None:
                 Jp[:, :, cols[:nv]] -= Rb[None, :, 0, None] * Svf[:, None, :]
                 Jp[:, :, cols[nv:2 * nv]] -= Rb[None, :, 0, None] * Swf[:, None, :]
@@ -744,10 +785,18 @@ class SpatialArmModel:
         if b.Sv is not None:
             Svf, Swf = b.SvL @ fv, b.SwL @ fw
             xl = xl - 0.5 * (Svf @ fv + Swf @ fw)
-        rl = Rb @ np.array([xl, v, w])
+        if b.rule is not None:         # exact: the tip at r(L) (exact.py)
+            r, Jv, Jw = (a[-1] for a in b.exact_points(fv, fw))
+            rl = Rb @ r
+        else:
+            rl = Rb @ np.array([xl, v, w])
         Jo = F.Jo - skew(rl) @ F.Jw
-        Jo[:, cols[nv - 2]] += Rb[:, 1]
-        Jo[:, cols[2 * nv - 2]] += Rb[:, 2]
+        if b.rule is not None:
+            Jo[:, cols[:nv]] += Rb @ Jv
+            Jo[:, cols[nv:2 * nv]] += Rb @ Jw
+        else:
+            Jo[:, cols[nv - 2]] += Rb[:, 1]
+            Jo[:, cols[2 * nv - 2]] += Rb[:, 2]
         if b.Sv is not None:
             Jo[:, cols[:nv]] -= Rb[:, 0, None] * Svf[None, :]
             Jo[:, cols[nv:2 * nv]] -= Rb[:, 0, None] * Swf[None, :]
