@@ -277,10 +277,10 @@ class BeamData:
         """(r (points + tip, 3), dr/df_v, dr/df_w (points + tip, 3, nv)) in the beam frame
         (exact.py; analytic in f: complex steps pass)."""
         t, tb, ta = tangents(self.ndw @ fw, self.ndv @ fv)
-        r = self.C @ t
-        Jv = np.einsum("pk,ka,kj->paj", self.C, tb, self.ndv)
-        Jw = np.einsum("pk,ka,kj->paj", self.C, ta, self.ndw)
-        return r, Jv, Jw
+        n, nv = self.C.shape[0], self.nv
+        Jv = self.C @ (tb[:, :, None] * self.ndv[:, None, :]).reshape(len(tb), -1)
+        Jw = self.C @ (ta[:, :, None] * self.ndw[:, None, :]).reshape(len(ta), -1)
+        return self.C @ t, Jv.reshape(n, 3, nv), Jw.reshape(n, 3, nv)
 
     def second_order(self):
         """Sample the shortening matrices (basis.LinkBasis.shortening_matrix)."""
@@ -874,7 +874,7 @@ class SpatialArmModel:
         """d(dU_g/dq)/dq by complex steps (exact to rounding), nq x nq."""
         q = np.asarray(q, float)
         out = np.zeros((self.nq, self.nq))
-        for k in range(self.nq):
+        for k in range(self.nq if np.any(self.gravity) else 0):
             dq = np.zeros(self.nq, dtype=complex)
             dq[k] = 1j * _H
             _, points, _ = self._chain(q + dq, True)
@@ -930,13 +930,18 @@ class SpatialArmModel:
 
     # ------------------------------------------------------------ deflections
     def tip_deflections(self, q) -> dict:
-        """Per flexible link: tip v, w (m), tip slopes v', w' and tip twist phi (rad)."""
+        """Per flexible link: tip v, w (m), tip slopes v', w' and tip twist phi (rad)
+        (exact kinematics: v, w the tip's lateral displacements r_y(L), r_z(L), the slopes
+        the section angles; exact.py)."""
         q = np.asarray(q, float)
         out = {}
         for i, (lk, b) in enumerate(zip(self.arm.links, self.beams)):
             if b is None:
                 continue
             fv, fw, ft = b.split(q[self.flex_slice(i)])
-            out[lk.name] = {"v": fv[-2], "w": fw[-2], "dv": fv[-1], "dw": fw[-1],
+            v, w = fv[-2], fw[-2]
+            if b.rule is not None:
+                v, w = b.exact_points(fv, fw)[0][-1, 1:]
+            out[lk.name] = {"v": v, "w": w, "dv": fv[-1], "dw": fw[-1],
                             "phi": ft[-2] if b.nt else 0.0}
         return out
