@@ -895,7 +895,6 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         for a in range(3):
             rv[a] = (L - ush) * bx[a] + tv * by[a] + tw * bz[a]
             xv[a] = by[a] * sv + bz[a] * sw - dsh * bx[a]
-            tmp[a] = av_ * by[a] + aw_ * bz[a] - ash * bx[a]
         if ex:          # exact: the tip at r(L) (exact.py)
             point_row(Xn, Pre, xstart[i + 1, 1], 0, 0, xrow)
             rv[0], rv[1], rv[2] = _beam_vector(Rb, xrow, 0)
@@ -906,7 +905,10 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         _cross(w, t2, t3)
         _cross(w, xv, t4)
         for a in range(3):
-            ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + tmp[a]
+            if ex:
+                ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + tmp[a]
+            else:
+                ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a] - ash * bx[a]
             o[a] += rv[a]
         for j in range(ncols):
             Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
