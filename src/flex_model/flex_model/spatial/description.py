@@ -70,6 +70,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arm import KINEMATICS as ARM_KINEMATICS
 from ..config import ConfigError, Fields, read_yaml
 from ..sections import Segment, SectionProfile
 
@@ -477,8 +478,8 @@ def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
 
 #: DH conventions of a YAML arm file
 CONVENTIONS = ("standard_dh", "modified_dh")
-#: kinematics of the flexible links (the planar arm's names; exact: spatial/exact.py)
-KINEMATICS = ("small_deflection", "second_order", "exact")
+#: kinematics of the flexible links: the planar arm's names (exact: spatial/exact.py)
+KINEMATICS = ARM_KINEMATICS
 
 
 def modified_to_standard(joints: list, fields: list) -> tuple:
