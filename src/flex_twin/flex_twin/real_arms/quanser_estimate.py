@@ -10,6 +10,11 @@ gauge (:func:`.replay.gauge_reading`: its sign, bias and lag, 37.4 ms in the sto
 The filter's noise levels (:data:`TUNED`) were chosen on the link-fit runs (:data:`TUNED_ON`)
 and never on a held-out run. ``coverage_95``: the fraction of gauge samples within 1.96
 sqrt(estimate variance + the log's 1 mm rounding variance, 1 mm^2 / 12).
+
+The second structure, the driven link (:func:`estimate_run_driven`,
+flex_model.estimation.driven_link: the link's mode driven by the hub's acceleration, the hub
+pinned by the encoder alone), measures what the link, not the hub, leaves
+(docs/estimation.md, "Against the link driven by the measured hub").
 """
 from __future__ import annotations
 
@@ -87,7 +92,8 @@ def estimate_run_driven(run, link: dict | None = None, model_std: float | None =
         HUB_QUANTUM)
     d = delayed(run.t, res.deflection, p["lag_s"])
     sd = delayed(run.t, res.deflection_std, p["lag_s"])
-    out = RunEstimate(run, res, run.gauge_sign() * d + run.gauge_bias(), sd, hub=res.theta)
+    out = RunEstimate(run, res, run.gauge_sign() * d + run.gauge_bias(), sd, hub=res.theta,
+                      label="estimate (driven link, hub alone)")
     out.model_std = DRIVEN_MODEL_STD if model_std is None else model_std
     summary = {"nis_mean": float(np.mean(res.nis)), "parameters": dict(p),
                "nis_95_fraction": float(np.mean(res.nis <= 3.841))}
@@ -117,6 +123,7 @@ class RunEstimate:
     metrics: dict = field(default_factory=dict)
     model_std: float = 0.0
     hub: np.ndarray | None = None
+    label: str = "estimate (hub + voltage)"
 
 
 def estimate_run(model: FlexArmModel, run, settings: EstimatorSettings | None = None,
@@ -260,7 +267,7 @@ def plot_run_estimate(est: RunEstimate, path) -> None:
     band = Z95 * np.sqrt(est.tip_reading_std ** 2 + est.model_std ** 2 + GAUGE_STD ** 2)
     ax[0].fill_between(t, 1e3 * (est.tip_reading - band), 1e3 * (est.tip_reading + band),
                        alpha=0.3, color="C0", label="95 % band")
-    ax[0].plot(t, 1e3 * est.tip_reading, "C0", lw=1.0, label="estimate (hub + voltage)")
+    ax[0].plot(t, 1e3 * est.tip_reading, "C0", lw=1.0, label=est.label)
     ax[0].plot(t, 1e3 * run.deflection, "k", lw=0.8, label="lab gauge (held out)")
     ax[0].set_ylabel("tip deflection (mm)")
     ax[1].plot(t, run.theta, "k", lw=0.8, label="encoder")
