@@ -1,6 +1,7 @@
 """Benchmark: the hub-less arm's floor against a converged Exudyn run (issue 47, item 1).
 
     python bench/bench_hubless_floor.py [--duration 1.0] [--quick]   # ~5 / 2 CPU-min
+    python bench/bench_hubless_floor.py --own-convergence --duration 0.3   # ours only
 
 The scenario of bench/bench_stiff_hubless_exudyn.py (two 2 m aluminium links, no hub
 inertia, PD 625 / 176.8, a 15 deg set-point step on joint 2 at 0.1 s, 1 s, both sides
@@ -86,6 +87,53 @@ def consistent_restart():
     return patched()
 
 
+def filtered_restart():
+    """exact_kinematics.restart_acceleration forced to the filtered branch (a + S^-1 B dA)
+    at every step size: a context manager for --own-convergence."""
+    import contextlib
+
+    import flex_model.exact_kinematics as ek
+    from flex_model.kernels import solve_spd
+
+    def forced(t, x, a, h, rho_inf, X, E):
+        n = E[0].shape[0]
+        B, rhs = ek.balance(t, x[:n], x[n:2 * n], X, E)
+        S = ek.iteration_matrix(x, h, rho_inf, X, E)[0]
+        return a + np.linalg.solve(S, B @ (solve_spd(B, rhs) - a)), True
+
+    @contextlib.contextmanager
+    def patched():
+        keep = ek.restart_acceleration
+        ek.restart_acceleration = forced
+        try:
+            yield
+        finally:
+            ek.restart_acceleration = keep
+    return patched()
+
+
+def own_convergence(dur) -> int:
+    """Ours alone (16 variables, axial_vars 2): 1/8, 1/16 ms against 1/32 ms, with the
+    default restart rule (consistent from 1/32 ms down here) and the filtered one forced."""
+    runs = {}
+    for forced in (False, True):
+        for k in (8, 16, 32):
+            if forced:
+                with filtered_restart():
+                    runs[forced, k] = hx.our_run(16, 1e-3 / k, dur, kinematics="exact",
+                                                 axial_vars=2)
+            else:
+                runs[forced, k] = hx.our_run(16, 1e-3 / k, dur, kinematics="exact",
+                                             axial_vars=2)
+    header(f"ours, 16 variables, axial_vars 2, {dur:g} s, against ours at 1/32 ms")
+    for forced in (False, True):
+        for k in (8, 16):
+            row(f"1/{k} ms, {'filtered restart forced' if forced else 'default restart'}",
+                runs[forced, k], runs[forced, 32])
+    row("1/32 ms default against 1/32 ms forced", runs[False, 32], runs[True, 32])
+    return 0
+
+
 def compare(run, ref) -> tuple:
     """(w error mm per link, % of each link's largest |w|, end of link 2 mm, q deg)."""
     a, b = np.asarray(run["data"]), np.asarray(ref["data"])
@@ -115,8 +163,13 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true",
                     help="the acceptance rows only (Exudyn: the step, 64 elements and EA; "
                          "ours: QUICK_ROWS)")
+    ap.add_argument("--own-convergence", action="store_true",
+                    help="ours only: the step convergence with the default and the forced "
+                         "filtered restart (no Exudyn)")
     args = ap.parse_args()
     dur = args.duration
+    if args.own_convergence:
+        return own_convergence(dur)
     exu_rows = [EXU_ROWS[0], EXU_ROWS[1], EXU_ROWS[-1]] if args.quick else EXU_ROWS
     our_rows = [OUR_ROWS[k] for k in QUICK_ROWS] if args.quick else OUR_ROWS
     t0 = time.perf_counter()
