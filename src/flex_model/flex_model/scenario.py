@@ -7,6 +7,8 @@ Example (shipped as preset ``thesis_three_link_pd``)::
     vars_per_link: 4                  # optional override
     kinematics: second_order          # optional override (small_deflection: thesis Eq. 1;
                                       # exact: geometrically exact, simulate only)
+    axial_vars: 0                     # optional, exact only: axial strain variables per
+                                      # link (extensible links; 0: inextensible)
     gravity: true                     # false: no gravity
     duration: 10.0                    # s
     sample_period: 0.005              # s
@@ -45,7 +47,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .arm import KINEMATICS, PRESET_DIR, ArmDescription, arm_from_dict, load_arm, resolve_preset
+from .arm import (AXIAL_VARS_MAX, KINEMATICS, PRESET_DIR, ArmDescription, arm_from_dict,
+                  load_arm, resolve_preset)
 from .config import ConfigError, Fields, read_yaml
 from .dynamics import FlexArmModel
 from .simulate import JointPD, Pulse, SimulationResult, fixed_step, simulate
@@ -237,6 +240,14 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
         arm = arm.with_vars_per_link(nv)
     if f.has("kinematics"):
         arm = arm.with_kinematics(f.string("kinematics", choices=list(KINEMATICS)))
+    if f.has("axial_vars"):
+        arm = arm.with_axial_vars(f.integer("axial_vars", 0, min_value=0,
+                                            max_value=AXIAL_VARS_MAX))
+    if arm.axial_vars:
+        try:
+            arm.check_axial()
+        except ConfigError as exc:
+            raise f.error("axial_vars", arm.axial_vars, exc.allowed) from None
     if not f.boolean("gravity", True):
         arm = arm.without_gravity()
     nl = arm.n_links
