@@ -1,34 +1,43 @@
-"""Simulation scenarios: a declarative YAML file (arm, initial state, joint law, loads).
+"""Simulation scenarios of every arm, one format and one loader (:func:`load_scenario`): a
+declarative YAML file (arm, initial state, joint law, loads), validated on load with
+one-line errors (file, field, value, what is allowed).
 
 Example (shipped as preset ``thesis_three_link_pd``)::
 
     name: thesis_three_link_pd
-    arm: thesis_three_link            # preset name or path (relative to this file)
-    vars_per_link: 4                  # optional override
+    arm: thesis_three_link            # preset name or path (relative to this file); a
+                                      # spatial arm (DH table, URDF side file): run by
+                                      # flex_model.spatial.scenario.SpatialScenario
+    vars_per_link: 4                  # optional override (planar arms)
     kinematics: second_order          # optional override (small_deflection: thesis Eq. 1;
                                       # exact: geometrically exact, simulate only)
     gravity: true                     # false: no gravity
     duration: 10.0                    # s
-    sample_period: 0.005              # s
+    sample_period: 0.005              # s (default 0.01 s; spatial: 0.005 s or the duration)
     initial:
-      joint_angles_deg: [-20, 20, -20]   # or joint_angles in rad (every angle key: either)
-      joint_rates_deg_s: [0, 0, 0]    # optional
+      joint_angles_deg: [-20, 20, -20]   # or joint_angles in rad (m on a prismatic joint);
+                                      # joint_values(_deg) is the same field
+      joint_rates_deg_s: [0, 0, 0]    # optional; or joint_rates in rad/s (m/s)
       state: undeformed               # or: static (start at the PD/clamped equilibrium)
     control:
       pd: {kp: [...], kd: [...], setpoints_deg: [...]}   # N m/rad, N m s/rad; or setpoints (rad)
+      # spatial arms: pd45: {kpp, kpv, setpoints} (seed 000 Eq. 45) instead of pd, and
+      # gravity_hold: true (the initial static state's holding torques)
       setpoint_schedule:              # steps and ramps of the PD set-points (needs pd)
         - {time: 1.0, setpoints_deg: [10, 0, 0]}               # a step at 1 s
         - {time: 2.0, setpoints_deg: [20, 0, 0], ramp: 0.5}    # a ramp over 2-2.5 s
-      torque_table: {t: [0, 1, 2], torques: [[..], [..], [..]]}   # N m, linear in t
+      torque_table: {t: [0, 1, 2], torques: [[..], [..], [..]]}   # N m, linear in t (planar)
     pulses:                           # joint torque pulses on [start, end); end: .inf = on
-      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}
+      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}      # (force: N, prismatic)
       - {joint: joint2, torque: 5.0, start: 1.0, end: .inf}       # to the end of the run
-    tip_loads:                        # tip force (N, base frame) / torque (N m) on [start, end)
-      - {force: [0.0, -10.0], torque: 0.0, start: 0.0, end: 1.0}
+    tip_loads:                        # tip force (N, base frame: 2 values, spatial 3) and,
+      - {force: [0.0, -10.0], torque: 0.0, start: 0.0, end: 1.0}   # planar, torque (N m)
     payload_changes:                  # pick and place: the tip payload from a time on
-      - {time: 2.0, mass: 0.5, inertia: 0.001}
+      - {time: 2.0, mass: 0.5, inertia: 0.001}     # spatial: inertia 3 values or 3 x 3
     integrator: {method: variable, rtol: 1.0e-7}   # or {method: fixed, step: 1.0e-4,
-                                                   #     rho_inf: 0.9}
+                                                   #     rho_inf: 0.9, newton_tol: 1e-10}
+    # (the integrator's keys are also taken at the top level: step: 1.0e-4; spatial arms
+    # run the fixed mode only, default step 1 ms)
 
 A set-point schedule is the PD of thesis Eq. 27 with a moving set-point s(t): the torque
 ``kp (s(t) - theta) + kd (s'(t) - theta')``, i.e. the constant-set-point PD plus
@@ -48,6 +57,7 @@ import numpy as np
 from .arm import KINEMATICS, PRESET_DIR, ArmDescription, arm_from_dict, load_arm, resolve_preset
 from .config import ConfigError, Fields, read_yaml
 from .dynamics import FlexArmModel
+from .inputs import ramp_fraction
 from .simulate import JointPD, Pulse, SimulationResult, fixed_step, simulate
 from .statics import static_equilibrium
 
@@ -101,13 +111,8 @@ class Scenario:
             """kp times the mean of the ramps over [t, t + T] + kd times their mean rate."""
             tau = np.zeros(len(kp))
             for t0, r, delta in ramps:
-                def frac(tt):  # the ramp's fraction at tt, and its integral from t0
-                    y = min(max((tt - t0) / r, 0.0), 1.0)
-                    area = 0.0 if tt <= t0 else (
-                        (tt - t0) ** 2 / (2 * r) if tt <= t0 + r else r / 2 + (tt - t0 - r))
-                    return y, area
-                (y0, a0), (y1, a1) = frac(t), frac(t + T)
-                tau += kp * delta * (a1 - a0) / T + kd * delta * (y1 - y0) / T
+                (y0, a0), (y1, a1) = ramp_fraction(t, t0, r), ramp_fraction(t + T, t0, r)
+                tau += kp * delta * float(a1 - a0) / T + kd * delta * float(y1 - y0) / T
             return tau
         return pulses, ramp_torque
 

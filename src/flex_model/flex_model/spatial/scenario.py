@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SimulationDivergedError, StaticConvergenceError
-from ..inputs import JointPD
+from ..inputs import JointPD, ramp_fraction
 from .description import SpatialArm
 from .dynamics import SpatialArmModel
 from .limits import joint_limits
@@ -189,7 +189,7 @@ class SpatialScenario:
                 if ramp <= 0.0:
                     u[t >= ts] += self.pd.kp * delta
                     continue
-                (y0, a0), (y1, a1) = _ramp(tk, ts, ramp), _ramp(tk + T, ts, ramp)
+                (y0, a0), (y1, a1) = ramp_fraction(tk, ts, ramp), ramp_fraction(tk + T, ts, ramp)
                 u += np.outer((a1 - a0) / T, self.pd.kp * delta) + \
                     np.outer((y1 - y0) / T, self.pd.kd * delta)
         return u
@@ -327,16 +327,6 @@ class SpatialScenario:
         label = f"{'/'.join(map(str, nv))} variables per bending plane"
         return dataclasses.replace(none, warning=sa.error_warning(est, h, label),
                                    estimate=est)
-
-
-def _ramp(t, t0: float, r: float):
-    """(y, area): a ramp's fraction y(t) = clip((t - t0) / r, 0, 1) and its integral from t0
-    (arrays of t)."""
-    t = np.asarray(t, float)
-    y = np.clip((t - t0) / r, 0.0, 1.0)
-    area = np.where(t <= t0, 0.0, np.where(t <= t0 + r, (t - t0) ** 2 / (2 * r),
-                                           r / 2 + (t - t0 - r)))
-    return y, area
 
 
 def _dead_zone_inverse(y: float, half: float, smooth: float) -> float:
