@@ -265,9 +265,7 @@ def _arm_options(f: Fields, arm, spatial: bool, vars_per_link):
             raise f.error("vars_per_link", nv, "an even integer >= 2")
         arm = arm.with_vars_per_link(nv)
     if f.has("kinematics"):
-        from .spatial.description import KINEMATICS as SPATIAL_KINEMATICS
-        kin = f.string("kinematics", choices=list(SPATIAL_KINEMATICS if spatial
-                                                  else KINEMATICS))
+        kin = f.string("kinematics", choices=list(KINEMATICS))
         arm = replace(arm, kinematics=kin) if spatial else arm.with_kinematics(kin)
     return arm if f.boolean("gravity", True) else arm.without_gravity()
 

@@ -113,10 +113,6 @@ def _with_options(sc, args, spatial: bool):
     ``--rho-inf``, each checked with one line."""
     from dataclasses import replace
     if args.kinematics:
-        from flex_model.spatial.description import KINEMATICS
-        if spatial and args.kinematics not in KINEMATICS:
-            raise ValueError(f"--kinematics {args.kinematics}: not available for a spatial "
-                             f"scenario ({args.scenario}); expected one of {list(KINEMATICS)}")
         sc = replace(sc, arm=replace(sc.arm, kinematics=args.kinematics) if spatial
                      else sc.arm.with_kinematics(args.kinematics))
     if args.duration is not None:
