@@ -8,7 +8,6 @@ import pytest
 
 from flex_model.config import ConfigError
 from flex_model.scenario import scenario_from_dict
-from flex_model.scenario import scenario_from_dict
 
 PLANAR = {"name": "p", "arm": "seed002_two_link", "gravity": False, "duration": 0.01,
           "sample_period": 0.01}

@@ -146,8 +146,8 @@ def test_scenario_static_start_takes_up_the_play():
     arm = _two_inertia()
     arm["gravity"] = [0.0, -9.81, 0.0]
     sc = scenario_from_dict({"arm": arm, "duration": 0.05, "step": 1e-3,
-                                     "initial": {"state": "static"},
-                                     "control": {"gravity_hold": True}}, "sc.yaml")
+                             "initial": {"state": "static"},
+                             "control": {"gravity_hold": True}}, "sc.yaml")
     model = sc.model()
     q0, v0, hold = sc.initial_state(model)
     assert hold[0] == pytest.approx(MASS * 9.81 * A, rel=1e-12)

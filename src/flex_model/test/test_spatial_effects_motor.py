@@ -28,8 +28,8 @@ def _one_joint(imax=None):
     if imax is not None:
         motor["current_limit"] = imax
     return {"name": "motor", "gravity": [0.0, 0.0, -9.81], "links": [
-        {"joint": {"name": "j1", "a": A}, "end_body": {"mass": MASS, "inertia": [0.0, 0.0,
-                                                                                  IZZ]}}],
+        {"joint": {"name": "j1", "a": A},
+         "end_body": {"mass": MASS, "inertia": [0.0, 0.0, IZZ]}}],
         "effects": [{"type": "gear", "joint": "j1", "ratio": N, "rotor_inertia": JR},
                     motor]}
 

@@ -181,6 +181,23 @@ def test_bad_scenarios_name_the_field(data, field):
     assert msg.startswith("bad.yaml: ") and f": {field}: got " in msg
 
 
+def test_one_grammar_for_both_arm_kinds():
+    """The integrator's keys at the top level or under ``integrator`` and the initial values
+    as ``joint_values`` or ``joint_angles`` mean the same on a planar and a spatial arm."""
+    for arm, n in (("thesis_three_link", 3), ("seed003_like_arm", 3)):
+        top = scenario_from_dict({"arm": arm, "duration": 0.1, "method": "fixed",
+                                  "step": 5e-4, "rho_inf": 0.5,
+                                  "initial": {"joint_angles": [0.1] * n}})
+        nested = scenario_from_dict({"arm": arm, "duration": 0.1, "integrator": {
+            "method": "fixed", "step": 5e-4, "rho_inf": 0.5},
+            "initial": {"joint_values_deg": [np.degrees(0.1)] * n}})
+        for sc in (top, nested):
+            assert (sc.method, sc.step, sc.rho_inf) == ("fixed", 5e-4, 0.5)
+        q = [getattr(sc, "joint_values", getattr(sc, "theta0", None)) for sc in (top, nested)]
+        np.testing.assert_allclose(q[0], q[1], rtol=0, atol=1e-15)
+        assert isinstance(top, SpatialScenario) == (arm == "seed003_like_arm")
+
+
 def test_seed000_preset_starts_at_the_static_droop():
     """seed000_3d_pd_step: state static = the droop under gravity in the stiff (248 N m^2)
     plane, q L^4 / 8 EI + P L^3 / 3 EI = 11.33 um; it stays there (to 1e-12 m) until the
@@ -218,8 +235,7 @@ def test_a_payload_change_moves_the_pd_equilibrium_to_the_closed_form():
     assert np.min(res.joint_values[:, 0]) < q_after                  # it swung past
     with pytest.raises(ConfigError) as err:
         scenario_from_dict({"name": "p", "arm": "seed003_like_arm", "duration": 1.0,
-                                    "payload_changes": [{"time": 0.1, "mass": -1.0}]},
-                                   "p.yaml")
+                            "payload_changes": [{"time": 0.1, "mass": -1.0}]}, "p.yaml")
     assert "p.yaml" in str(err.value) and "payload_changes[0].mass" in str(err.value)
 
 

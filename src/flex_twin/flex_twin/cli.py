@@ -159,8 +159,8 @@ def _simulate(scenario_ref, args, label: str):
     # numba loads (or compiles) the integrator on its first call: a run of two samples
     # first, timed apart, so the CPU-s per simulated second are the integration's alone
     t0, c0 = time.perf_counter(), time.process_time()
-    replace(sc, duration=min(sc.duration, 2 * sc.sample_period)).run(model=model,
-                                                                      advise=False)
+    short = replace(sc, duration=min(sc.duration, 2 * sc.sample_period))
+    short.run(model=model, advise=False)
     load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
     t0, c0 = time.perf_counter(), time.process_time()
     res = sc.run(progress=Progress(label, not args.json), model=model, advise=False)

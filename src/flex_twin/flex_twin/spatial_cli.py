@@ -11,7 +11,6 @@ path (flex_twin.cli._simulate); :func:`plot_spatial_run` draws a spatial run.
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 
