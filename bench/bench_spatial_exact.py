@@ -1,6 +1,6 @@
 """Large deflections of a soft spatial yaw + pitch arm: ``kinematics: exact`` against Exudyn.
 
-    python bench/bench_spatial_exact.py [--duration 0.6] [--quick]
+    python bench/bench_spatial_exact.py [--duration 0.6] [--quick] [--cost]
 
 The arm of bench_spatial_torsion.py (its builders, run and comparison, issue 47) with
 soft links: both links a 1 m aluminium square tube 8 x 0.5 mm (EI 9.9 N m^2, rhoA 0.041
@@ -79,6 +79,29 @@ def _row(label, c):
                 for k in ("v", "w", "phi")))
 
 
+def cost(variables: int = 8, calls: int = 2000) -> None:
+    """CPU time of one compiled evaluation (with M, and the residual only) per kinematics."""
+    import time
+
+    from flex_model.spatial import SpatialArmModel, spatial_arm_from_dict
+    from flex_model.spatial.compiled import pack, spatial_eval
+    for kin in ("second_order", "exact"):
+        base.KINEMATICS = kin
+        m = SpatialArmModel(spatial_arm_from_dict(base.arm_dict(variables)))
+        P = pack(m)
+        rng = np.random.default_rng(0)
+        q, v, a = (rng.normal(scale=s_, size=m.nq) for s_ in (0.05, 1.0, 1.0))
+        out = []
+        for want in (True, False):
+            spatial_eval(P, q, v, a, want)
+            t0 = time.process_time()
+            for _ in range(calls):
+                spatial_eval(P, q, v, a, want)
+            out.append(1e6 * (time.process_time() - t0) / calls)
+        print(f"  {kin:>12} {variables} var.: {out[0]:.0f} us with M, {out[1]:.0f} us the "
+              f"residual (CPU; load {os.getloadavg()[0]:.1f})")
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if "--peer" in argv:
@@ -86,7 +109,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=0.6)
     ap.add_argument("--quick", action="store_true", help="one resolution each")
+    ap.add_argument("--cost", action="store_true", help="only the evaluation cost")
     args = ap.parse_args(argv)
+    if args.cost:
+        cost()
+        return 0
     ours_res = [("exact", 8, 5e-4), ("second_order", 8, 5e-4), ("small_deflection", 8, 5e-4)]
     if not args.quick:
         ours_res = [("exact", 4, 5e-4), ("exact", 12, 2.5e-4)] + ours_res
