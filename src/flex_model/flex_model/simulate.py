@@ -127,6 +127,14 @@ class SimulationResult:
             cols.append(self.contact_forces)
         return names, np.column_stack(cols)
 
+    def summary(self) -> dict:
+        """The run's figures (``flex-twin simulate``; as SpatialSimulation.summary): final
+        joint angles (deg) and tip, max |tip deflection| per link (mm)."""
+        return {"vars_per_link": [lk.n_vars for lk in self.model.arm.links],
+                "final_joint_angles_deg": np.degrees(self.joint_angles[-1]).tolist(),
+                "final_tip_m": self.tip_xy[-1].tolist(), "max_abs_tip_deflection_mm":
+                (1e3 * np.max(np.abs(self.tip_deflections), axis=0)).tolist()}
+
     def to_csv(self, path) -> None:
         names, data = self.table()
         np.savetxt(path, data, delimiter=",", header=",".join(names), comments="",
