@@ -44,8 +44,8 @@ setup(
         'console_scripts': [
             'flex-model-node = flex_model.model_node:main',
             'model_node = flex_model.model_node:main',
-            'flex-spatial-model-node = flex_model.spatial_node:main',
-            'spatial_model_node = flex_model.spatial_node:main',
+            'flex-spatial-model-node = flex_model.model_node:spatial_main',
+            'spatial_model_node = flex_model.model_node:spatial_main',
         ],
     },
 )
