@@ -318,6 +318,9 @@ RANGES = {"vars_per_link": (0, INT_MAX, 2), "rate": (0.0, FLOAT_MAX),
           "max_payload_mass": (0.0, FLOAT_MAX), "max_payload_inertia": (0.0, FLOAT_MAX),
           "controller_rate": (0.0, FLOAT_MAX)}
 
+#: the arm's objects, None while the node is unconfigured (cleanup released them)
+RELEASED = ("model", "stepper", "live_view")
+
 #: the spatial node's defaults (flex-spatial-model-node, flex-model-node -p arm:=<spatial>)
 SPATIAL_DEFAULTS = {"arm": "seed003_like_arm", "rate": 250.0, "publish_rate": 0.0,
                     "shape_rate": 0.0, "shape_points": 21, "hold_until_command": False}
@@ -386,6 +389,8 @@ class ModelNode(Managed, LifecycleNode):
 
     def __getattr__(self, name):
         arm = self.__dict__.get("arm_io")
+        if arm is None and name in RELEASED:  # (unconfigured: no arm)
+            return None
         if arm is None or name.startswith("__"):
             raise AttributeError(name)
         return getattr(arm, name)
