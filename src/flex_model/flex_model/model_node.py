@@ -9,7 +9,7 @@ realtime loops, command timeout, plausibility limits, divergence handling and th
 templates are this class's, the same for both (the arm adapter only steps and measures).
 ``flex-spatial-model-node`` (and ``flex-model-node -p arm:=<spatial>``) is this node with
 the spatial defaults (:data:`SPATIAL_DEFAULTS`: seed003_like_arm, 250 Hz, publications
-every period, no hold until the first command).
+every period up to 1 kHz, no hold until the first command).
 
 Topic names are relative, so a namespace (``--ros-args -r __ns:=/robot1``) moves the whole
 model-controller loop; /diagnostics, /tf and /tf_static stay global (frame_prefix keeps
@@ -153,10 +153,6 @@ def _non_negative(v):
     return None if v >= 0 else "a number >= 0 (0: automatic)"
 
 
-def _rate_or_every_period(v):
-    return None if v >= 0 else "a rate > 0 Hz, or 0: every model period"
-
-
 def _gains(v):
     return None if v and all(x >= 0 for x in v) else "one or more gains >= 0"
 
@@ -220,10 +216,10 @@ PARAMETERS = (
           "the entry point with -p mode:=observer, flex-twin observe, or flex-twin up)"),
     Param("rate", 1000.0, "model loop rate (Hz); lockstep: a command advances 1/rate",
           check=_positive),
-    Param("publish_rate", 250.0, "rate of the state topics (Hz; 0: every model period)",
-          True, _rate_or_every_period),
-    Param("shape_rate", 50.0, "rate of flex/shape (Hz), at most publish_rate (0: every "
-          "model period)", True, _rate_or_every_period),
+    Param("publish_rate", 250.0, "rate of the state topics (Hz; at or above rate: every "
+          "model period)", True, _positive),
+    Param("shape_rate", 50.0, "rate of flex/shape (Hz), at most publish_rate", True,
+          _positive),
     Param("max_step", 1e-3, "integration step (s); a spatial arm splits 1/rate into "
           "ceil((1/rate)/max_step) equal steps",
           check=lambda v: None if 0 < v <= 0.1 else "a step in (0, 0.1] s"),
@@ -322,8 +318,9 @@ RANGES = {"vars_per_link": (0, INT_MAX, 2), "rate": (0.0, FLOAT_MAX),
 RELEASED = ("model", "stepper", "live_view")
 
 #: the spatial node's defaults (flex-spatial-model-node, flex-model-node -p arm:=<spatial>)
-SPATIAL_DEFAULTS = {"arm": "seed003_like_arm", "rate": 250.0, "publish_rate": 0.0,
-                    "shape_rate": 0.0, "shape_points": 21, "hold_until_command": False}
+#: (publications every period up to 1 kHz)
+SPATIAL_DEFAULTS = {"arm": "seed003_like_arm", "rate": 250.0, "publish_rate": 1000.0,
+                    "shape_rate": 1000.0, "shape_points": 21, "hold_until_command": False}
 
 #: parameters that mean something for one arm kind only: what to use on the other
 PLANAR_ONLY = {
@@ -439,15 +436,12 @@ class ModelNode(Managed, LifecycleNode):
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.pub_description.publish(String(data=arm.robot_description()))
         self.get_logger().info(f"{arm.summary()}, {p['mode']} at {p['rate']:g} Hz, "
-                               f"publishing at {self._rate_text('publish_rate')}; "
+                               f"publishing at {p['publish_rate']:g} Hz; "
                                f"plausibility limits {self.limit('max_torque'):.4g} N m, "
                                f"payload {self.limit('max_payload_mass'):.4g} kg, "
                                f"{self.limit('max_payload_inertia'):.4g} kg m^2"
                                + ("; the initial state is held until the first command "
                                   "(hold_until_command)" if self.braked else ""))
-
-    def _rate_text(self, name: str) -> str:
-        return f"{self.p[name]:g} Hz" if self.p[name] else "every period"
 
     def _make_entities(self, p) -> None:
         """Publishers (state messages as CDR templates, flex_model.cdr_messages: published
@@ -706,7 +700,7 @@ class ModelNode(Managed, LifecycleNode):
                 self.next_diagnostic = now + 1.0
                 self.publish_diagnostic(self.diverged)
             if now >= self.next_held_state:  # the last good state, its effort zero
-                self.next_held_state = now + self._every("publish_rate", 1.0 / self.p["rate"])
+                self.next_held_state = now + 1.0 / self.p["publish_rate"]
                 self.publish_state(full=True, shape=False)
             return
         if self.paused:
@@ -806,10 +800,6 @@ class ModelNode(Managed, LifecycleNode):
         """One model period (1/rate): the command timeout, the step, the publications."""
         self.step(1.0 / self.p["rate"])
 
-    def _every(self, name: str, period: float = 0.0) -> float:
-        """The publication period of the rate parameter ``name`` (0 Hz: every period)."""
-        return 1.0 / self.p[name] if self.p[name] else period
-
     def step(self, dt: float) -> None:
         """Advance the model by dt (s), apply the command timeout, publish."""
         if self.diverged is not None:
@@ -834,10 +824,10 @@ class ModelNode(Managed, LifecycleNode):
         t = arm.t
         full = t >= self.next_publish - 1e-12
         if full:
-            self.next_publish = t + self._every("publish_rate")
+            self.next_publish = t + 1.0 / self.p["publish_rate"]
         shape = full and t >= self.next_shape - 1e-12
         if shape:
-            self.next_shape = t + self._every("shape_rate")
+            self.next_shape = t + 1.0 / self.p["shape_rate"]
         if full or (self.p["mode"] == "lockstep" and self.loop is None):
             self.publish_state(full=full, shape=shape)
         if self.fjt is not None:  # the running FollowJointTrajectory goal's verdict

@@ -358,3 +358,11 @@ class SpatialArm:
         return self.tf_types.TFMessage(transforms=sr.transforms(
             self.tf_types, self.model, self.q, t, None, self.p["frame_prefix"],
             self.p["frame_id"]))
+
+
+if __name__ == "__main__":
+    # python -m flex_model.spatial_node (the former node's command, as docs/spatial.md shows
+    # it): the model node with the spatial defaults. By name: model_node imports this module,
+    # which imports nothing of the node back (no import cycle).
+    import importlib
+    importlib.import_module("flex_model.model_node").spatial_main()
