@@ -90,3 +90,32 @@ def test_one_class_and_one_line_refusals(ctx):
         assert node.p["rate"] == 250.0 and node.per == 4      # the spatial defaults
     finally:
         node.destroy_node()
+
+
+def test_a_failed_spatial_period_is_integrated_again_in_finer_steps(ctx, monkeypatch):
+    """A period whose Newton fails in its 4 steps is done again from the same state in
+    16 (4 x shorter, the first of REFINEMENTS): the node goes on, with the state of the
+    finer run (1e-12), and logs the refinement; no divergence."""
+    import flex_model.spatial.integrate as integrate
+    real = integrate.simulate_fixed_compiled
+    calls = []
+
+    def coarse_fails(model, q, v, h, n, **kw):
+        calls.append(n)
+        if n == 4:
+            raise RuntimeError("generalized-alpha: no convergence (test)")
+        return real(model, q, v, h, n, **kw)
+    node = make(ctx, SpatialModelNode, mode="lockstep", lockstep_timeout=60.0,
+                initial_joint_values=[0.1, -0.2, 0.3])
+    try:
+        u = np.array([2.0, -1.0, 0.5])
+        node.arm_io.set_command(u)
+        monkeypatch.setattr(integrate, "simulate_fixed_compiled", coarse_fails)
+        node.advance()
+        assert calls == [4, 16] and node.diverged is None and node.steps == 1
+        model = SpatialArmModel(load_spatial_arm(ARM))
+        ref = real(model, node.q0, node.v0, 1.0 / 250 / 16, 16, joint_torques=u)
+        np.testing.assert_allclose(node.q, ref.q[-1], rtol=0, atol=1e-12)
+        assert any("integrated again in steps # x shorter" in k for k in node.drops.last)
+    finally:
+        node.destroy_node()
