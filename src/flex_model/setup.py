@@ -30,7 +30,7 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
     package_data={package_name: ['presets/*.yaml', 'presets/scenarios/*.yaml',
-^                                 'presets/spatial/*.yaml', 'presets/spatial/*.urdf']},
+                                 'presets/spatial/*.yaml', 'presets/spatial/*.urdf']},
     data_files=data_files,
     install_requires=['numpy', 'scipy', 'numba', 'pyyaml', 'matplotlib'],
     extras_require={'test': ['pytest']},
