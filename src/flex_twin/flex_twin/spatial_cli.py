@@ -150,7 +150,7 @@ def plot_spatial_run(res, path, title: str) -> None:
 
 #: planar-only options of ``flex-twin simulate``: {attribute: (default, flag)}
 _SIM_PLANAR_ONLY = {"vars_per_link": (None, "--vars-per-link"),
-                    "kinematics": (None, "--kinematics"), "method": (None, "--method")}
+                    "method": (None, "--method")}
 
 
 def spatial_simulate(args, label: str = "simulate") -> tuple:
@@ -167,6 +167,8 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
             raise ValueError(f"{flag}: not available for a spatial scenario ({args.scenario}); "
                              "the fixed-step compiled integrator is the only method")
     sc = load_spatial_scenario(args.scenario)
+    if getattr(args, "kinematics", None):
+        sc = replace(sc, arm=replace(sc.arm, kinematics=args.kinematics))
     if args.duration is not None:
         if not args.duration > 0:
             raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
@@ -202,6 +204,7 @@ def spatial_simulate(args, label: str = "simulate") -> tuple:
                 "twist_mrad": float(1e3 * np.max(np.abs(d["twist"])))}
             for k, d in res.tip_deflections().items()}
     summary = {"scenario": sc.name, "arm": sc.arm.name, "spatial": True,
+               "kinematics": sc.arm.kinematics,
                "coordinates": int(model.nq), "duration_s": sc.duration, "method": "fixed",
                "step_s": res.stats["dt"], "rho_inf": sc.rho_inf, "wall_s": wall, "cpu_s": cpu,
                "cpu_s_per_simulated_s": cpu / sc.duration, "steps": res.stats["steps"],

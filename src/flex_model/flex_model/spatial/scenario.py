@@ -94,6 +94,18 @@ class SpatialPulse:
     end: float
 
 
+def _exact_tips(b, f, g) -> dict:
+    """The tip's lateral displacements r_y(L), r_z(L) and their rates of link data ``b``
+    (dynamics.BeamData with exact kinematics) at bending variables f and rates g (n, 2 nv)."""
+    nv = b.nv
+    y, z, yr, zr = (np.zeros(len(f)) for _ in range(4))
+    for k, (fk, gk) in enumerate(zip(f, g)):
+        r, Jv, Jw = (a[-1] for a in b.exact_points(fk[:nv], fk[nv:]))
+        y[k], z[k] = r[1], r[2]
+        yr[k], zr[k] = Jv[1:] @ gk[:nv] + Jw[1:] @ gk[nv:]
+    return {"y": y, "z": z, "y_rate": yr, "z_rate": zr}
+
+
 @dataclass
 class SpatialScenario:
     name: str
@@ -427,7 +439,7 @@ class SpatialSimulation:
     def tip_deflections(self) -> dict:
         """{link name: {'y', 'z', 'twist', 'y_rate', 'z_rate', 'twist_rate'}} (n,) arrays
         at the tip of every flexible link (m, rad): v along the beam's y, w along its z,
-        the twist phi (Eq. 19)."""
+        the twist phi (Eq. 19); with exact kinematics the tip's r_y(L), r_z(L) (exact.py)."""
         m = self.model
         out = {}
         for i, (lk, b) in enumerate(zip(m.arm.links, m.beams)):
@@ -437,6 +449,8 @@ class SpatialSimulation:
             iv, iw = s + b.tip_v, s + b.tip_w
             d = {"y": self.q[:, iv], "z": self.q[:, iw],
                  "y_rate": self.v[:, iv], "z_rate": self.v[:, iw]}
+            if b.rule is not None:
+                d = _exact_tips(b, self.q[:, s:s + 2 * b.nv], self.v[:, s:s + 2 * b.nv])
             if b.tip_phi is not None:
                 d["twist"], d["twist_rate"] = self.q[:, s + b.tip_phi], self.v[:, s + b.tip_phi]
             else:
