@@ -208,7 +208,8 @@ PARAMETERS = (
     Param("vars_per_link", 0, "planar: deformation variables per link (0: as in the arm "
           "file)",
           check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
-    Param("kinematics", "", "planar: joint-to-link kinematics override (empty: the arm's)"),
+    Param("kinematics", "", "kinematics override of the flexible links: small_deflection, "
+          "second_order, exact (empty: the arm's)"),
     Param("mode", "realtime", "realtime | lockstep (observer: flex_model.observer_node, "
           "which the entry point starts for -p mode:=observer)",
           check=lambda v: None if v in ("realtime", "lockstep") else
@@ -325,8 +326,6 @@ SPATIAL_DEFAULTS = {"arm": "seed003_like_arm", "rate": 250.0, "publish_rate": 10
 #: parameters that mean something for one arm kind only: what to use on the other
 PLANAR_ONLY = {
     "vars_per_link": "a spatial arm's discretization is its arm file's (elements per link)",
-    "kinematics": "a spatial arm's kinematics is its arm file's (small_deflection or "
-                  "second_order)",
     "controller_rate": "on a spatial arm eq95/eq45 is the continuous PD in the compiled "
                        "loop (kp, kd)",
     "foxglove_port": "the Foxglove live view (flex_model.live_view) draws planar arms; "

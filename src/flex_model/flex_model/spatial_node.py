@@ -39,17 +39,25 @@ from .urdf import quaternion_from_matrix
 REFINEMENTS = (4, 16)
 
 
-def load_arm_parameter(arm: str, planar: bool):
-    """The SpatialArm named by the ``arm`` parameter (ParameterError naming it)."""
+def load_arm_parameter(arm: str, planar: bool, kinematics: str = ""):
+    """The SpatialArm named by the ``arm`` parameter (ParameterError naming it), with the
+    ``kinematics`` parameter's kinematics ('': the arm file's)."""
+    from dataclasses import replace
+    from .spatial.description import KINEMATICS
     from .spatial.loader import load_spatial_arm
+    if kinematics and kinematics not in KINEMATICS:
+        raise ParameterError(f"parameter kinematics: got {kinematics!r}; expected one of "
+                             f"{', '.join(KINEMATICS)} (empty: the arm file's)")
     try:
         if planar:
             from .arm import load_arm
             from .spatial.description import from_planar
-            return from_planar(load_arm(arm))
-        return load_spatial_arm(arm)
+            out = from_planar(load_arm(arm))
+        else:
+            out = load_spatial_arm(arm)
     except (ConfigError, ValueError, OSError) as exc:
         raise ParameterError(f"parameter arm: {exc}") from None
+    return replace(out, kinematics=kinematics) if kinematics else out
 
 
 def arm_mass(model) -> float:
@@ -84,7 +92,8 @@ class SpatialArm:
         from .spatial.limits import joint_limits
         from .spatial.payload import payload_inertia
         self.node, self.p = node, p
-        self.arm0 = load_arm_parameter(p["arm"], p["from_planar"])   # without payload
+        self.arm0 = load_arm_parameter(p["arm"], p["from_planar"],  # without payload
+                                       p["kinematics"])
         self.payload0 = self.payload = payload_inertia(p["payload"])
         self.model = self._model_with(self.payload0)
         self.auto_limits = plausibility_limits(  # of the arm without the payload

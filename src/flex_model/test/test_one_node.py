@@ -119,3 +119,18 @@ def test_a_failed_spatial_period_is_integrated_again_in_finer_steps(ctx, monkeyp
         assert any("integrated again in steps # x shorter" in k for k in node.drops.last)
     finally:
         node.destroy_node()
+
+
+def test_the_kinematics_parameter_on_a_spatial_arm(ctx):
+    """kinematics: exact on a spatial arm (issue 43: every kinematics option on every
+    arm) reaches the arm the compiled loop steps; an unknown one is one line."""
+    node = make(ctx, SpatialModelNode, kinematics="exact", mode="lockstep",
+                lockstep_timeout=60.0)
+    try:
+        assert node.model.arm.kinematics == "exact" and node.arm0.kinematics == "exact"
+    finally:
+        node.destroy_node()
+    with pytest.raises(ParameterError, match=re.escape(
+            "parameter kinematics: got 'exactly'; expected one of small_deflection, "
+            "second_order, exact")):
+        make(ctx, SpatialModelNode, kinematics="exactly")
