@@ -20,7 +20,7 @@ to the next step or to the end of the run), over its stuck samples:
 
 The diagnosis compares a twin's replay with the data; whether the replay can show the
 sticking depends on where the twin stops, not only on whether the data stick
-(:func:`run_statistics` gives the figures of docs/real-arms.md).
+(:func:`run_statistics` gives the figures of docs/real-arm-studies.md).
 """
 from __future__ import annotations
 

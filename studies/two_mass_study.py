@@ -23,11 +23,11 @@ from scipy.optimize import least_squares
 from flex_model.arm import arm_from_dict, load_arm
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import EFFECT_TYPES
-from flex_twin.real_arms.two_mass_data import (PeriodFRF, TwoMassRecord, period_frf,
-                                               read_two_mass)
-from flex_twin.real_arms.two_mass_replay import (frf_gap, peak_levels, twin_frf, window_errors,
-                                                 replay_window)
-from flex_twin.real_arms.two_mass_twin import arm_dict, fit_frf, parameters_from_arm
+from flex_twin.real_arms.two_mass_twin import arm_dict, parameters_from_arm
+from studies.two_mass_data import (PeriodFRF, TwoMassRecord, fit_frf, period_frf,
+                                   read_two_mass)
+from studies.two_mass_replay import (frf_gap, peak_levels, replay_window, twin_frf,
+                                     window_errors)
 
 PRESET = "two_mass_bench"
 #: a hypothesis is named when it removes at least this share of the held-out FRF gap
@@ -251,8 +251,8 @@ def write_markdown(report: dict, path) -> None:
 def run_engine(data, out: Path, report: dict, duration, workers) -> None:
     """``--engine``: ``flex-twin diagnose`` on the rigid nominal twin (its summary into
     ``report["engine"]`` and two_mass.json)."""
-    from flex_twin.real_arms.two_mass_data import data_dir
-    from flex_twin.real_arms.two_mass_diagnosis import export_case, run_diagnosis
+    from studies.two_mass_data import data_dir
+    from studies.two_mass_diagnosis import export_case, run_diagnosis
     root = data_dir(data)
     paths = export_case(read_two_mass("A", root), read_two_mass("B", root),
                         parameters_from_arm(load_arm("two_mass_bench")),
@@ -267,7 +267,7 @@ def cmd_two_mass(args) -> int:
     ``two_mass_bench`` twin, FRF and time overlays, the frequency-domain diagnosis of the
     rigid nominal twin; ``--engine`` also runs ``flex-twin diagnose`` on it (minutes)."""
     from flex_twin.real_arms.cli import print_progress
-    from flex_twin.real_arms.two_mass_data import data_dir
+    from studies.two_mass_data import data_dir
     out = Path(args.out)
     report = study(data_dir(args.data), out, print_progress)
     if args.engine:

@@ -310,3 +310,14 @@ def test_a_spatial_arm_is_observed_with_the_spatial_nodes_layout():
         assert warnings(g) == []
     finally:
         g.close()
+
+
+def test_one_default_noise_table_for_the_cli_and_the_observer():
+    """flex-twin estimate and the observer default a channel's std alike (DEFAULT_STD;
+    they were q 1e-4 against 1e-3 rad and w 5e-4 against 1e-4 m)."""
+    from flex_model.estimation.measurements import DEFAULT_STD
+    from flex_model.observer_node import NAMED_KINDS
+    from flex_twin.estimate import CHANNELS
+    for k in "qvw":
+        assert CHANNELS[k] == NAMED_KINDS[k]
+    assert CHANNELS["q"] == ("joint_angle", 1e-3) and DEFAULT_STD["joint_angle"] == 1e-3

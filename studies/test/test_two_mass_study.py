@@ -4,7 +4,7 @@
 import pytest
 
 from flex_model.arm import arm_from_dict, load_arm
-from flex_twin.real_arms.two_mass_data import TWO_MASS, period_frf, read_two_mass
+from studies.two_mass_data import TWO_MASS, period_frf, read_two_mass
 from flex_twin.real_arms.two_mass_twin import arm_dict, parameters_from_arm
 from studies.two_mass_study import fd_diagnosis
 

@@ -147,12 +147,12 @@ def run_periods(t, x, a, abar, n_periods, period, max_step, rho_inf, t_ref0, G, 
 
 def _guard_caches():
     from . import integrators, iteration_matrix, kernels
-    from .effects import stick_slip
+    from .effects import friction, stick_slip
     from .numba_cache import guard
     # this module's own dispatchers only: the imported integrators ones have their guard
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
-          [integrators.__file__, kernels.__file__, stick_slip.__file__,
+          [integrators.__file__, kernels.__file__, stick_slip.__file__, friction.__file__,
            iteration_matrix.__file__])
 
 

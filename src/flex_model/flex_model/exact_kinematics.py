@@ -541,12 +541,12 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
 # function it calls (integrators.py, kernels.py and theirs) does: flush these caches then
 def _guard_caches():
     from . import integrators, iteration_matrix, kernels
-    from .effects import stick_slip
+    from .effects import friction, stick_slip
     from .numba_cache import guard
     from .solvers import galpha, newton
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
-          [integrators.__file__, kernels.__file__, stick_slip.__file__,
+          [integrators.__file__, kernels.__file__, stick_slip.__file__, friction.__file__,
            iteration_matrix.__file__, galpha.__file__, newton.__file__])
 
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .effects.friction import friction_law_compiled
 from .effects.stick_slip import bristle_rate, bristle_step
 from .iteration_matrix import empty_factor, factor_solve, structured_factor
 from .solvers.status import DIVERGED, FINISHED, NO_CONVERGENCE
@@ -137,8 +138,7 @@ def joint_passive_forces(q, v, E):
         tf = 0.0
         if jd[i, 4] > 0.0 or jd[i, 5] > 0.0 or jd[i, 6] > 0.0:
             w = Ga[i] @ v
-            g = jd[i, 5] + (jd[i, 6] - jd[i, 5]) * np.exp(-(w / jd[i, 7]) ** 2)
-            tf -= jd[i, 4] * w + g * np.tanh(w / jd[i, 8])
+            tf += friction_law_compiled(w, jd[i, 4], jd[i, 5], jd[i, 6], jd[i, 7], jd[i, 8])[0]
         if jd[i, 16] != 0.0:
             wn = jd[i, 17] * jd[i, 15]
             tf += jd[i, 16] * np.sin(wn * (Ga[i] @ q) + jd[i, 18])
@@ -703,17 +703,17 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
-# function it calls from kernels.py (or effects/stick_slip.py) does: flush these caches
-# when they change.
+# function it calls from kernels.py (or effects/stick_slip.py, effects/friction.py) does:
+# flush these caches when they change.
 def _guard_caches():
     from . import iteration_matrix, kernels
     from .numba_cache import guard
-    from .effects import stick_slip
+    from .effects import friction, stick_slip
     from .solvers import galpha, newton
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
-          [kernels.__file__, stick_slip.__file__, iteration_matrix.__file__, galpha.__file__,
-           newton.__file__])
+          [kernels.__file__, stick_slip.__file__, friction.__file__, iteration_matrix.__file__,
+           galpha.__file__, newton.__file__])
 
 
 _guard_caches()

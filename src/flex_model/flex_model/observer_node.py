@@ -83,7 +83,7 @@ from . import ros_conversions as conv
 from . import urdf
 from .cdr_messages import read_joint_state, read_joint_state_names
 from .dynamics import FlexArmModel
-from .estimation.measurements import NAME_PATTERN
+from .estimation.measurements import DEFAULT_STD, NAME_PATTERN
 from .estimation.recording import initial_q
 from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
                        lean_node, planar_arm_parameter, read_parameters, run_node)
@@ -154,12 +154,12 @@ RANGES = {"vars_per_link": (0, INT_MAX, 2), "sample_period": (0.0, 0.1),
 
 #: measurement names (the recording channels of flex-twin estimate --measure: q<i>, v<i>,
 #: w<i> tip deflection, tip_x, tip_y): prefix -> (kind, default std, SI)
-NAMED_KINDS = {"q": ("joint_angle", 1e-3), "v": ("joint_rate", 1e-2),
-               "m": ("motor_angle", 1e-3), "w": ("tip_deflection", 1e-4)}
+NAMED_KINDS = {k: (kind, DEFAULT_STD[kind]) for k, kind in (
+    ("q", "joint_angle"), ("v", "joint_rate"), ("m", "motor_angle"), ("w", "tip_deflection"))}
 #: names without an index: (kind, component, default std)
-NAMED_COMPONENTS = {"ax": ("tip_acceleration", 0, 0.1), "ay": ("tip_acceleration", 1, 0.1),
-                    "tip_x": ("tip_position", 0, 1e-3),
-                    "tip_y": ("tip_position", 1, 1e-3), "tip_z": ("tip_position", 2, 1e-3)}
+NAMED_COMPONENTS = {name: (kind, c, DEFAULT_STD[kind]) for name, kind, c in (
+    ("ax", "tip_acceleration", 0), ("ay", "tip_acceleration", 1), ("tip_x", "tip_position", 0),
+    ("tip_y", "tip_position", 1), ("tip_z", "tip_position", 2))}
 
 
 #: measurement kinds read by an arm file's sensor kind (flex_model.sensors)

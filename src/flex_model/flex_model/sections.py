@@ -123,10 +123,6 @@ class SectionProfile:
     def length(self) -> float:
         return float(self.breaks[-1])
 
-    def smooth_pieces(self):
-        """Intervals [z0, z1] on which the properties are smooth (segment boundaries)."""
-        return list(zip(self.breaks[:-1], self.breaks[1:]))
-
     def properties(self, z):
         """(EI, m, GA/chi) at positions ``z`` (m from the link root), arrays."""
         z = np.atleast_1d(np.asarray(z, dtype=float))

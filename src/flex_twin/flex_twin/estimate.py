@@ -16,12 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from flex_model.estimation import EstimatorSettings, Measurement, estimate_recording
-from flex_model.estimation.measurements import NAME_PATTERN
+from flex_model.estimation.measurements import DEFAULT_STD, NAME_PATTERN
 
-#: channel kind -> (estimator kind, default reading std in SI units)
-CHANNELS = {"q": ("joint_angle", 1e-4), "v": ("joint_rate", 1e-2),
-            "w": ("tip_deflection", 5e-4), "tip_x": ("tip_position", 1e-3),
-            "tip_y": ("tip_position", 1e-3)}
+#: channel kind -> (estimator kind, default reading std in SI units: the one table
+#: flex_model.estimation.measurements.DEFAULT_STD, shared with the observer node)
+CHANNELS = {k: (kind, DEFAULT_STD[kind]) for k, kind in (
+    ("q", "joint_angle"), ("v", "joint_rate"), ("w", "tip_deflection"),
+    ("tip_x", "tip_position"), ("tip_y", "tip_position"))}
 #: 95 % two-sided normal quantile
 Z95 = 1.959964
 

@@ -68,7 +68,7 @@ def add_estimate_parser(sub) -> None:
     sp.add_argument("--measure", required=True, help="comma-separated channels the filter "
                     "reads: q<i>, v<i>, w<i>, tip_x, tip_y")
     sp.add_argument("--std", action="append", metavar="CHANNEL=STD", help="a reading's "
-                    "noise std (SI; default q 1e-4 rad, v 1e-2 rad/s, w 5e-4 m, tip 1e-3 m)")
+                    "noise std (SI; default q 1e-3 rad, v 1e-2 rad/s, w 5e-4 m, tip 1e-3 m)")
     sp.add_argument("--torque-noise", type=float, default=0.1, help="process noise: std of "
                     "the input torque error per joint (N m; default 0.1)")
     sp.add_argument("--modal-noise", type=float, default=0.0, help="process noise: std of "

@@ -2,8 +2,24 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .base import Effect, Parameter
+
+
+def friction_law(w, fv, fc, fs, ws, eps):
+    """The friction torque tau_f(w) of :class:`JointFriction` and its slope d tau_f / dw
+    (NumPy arrays or floats). The one place of the law: the Python models call it, the
+    compiled kernels call :data:`friction_law_compiled`."""
+    ex = np.exp(-(w / ws) ** 2)
+    th = np.tanh(w / eps)
+    level = fc + (fs - fc) * ex
+    return (-fv * w - level * th,
+            -fv + (fs - fc) * ex * 2.0 * w / ws ** 2 * th - level * (1.0 - th * th) / eps)
+
+
+#: :func:`friction_law` compiled, for the integrators' kernels (numba)
+friction_law_compiled = njit(cache=True)(friction_law)
 
 
 class JointFriction(Effect):
@@ -35,6 +51,4 @@ class JointFriction(Effect):
             raise f.error("static", values[2], f"a break-away torque >= coulomb ({values[1]})")
 
     def torque(self, w):
-        fv, fc, fs, ws, eps = self.values
-        w = np.asarray(w, float)
-        return -fv * w - (fc + (fs - fc) * np.exp(-(w / ws) ** 2)) * np.tanh(w / eps)
+        return friction_law(np.asarray(w, float), *self.values)[0]

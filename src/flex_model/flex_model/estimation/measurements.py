@@ -17,6 +17,12 @@ import numpy as np
 
 KINDS = ("joint_angle", "joint_rate", "motor_angle", "tip_deflection", "strain",
          "tip_acceleration", "tip_position")
+#: the default reading std of each kind (SI: rad, rad/s, m, m/s^2) where neither the user
+#: nor the arm file's sensor gives one: ``flex-twin estimate`` and the observer node alike
+#: (one table; the joint angle's 1 mrad is the observer's, whose test feeds 1 mrad noise)
+DEFAULT_STD = {"joint_angle": 1e-3, "joint_rate": 1e-2, "motor_angle": 1e-3,
+               "tip_deflection": 5e-4, "strain": 1e-5, "tip_acceleration": 0.1,
+               "tip_position": 1e-3}
 #: kinds read by the planar / spatial plant
 PLANAR_KINDS = KINDS
 SPATIAL_KINDS = ("joint_angle", "joint_rate", "motor_angle", "tip_deflection",

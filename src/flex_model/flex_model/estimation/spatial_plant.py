@@ -20,6 +20,7 @@ import copy
 
 import numpy as np
 
+from ..effects.friction import friction_law
 from ..spatial.compiled import pack, spatial_terms
 from ..spatial.integrate import simulate_fixed_compiled
 from .plant import parse_parameter
@@ -206,5 +207,4 @@ class _Friction:
         self.values = (float(fv), float(fc), float(fs), float(ws), float(eps))
 
     def torque(self, w):
-        fv, fc, fs, ws, eps = self.values
-        return -fv * w - (fc + (fs - fc) * np.exp(-(w / ws) ** 2)) * np.tanh(w / eps)
+        return friction_law(w, *self.values)[0]

@@ -32,6 +32,7 @@ from numba import njit
 from typing import NamedTuple
 
 from .. import integrators, kernels
+from ..effects.friction import friction_law_compiled
 from ..integrators import dead_zone
 from ..kernels import cholesky, solve_chol
 from ..solvers import galpha, newton
@@ -898,13 +899,10 @@ def _effects(Q0, fric, v, Q, slope):
     slope[:] = 0.0
     for r in range(fric.shape[0]):
         a = int(fric[r, 0])
-        fv, fc, fs, ws, eps = fric[r, 1], fric[r, 2], fric[r, 3], fric[r, 4], fric[r, 5]
-        w = v[a]
-        ex = np.exp(-(w / ws) ** 2)
-        th = np.tanh(w / eps)
-        Q[a] += -fv * w - (fc + (fs - fc) * ex) * th
-        slope[a] += -fv + (fs - fc) * ex * 2.0 * w / ws ** 2 * th \
-            - (fc + (fs - fc) * ex) * (1.0 - th * th) / eps
+        tau, ds = friction_law_compiled(v[a], fric[r, 1], fric[r, 2], fric[r, 3], fric[r, 4],
+                                        fric[r, 5])
+        Q[a] += tau
+        slope[a] += ds
 
 
 @njit(cache=_CACHE)
@@ -1500,10 +1498,12 @@ class CompiledSpatialModel:
 # numba re-compiles a cached function when its own file changes, not when a compiled
 # function it calls from kernels.py or integrators.py does: flush these caches then
 def _guard_caches():
+    from ..effects import friction
     from ..numba_cache import guard
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
-          [kernels.__file__, integrators.__file__, galpha.__file__, newton.__file__])
+          [kernels.__file__, integrators.__file__, galpha.__file__, newton.__file__,
+           friction.__file__])
 
 
 _guard_caches()

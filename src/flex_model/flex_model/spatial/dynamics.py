@@ -99,6 +99,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..basis import link_basis
+from ..effects.friction import friction_law
 from ..integrators import dead_zone, dead_zone_energy
 from .description import SpatialArm
 from .kinematics import P_AUX, Frame, cross, point_jacobians, rot_x, rot_y, rot_z, skew
@@ -127,16 +128,6 @@ def combine_bodies(a, b):
         d = ck - c
         inertia += Ik + mk * (d @ d * np.eye(3) - np.outer(d, d))
     return m, c, inertia
-
-
-def friction_slope(values, w: float) -> float:
-    """d tau_f / d w of effects.friction.JointFriction.torque (values: F_v, F_c, F_s, w_s,
-    eps)."""
-    fv, fc, fs, ws, eps = values
-    ex = np.exp(-(w / ws) ** 2)
-    th = np.tanh(w / eps)
-    return float(-fv + (fs - fc) * ex * 2.0 * w / ws ** 2 * th
-                 - (fc + (fs - fc) * ex) * (1.0 - th * th) / eps)
 
 
 class BeamData:
@@ -597,7 +588,7 @@ class SpatialArmModel:
         falling side of a Stribeck peak)."""
         d = np.zeros(self.nq)
         for a, f in self.friction:
-            d[a] += friction_slope(f.values, float(v[a]))
+            d[a] += float(friction_law(float(v[a]), *f.values)[1])
         return d
 
     @property

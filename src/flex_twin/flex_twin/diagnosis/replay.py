@@ -312,7 +312,7 @@ def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
     ff = np.asarray(ff_at_instants[:n_periods + 1], float)
     kp, kd = controller.joint_pd()
     E = input_data(model, JointPD(kp, kd, np.zeros(model.n_links)), (),
-                    np.zeros(model.n_links))
+                   np.zeros(model.n_links))
     U = np.ascontiguousarray(ff + (ref - bias) @ controller.gains.T)
     X, status, t_stop = _continuous_loop(np.asarray(x0, float), model.P, E, h, per_period,
                                          n_periods, rho_inf, U, per_period)
@@ -390,10 +390,10 @@ def residuals(rec, pred: Prediction) -> dict:
 # kernels it calls change (flex_model.numba_cache): flush these caches then
 def _guard_caches():
     from flex_model import integrators, iteration_matrix, kernels, numba_cache
-    from flex_model.effects import stick_slip
+    from flex_model.effects import friction, stick_slip
     numba_cache.guard([_closed_loop, _continuous_loop, _tips],
                       [integrators.__file__, kernels.__file__, stick_slip.__file__,
-                       iteration_matrix.__file__])
+                       friction.__file__, iteration_matrix.__file__])
 
 
 _guard_caches()

@@ -189,14 +189,14 @@ def cmd_estimate(args) -> int:
     out = Path(args.out) if args.out else None
     report = estimate_held_out(data_root(args.data), args.runs or HELD_OUT,
                                progress=None if args.json else print_progress, out=out,
-                               workers=args.workers)
+                               workers=args.workers, structure=args.structure)
     if out is not None:
         (out / "estimate.json").write_text(json.dumps(report, indent=1, default=float))
     if args.json:
         print(json.dumps(report, indent=1, default=float))
         return 0
     s = report["summary"]
-    print(f"{s['runs']} runs on {report['arm']} (noise levels tuned on "
+    print(f"{s['runs']} runs, {report['arm']} (tuned on "
           f"{', '.join(report['tuned_on'])}): tip RMS median {s['tip_rms_median_mm']:.2f} mm "
           f"({s['tip_rms_from_first_step_median_mm']:.2f} mm from the first step on), hub "
           f"{s['hub_rms_median_rad']:.4f} rad, gauge in the 95 % band "
@@ -293,12 +293,15 @@ def add_real_arm_parsers(sub) -> None:
     dp.set_defaults(func=cmd_diagnose)
     ep = rsub.add_parser("estimate", help="the tip deflection estimated from the hub "
                          "encoder and the voltage (Kalman filter on the stored calibrated "
-                         "twin) on the held-out flexible runs, against the lab's gauge")
+                         "twin; --structure driven_link: the link driven by the encoder "
+                         "alone) on the held-out flexible runs, against the lab's gauge")
     add_data_option(ep)
     ep.add_argument("--runs", nargs="*", default=None, metavar="RUN", help="CU Boulder run "
                     "names (default: the held-out flexible runs of CUBOULDER_SPLIT)")
     ep.add_argument("--out", default=None, help="write estimate.json and a PNG per run here")
     ep.add_argument("--workers", type=int, default=1, help="parallel processes (one run each)")
+    ep.add_argument("--structure", choices=("full", "driven_link"), default="full",
+                    help="the filter (docs/estimation.md, Real Quanser arm)")
     ep.add_argument("--json", action="store_true")
     ep.set_defaults(func=cmd_estimate)
     add_moved_studies(rsub)

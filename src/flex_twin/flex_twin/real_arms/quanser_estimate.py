@@ -10,6 +10,11 @@ gauge (:func:`.replay.gauge_reading`: its sign, bias and lag, 37.4 ms in the sto
 The filter's noise levels (:data:`TUNED`) were chosen on the link-fit runs (:data:`TUNED_ON`)
 and never on a held-out run. ``coverage_95``: the fraction of gauge samples within 1.96
 sqrt(estimate variance + the log's 1 mm rounding variance, 1 mm^2 / 12).
+
+The second structure, the driven link (:func:`estimate_run_driven`,
+flex_model.estimation.driven_link: the link's mode driven by the hub's acceleration, the hub
+pinned by the encoder alone), measures what the link, not the hub, leaves
+(docs/estimation.md, "Against the link driven by the measured hub").
 """
 from __future__ import annotations
 
@@ -22,6 +27,8 @@ import numpy as np
 
 from flex_model.dynamics import FlexArmModel
 from flex_model.estimation import EstimatorSettings, Measurement, estimate_recording
+from flex_model.estimation.driven_link import LinkMode, estimate_driven_link
+from flex_model.estimation.filter import chi2_95
 from flex_model.sensors import delayed
 from ..estimate import Z95, coverage_95
 from .calibration import CUBOULDER_SPLIT
@@ -51,6 +58,48 @@ TUNED_ON = CUBOULDER_SPLIT["link_fit"]
 TIP_MODEL_STD = 0.004215
 #: the held-out flexible runs (CUBOULDER_SPLIT); those without a gauge are skipped
 HELD_OUT = CUBOULDER_SPLIT["link_holdout"]
+#: the driven link (flex_model.estimation.driven_link): the link's first clamped mode driven
+#: by the hub's acceleration, the hub pinned by its encoder alone (white jerk), the gauge
+#: read ``lag_s`` late. Tuned on link-fit runs only (bench/bench_quanser_estimate.py
+#: --tune-link: a grid over frequency, damping and jerk noise, the gain and lag by least
+#: squares): "hagenau" on Hagenau's two (flexarm_K1_6, flexarm_K1K2K3k4_6_-3_213_4), for
+#: Hagenau's runs; "shared" on all three TUNED_ON, for the units without a fit run
+#: (Covington, Unit7)
+DRIVEN_LINK = {
+    "hagenau": {"frequency_hz": 1.8, "damping_ratio": 0.03, "gain": 0.2311, "lag_s": 0.03,
+                "jerk_noise": 1000.0},
+    "shared": {"frequency_hz": 1.95, "damping_ratio": 0.03, "gain": 0.4029, "lag_s": 0.05,
+               "jerk_noise": 100.0}}
+#: the link's model error (m) in the driven link's band: 95 % of the TUNED_ON runs' gauge
+#: samples (bench_quanser_estimate.py --structure driven_link --tune)
+DRIVEN_MODEL_STD = 0.003586
+#: the structures of :func:`estimate_named`
+STRUCTURES = ("full", "driven_link")
+
+
+def link_unit(name: str) -> str:
+    """The :data:`DRIVEN_LINK` entry of a CU Boulder run: Hagenau's own runs are its
+    ``flexarm_*`` logs (studies.unit_calibration.UNITS), the others "shared"."""
+    return "hagenau" if name.startswith("flexarm_") else "shared"
+
+
+def estimate_run_driven(run, link: dict | None = None, model_std: float | None = None):
+    """The driven link on a lab run's encoder alone (:data:`DRIVEN_LINK` of its unit, or
+    ``link``), scored against its gauge like :func:`estimate_run`. The mode's gain is in
+    the gauge's metres: it reads gauge_sign * d(t - lag_s) + gauge_bias."""
+    p = link or DRIVEN_LINK[link_unit(run.name)]
+    res = estimate_driven_link(run.theta, run.dt, LinkMode(
+        p["frequency_hz"], p["damping_ratio"], p["gain"]), p["jerk_noise"], 0.0, 0.0,
+        HUB_QUANTUM)
+    d = delayed(run.t, res.deflection, p["lag_s"])
+    sd = delayed(run.t, res.deflection_std, p["lag_s"])
+    out = RunEstimate(run, res, run.gauge_sign() * d + run.gauge_bias(), sd, hub=res.theta,
+                      label="estimate (driven link, hub alone)")
+    out.model_std = DRIVEN_MODEL_STD if model_std is None else model_std
+    summary = {"nis_mean": float(np.mean(res.nis)), "parameters": dict(p),
+               "nis_95_fraction": float(np.mean(res.nis <= chi2_95(1)))}
+    out.metrics = score(run, res.theta, summary, out.tip_reading, sd, out.model_std)
+    return out
 
 
 def hub_encoder() -> Measurement:
@@ -74,6 +123,8 @@ class RunEstimate:
     tip_reading_std: np.ndarray
     metrics: dict = field(default_factory=dict)
     model_std: float = 0.0
+    hub: np.ndarray | None = None
+    label: str = "estimate (hub + voltage)"
 
 
 def estimate_run(model: FlexArmModel, run, settings: EstimatorSettings | None = None,
@@ -87,19 +138,20 @@ def estimate_run(model: FlexArmModel, run, settings: EstimatorSettings | None = 
     gauge = twin_gauge(model)
     d = delayed(run.t, res.tip_deflections[:, 0], gauge.delay)
     sd = delayed(run.t, res.tip_deflections_std[:, 0], gauge.delay) * abs(gauge.gain)
-    out = RunEstimate(run, res, gauge_reading(model, run, d), sd)
+    out = RunEstimate(run, res, gauge_reading(model, run, d), sd, hub=res.joint_angles[:, 0])
     out.model_std = TIP_MODEL_STD if model_std is None else model_std
-    out.metrics = score(run, res, out.tip_reading, sd, out.model_std)
+    out.metrics = score(run, res.joint_angles[:, 0], res.summary, out.tip_reading, sd,
+                        out.model_std)
     return out
 
 
-def score(run, res, tip, tip_std, model_std: float) -> dict:
+def score(run, hub, summary: dict, tip, tip_std, model_std: float) -> dict:
     """Hub and tip RMS, coverage, and where the tip error lies (before the first step:
-    ringing the stuck hub cannot show; the TRANSIENT s after each step)."""
+    ringing the stuck hub cannot show; the TRANSIENT s after each step). ``hub``: the
+    estimated hub angle; ``summary``: nis_mean, nis_95_fraction, parameters."""
     m = {"run": run.name, "duration_s": float(run.t[-1]),
-         "hub_rms_rad": rms(res.joint_angles[:, 0] - run.theta),
-         "nis_mean": res.summary["nis_mean"], "nis_95_fraction": res.summary["nis_95_fraction"],
-         "parameters": res.summary["parameters"]}
+         "hub_rms_rad": rms(hub - run.theta), "nis_mean": summary["nis_mean"],
+         "nis_95_fraction": summary["nis_95_fraction"], "parameters": summary["parameters"]}
     if not run.has_gauge:
         return m
     err = tip - run.deflection
@@ -117,14 +169,21 @@ def score(run, res, tip, tip_std, model_std: float) -> dict:
 
 
 def estimate_named(root, name: str, settings: dict | None = None, out=None,
-                   errors: bool = False, model_std: float | None = None) -> dict:
-    """The metrics of one CU Boulder run (by name) on the stored calibrated twin; with
-    ``out``, its PNG there; ``errors``: also the tip error and the filter's std over time
-    (``tip_error_m``, ``tip_std_m``). A module-level function: a worker process runs it."""
+                   errors: bool = False, model_std: float | None = None,
+                   structure: str = "full") -> dict:
+    """The metrics of one CU Boulder run (by name): ``structure`` "driven_link"
+    (:func:`estimate_run_driven`, ``settings`` replacing its link's) or "full" (the EKF on
+    the stored calibrated twin, :func:`estimate_run`); with ``out``, its PNG there;
+    ``errors``: also the tip error and the filter's std over time (``tip_error_m``,
+    ``tip_std_m``). A module-level function: a worker process runs it."""
     run = read_cuboulder_file(next(p for p in cuboulder_files(Path(root) / CUBOULDER)
                                    if p.name == name))
-    model = FlexArmModel(stored_calibrated_arm("flexible"))
-    est = estimate_run(model, run, settings_for(run, **(settings or {})), model_std)
+    if structure == "driven_link":
+        link = {**DRIVEN_LINK[link_unit(name)], **(settings or {})}
+        est = estimate_run_driven(run, link, model_std)
+    else:
+        model = FlexArmModel(stored_calibrated_arm("flexible"))
+        est = estimate_run(model, run, settings_for(run, **(settings or {})), model_std)
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
         plot_run_estimate(est, Path(out) / f"estimate-{name.replace('.', '_')}.png")
@@ -136,11 +195,14 @@ def estimate_named(root, name: str, settings: dict | None = None, out=None,
 
 def estimate_held_out(root, names=HELD_OUT, settings: dict | None = None, progress=None,
                       out=None, workers: int = 1, errors: bool = False,
-                      model_std: float | None = None) -> dict:
+                      model_std: float | None = None, structure: str = "full") -> dict:
     """The estimate on the named CU Boulder runs with a gauge (default: the held-out
-    flexible runs), ``workers`` processes; with ``out``, a PNG per run there; the band with
-    ``model_std`` (default :data:`TIP_MODEL_STD`). Returns
+    flexible runs) by ``structure`` (:data:`STRUCTURES`, :func:`estimate_named`),
+    ``workers`` processes; with ``out``, a PNG per run there; the band with ``model_std``
+    (default :data:`DRIVEN_MODEL_STD` or :data:`TIP_MODEL_STD`). Returns
     {"runs": [per-run metrics], "summary": {...}, "settings": ..., "tuned_on": ...}."""
+    if structure not in STRUCTURES:
+        raise ValueError(f"structure: got {structure!r}; expected one of {STRUCTURES}")
     known = {p.name: p for p in cuboulder_files(Path(root) / CUBOULDER)}
     unknown = [n for n in names if n not in known]
     if unknown:
@@ -149,15 +211,20 @@ def estimate_held_out(root, names=HELD_OUT, settings: dict | None = None, progre
     rows = []
     with ProcessPoolExecutor(workers) if workers > 1 else nullcontext() as pool:
         jobs = [(pool.submit if pool else _now)(estimate_named, root, n, settings, out,
-                                                errors, model_std) for n in names]
+                                                errors, model_std, structure) for n in names]
         for name, job in zip(names, jobs):
             rows.append(job.result())
             if progress:
                 progress(f"  {name}: tip RMS {rows[-1]['tip_rms_mm']:.2f} mm, in the 95 % "
                          f"band {100 * rows[-1]['coverage_95']:.1f} %")
-    return {"arm": stored_calibrated_arm("flexible").name,
-            "settings": {**TUNED, **(settings or {})}, "tuned_on": list(TUNED_ON),
-            "tip_model_std_m": TIP_MODEL_STD if model_std is None else model_std,
+    driven = structure == "driven_link"
+    default_std = DRIVEN_MODEL_STD if driven else TIP_MODEL_STD
+    return {"structure": structure,
+            "arm": "driven link" if driven else stored_calibrated_arm("flexible").name,
+            "settings": ({u: {**v, **(settings or {})} for u, v in DRIVEN_LINK.items()}
+                         if driven else {**TUNED, **(settings or {})}),
+            "tuned_on": list(TUNED_ON),
+            "tip_model_std_m": default_std if model_std is None else model_std,
             "runs": rows, "summary": summarize(rows)}
 
 
@@ -201,11 +268,11 @@ def plot_run_estimate(est: RunEstimate, path) -> None:
     band = Z95 * np.sqrt(est.tip_reading_std ** 2 + est.model_std ** 2 + GAUGE_STD ** 2)
     ax[0].fill_between(t, 1e3 * (est.tip_reading - band), 1e3 * (est.tip_reading + band),
                        alpha=0.3, color="C0", label="95 % band")
-    ax[0].plot(t, 1e3 * est.tip_reading, "C0", lw=1.0, label="estimate (hub + voltage)")
+    ax[0].plot(t, 1e3 * est.tip_reading, "C0", lw=1.0, label=est.label)
     ax[0].plot(t, 1e3 * run.deflection, "k", lw=0.8, label="lab gauge (held out)")
     ax[0].set_ylabel("tip deflection (mm)")
     ax[1].plot(t, run.theta, "k", lw=0.8, label="encoder")
-    ax[1].plot(t, est.result.joint_angles[:, 0], "C0", lw=0.8, label="estimate")
+    ax[1].plot(t, est.hub, "C0", lw=0.8, label="estimate")
     ax[1].set_ylabel("hub angle (rad)")
     ax[1].set_xlabel("t (s)")
     m = est.metrics

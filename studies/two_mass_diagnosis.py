@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .two_mass_data import TwoMassRecord
-from .two_mass_twin import TORQUE_CONSTANT, TwoMassParameters, arm_dict
+from flex_twin.real_arms.two_mass_twin import TORQUE_CONSTANT, TwoMassParameters, arm_dict
+
+from studies.two_mass_data import TwoMassRecord
 
 #: restart period of the open-loop replay (s): 7.6 periods of the 76 Hz mode, short enough
 #: that the rigid-body drift (bearing friction the twin lacks, the current's unexcited
@@ -78,8 +79,8 @@ def export_case(fit: TwoMassRecord, holdout: TwoMassRecord, nominal: TwoMassPara
 def run_diagnosis(paths: dict, out_dir, segment: float = SEGMENT, workers=None,
                   plots: bool = True) -> dict:
     """``flex-twin diagnose`` on the exported case; returns the engine's summary."""
-    from ..cluster import batch_executor
-    from ..diagnosis.batch import RunSpec, diagnose_run
+    from flex_twin.cluster import batch_executor
+    from flex_twin.diagnosis.batch import RunSpec, diagnose_run
     run = RunSpec("two_mass_A", str(paths["data"]), str(paths["arm"]),
                   str(paths["controller"]), str(paths["holdout"]))
     with batch_executor(None, workers) as ex:

@@ -11,11 +11,11 @@ import pytest
 
 from flex_model.arm import arm_from_dict, load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_twin.real_arms.two_mass_data import TWO_MASS, period_frf, read_two_mass
-from flex_twin.real_arms.two_mass_replay import frf_gap, peak_levels, twin_frf, window_errors
-from flex_twin.real_arms.two_mass_twin import arm_dict, fit_frf, parameters_from_arm
+from flex_twin.real_arms.two_mass_twin import arm_dict, parameters_from_arm
+from studies.two_mass_data import TWO_MASS, fit_frf, period_frf, read_two_mass
+from studies.two_mass_replay import frf_gap, peak_levels, twin_frf, window_errors
 
-ROOT = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "real"
+ROOT = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
 pytestmark = pytest.mark.skipif(not (ROOT / TWO_MASS).is_dir(),
                                 reason=f"real data not present ({ROOT / TWO_MASS})")
 
@@ -89,7 +89,7 @@ def test_engine_export_restarts_the_coupling_twisted_as_measured(bench, tmp_path
     from flex_twin.diagnosis.controller import load_controller
     from flex_twin.diagnosis.evaluation import Context, cost, residual_vector
     from flex_twin.diagnosis.recording import load_csv, validate
-    from flex_twin.real_arms.two_mass_diagnosis import SEGMENT, export_case
+    from studies.two_mass_diagnosis import SEGMENT, export_case
     paths = export_case(bench["recs"]["A"], bench["recs"]["B"], bench["p"], tmp_path, 1.0)
     rec = load_csv(paths["holdout"], 1)
     assert rec.link_encoders() == [0] and rec.meta["start_window"] == pytest.approx(8e-4)

@@ -16,6 +16,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import least_squares
+
+from flex_twin.real_arms.two_mass_twin import TORQUE_CONSTANT, TwoMassParameters
 
 TWO_MASS = "two_mass_motor_bench_fditools"
 RECORDS = {"A": "MultisineTypeA.mat", "B": "MultisineTypeB.mat"}
@@ -142,3 +145,44 @@ def period_frf(rec: TwoMassRecord, theta_m=None, theta_l=None, current=None) -> 
         out += [H, np.abs(per - H).std(0) / np.sqrt(p - SKIP_PERIODS)]
     f = np.fft.rfftfreq(n, rec.dt)[k]
     return PeriodFRF(f=f, motor=out[0], load=out[2], motor_std=out[1], load_std=out[3])
+
+
+def frf(p: TwoMassParameters, f) -> tuple[np.ndarray, np.ndarray]:
+    """theta_m / i and theta_l / i (rad/A) of the two-inertia model at f (Hz)."""
+    s = 2j * np.pi * np.asarray(f, float)
+    a11 = p.J_m * s * s + (p.b_m + p.c) * s + p.k
+    a22 = p.J_l * s * s + (p.b_l + p.c) * s + p.k
+    a12 = -(p.c * s + p.k)
+    g = TORQUE_CONSTANT * np.exp(-s * p.delay) / (a11 * a22 - a12 * a12)
+    return a22 * g, -a12 * g
+
+
+def fit_frf(meas: PeriodFRF, load_friction: bool = False, delay: bool = True
+            ) -> tuple[TwoMassParameters, float]:
+    """Least squares of log(H_model / H_measured) (complex: log magnitude and phase) on both
+    FRFs' excited lines; starts from the mass lines. Returns the parameters and the RMS of
+    the log residual (0.1 ~ 10 % / 6 deg)."""
+    f = meas.f
+    w2 = (2 * np.pi * f) ** 2
+    low = np.median(np.abs(meas.motor[f < 25]) * w2[f < 25])     # K_t / (J_m + J_l)
+    high = np.median(np.abs(meas.motor[f > 150]) * w2[f > 150])  # K_t / J_m
+    jm0 = TORQUE_CONSTANT / high
+    jl0 = max(TORQUE_CONSTANT / low - jm0, 0.2 * jm0)
+    k0 = jl0 * (2 * np.pi * f[np.argmin(np.abs(meas.motor) * w2)]) ** 2
+
+    def unpack(x):
+        return TwoMassParameters(J_m=float(np.exp(x[0])), J_l=float(np.exp(x[1])),
+                                 k=float(np.exp(x[2])), c=float(x[3]), b_m=float(x[4]),
+                                 b_l=float(x[5]) if load_friction else 0.0,
+                                 delay=float(x[6]) if delay else 0.0)
+
+    def res(x):
+        m, lo = frf(unpack(x), f)
+        return np.concatenate([np.log(m / meas.motor).view(float),
+                               np.log(lo / meas.load).view(float)])
+
+    x0 = [np.log(jm0), np.log(jl0), np.log(k0), 0.01, 0.01, 0.0, 0.0]
+    lb = [-20, -20, -10, 0.0, 0.0, 0.0, 0.0]
+    ub = [5, 5, 20, 100.0, 100.0, 100.0, 2e-3]
+    r = least_squares(res, x0, bounds=(lb, ub))
+    return unpack(r.x), float(np.sqrt(np.mean(r.fun ** 2)))

@@ -8,7 +8,7 @@ content meets bearing friction on the bench), so the comparisons are the well-de
   errors, raw and with each window's mean error removed;
 - the period-averaged FRF of the twin (its linearization, ``flex_model.modes.linearize``,
   the same model the windows integrate) against the lab's: resonance / anti-resonance
-  frequencies (both estimated by the two-inertia fit of ``two_mass_twin.fit_frf`` on the
+  frequencies (both estimated by the two-inertia fit of ``two_mass_data.fit_frf`` on the
   lines) and levels.
 """
 from __future__ import annotations
@@ -18,8 +18,9 @@ import numpy as np
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import linearize
 from flex_model.simulate import simulate
-from .two_mass_data import PeriodFRF, TwoMassRecord
-from .two_mass_twin import TORQUE_CONSTANT
+from flex_twin.real_arms.two_mass_twin import TORQUE_CONSTANT
+
+from studies.two_mass_data import PeriodFRF, TwoMassRecord
 
 
 def twin_state(model: FlexArmModel, theta_m, theta_l, omega_m, omega_l):
