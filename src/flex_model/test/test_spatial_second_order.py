@@ -157,7 +157,8 @@ def test_compiled_kernels_equal_the_python_reference(which):
 def test_unknown_kinematics_names_the_field():
     from flex_model.config import ConfigError
     with pytest.raises(ConfigError) as err:
-        spatial_arm_from_dict({"name": "x", "kinematics": "exact", "links": [
+        spatial_arm_from_dict({"name": "x", "kinematics": "elastica", "links": [
             {"joint": {"a": 0.5}}]}, "bad.yaml")
     msg = str(err.value)
     assert "bad.yaml" in msg and "kinematics" in msg and "second_order" in msg
+    assert "exact" in msg

@@ -153,3 +153,19 @@ def test_a_newton_failure_is_one_line_and_exit_1(tmp_path, capsys):
     assert len(err) == 1 and err[0].startswith("flex-twin: failed: hard_kick: Newton did not "
                                                "converge in the step after t = 0 s")
     assert "reduce the step or the input" in err[0]
+
+
+def test_kinematics_exact_on_a_spatial_scenario(tmp_path, capsys):
+    """``--kinematics exact`` runs a spatial scenario (spatial/exact.py) and says so in the
+    summary; at this arm's small deflections (< 1 mm) its tip path equals second_order's
+    to 1e-6 m (they differ from the fourth order of the deflection)."""
+    path = tmp_path / "short_003.yaml"
+    path.write_text(SCENARIO.replace("duration: 0.2", "duration: 0.06"))
+    tips = {}
+    for kin in ("exact", "second_order"):
+        assert main(["simulate", str(path), "--kinematics", kin, "--no-advice", "--no-plot",
+                     "--json", "--out", str(tmp_path / kin)]) == 0
+        summary = json.loads(capsys.readouterr().out)
+        assert summary["kinematics"] == kin
+        tips[kin] = np.array(summary["final_tip_m"])
+    assert np.max(np.abs(tips["exact"] - tips["second_order"])) < 1e-6

@@ -40,6 +40,7 @@ from ..solvers.galpha import galpha_coefficients, galpha_update, restart_choice
 from ..solvers.newton import spatial_converged
 from ..solvers.status import FINISHED, NO_CONVERGENCE
 from .dynamics import SpatialArmModel
+from .exact import curvature_energy, link_sums, point_row
 
 _CACHE = True
 
@@ -53,6 +54,7 @@ def pack(model: SpatialArmModel) -> tuple:
     """The model data tuple of the compiled kernels (see the module docstring)."""
     arm = model.arm
     so = getattr(arm, "kinematics", "small_deflection") == "second_order"
+    ex = getattr(arm, "kinematics", "small_deflection") == "exact"
     n = model.n_links
     eye = (np.eye(3), np.zeros(3))
     jtype = np.zeros(n, np.int64)
@@ -77,6 +79,8 @@ def pack(model: SpatialArmModel) -> tuple:
     CF, CW = [], []
     maxn = max([b.n for b in beams] + [1])
     SL = np.zeros((n, 2, maxnv, maxnv))   # and at the tip
+    XD, XW, XR = [], [], []          # exact: node slopes, weights, point rows (exact.py)
+    xstart = np.zeros((n + 1, 2), np.int64)   # node start and nfull per link
     count = 0
     for i, (lk, b) in enumerate(zip(arm.links, model.beams)):
         (Rpre, tpre), (Rdh, tdh), bodies = model._consts[i]
@@ -85,6 +89,7 @@ def pack(model: SpatialArmModel) -> tuple:
         axis[i] = np.asarray(lk.joint.axis, float)
         stages = [origin or eye, (Rpre, tpre), eye, eye]
         P[i] = np.eye(3)
+        xstart[i + 1, 0] = xstart[i, 0]
         if b is not None:
             flex[i] = 1
             nv[i], nt[i] = b.nv, b.nt
@@ -126,6 +131,14 @@ def pack(model: SpatialArmModel) -> tuple:
                     dst.append(a)
                 SL[i, 0, :b.nv, :b.nv] = b.SvL
                 SL[i, 1, :b.nv, :b.nv] = b.SwL
+            if ex:
+                nodes, wts, nfull, rows = b.rule
+                a = np.zeros((len(nodes), 2, maxnv))
+                a[:, 0, :b.nv], a[:, 1, :b.nv] = b.ndv, b.ndw
+                XD.append(a)
+                XW.append(wts)
+                XR.append(rows[:-1])         # the mass points (the last row: the tip)
+                xstart[i + 1] = xstart[i, 0] + len(nodes), nfull
             count += npt
         else:
             stages[3] = (Rdh, tdh)
@@ -156,7 +169,9 @@ def pack(model: SpatialArmModel) -> tuple:
             int(model.nq), rot.reshape(n, 3), mdiag,
             np.ascontiguousarray(np.concatenate(Sv)) if Sv else np.zeros((0, maxnv, maxnv)),
             np.ascontiguousarray(np.concatenate(Sw)) if Sw else np.zeros((0, maxnv, maxnv)),
-            SL, int(so), cat(CF, (5, maxn)), cat(CW, 3))
+            SL, int(so), cat(CF, (5, maxn)), cat(CW, 3),
+            int(ex), cat(XD, (2, maxnv)), cat(XW),
+            np.concatenate(XR) if XR else np.zeros((0, 3), np.int64), xstart)
 
 
 # ------------------------------------------------------------------ small vector helpers
@@ -484,6 +499,30 @@ def _shortening(Sa, Sb, fv, fw, gv, gw, hv, hw, sa_out, sb_out):
     return u, du, ddu
 
 
+@njit(cache=_CACHE)
+def _beam_vector(Rb, x, k):
+    """Rb @ x[k:k + 3] (a beam-frame vector to base axes)."""
+    return (Rb[0, 0] * x[k] + Rb[0, 1] * x[k + 1] + Rb[0, 2] * x[k + 2],
+            Rb[1, 0] * x[k] + Rb[1, 1] * x[k + 1] + Rb[1, 2] * x[k + 2],
+            Rb[2, 0] * x[k] + Rb[2, 1] * x[k + 1] + Rb[2, 2] * x[k + 2])
+
+
+@njit(cache=_CACHE)
+def _own_columns(xdir, s0, mp, r, acc, C6, M, c, want_m):
+    """exact: a mass point's own columns s0 + j along xdir[j] (base axes): c += mp xdir_j .
+    acc, its force and moment columns into C6 and the own block of M (upper triangle)."""
+    n = xdir.shape[0]
+    for j in range(n):
+        x0, x1, x2 = xdir[j, 0], xdir[j, 1], xdir[j, 2]
+        c[s0 + j] += mp * (x0 * acc[0] + x1 * acc[1] + x2 * acc[2])
+        if not want_m:
+            continue
+        _add_column(C6, s0 + j, mp, xdir[j], r[1] * x2 - r[2] * x1, r[2] * x0 - r[0] * x2,
+                    r[0] * x1 - r[1] * x0)
+        for jj in range(j, n):
+            M[s0 + j, s0 + jj] += mp * (x0 * xdir[jj, 0] + x1 * xdir[jj, 1] + x2 * xdir[jj, 2])
+
+
 def spatial_terms(Pm, q, v):
     """(M(q), c(q, v)) of the spatial arm ``Pm`` = :func:`pack` (model): c holds the
     velocity terms (analytic Newton-Euler bias accelerations) and gravity. (Plain Python:
@@ -500,7 +539,8 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     points and rotors of a link are lumped per frame into a spatial inertia (mass, first
     and second moments) so that M costs one J6^T I6 J6 product per frame group."""
     (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so, CF, CW) = Pm
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so, CF, CW,
+     ex, XD, XW, XR, xstart) = Pm
     M = np.zeros((nq, nq))
     c = np.zeros(nq)
     R = np.eye(3)
@@ -617,6 +657,14 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             nk = 3
         sva = np.zeros(nv)
         swa = np.zeros(nv)
+        Xn = np.zeros((0, 9 + 6 * nv))
+        Pre = np.zeros((1, 9 + 6 * nv))
+        if ex:      # exact: per node the tangent terms and their prefix sums (exact.py)
+            xs, xe = xstart[i, 0], xstart[i + 1, 0]
+            Xn, Pre = link_sums(XD[xs:xe, 0], XD[xs:xe, 1], XW[xs:xe], xstart[i + 1, 1],
+                                nv, fv, fw, gv, gw, hv, hw)
+        xrow = np.zeros(9 + 6 * nv)
+        xdir = np.zeros((n2, 3))
         for p in range(pstart[i], pstart[i + 1]):
             yv = 0.0
             yw = 0.0
@@ -661,6 +709,13 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             ex0 = av_ * by[0] + aw_ * bz[0] - ash * bx[0]
             ex1 = av_ * by[1] + aw_ * bz[1] - ash * bx[1]
             ex2 = av_ * by[2] + aw_ * bz[2] - ash * bx[2]
+            if ex:      # r = int t ds, its rate and acceleration, own columns (exact.py)
+                point_row(Xn, Pre, XR[p, 0], XR[p, 1], XR[p, 2], xrow)
+                r0, r1, r2 = _beam_vector(Rb, xrow, 0)
+                d0, d1, d2 = _beam_vector(Rb, xrow, 3)
+                ex0, ex1, ex2 = _beam_vector(Rb, xrow, 6)
+                for j in range(n2):
+                    xdir[j, 0], xdir[j, 1], xdir[j, 2] = _beam_vector(Rb, xrow, 9 + 3 * j)
             # w x r, w x (w x r), al x r, w x rd
             u0 = w[1] * r2 - w[2] * r1
             u1 = w[2] * r0 - w[0] * r2
@@ -683,6 +738,8 @@ def spatial_eval(Pm, q, v, qdd, want_m):
             cz0 = r1 * bz[2] - r2 * bz[1]
             cz1 = r2 * bz[0] - r0 * bz[2]
             cz2 = r0 * bz[1] - r1 * bz[0]
+            if ex:
+                _own_columns(xdir, s0, mp, rv, acc, C6, M, c, want_m)
             if so:      # own columns b_y Wv_j - b_x (Sv f_v)_j, b_z Ww_j - b_x (Sw f_w)_j
                 ax = bx[0] * acc[0] + bx[1] * acc[1] + bx[2] * acc[2]
                 cx0 = r1 * bx[2] - r2 * bx[1]
@@ -704,7 +761,7 @@ def spatial_eval(Pm, q, v, qdd, want_m):
                         M[jw, s0 + nv + jj] += mwj * swa[jj]
                     for jj in range(nv):
                         M[jv, s0 + nv + jj] += mv * swa[jj]
-            for j in range(nv):
+            for j in range(0 if ex else nv):
                 c[s0 + j] += mp * Wv[p, j] * ay
                 c[s0 + nv + j] += mp * Ww[p, j] * az
                 if not want_m:
@@ -839,12 +896,20 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         for a in range(3):
             rv[a] = (L - ush) * bx[a] + tv * by[a] + tw * bz[a]
             xv[a] = by[a] * sv + bz[a] * sw - dsh * bx[a]
+        if ex:          # exact: the tip at r(L) (exact.py)
+            point_row(Xn, Pre, xstart[i + 1, 1], 0, 0, xrow)
+            rv[0], rv[1], rv[2] = _beam_vector(Rb, xrow, 0)
+            xv[0], xv[1], xv[2] = _beam_vector(Rb, xrow, 3)
+            tmp[0], tmp[1], tmp[2] = _beam_vector(Rb, xrow, 6)
         _cross(al, rv, t1)
         _cross(w, rv, t2)
         _cross(w, t2, t3)
         _cross(w, xv, t4)
         for a in range(3):
-            ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a] - ash * bx[a]
+            if ex:
+                ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + tmp[a]
+            else:
+                ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a] - ash * bx[a]
             o[a] += rv[a]
         for j in range(ncols):
             Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
@@ -854,9 +919,14 @@ def spatial_eval(Pm, q, v, qdd, want_m):
         awb = _mv(Rb, aw)
         avb = _mv(Rb, av)
         atb = _mv(Rb, at)
+        for j in range(n2 if ex else 0):
+            xdir[j, 0], xdir[j, 1], xdir[j, 2] = _beam_vector(Rb, xrow, 9 + 3 * j)
+            for a in range(3):
+                Jo[a, s0 + j] += xdir[j, a]
         for a in range(3):
-            Jo[a, s0 + nv - 2] += by[a]
-            Jo[a, s0 + 2 * nv - 2] += bz[a]
+            if not ex:
+                Jo[a, s0 + nv - 2] += by[a]
+                Jo[a, s0 + 2 * nv - 2] += bz[a]
             Jw[a, s0 + nv - 1] += avb[a]
             Jw[a, s0 + 2 * nv - 1] += awb[a]
             if nt:
@@ -1033,7 +1103,8 @@ def tip_point(Pm, q):
     translational Jacobian (3 x nq): the kinematic part of spatial_eval's pass
     (SpatialArmModel.tip_frame), without the rates."""
     (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so, CF, CW) = Pm
+     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so, CF, CW,
+     ex, XD, XW, XR, xstart) = Pm
     R = np.eye(3)
     o = np.zeros(3)
     Jo = np.zeros((3, nq))
@@ -1090,6 +1161,17 @@ def tip_point(Pm, q):
                     Jo[a, s0 + nv + j] -= swa[j] * Rb[a, 0]
         for a in range(3):
             rv[a] = L * Rb[a, 0] + tv * Rb[a, 1] + tw * Rb[a, 2]
+        if ex:          # exact: the tip at r(L), its own columns (exact.py)
+            xs, xe = xstart[i, 0], xstart[i + 1, 0]
+            fv, fw, z = q[s0:s0 + nv], q[s0 + nv:s0 + 2 * nv], np.zeros(nv)
+            Xn, Pre = link_sums(XD[xs:xe, 0], XD[xs:xe, 1], XW[xs:xe], xstart[i + 1, 1],
+                                nv, fv, fw, z, z, z, z)
+            xrow = Pre[xstart[i + 1, 1]]
+            rv[0], rv[1], rv[2] = _beam_vector(Rb, xrow, 0)
+            for j in range(2 * nv):
+                d = _beam_vector(Rb, xrow, 9 + 3 * j)
+                for a in range(3):
+                    Jo[a, s0 + j] += d[a]
         for j in range(ncols):
             Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
             Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
@@ -1100,8 +1182,9 @@ def tip_point(Pm, q):
         atb = _mv(Rb, at)
         for a in range(3):
             o[a] += rv[a]
-            Jo[a, s0 + nv - 2] += Rb[a, 1]
-            Jo[a, s0 + 2 * nv - 2] += Rb[a, 2]
+            if not ex:
+                Jo[a, s0 + nv - 2] += Rb[a, 1]
+                Jo[a, s0 + 2 * nv - 2] += Rb[a, 2]
             Jw[a, s0 + nv - 1] += avb[a]
             Jw[a, s0 + 2 * nv - 1] += awb[a]
             if nt:
@@ -1183,12 +1266,12 @@ def _coupling(Pm, q, g, Hc, want_h):
     """g += dU/dq and (want_h) Hc += d^2U/dq^2 of the second-order curvature energy of
     the twisting links (dynamics.BeamData.curvature_coupling; CF, CW of pack)."""
     flex, nvs, nts, fstart, pstart = Pm[5], Pm[6], Pm[7], Pm[8], Pm[13]
-    CF, CW = Pm[30], Pm[31]
+    CF, CW, ex = Pm[30], Pm[31], Pm[32]
     x = np.zeros(5)
     du = np.zeros(5)
     h = np.zeros((5, 5))
     for i in range(flex.shape[0]):
-        if not flex[i] or nts[i] == 0:
+        if not flex[i] or (nts[i] == 0 and not ex):
             continue
         n = 2 * nvs[i] + nts[i]
         s0 = fstart[i]
@@ -1200,16 +1283,18 @@ def _coupling(Pm, q, g, Hc, want_h):
                     x[k] += CF[p, k, j] * q[s0 + j]
             a, b, c, pp, e = x[0], x[1], x[2], x[3], x[4]
             gw, y, z = CW[p, 0], CW[p, 1], CW[p, 2]
+            if ex:      # the exact curvatures (exact.py)
+                curvature_energy(x, gw, y, z, du, h)
+                _coupling_add(CF, p, s0, n, du, h, g, Hc, want_h, T)
+                continue
             dz = z - y
             du[0] = -gw * b * c
             du[1] = gw * (-a * c + b * c * c)
             du[2] = gw * (-a * b + b * b * c) + dz * pp * e + z * pp * pp * c
             du[3] = dz * e * c + pp * (y * e * e + z * c * c)
             du[4] = dz * pp * c + y * pp * pp * e
-            for j in range(n):
-                for k in range(5):
-                    g[s0 + j] += CF[p, k, j] * du[k]
             if not want_h:
+                _coupling_add(CF, p, s0, n, du, h, g, Hc, False, T)
                 continue
             h[:, :] = 0.0
             h[0, 1], h[0, 2] = -gw * c, -gw * b
@@ -1221,17 +1306,29 @@ def _coupling(Pm, q, g, Hc, want_h):
             for k in range(5):
                 for m in range(k):
                     h[k, m] = h[m, k]
+            _coupling_add(CF, p, s0, n, du, h, g, Hc, True, T)
+
+
+@njit(cache=_CACHE)
+def _coupling_add(CF, p, s0, n, du, h, g, Hc, want_h, T):
+    """g += F^T du and (want_h) Hc += F^T h F at point p (F = CF[p], the link's n
+    columns from s0)."""
+    for j in range(n):
+        for k in range(5):
+            g[s0 + j] += CF[p, k, j] * du[k]
+    if not want_h:
+        return
+    for k in range(5):
+        for m in range(n):
+            T[k, m] = 0.0
+            for l_ in range(5):
+                T[k, m] += h[k, l_] * CF[p, l_, m]
+    for j in range(n):
+        for m in range(n):
+            acc_ = 0.0
             for k in range(5):
-                for m in range(n):
-                    T[k, m] = 0.0
-                    for l_ in range(5):
-                        T[k, m] += h[k, l_] * CF[p, l_, m]
-            for j in range(n):
-                for m in range(n):
-                    acc_ = 0.0
-                    for k in range(5):
-                        acc_ += CF[p, k, j] * T[k, m]
-                    Hc[s0 + j, s0 + m] += acc_
+                acc_ += CF[p, k, j] * T[k, m]
+            Hc[s0 + j, s0 + m] += acc_
 
 
 @njit(cache=_CACHE)

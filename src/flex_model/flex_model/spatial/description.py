@@ -52,7 +52,8 @@ the position limits end stops (:class:`JointStops`), else they are only reported
 (spatial/limits.py).
 
 ``kinematics: second_order`` adds the axial shortening of the bent beams (the planar
-arm's option, dynamics.py); the default ``small_deflection`` is thesis Eq. 1.
+arm's option, dynamics.py), ``kinematics: exact`` the geometrically exact (inextensible,
+large rotation) centre line of exact.py; the default ``small_deflection`` is thesis Eq. 1.
 
 Optional top-level keys: ``effects`` (flex_model.effects classes, SPATIAL_EFFECTS:
 joint effects, ``structural_damping`` of flexible links and the arm's
@@ -69,6 +70,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arm import KINEMATICS as ARM_KINEMATICS
 from ..config import ConfigError, Fields, read_yaml
 from ..sections import Segment, SectionProfile
 
@@ -476,8 +478,8 @@ def flexible_beam(f: Fields, length: float, placement: str) -> FlexibleBeam:
 
 #: DH conventions of a YAML arm file
 CONVENTIONS = ("standard_dh", "modified_dh")
-#: kinematics of the flexible links (the planar arm's names; no ``exact`` in 3D)
-KINEMATICS = ("small_deflection", "second_order")
+#: kinematics of the flexible links: the planar arm's names (exact: spatial/exact.py)
+KINEMATICS = ARM_KINEMATICS
 
 
 def modified_to_standard(joints: list, fields: list) -> tuple:
@@ -570,13 +572,13 @@ def from_planar(arm, out_of_plane_stiffness: float = 1.0, torsion_stiffness: flo
     (default mean m (L/200)^2). M-, J- become the root body (J about z), M+, J+ the end
     body, the payload (J about z) the arm's ``payload`` (lumped with the last end body).
     Gravity (g_x, g_y) -> (g_x, g_y, 0); a ``contact_surface`` (x, y, normal_angle) is
-    the plane through (x, y, 0) containing the z direction; the kinematics (small_deflection
-    or second_order) carries over, a link's ``internal_friction`` becomes (or adds to) its
+    the plane through (x, y, 0) containing the z direction; the kinematics (small_deflection,
+    second_order or exact) carries over, a link's ``internal_friction`` becomes (or adds to) its
     ``structural_damping``. Only ``wavelet`` links and the effects of
     SPATIAL_EFFECTS (same objects) are accepted."""
     if arm.kinematics not in KINEMATICS:
         raise ConfigError(arm.source, "kinematics", arm.kinematics,
-                          f"one of {', '.join(KINEMATICS)} (exact is planar only)")
+                          f"one of {', '.join(KINEMATICS)}")
     bad = [e.TYPE for e in arm.effects if e.TYPE not in SPATIAL_EFFECTS]
     if bad:
         raise ConfigError(arm.source, "effects", bad,

@@ -102,6 +102,7 @@ from ..basis import link_basis
 from ..effects.friction import friction_law
 from ..integrators import dead_zone, dead_zone_energy
 from .description import SpatialArm
+from .exact import curvature_energies, dense_rule, tangent_rule, tangents
 from .kinematics import P_AUX, Frame, cross, point_jacobians, rot_x, rot_y, rot_z, skew
 
 _XI, _WXI = np.polynomial.legendre.leggauss(6)
@@ -188,6 +189,7 @@ class BeamData:
         else:
             self.Pt = np.zeros((len(self.z), 0))
             self.coupling = None
+        self._gj = gj
         self.K = 0.5 * (K + K.T)
         self.length = L
         # tip: deflection and slope are the last pair of each basis (clamped root)
@@ -198,6 +200,9 @@ class BeamData:
         #: second_order kinematics: S(z) = int_0^z w' w'^T ds of each plane at the mass
         #: points and at the tip (None: small deflections)
         self.Sv = self.Sw = self.SvL = self.SwL = None
+        #: exact kinematics (exact.py): the tangent rule (nodes, weights, nfull, rows of
+        #: the mass points and the tip), the slopes at the nodes, C; None otherwise
+        self.rule = None
 
     def _coupling(self, dPt, gj):
         """The point samples of curvature_coupling: F (5, points, n) maps the link's
@@ -221,6 +226,12 @@ class BeamData:
         v''): u = GJ (-x0 x1 x2 + x1^2 x2^2 / 2) + (EI_z - EI_y) x3 x4 x2
         + (EI_y x4^2 + EI_z x2^2) x3^2 / 2."""
         F, g, y, z = self.coupling
+        if self.rule is not None:      # exact kinematics: the exact curvatures (exact.py)
+            X = np.ascontiguousarray((F @ f).T)
+            DU, H = np.zeros_like(X), np.zeros(X.shape + (5,))
+            U = curvature_energies(X, g, y, z, DU, H)
+            Hq = np.einsum("kpn,pkl,lpm->nm", F, H, F)
+            return float(U), np.einsum("kpn,pk->n", F, DU), 0.5 * (Hq + Hq.T)
         a, b, c, p, e = F @ f                           # (n_points,) each
         dz = z - y
         U = float(np.sum(g * (-a * b * c + 0.5 * b * b * c * c) + dz * p * e * c
@@ -238,6 +249,29 @@ class BeamData:
         grad = np.einsum("kpn,kp->n", F, du)
         H = np.einsum("kpn,klp,lpm->nm", F, h, F)
         return U, grad, 0.5 * (H + H.T)
+
+    def exact(self, inner: int = 8):
+        """Tables of the exact kinematics (exact.py): the tangent rule on the pieces
+        between both bending bases' interval ends and the section breaks, and the
+        curvature energy on every link (twisting or not)."""
+        beam = self.beam
+        cuts = np.unique(np.round(np.concatenate(
+            [self.bv.nodes, self.bw.nodes, beam.bend_v.breaks, beam.bend_w.breaks]), 14))
+        nodes, wts, nfull, rows = tangent_rule(cuts, np.append(self.z, self.length), inner)
+        self.rule = (nodes, wts, nfull, rows)
+        self.ndv, self.ndw = self.bv.slope_matrix(nodes), self.bw.slope_matrix(nodes)
+        self.C = dense_rule(wts, nfull, rows)
+        if self.coupling is None:
+            self._coupling(np.zeros((len(self.z), 0)), self._gj)
+
+    def exact_points(self, fv, fw):
+        """(r (points + tip, 3), dr/df_v, dr/df_w (points + tip, 3, nv)) in the beam frame
+        (exact.py; analytic in f: complex steps pass)."""
+        t, tb, ta = tangents(self.ndw @ fw, self.ndv @ fv)
+        n, nv = self.C.shape[0], self.nv
+        Jv = self.C @ (tb[:, :, None] * self.ndv[:, None, :]).reshape(len(tb), -1)
+        Jw = self.C @ (ta[:, :, None] * self.ndw[:, None, :]).reshape(len(ta), -1)
+        return self.C @ t, Jv.reshape(n, 3, nv), Jw.reshape(n, 3, nv)
 
     def second_order(self):
         """Sample the shortening matrices (basis.LinkBasis.shortening_matrix)."""
@@ -257,10 +291,11 @@ class SpatialArmModel:
         self.arm = arm
         self.beams = [BeamData(lk.flexible) if lk.flexible is not None else None
                       for lk in arm.links]
-        if getattr(arm, "kinematics", "small_deflection") == "second_order":
+        kin = getattr(arm, "kinematics", "small_deflection")
+        if kin in ("second_order", "exact"):
             for b in self.beams:
                 if b is not None:
-                    b.second_order()
+                    b.second_order() if kin == "second_order" else b.exact()
         sizes = [1 + (b.n if b is not None else 0) for b in self.beams]
         self.off = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(int)
         self.nq_arm = int(np.sum(sizes))
@@ -700,9 +735,15 @@ class SpatialArmModel:
                 Svf, Swf = b.Sv @ fv, b.Sw @ fw
                 x = x - 0.5 * (Svf @ fv + Swf @ fw)
             r = np.stack([x, v, w], axis=1)
+            if b.rule is not None:     # exact: r(s) = int t ds (exact.py)
+                r, Jv, Jw = (a[:-1] for a in b.exact_points(fv, fw))
             p, Jp = point_jacobians(Fb, r)
-            Jp[:, :, cols[:nv]] += Rb[None, :, 1, None] * b.Wv[:, None, :]
-            Jp[:, :, cols[nv:2 * nv]] += Rb[None, :, 2, None] * b.Ww[:, None, :]
+            if b.rule is not None:
+                Jp[:, :, cols[:nv]] += np.einsum("ab,pbj->paj", Rb, Jv)
+                Jp[:, :, cols[nv:2 * nv]] += np.einsum("ab,pbj->paj", Rb, Jw)
+            else:
+                Jp[:, :, cols[:nv]] += Rb[None, :, 1, None] * b.Wv[:, None, :]
+                Jp[:, :, cols[nv:2 * nv]] += Rb[None, :, 2, None] * b.Ww[:, None, :]
             if b.Sv is not None:
                 Jp[:, :, cols[:nv]] -= Rb[None, :, 0, None] * Svf[:, None, :]
                 Jp[:, :, cols[nv:2 * nv]] -= Rb[None, :, 0, None] * Swf[:, None, :]
@@ -735,10 +776,18 @@ class SpatialArmModel:
         if b.Sv is not None:
             Svf, Swf = b.SvL @ fv, b.SwL @ fw
             xl = xl - 0.5 * (Svf @ fv + Swf @ fw)
-        rl = Rb @ np.array([xl, v, w])
+        if b.rule is not None:         # exact: the tip at r(L) (exact.py)
+            r, Jv, Jw = (a[-1] for a in b.exact_points(fv, fw))
+            rl = Rb @ r
+        else:
+            rl = Rb @ np.array([xl, v, w])
         Jo = F.Jo - skew(rl) @ F.Jw
-        Jo[:, cols[nv - 2]] += Rb[:, 1]
-        Jo[:, cols[2 * nv - 2]] += Rb[:, 2]
+        if b.rule is not None:
+            Jo[:, cols[:nv]] += Rb @ Jv
+            Jo[:, cols[nv:2 * nv]] += Rb @ Jw
+        else:
+            Jo[:, cols[nv - 2]] += Rb[:, 1]
+            Jo[:, cols[2 * nv - 2]] += Rb[:, 2]
         if b.Sv is not None:
             Jo[:, cols[:nv]] -= Rb[:, 0, None] * Svf[None, :]
             Jo[:, cols[nv:2 * nv]] -= Rb[:, 0, None] * Swf[None, :]
@@ -816,7 +865,7 @@ class SpatialArmModel:
         """d(dU_g/dq)/dq by complex steps (exact to rounding), nq x nq."""
         q = np.asarray(q, float)
         out = np.zeros((self.nq, self.nq))
-        for k in range(self.nq):
+        for k in range(self.nq if np.any(self.gravity) else 0):
             dq = np.zeros(self.nq, dtype=complex)
             dq[k] = 1j * _H
             _, points, _ = self._chain(q + dq, True)
@@ -872,13 +921,18 @@ class SpatialArmModel:
 
     # ------------------------------------------------------------ deflections
     def tip_deflections(self, q) -> dict:
-        """Per flexible link: tip v, w (m), tip slopes v', w' and tip twist phi (rad)."""
+        """Per flexible link: tip v, w (m), tip slopes v', w' and tip twist phi (rad)
+        (exact kinematics: v, w the tip's lateral displacements r_y(L), r_z(L), the slopes
+        the section angles; exact.py)."""
         q = np.asarray(q, float)
         out = {}
         for i, (lk, b) in enumerate(zip(self.arm.links, self.beams)):
             if b is None:
                 continue
             fv, fw, ft = b.split(q[self.flex_slice(i)])
-            out[lk.name] = {"v": fv[-2], "w": fw[-2], "dv": fv[-1], "dw": fw[-1],
+            v, w = fv[-2], fw[-2]
+            if b.rule is not None:
+                v, w = b.exact_points(fv, fw)[0][-1, 1:]
+            out[lk.name] = {"v": v, "w": w, "dv": fv[-1], "dw": fw[-1],
                             "phi": ft[-2] if b.nt else 0.0}
         return out
