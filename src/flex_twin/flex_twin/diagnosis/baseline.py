@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flex_model.arm import ArmDescription
+from . import spatial_loop
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,10 @@ class ScaleParameter:
 
 
 def baseline_parameters(arm: ArmDescription) -> list[ScaleParameter]:
-    """The free scales of the baseline with their relative bounds."""
+    """The free scales of the baseline with their relative bounds (a spatial arm:
+    :func:`.spatial_loop.baseline_parameters`)."""
+    if spatial_loop.is_spatial(arm):
+        return spatial_loop.baseline_parameters(arm, ScaleParameter)
     tol_sec = arm.tolerance("section")
     out = []
     for i, lk in enumerate(arm.links):
@@ -78,6 +82,8 @@ def at_bounds(params, scales) -> list:
 
 def apply_scales(arm: ArmDescription, params, scales) -> ArmDescription:
     """The arm with the baseline scales applied."""
+    if spatial_loop.is_spatial(arm):
+        return spatial_loop.apply_scales(arm, params, scales)
     links = list(arm.links)
     effects = list(arm.effects)
     payload = arm.payload_mass

@@ -152,13 +152,25 @@ def _manifest_runs(path: Path, arm, controller, link_topic=None) -> list:
     return out
 
 
+def load_any_arm(path):
+    """A planar arm, or a spatial one (a DH table or URDF side file: the engine takes it
+    through spatial_loop.py)."""
+    from flex_model.arm import load_arm
+    from flex_model.spatial.description import is_spatial_arm
+    if is_spatial_arm(path):
+        from flex_model.spatial.loader import load_spatial_arm
+        return load_spatial_arm(path)
+    return load_arm(path)
+
+
 def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
                  segment: float | None = None, plots: bool = True, executor=None,
                  progress: bool = False, floor: bool = True) -> dict:
     """Diagnose one run (the workflow of ``flex-twin diagnose``) into ``out_dir``; returns
     the report's summary (diagnosis.json) with the wall time."""
-    from flex_model.arm import load_arm, resolve_preset
+    from flex_model.arm import resolve_preset
 
+    from . import spatial_loop
     from .controller import check_integrable, load_controller
     from .engine import DEFAULT_GATE, diagnose
     from .sources import load_recording
@@ -166,7 +178,7 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
 
     t0 = time.perf_counter()
     arm_path = resolve_preset(run.arm)
-    arm = load_arm(arm_path)
+    arm = load_any_arm(arm_path)
     controller = load_controller(run.controller)
     if controller.n_joints != arm.n_links:
         raise ValueError(f"{run.controller}: {controller.n_joints} joints in the controller, "
@@ -186,9 +198,10 @@ def diagnose_run(run: RunSpec, out_dir: str, gate: float | None = None,
     if executor is None:
         from ..cluster import SerialExecutor
         executor = SerialExecutor()
+    step = {"dt": spatial_loop.MAX_STEP} if spatial_loop.is_spatial(arm) else {}
     d = diagnose(arm, controller, fit, holdout, executor=executor,
                  gate=DEFAULT_GATE if gate is None else gate, segment=segment,
-                 progress=progress, floor=floor)
+                 progress=progress, floor=floor, **step)
     s = write_report(Path(out_dir), arm_path, d, plots=plots)
     s["wall_s"] = time.perf_counter() - t0
     return s

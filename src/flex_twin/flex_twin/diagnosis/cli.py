@@ -33,10 +33,12 @@ def add_diagnose_parser(sub) -> None:
                     "/joint_states, position = ql<i>, velocity = vl<i>; default "
                     f"{LINK_TOPIC}, read when the bag has it; a manifest run's link_topic wins)")
     sp.add_argument("--arm", help="nominal arm YAML (or preset name); required unless a "
-                    "manifest names each run's. A spatial arm takes one CSV recording "
-                    "(t, q<i>, tau<i>, <link>_tip_deflection_y|z, <link>_tip_twist), "
-                    "replayed open loop, with hypotheses per joint and bending plane "
-                    "(no --controller)")
+                    "manifest names each run's. A spatial arm with --controller: the "
+                    "closed-loop diagnosis (CSV t, q<i>, v<i>, tau<i>, qset<i>, w<i>, wz<i>, "
+                    "phi<i>: tip deflections in-plane, out of plane and twist; hypotheses "
+                    "per bending plane, torsion, joint and elastic gear); without: one CSV "
+                    "(t, q<i>, tau<i>, <link>_tip_deflection_y|z, <link>_tip_twist) "
+                    "replayed open loop")
     sp.add_argument("--controller", help="controller YAML (flex_twin.diagnosis.controller); "
                     "required unless a manifest names each run's")
     sp.add_argument("--holdout", help="held-out recording of a single run (default: the last "
@@ -89,9 +91,8 @@ def _diagnose_spatial(args) -> int:
     and bending plane (flex_twin.diagnosis.spatial)."""
     from flex_model.spatial import SpatialArmModel, load_spatial_arm
     from .spatial import diagnose_spatial, read_spatial_recording, write_outputs
-    given = [f"--{k.replace('_', '-')}" for k in ("controller", "holdout", "segment",
-                                                   "link_topic", "gate", "scheduler",
-                                                   "workers")
+    keys = ("controller", "holdout", "segment", "link_topic", "gate", "scheduler", "workers")
+    given = [f"--{k.replace('_', '-')}" for k in keys
              if getattr(args, k, None) is not None]
     if getattr(args, "no_floor", False):
         given.append("--no-floor")
@@ -103,8 +104,8 @@ def _diagnose_spatial(args) -> int:
                              f"got {' '.join(args.data)}"))
     model = SpatialArmModel(load_spatial_arm(args.arm))
     rec = read_spatial_recording(args.data[0], model)
-    diag = diagnose_spatial(model, rec, progress=lambda m: print(m, file=sys.stderr,
-                                                                  flush=True))
+    diag = diagnose_spatial(model, rec,
+                            progress=lambda m: print(m, file=sys.stderr, flush=True))
     write_outputs(diag, rec, args.out, plots=not args.no_plots)
     if args.json:
         print(json.dumps(diag.summary(), indent=1, default=float))
@@ -121,8 +122,8 @@ def cmd_diagnose(args) -> int:
     from .batch import RunSpec, diagnose_many, diagnose_run, expand_runs, named_text
 
     topic = _check_topic(getattr(args, "link_topic", None))
-    if args.arm and _is_spatial(args.arm):
-        return _diagnose_spatial(args)
+    if args.arm and _is_spatial(args.arm) and not args.controller:
+        return _diagnose_spatial(args)   # with --controller: closed loop (spatial_loop.py)
     if _single_run(args.data):
         if not args.arm or not args.controller:
             raise ValueError("--arm and --controller are needed (or a manifest YAML of runs)")

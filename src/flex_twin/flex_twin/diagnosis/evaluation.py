@@ -39,6 +39,7 @@ from flex_model.simulate import SimulationDivergedError
 from flex_model.statics import StaticConvergenceError
 from .baseline import apply_scales
 from .controller import ControllerDescription
+from . import spatial_loop
 from .replay import (START_WINDOW, initial_state, measured_link_start, measured_start,
                      replay, zero_order_hold)
 
@@ -115,10 +116,14 @@ class Context:
     @classmethod
     def build(cls, nominal, controller, rec, baseline_params, sigma=None, dt=2e-3,
               score_from=-np.inf, segment=None):
-        model = FlexArmModel(nominal)
         period = controller.instant_period(rec.dt)
         t_rel = rec.t - rec.t[0]
         instants = np.arange(int(round(t_rel[-1] / period)) + 1) * period
+        if spatial_loop.is_spatial(nominal):   # the spatial replay (spatial_loop.py)
+            ff = spatial_loop.feedforward(controller, rec, len(instants))
+            return cls(nominal, controller, rec, sigma or noise_levels(rec), ff,
+                       list(baseline_params), dt, score_from, segment)
+        model = FlexArmModel(nominal)
         qset = zero_order_hold(t_rel, rec.stack("qset"), instants)
         recorded = zero_order_hold(t_rel, rec.stack("tau_ff"), instants) \
             if controller.feedforward_mode == "recorded" else None
@@ -181,7 +186,10 @@ def predict_channels(ctx: Context, arm: ArmDescription):
     the arm) act on what the controller reads and on the recorded q<i>, v<i>. Each
     (re)start takes the state of :func:`.replay.measured_start` over
     :func:`start_window`; with link-side encoders ``ql<i>``, ``vl<i>`` an elastic joint
-    starts twisted as measured (:func:`.replay.initial_state`)."""
+    starts twisted as measured (:func:`.replay.initial_state`). A spatial arm:
+    :func:`.spatial_loop.predict` (no encoder faults, no multiple shooting)."""
+    if spatial_loop.is_spatial(arm):
+        return spatial_loop.predict(ctx, arm, start_window(ctx))
     model = FlexArmModel(arm)
     bias, delay = encoder_faults(arm)
     rec = ctx.rec

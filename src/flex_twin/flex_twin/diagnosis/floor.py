@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flex_model.dynamics import FlexArmModel
+from . import spatial_loop
 from .evaluation import cost, evaluate
 
 #: "well below the noise": the replay's own error at most this (J units, noise power)
@@ -77,6 +78,8 @@ class Setting:
     dt: float
 
     def arm(self, nominal):
+        if spatial_loop.is_spatial(nominal):
+            return spatial_loop.with_variables(nominal, self.variables, self.kinematics)
         links = tuple(dataclasses.replace(lk, n_vars=n)
                       for lk, n in zip(nominal.links, self.variables))
         return dataclasses.replace(nominal, links=links, kinematics=self.kinematics)
@@ -140,6 +143,10 @@ class Floor:
 
 def _refinable(nominal, setting: Setting) -> bool:
     try:
+        if spatial_loop.is_spatial(nominal):
+            from flex_model.spatial.dynamics import SpatialArmModel
+            SpatialArmModel(setting.arm(nominal))
+            return True
         FlexArmModel(setting.arm(nominal))
         return True
     except ValueError:
@@ -148,7 +155,8 @@ def _refinable(nominal, setting: Setting) -> bool:
 
 def settings(nominal, dt: float) -> tuple[Setting, list, Setting]:
     """(the default setting, the ladder of finer ones cheapest first, the reference)."""
-    n0 = tuple(lk.n_vars for lk in nominal.links)
+    n0 = spatial_loop.link_variables(nominal) if spatial_loop.is_spatial(nominal) else \
+        tuple(lk.n_vars for lk in nominal.links)
     s0 = Setting(n0, nominal.kinematics, dt)
     more = tuple(n + MORE_VARIABLES for n in n0)
     cand = [Setting(n0, "second_order", dt), Setting(n0, "second_order", dt / 2),

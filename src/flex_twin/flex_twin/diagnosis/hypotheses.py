@@ -74,6 +74,7 @@ import numpy as np
 
 from flex_model.effects import EFFECT_TYPES
 from flex_model.sensors import Sensor, declared_tip_gauge, with_tip_gauge
+from . import spatial_loop
 
 FRICTION_EPS = 1e-3
 STRIBECK_VELOCITY = 0.05
@@ -154,6 +155,9 @@ class Hypothesis:
         """(names, values, half-widths) as the updated arm states them: friction's
         break-away torque ``static`` (coulomb + excess), a link's Young's modulus ``E``."""
         v, w = list(values), list(halfwidths)
+        plane = spatial_loop.physical(self, v, w, twin)
+        if plane is not None:
+            return plane
         if self.names == ("coulomb", "static_excess"):   # sticking only: viscous 0
             return ("coulomb", "static"), [v[0], v[0] + v[1]], \
                 [w[0], float(np.hypot(w[0], w[1]))]
@@ -172,6 +176,8 @@ class Hypothesis:
     def apply(self, arm, x):
         """(arm with the effect, sensors bias vector or None)."""
         v = self.values(x)
+        if spatial_loop.is_spatial(arm):
+            return spatial_loop.apply(self, arm, v, (STRIBECK_VELOCITY, FRICTION_EPS))
         E = EFFECT_TYPES
         k = self.kind
         if k == "payload":
@@ -385,7 +391,10 @@ def library_hypotheses(arm, rec, controller, exclude=(), twin_peaks=None) -> lis
     """Every hypothesis for this arm and recording (scales from the measured torque and
     speed levels); ``exclude``: labels already accepted; ``twin_peaks``: the largest
     command of the current twin per joint (the torque a saturation would clip; default:
-    the measured command's)."""
+    the measured command's). A spatial arm: :func:`.spatial_loop.hypotheses`."""
+    if spatial_loop.is_spatial(arm):
+        out = spatial_loop.hypotheses(arm, rec, _h, (MOTOR_INERTIA, MOTOR_RANGE, MOTOR_PROBE))
+        return [h for h in out if h.label not in exclude]
     taus = rec.stack("tau")
     rates = rec.stack("v")
     out = []

@@ -10,6 +10,9 @@ CSV columns (header row, SI units, radians, joints and links numbered from 1):
 ``tau<i>``     actuator command of joint i (N m, or V for dc_motor)    required
 ``qset<i>``    reference (set-point) of joint i (rad)                  required
 ``w<i>``       tip deflection of link i normal to its root tangent (m) optional
+``wz<i>``,     spatial arms: the tip's out-of-plane deflection (m, along  optional
+``phi<i>``     the beam's z, EI_y) and twist (rad, GJ) of link i in its
+               root frame (``w<i>``: in-plane, along y; spatial_loop.py)
 ``tip_x``,     position of the arm's end in the base frame (m)         optional
 ``tip_y``
 ``tau_ff<i>``  recorded feed-forward (``feedforward: recorded``)       optional
@@ -36,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 #: the residual channels the replay predicts, in this order, per joint/link index
-MEASURED_KINDS = ("q", "v", "tau", "w")
+MEASURED_KINDS = ("q", "v", "tau", "w", "wz", "phi")
 MIN_SAMPLES = 50
 #: optional link-side encoder channels of elastic joints (angle, rate), paired
 LINK_KINDS = ("ql", "vl")

@@ -81,13 +81,15 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
         for j in range(nj):
             u[j] = cmd[k - delay[j], j] if k >= delay[j] else 0.0
         t = k * per_period * h
-        a = consistent_acceleration(t, x, P, E)
+        a0 = consistent_acceleration(t, x, P, E)
         Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-            t, x, a, a.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+            t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
         if status == 2:   # Newton stalled (a sharp corner: backlash, friction): the period
-            # again in SUBSTEPS steps per step (bit-identical runs where it converges)
+            # again in SUBSTEPS steps per step from the last accepted state x and its
+            # consistent acceleration a0, not the failed attempt's (bit-identical runs
+            # where it converges)
             Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-                t, x, a, a.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
+                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
                 rho_inf, 1e-10, 1e6, P, E)
         if status != 0:
             return X, cmd, status, t_stop
