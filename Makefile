@@ -30,8 +30,13 @@ test: venv
 	cd $(ROOT) && $(ENV) && ROS_PYTHON_CHECK_FIELDS=1 \
 	    python -m pytest -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS) $(TEST_DIRS)
 
+# NUMBA_OPT unset: the demo compiles its kernels at LLVM -O1 into the tests' cache, as
+# conftest.py does (a third less compile time on a fresh clone, the same numbers; the demo's
+# loop is bound by its recorder, not the kernel: docs/development.md, fast feedback)
 demo: venv
-	cd $(ROOT) && $(ENV) && flex-twin twin-demo $(DEMO_ARGS)
+	cd $(ROOT) && $(ENV) && if [ -z "$${NUMBA_OPT:-}" ]; then export NUMBA_OPT=1 \
+	    NUMBA_CACHE_DIR="$${NUMBA_CACHE_DIR:-$(ROOT)/.numba_test_cache}"; fi \
+	    && flex-twin twin-demo $(DEMO_ARGS)
 
 bench: venv
 	@cd $(ROOT) && if [ -f bench/run_all.py ]; then $(ENV) && python bench/run_all.py; \

@@ -1,6 +1,7 @@
 """Benchmark: the hub-less arm's floor against a converged Exudyn run (issue 47, item 1).
 
     python bench/bench_hubless_floor.py [--duration 1.0] [--quick]   # ~5 / 2 CPU-min
+    python bench/bench_hubless_floor.py --own-convergence --duration 0.3   # ours only
 
 The scenario of bench/bench_stiff_hubless_exudyn.py (two 2 m aluminium links, no hub
 inertia, PD 625 / 176.8, a 15 deg set-point step on joint 2 at 0.1 s, 1 s, both sides
@@ -12,7 +13,8 @@ elements per link at h = 1/64 ms (Newton 1e-5 absolute), ours against its finest
   glued end bodies, the axial stiffness EA x 10 (its links are extensible, ours not);
 - ours: ``second_order`` against ``exact`` kinematics, the restart at the set-point step
   (before: the consistent restart; now: simulate._exact_jump_step), the variables per
-  link and the step.
+  link, the step and the axial strain variables per link (``axial_vars``: extensible
+  links, exact_kinematics).
 
 Columns: largest |w_i - w_i,ref| (mm, and % of each link's largest |w|), largest distance
 of the end of link 2 (mm), largest joint angle difference (deg). The acceptance: the
@@ -41,14 +43,21 @@ EXU_ROWS = [("h 1/32 ms (twice the step)", [32, 1e-3 / 32, 1]),
             ("glued bodies 1e-8 kg, 1e-14 kg m^2",
              [32, 1e-3 / 64, 1, {"glue_mass": 1e-8, "glue_inertia": 1e-14}]),
             ("EA x 10 (nearly inextensible)", [32, 1e-3 / 64, 1, {"ea_scale": 10.0}])]
-OUR_ROWS = [("second_order, 16 vars, 1/32 ms", "second_order", 16, 1e-3 / 32, False),
-            ("exact, 16 vars, 1/16 ms, consistent restart", "exact", 16, 1e-3 / 16, True),
-            ("exact, 8 vars, 1/16 ms", "exact", 8, 1e-3 / 16, False),
-            ("exact, 12 vars, 1/16 ms", "exact", 12, 1e-3 / 16, False),
-            ("exact, 16 vars, 1/16 ms", "exact", 16, 1e-3 / 16, False),
-            ("exact, 16 vars, 1/8 ms", "exact", 16, 1e-3 / 8, False),
-            ("exact, 16 vars, 1/4 ms", "exact", 16, 1e-3 / 4, False),
-            ("exact, 24 vars, 1/16 ms", "exact", 24, 1e-3 / 16, False)]
+OUR_ROWS = [("second_order, 16 vars, 1/32 ms", "second_order", 16, 1e-3 / 32, False, 0),
+            ("exact, 16 vars, 1/16 ms, consistent restart", "exact", 16, 1e-3 / 16, True, 0),
+            ("exact, 8 vars, 1/16 ms", "exact", 8, 1e-3 / 16, False, 0),
+            ("exact, 12 vars, 1/16 ms", "exact", 12, 1e-3 / 16, False, 0),
+            ("exact, 16 vars, 1/16 ms", "exact", 16, 1e-3 / 16, False, 0),
+            ("exact, 16 vars, 1/8 ms", "exact", 16, 1e-3 / 8, False, 0),
+            ("exact, 16 vars, 1/4 ms", "exact", 16, 1e-3 / 4, False, 0),
+            ("exact, 24 vars, 1/16 ms", "exact", 24, 1e-3 / 16, False, 0),
+            ("exact, 16 vars, 1/8 ms, axial 1", "exact", 16, 1e-3 / 8, False, 1),
+            ("exact, 16 vars, 1/8 ms, axial 2", "exact", 16, 1e-3 / 8, False, 2),
+            ("exact, 16 vars, 1/8 ms, axial 4", "exact", 16, 1e-3 / 8, False, 4),
+            ("exact, 16 vars, 1/16 ms, axial 2", "exact", 16, 1e-3 / 16, False, 2),
+            ("exact, 24 vars, 1/8 ms, axial 2", "exact", 24, 1e-3 / 8, False, 2)]
+#: the --quick rows: the kinematics, the restart, 8 and 16 variables, the axial variables
+QUICK_ROWS = [0, 1, 2, 4, 5, 8, 9, 10, 11]
 
 
 def consistent_restart():
@@ -78,6 +87,53 @@ def consistent_restart():
     return patched()
 
 
+def filtered_restart():
+    """exact_kinematics.restart_acceleration forced to the filtered branch (a + S^-1 B dA)
+    at every step size: a context manager for --own-convergence."""
+    import contextlib
+
+    import flex_model.exact_kinematics as ek
+    from flex_model.kernels import solve_spd
+
+    def forced(t, x, a, h, rho_inf, X, E):
+        n = E[0].shape[0]
+        B, rhs = ek.balance(t, x[:n], x[n:2 * n], X, E)
+        S = ek.iteration_matrix(x, h, rho_inf, X, E)[0]
+        return a + np.linalg.solve(S, B @ (solve_spd(B, rhs) - a)), True
+
+    @contextlib.contextmanager
+    def patched():
+        keep = ek.restart_acceleration
+        ek.restart_acceleration = forced
+        try:
+            yield
+        finally:
+            ek.restart_acceleration = keep
+    return patched()
+
+
+def own_convergence(dur) -> int:
+    """Ours alone (16 variables, axial_vars 2): 1/8, 1/16 ms against 1/32 ms, with the
+    default restart rule (consistent from 1/32 ms down here) and the filtered one forced."""
+    runs = {}
+    for forced in (False, True):
+        for k in (8, 16, 32):
+            if forced:
+                with filtered_restart():
+                    runs[forced, k] = hx.our_run(16, 1e-3 / k, dur, kinematics="exact",
+                                                 axial_vars=2)
+            else:
+                runs[forced, k] = hx.our_run(16, 1e-3 / k, dur, kinematics="exact",
+                                             axial_vars=2)
+    header(f"ours, 16 variables, axial_vars 2, {dur:g} s, against ours at 1/32 ms")
+    for forced in (False, True):
+        for k in (8, 16):
+            row(f"1/{k} ms, {'filtered restart forced' if forced else 'default restart'}",
+                runs[forced, k], runs[forced, 32])
+    row("1/32 ms default against 1/32 ms forced", runs[False, 32], runs[True, 32])
+    return 0
+
+
 def compare(run, ref) -> tuple:
     """(w error mm per link, % of each link's largest |w|, end of link 2 mm, q deg)."""
     a, b = np.asarray(run["data"]), np.asarray(ref["data"])
@@ -105,12 +161,17 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=1.0)
     ap.add_argument("--quick", action="store_true",
-                    help="the acceptance rows only (Exudyn: the step and EA; ours: the "
-                         "kinematics, the restart, 8 and 16 variables)")
+                    help="the acceptance rows only (Exudyn: the step, 64 elements and EA; "
+                         "ours: QUICK_ROWS)")
+    ap.add_argument("--own-convergence", action="store_true",
+                    help="ours only: the step convergence with the default and the forced "
+                         "filtered restart (no Exudyn)")
     args = ap.parse_args()
     dur = args.duration
-    exu_rows = [EXU_ROWS[0], EXU_ROWS[-1]] if args.quick else EXU_ROWS
-    our_rows = OUR_ROWS[:3] + OUR_ROWS[4:6] if args.quick else OUR_ROWS
+    if args.own_convergence:
+        return own_convergence(dur)
+    exu_rows = [EXU_ROWS[0], EXU_ROWS[1], EXU_ROWS[-1]] if args.quick else EXU_ROWS
+    our_rows = [OUR_ROWS[k] for k in QUICK_ROWS] if args.quick else OUR_ROWS
     t0 = time.perf_counter()
     exu = hx.call_peer([EXU_REF, EXU_BASE] + [r for _, r in exu_rows], dur)
     if exu is None or not exu[0]["ok"]:
@@ -130,17 +191,17 @@ def main() -> int:
     hx.our_run(8, 1e-3, 0.002, kinematics="exact")   # numba load / compile
     header("ours against Exudyn's reference")
     best = None
-    for name, kin, nv, h, old in our_rows:
+    for name, kin, nv, h, old, na in our_rows:
         if old:
             with consistent_restart():
                 r = hx.our_run(nv, h, dur, kinematics=kin)
         else:
-            r = hx.our_run(nv, h, dur, kinematics=kin)
+            r = hx.our_run(nv, h, dur, kinematics=kin, axial_vars=na)
         if not r["ok"]:
             print(f"{name:<46} failed: {r.get('error', 'non-finite')[:50]}")
             continue
         mm, pct, tip, dq = row(name, r, ref, f"{r['cpu_s'] / dur:.2f} CPU-s/s")
-        if kin == "exact" and not old and nv >= 16 and (best is None or tip < best[1]):
+        if kin == "exact" and not old and nv >= 16 and na and (best is None or tip < best[1]):
             best = (name, tip, pct.max(), r)
     if best is not None:
         ok = best[1] < 0.02 and best[2] < 0.3
@@ -152,6 +213,17 @@ def main() -> int:
         print(f"the same against Exudyn's h -> 0 limit (2 x its 1/128 ms run - its 1/64 ms "
               f"run): {mm[0]:.4f} / {mm[1]:.4f} mm, {pct[0]:.3f} / {pct[1]:.3f} %, end of "
               f"link 2 {tip:.4f} mm, q {dq:.6f} deg")
+        # the reference's own error bar: its step (O(h): about its distance to the
+        # 1/64 ms run) and its elements (64 against 32, at 1/64 ms)
+        e64 = [r for (n, _), r in zip(exu_rows, exu[2:]) if n.startswith("64") and r["ok"]]
+        bar_h = compare(ref, lim)
+        line = (f"Exudyn reference's error bar: step {bar_h[0].max():.4f} mm (deflections), "
+                f"{bar_h[2]:.4f} mm (end of link 2) against its h -> 0 limit")
+        if e64:
+            bar_s = compare(e64[0], exu[1])
+            line += (f"; elements {bar_s[0].max():.4f} mm, {bar_s[2]:.4f} mm (64 against "
+                     f"32 at 1/64 ms)")
+        print(line)
     return 0
 
 

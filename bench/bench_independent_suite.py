@@ -61,9 +61,10 @@ KEY_PARAMETERS = {"joint_friction": ("viscous", "coulomb"), "payload": ("mass",)
                   "stiffness": ("E",), "structural_damping": ("rayleigh_stiffness",),
                   "sensor_bias": ("bias",), "joint_elasticity": ("stiffness",),
                   "torque_saturation": ("limit",)}
-TARGETS = {"healthy_none": 0.95, "right_when_material": 0.90, "wrong_name_runs": 0.05,
-           "parameter_error_median": 0.10, "two_both_named": 0.80,
-           "holdout_reduction_median": 0.80, "wall_s_median": 120.0, "wall_s_max": 240.0}
+#: issue 44's acceptance (wall: per 20 s run on 2 cores)
+TARGETS = {"healthy_none": 0.95, "right_when_material": 0.95, "wrong_name_runs": 0.03,
+           "parameter_error_median": 0.05, "two_both_named": 0.90,
+           "holdout_reduction_median": 0.80, "wall_s_median": 30.0, "wall_s_max": 120.0}
 NONE = "no material discrepancy"
 
 
@@ -193,33 +194,38 @@ def _fmt(v, key):
 
 
 LABELS = {
-    "healthy_none": ("healthy -> \"no material discrepancy\"", ">= 0.95"),
-    "right_when_material": ("right effect (its class) named, material one-effect runs",
-                            ">= 0.90"),
-    "right_all_effect_runs": ("right effect (its class) named, all one-effect runs", ""),
-    "effect_runs_material": ("runs with an effect the gate finds material", ""),
-    "wrong_name_runs": ("runs with a wrong name added (all runs)", "<= 0.05"),
-    "parameter_error_median": ("parameter error of the named hidden effects, median",
-                               "<= 10 %"),
-    "two_both_named": ("two-effect runs: both named", ">= 0.80"),
-    "two_at_least_one_named": ("two-effect runs: at least one named", ""),
-    "holdout_reduction_median": ("held-out error reduction, median (runs with an effect)",
-                                 ">= 0.80"),
-    "wall_s_median": ("wall time per diagnosis, median", "<= 120 s"),
-    "wall_s_max": ("wall time per diagnosis, max", "<= 240 s"),
-    "cpu_s_median": ("CPU time per diagnosis (all its processes), median",
-                     "(<= 240 s: 2 min on 2 cores)"),
-    "cpu_s_max": ("CPU time per diagnosis (all its processes), max", ""),
+    "healthy_none": "healthy -> \"no material discrepancy\"",
+    "right_when_material": "right effect (its class) named, material one-effect runs",
+    "right_all_effect_runs": "right effect (its class) named, all one-effect runs",
+    "effect_runs_material": "runs with an effect the gate finds material",
+    "wrong_name_runs": "runs with a wrong name added (all runs)",
+    "parameter_error_median": "parameter error of the named hidden effects, median",
+    "two_both_named": "two-effect runs: both named",
+    "two_at_least_one_named": "two-effect runs: at least one named",
+    "holdout_reduction_median": "held-out error reduction, median (runs with an effect)",
+    "wall_s_median": "wall time per diagnosis, median",
+    "wall_s_max": "wall time per diagnosis, max",
+    "cpu_s_median": "CPU time per diagnosis (all its processes), median",
+    "cpu_s_max": "CPU time per diagnosis (all its processes), max",
 }
+#: figures that must stay at or below their target (the others: at or above)
+AT_MOST = ("wrong_name_runs", "parameter_error_median", "wall_s_median", "wall_s_max")
+
+
+def _target(key: str) -> str:
+    """The target of a figure as printed (from TARGETS, so a suite's own targets show)."""
+    if TARGETS.get(key) is None:
+        return ""
+    return ("<= " if key in AT_MOST else ">= ") + _fmt(TARGETS[key], key)
 
 
 def table(summary: dict, rows: list) -> str:
     lines = [f"Independent (Exudyn) suite: {summary['cases']} cases diagnosed "
              f"({summary['failed']} failed)", "",
              "| figure | value | runs | target |", "|---|---|---|---|"]
-    for k, (label, target) in LABELS.items():
+    for k, label in LABELS.items():
         fig = summary["figures"][k]
-        lines.append(f"| {label} | {_fmt(fig['value'], k)} | {fig['n']} | {target} |")
+        lines.append(f"| {label} | {_fmt(fig['value'], k)} | {fig['n']} | {_target(k)} |")
     loads = [r["load"] for r in rows if r.get("load") is not None]
     if loads:
         lines += ["", f"Load average (1 min) at the end of each diagnosis: median "
@@ -263,9 +269,15 @@ def _cpu_s(executor) -> float:
     return total
 
 
-def run_case(case: Path, out: Path, executor, progress: bool = False) -> dict:
+def read_truth(case: Path) -> dict:
+    return yaml.safe_load((case / "truth.yaml").read_text())
+
+
+def run_case(case: Path, out: Path, executor, progress: bool = False,
+             truth_of=read_truth) -> dict:
+    """Diagnose one case as a user would and score it against its truth."""
     from flex_twin.diagnosis.batch import RunSpec, diagnose_run
-    truth = yaml.safe_load((case / "truth.yaml").read_text())
+    truth = truth_of(case)
     row = {"case": case.name, "hidden": truth.get("hidden") or [],
            "expected": truth.get("expected")}
     run = RunSpec.from_case_dir(case)
@@ -283,17 +295,20 @@ def run_case(case: Path, out: Path, executor, progress: bool = False) -> dict:
     return row
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--suite", default=str(ROOT / "runs" / "independent_suite"))
-    ap.add_argument("--subset", default="stratified",
+def main(argv=None, doc=__doc__, suite_name="independent_suite", subset="stratified", workers=2,
+         truth_of=read_truth, title=None) -> int:
+    """The suite's command line; bench_spatial_suite.py calls it with its own suite."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--suite", default=str(ROOT / "runs" / suite_name))
+    ap.add_argument("--subset", default=subset,
                     help="stratified (default), all, or case-id patterns a,b,c (fnmatch)")
     ap.add_argument("--limit", type=int, default=None, help="at most N cases")
     ap.add_argument("--max-minutes", type=float, default=None,
                     help="start no case after this many minutes")
-    ap.add_argument("--workers", type=int, default=2, help="local processes of a diagnosis")
-    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "independent_suite"))
-    ap.add_argument("--runs-dir", default=str(ROOT / "runs" / "bench_independent_suite"),
+    ap.add_argument("--workers", type=int, default=workers,
+                    help="local processes of a diagnosis")
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / suite_name))
+    ap.add_argument("--runs-dir", default=str(ROOT / "runs" / f"bench_{suite_name}"),
                     help="where each diagnosis writes its report")
     ap.add_argument("--resume", action="store_true", help="keep the results of cases done")
     ap.add_argument("--progress", action="store_true",
@@ -310,8 +325,8 @@ def main(argv=None) -> int:
     suite = Path(args.suite)
     if not args.report_only:
         if not suite.is_dir():
-            print(f"{suite}: no suite (python3 bench/independent_suite/generate.py --out "
-                  f"{suite})", file=sys.stderr)
+            print(f"{suite}: no suite (generate it: bench/independent_suite/, see "
+                  f"--help)", file=sys.stderr)
             return 2
         cases = list_cases(suite, args.subset)
         if args.limit is not None:
@@ -328,11 +343,12 @@ def main(argv=None) -> int:
                     print(f"--max-minutes {args.max_minutes:g} reached: {k - 1} of "
                           f"{len(cases)} cases", file=sys.stderr)
                     break
-                row = run_case(suite / name, Path(args.runs_dir), ex, args.progress)
+                row = run_case(suite / name, Path(args.runs_dir), ex, args.progress, truth_of)
                 done[name] = row
                 what = row.get("error") or (f"{row['score']['verdict']}; "
                                             f"{', '.join(row['score']['named']) or '-'}")
-                print(f"[{k}/{len(cases)}] {name}: {what} ({row['wall_s']:.0f} s)",
+                print(f"[{k}/{len(cases)}] {name}: {what} ({row['wall_s']:.0f} s wall, "
+                      f"{row.get('cpu_s') or 0:.0f} s CPU)",
                       file=sys.stderr, flush=True)
                 res_path.write_text(json.dumps({"runs": list(done.values())}, indent=1,
                                                default=float))
@@ -342,6 +358,8 @@ def main(argv=None) -> int:
     rows = sorted(done.values(), key=lambda r: r["case"])
     summary = summarise(rows)
     text = table(summary, rows)
+    if title:
+        text = text.replace("Independent (Exudyn) suite", title)
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
     (out / "summary.md").write_text(text)
     print(text)

@@ -37,8 +37,8 @@ def planar_errors(duration, nv, rhos, steps_ms, ref_ms):
 
 def spatial_errors(duration, rhos, steps_ms, ref_ms):
     """{(rho, step): link 1's y tip deflection error in % of its largest change}."""
-    from flex_model.spatial.scenario import load_spatial_scenario
-    base = load_spatial_scenario("seed000_3d_pd_step")
+    from flex_model.scenario import load_scenario
+    base = load_scenario("seed000_3d_pd_step")
 
     def tip_y(h, rho):
         run = replace(base, duration=duration, step=1e-3 * h, rho_inf=rho).run()

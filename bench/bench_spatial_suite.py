@@ -15,10 +15,7 @@ wrong names, both effects of two-effect runs, parameter error). The truth's
 """
 from __future__ import annotations
 
-import argparse
-import json
 import sys
-import time
 from pathlib import Path
 
 import yaml
@@ -36,9 +33,6 @@ CLASSES = {"joint_friction": ("joint_friction",), "payload": ("payload",),
 KEY_PARAMETERS = {"joint_friction": ("viscous", "coulomb"), "payload": ("mass",),
                   "joint_elasticity": ("stiffness",), "bending_stiffness_y": ("EI_y",),
                   "bending_stiffness_z": ("EI_z",), "torsion_stiffness": ("GJ",)}
-#: issue 44's acceptance for the spatial suite
-TARGETS = {"healthy_none": 0.95, "right_all_effect_runs": 0.95, "wrong_name_runs": 0.03,
-           "two_both_named": 0.90, "parameter_error_median": 0.05}
 
 
 def _nominal_sections(case: Path) -> list:
@@ -66,74 +60,14 @@ def spatial_truth(case: Path) -> dict:
     return truth
 
 
-def run_case(case: Path, out: Path, executor, progress: bool = False) -> dict:
-    from flex_twin.diagnosis.batch import RunSpec, diagnose_run
-    truth = spatial_truth(case)
-    row = {"case": case.name, "hidden": truth["hidden"], "expected": truth.get("expected")}
-    t0, c0 = time.perf_counter(), planar._cpu_s(executor)
-    try:
-        s = diagnose_run(RunSpec.from_case_dir(case), str(out / case.name), plots=False,
-                         executor=executor, progress=progress)
-    except (ValueError, FileNotFoundError, ArithmeticError) as exc:
-        row.update(error=f"{type(exc).__name__}: {exc}", wall_s=time.perf_counter() - t0,
-                   cpu_s=planar._cpu_s(executor) - c0)
-        return row
-    import os
-    row.update(wall_s=time.perf_counter() - t0, cpu_s=planar._cpu_s(executor) - c0,
-               load=os.getloadavg()[0], score=planar.score(truth, s), stop=s.get("stop"),
-               cost=s.get("cost"))
-    return row
-
-
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--suite", default=str(ROOT / "runs" / "spatial_suite"))
-    ap.add_argument("--subset", default="all", help="all, or case-id patterns a,b (fnmatch)")
-    ap.add_argument("--workers", type=int, default=1, help="local processes of a diagnosis")
-    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "spatial_suite"))
-    ap.add_argument("--runs-dir", default=str(ROOT / "runs" / "bench_spatial_suite"))
-    ap.add_argument("--resume", action="store_true")
-    ap.add_argument("--progress", action="store_true")
-    ap.add_argument("--report-only", action="store_true")
-    args = ap.parse_args(argv)
+    """The planar suite's command line on the spatial suite, with its classes and truth."""
     planar.CLASSES.clear()
     planar.CLASSES.update(CLASSES)
     planar.KEY_PARAMETERS.clear()
     planar.KEY_PARAMETERS.update(KEY_PARAMETERS)
-    planar.TARGETS.update(TARGETS)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    res_path = out / "results.json"
-    done = {}
-    if (args.resume or args.report_only) and res_path.is_file():
-        done = {r["case"]: r for r in json.loads(res_path.read_text())["runs"]}
-    if not args.report_only:
-        cases = planar.list_cases(Path(args.suite), args.subset)
-        from flex_twin.cluster import local_executor
-        ex = local_executor(args.workers)
-        try:
-            for k, name in enumerate(cases, 1):
-                if name in done:
-                    continue
-                row = run_case(Path(args.suite) / name, Path(args.runs_dir), ex, args.progress)
-                done[name] = row
-                what = row.get("error") or (f"{row['score']['verdict']}; "
-                                            f"{', '.join(row['score']['named']) or '-'}")
-                print(f"[{k}/{len(cases)}] {name}: {what} ({row['wall_s']:.0f} s wall, "
-                      f"{row.get('cpu_s') or 0:.0f} s CPU)", file=sys.stderr, flush=True)
-                res_path.write_text(json.dumps({"runs": list(done.values())}, indent=1,
-                                               default=float))
-        finally:
-            if hasattr(ex, "shutdown"):
-                ex.shutdown()
-    rows = sorted(done.values(), key=lambda r: r["case"])
-    summary = planar.summarise(rows)
-    text = planar.table(summary, rows).replace("Independent (Exudyn) suite",
-                                               "Spatial independent (Exudyn) suite")
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
-    (out / "summary.md").write_text(text)
-    print(text)
-    return 0
+    return planar.main(argv, doc=__doc__, suite_name="spatial_suite", subset="all", workers=1,
+                       truth_of=spatial_truth, title="Spatial independent (Exudyn) suite")
 
 
 if __name__ == "__main__":

@@ -37,7 +37,7 @@ import numpy as np
 from flex_model.arm import PRESET_DIR
 from flex_model.config import read_yaml
 from flex_model.scenario import scenario_from_dict
-from flex_model.spatial.scenario import load_spatial_scenario
+from flex_model.scenario import load_scenario
 from flex_model.step_advice import TOLERANCE, tip_error
 
 DURATION = 0.5
@@ -73,7 +73,7 @@ def sag(kin: str, nv: int, step: float):
 
 def spatial(preset: str):
     def make(kin: str, nv: int, step: float):
-        sc = load_spatial_scenario(preset)
+        sc = load_scenario(preset)
         pulse = dataclasses.replace(sc.pulses[0], start=0.3, end=0.35)
         sc = dataclasses.replace(sc, duration=DURATION, step=step, pulses=(pulse,),
                                  arm=dataclasses.replace(sc.arm, kinematics=kin))
@@ -101,11 +101,7 @@ ARMS = {
 
 def tips_and_advice(sc, advise: bool):
     """(tip deflections, warning, estimate) of a planar or a spatial scenario."""
-    if hasattr(sc, "tips"):        # spatial
-        tips = sc.tips()
-        warning, est = sc.advice() if advise else (None, None)
-        return tips, warning, est
-    tips = sc.run(advise=False).tip_deflections
+    tips = sc.tips() if hasattr(sc, "tips") else sc.run(advise=False).tip_deflections
     if not advise:
         return tips, None, None
     adv = sc.advice()

@@ -34,13 +34,14 @@ CASE = {"kp": 625.0, "kd": 176.8, "joint": 2, "deg": 15.0}
 
 
 def scenario(duration: float, nv: int, step: float, rho_inf: float,
-             kinematics: str = "second_order"):
+             kinematics: str = "second_order", axial_vars: int = 0):
     kp, kd = CASE["kp"], CASE["kd"]
     target = [0.0, 0.0]
     target[CASE["joint"] - 1] = CASE["deg"]
     return scenario_from_dict({
         "name": "hubless_two_link", "arm": "thesis_example1", "vars_per_link": nv,
-        "kinematics": kinematics, "duration": duration, "sample_period": 1e-3,
+        "kinematics": kinematics, "axial_vars": axial_vars, "duration": duration,
+        "sample_period": 1e-3,
         "initial": {"joint_angles_deg": [0.0, 0.0], "state": "static"},
         "control": {"pd": {"kp": [kp, kp], "kd": [kd, kd], "setpoints_deg": [0.0, 0.0]},
                     "setpoint_schedule": [{"time": 0.1, "setpoints_deg": target}]},

@@ -232,13 +232,15 @@ def call_peer(runs, duration) -> list | None:
 
 # ------------------------------------------------------------------ ours (main venv)
 def our_run(nv: int, step: float, duration: float, repeat: int = 1,
-            rho_inf: float = 0.9, kinematics: str = "second_order") -> dict:
-    """The scenario of bench_stiff_hubless.py; CPU of the integration (static solve apart)."""
+            rho_inf: float = 0.9, kinematics: str = "second_order",
+            axial_vars: int = 0) -> dict:
+    """The scenario of bench_stiff_hubless.py; CPU of the integration (static solve apart);
+    axial_vars: axial strain variables per link (kinematics exact only)."""
     import numpy as np
     if BENCH_DIR not in sys.path:
         sys.path.insert(0, BENCH_DIR)
     from bench_stiff_hubless import scenario
-    sc = scenario(duration, nv, step, rho_inf, kinematics)
+    sc = scenario(duration, nv, step, rho_inf, kinematics, axial_vars)
     model = sc.model()
     best = None
     for _ in range(repeat):

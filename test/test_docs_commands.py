@@ -136,9 +136,8 @@ def presets() -> tuple[set, set]:
     from flex_model.arm import preset_names
     from flex_model.scenario import scenario_names
     from flex_model.spatial.description import SPATIAL_PRESET_DIR
-    from flex_model.spatial.scenario import spatial_scenario_names
     spatial = {p.stem for p in SPATIAL_PRESET_DIR.glob("*.yaml")}
-    return set(preset_names()) | spatial, set(scenario_names()) | set(spatial_scenario_names())
+    return set(preset_names()) | spatial, set(scenario_names()) | set(scenario_names(spatial=True))
 
 
 @functools.lru_cache(maxsize=None)

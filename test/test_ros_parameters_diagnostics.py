@@ -109,7 +109,7 @@ def test_diagnostics_status_every_second_in_every_mode(ctx, mode):
     ns = f"/g{uuid.uuid4().hex[:8]}"
     factory = ModelNode
     if mode.startswith("spatial"):  # the spatial arm's node (issue 25) too
-        from flex_model.spatial_node import SpatialModelNode as factory
+        from flex_model.model_node import SpatialModelNode as factory
     node = factory(context=ctx, namespace=ns, parameter_overrides=MODES[mode])
     probe = rclpy.create_node("diagnostics_probe", context=ctx)
     got = []

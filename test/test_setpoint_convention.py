@@ -8,7 +8,6 @@ import pytest
 
 from flex_model.config import ConfigError
 from flex_model.scenario import scenario_from_dict
-from flex_model.spatial.scenario import spatial_scenario_from_dict
 
 PLANAR = {"name": "p", "arm": "seed002_two_link", "gravity": False, "duration": 0.01,
           "sample_period": 0.01}
@@ -28,7 +27,7 @@ def planar(initial, pd, step):
 
 
 def spatial(arm, initial, pd, step, n=1):
-    return spatial_scenario_from_dict(dict(SPATIAL, arm=arm, initial=initial, control={
+    return scenario_from_dict(dict(SPATIAL, arm=arm, initial=initial, control={
         "pd": dict({"kp": [0.2] * n, "kd": [0.03] * n}, **pd),
         "setpoint_schedule": [dict({"time": 0.005}, **step)]}))
 
@@ -81,7 +80,7 @@ def test_one_schedule_rule_in_both_formats():
             scenario_from_dict(dict(PLANAR, control={"pd": {"kp": [1.0, 1.0], "kd": [1.0, 1.0]},
                                                      "setpoint_schedule": steps}))
         with pytest.raises(ConfigError, match=r"setpoint_schedule\[1\]\.time"):
-            spatial_scenario_from_dict(dict(SPATIAL, control={
+            scenario_from_dict(dict(SPATIAL, control={
                 "pd": {"kp": [0.2], "kd": [0.03]},
                 "setpoint_schedule": [dict(s, setpoints=s["setpoints"][:1]) for s in steps]}))
     sc = scenario_from_dict(dict(PLANAR, control={"pd": {"kp": [1.0, 1.0], "kd": [1.0, 1.0]},

@@ -30,7 +30,7 @@ setup(
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*']),
     package_data={package_name: ['presets/*.yaml', 'presets/scenarios/*.yaml',
-                                'presets/spatial/*.yaml', 'presets/spatial/*.urdf']},
+                                 'presets/spatial/*.yaml', 'presets/spatial/*.urdf']},
     data_files=data_files,
     install_requires=['numpy', 'scipy', 'numba', 'pyyaml', 'matplotlib'],
     extras_require={'test': ['pytest']},
@@ -44,8 +44,8 @@ setup(
         'console_scripts': [
             'flex-model-node = flex_model.model_node:main',
             'model_node = flex_model.model_node:main',
-            'flex-spatial-model-node = flex_model.spatial_node:main',
-            'spatial_model_node = flex_model.spatial_node:main',
+            'flex-spatial-model-node = flex_model.model_node:spatial_main',
+            'spatial_model_node = flex_model.model_node:spatial_main',
         ],
     },
 )

@@ -5,6 +5,7 @@ Example (the thesis Example 1 arm)::
     name: thesis_example1
     gravity: [0.0, -9.81]            # m/s^2 in the base frame
     kinematics: small_deflection     # thesis Eq. 1; second_order (axial shortening); exact
+    axial_vars: 0                    # exact only: axial strain variables per link (stretch)
     payload: {mass: 0.0, inertia: 0.0}
     links:
       - name: link1
@@ -60,6 +61,8 @@ PAIRED = ("wavelet", "fem")
 #: exact: the geometrically exact inextensible link (flex_model.exact_kinematics, its own
 #: kernels: flex_model.simulate only)
 KINEMATICS = ("small_deflection", "second_order", "exact")
+#: most axial strain variables per link (Legendre polynomials of the strain, exact only)
+AXIAL_VARS_MAX = 8
 
 
 @dataclass(frozen=True)
@@ -109,6 +112,7 @@ class ArmDescription:
     effects: tuple = ()
     sensors: tuple = ()
     tolerances: tuple = ()      # (name, relative tolerance) overriding NOMINAL_TOLERANCES
+    axial_vars: int = 0         # axial strain variables per link (kinematics: exact only)
 
     def tolerance(self, name: str) -> float:
         """Relative manufacturing tolerance of a nominal parameter (E, rho, section, ...)."""
@@ -151,6 +155,23 @@ class ArmDescription:
             raise ConfigError(self.source, "kinematics", kinematics,
                               f"one of {', '.join(KINEMATICS)}")
         return dataclasses.replace(self, kinematics=kinematics)
+
+    def with_axial_vars(self, n: int) -> "ArmDescription":
+        """The same arm with ``n`` axial strain variables per link (extensible links;
+        flex_model.exact_kinematics): validated by :meth:`check_axial`."""
+        return dataclasses.replace(self, axial_vars=int(n))
+
+    def check_axial(self) -> "ArmDescription":
+        """Refuses (one line) axial variables outside kinematics: exact or their range."""
+        n = self.axial_vars
+        if not 0 <= n <= AXIAL_VARS_MAX:
+            raise ConfigError(self.source, "axial_vars", n,
+                              f"an integer 0..{AXIAL_VARS_MAX}")
+        if n and self.kinematics != "exact":
+            raise ConfigError(self.source, "axial_vars", n,
+                              "0 unless kinematics: exact (the compiled kernels of "
+                              f"{self.kinematics} keep the links inextensible)")
+        return self
 
 
 def _dims(f: Fields, shape: str) -> dict:
@@ -256,6 +277,7 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
     description = f.string("description", "")
     gravity = tuple(f.vector("gravity", 2, [0.0, -9.81], unit="m/s^2"))
     kinematics = f.string("kinematics", "small_deflection", choices=list(KINEMATICS))
+    axial_vars = f.integer("axial_vars", 0, min_value=0, max_value=AXIAL_VARS_MAX)
     pay = f.mapping("payload", {})
     payload_mass = pay.number("mass", 0.0, nonnegative=True, unit="kg")
     payload_inertia = pay.number("inertia", 0.0, nonnegative=True, unit="kg m^2")
@@ -291,7 +313,8 @@ def arm_from_dict(data: dict, source: str = "<memory>") -> ArmDescription:
     return ArmDescription(name=name, links=links, joints=tuple(joints), gravity=gravity,
                           payload_mass=payload_mass, payload_inertia=payload_inertia,
                           description=description, source=source, kinematics=kinematics,
-                          effects=effects, sensors=sensors, tolerances=tolerances)
+                          effects=effects, sensors=sensors, tolerances=tolerances,
+                          axial_vars=axial_vars).check_axial()
 
 
 def preset_names() -> list[str]:

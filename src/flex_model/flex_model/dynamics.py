@@ -87,7 +87,11 @@ class FlexArmModel:
         # elastic joints add a motor coordinate each, after the arm's coordinates
         self.elastic_joints = [i for i, j in enumerate(arm.joint_names)
                                if (e := arm.effect("joint_elasticity", j)) and not e.is_off]
-        self.nq = self.nq_arm + len(self.elastic_joints)
+        # axial strain variables (kinematics: exact) after the motors: na per link
+        self.axial_vars = int(arm.check_axial().axial_vars)
+        first = self.nq_arm + len(self.elastic_joints)
+        self.axial_off = first + self.axial_vars * np.arange(self.n_links, dtype=np.int64)
+        self.nq = first + self.axial_vars * self.n_links
         nq = self.nq
         self.K = np.zeros((nq, nq))
         self.D = np.zeros((nq, nq))
@@ -101,6 +105,11 @@ class FlexArmModel:
             self._Bw[s, s] = b.Bw
             self._h[s] = b.h
             self._k[s] = b.k
+        if self.axial_vars:
+            from .exact_kinematics import axial_stiffness
+            for i, lk in enumerate(arm.links):
+                a = slice(int(self.axial_off[i]), int(self.axial_off[i]) + self.axial_vars)
+                self.K[a, a] = axial_stiffness(lk, self.bases[i].profile, self.axial_vars)
         self.G = np.zeros((self.n_links, nq))
         for i in range(self.n_links):
             self.G[i, self.off[i]] = 1.0
@@ -249,7 +258,8 @@ class FlexArmModel:
         return r
 
     def coordinate_names(self) -> list[str]:
-        """Names of the entries of q: link<i>/alpha, link<i>/delta<k>, link<i>/gamma<k>."""
+        """Names of the entries of q: link<i>/alpha, link<i>/delta<k>, link<i>/gamma<k>,
+        then <joint>/motor and link<i>/axial<k> (the strain's Legendre coefficients)."""
         names = []
         for lk, n in zip(self.arm.links, self.nf):
             names.append(f"{lk.name}/alpha")
@@ -263,6 +273,8 @@ class FlexArmModel:
             for k in range(n // 2):
                 names += [f"{lk.name}/delta{k + 1}", f"{lk.name}/gamma{k + 1}"]
         names += [f"{self.arm.joint_names[i]}/motor" for i in self.elastic_joints]
+        names += [f"{lk.name}/axial{k}" for lk in self.arm.links
+                  for k in range(self.axial_vars)]
         return names
 
     @property

@@ -1,4 +1,5 @@
-"""Geometrically exact kinematics of planar inextensible links (``kinematics: exact``).
+"""Geometrically exact kinematics of planar links (``kinematics: exact``), inextensible
+or, with ``axial_vars``, extensible.
 
 The wavelet variables q_f of a link keep their meaning at small deflections (thesis
 Eq. 1: d(z) = W(z) q_f, Eq. 12), but the slope d' = W' q_f is read as the rotation of the
@@ -31,6 +32,16 @@ evaluation: one compiled sweep (:func:`terms`, ~20 us for 8 variables), linear i
 mass points and quadratic in the variables; flex_model.simulate integrates it in both
 modes (:func:`derivative`, :func:`generalized_alpha`); the kernels of kernels.py and
 integrators.py, and so the Stepper, the control loop and the replays, do not take it.
+
+Axial extensibility (``axial_vars: m``, m variables per link after the arm's and the
+motors' coordinates): the axial strain eps(s) = sum_k u_k P_k(2 s / L - 1) (Legendre
+polynomials of degree < m, the Ritz field of a clamped-free rod: u(0) = 0, the tip free)
+stretches the centre line, r(s) = int_0^s (1 + eps) [cos phi, sin phi] ds, so eps is the
+exact axial strain |r'| - 1 (as in Exudyn's ANCF cable) and the axial energy EA/2 int eps^2
+ds is 1/2 u^T K_a u with the constant K_a of :func:`axial_stiffness`; the curvature stays
+phi' (per undeformed length: the difference is O(eps kappa)). Closed forms in the tests:
+the static stretch F L / EA under a tip force and rho g L^2 / (2 E) hanging under its own
+weight (exact from m = 1 and 2), the clamped-free rod's first axial frequency c / (4 L).
 """
 from __future__ import annotations
 
@@ -43,6 +54,7 @@ from .solvers.galpha import Step, galpha_coefficients, galpha_state, restart_cho
 from .solvers.newton import backtrack_done, residual_norm
 from .solvers.status import FINISHED
 from .kernels import solve_spd
+from .sections import area_and_inertia
 
 _CACHE = True
 
@@ -57,24 +69,53 @@ class ExactKinematicsUnsupported(ValueError):
     """A path or an arm feature the exact kinematics does not support."""
 
 
-def _link_tables(basis, inner: int):
+def _link_tables(basis, inner: int, na: int = 0):
     """Mass points of one link and their integration rule.
 
-    Returns (s, mw, C, Wd): arc lengths of the mass points (the distributed Gauss points,
-    then the tip s = L with mass 0: the model adds M+), their masses (kg), the matrix C
-    (points x inner nodes) with r(s_k) = C[k] @ [cos phi, sin phi] at the inner nodes, and
-    the slopes W' (inner nodes x variables) there.
+    Returns (s, mw, C, Wd, Ua): arc lengths of the mass points (the distributed Gauss
+    points, then the tip s = L with mass 0: the model adds M+), their masses (kg), the
+    matrix C (points x inner nodes) with r(s_k) = C[k] @ (1 + eps) [cos phi, sin phi] at the
+    inner nodes, the slopes W' (inner nodes x variables) and the axial strain shapes
+    (inner nodes x na, :func:`axial_shapes`) there.
     """
     s_out, mw = basis.runtime_quadrature()
     s_out = np.append(s_out, basis.length)
     mw = np.append(mw, 0.0)
-    C, Wd = _rule(basis, s_out, inner)
-    return s_out, mw, C, Wd
+    C, Wd, nodes = _rule(basis, s_out, inner)
+    return s_out, mw, C, Wd, axial_shapes(nodes, basis.length, na)
+
+
+def axial_shapes(s, length: float, na: int) -> np.ndarray:
+    """The axial strain shapes P_k(2 s / L - 1), k < na (Legendre), at arc lengths s."""
+    s = np.asarray(s, float)
+    if na == 0:
+        return np.zeros((len(s), 0))
+    return np.polynomial.legendre.legvander(2.0 * s / length - 1.0, na - 1)
+
+
+def axial_stiffness(link, profile, na: int) -> np.ndarray:
+    """K_a (na x na, N m) of the axial strain variables: int EA P_j P_k ds over the link
+    (Gauss-Legendre per segment, exact for the polynomial sections)."""
+    length = profile.length
+    K = np.zeros((na, na))
+    x, w = np.polynomial.legendre.leggauss(na + 8)
+    for k, seg in enumerate(profile.segments):
+        if seg.shape == "explicit":
+            raise ExactKinematicsUnsupported(
+                f"axial_vars: link {link.name} has an explicit section (EI, m): its EA is "
+                "unknown; give a material and a section shape")
+        a, b = profile.breaks[k], profile.breaks[k + 1]
+        z = a + 0.5 * (b - a) * (x + 1.0)
+        area = area_and_inertia(seg.shape, seg.dims, (z - a) / seg.length)[0]
+        P = axial_shapes(z, length, na)
+        K += (P * (seg.E * area * 0.5 * (b - a) * w)[:, None]).T @ P
+    return K
 
 
 def _rule(basis, s_out, inner: int):
-    """(C, Wd): r(s_k) = C[k] @ [cos phi, sin phi] at the inner nodes, W' there; Gauss-
-    Legendre with ``inner`` points on every piece of [0, s_k] between interval ends."""
+    """(C, Wd, nodes): r(s_k) = C[k] @ [cos phi, sin phi] at the inner nodes, W' there, the
+    nodes; Gauss-Legendre with ``inner`` points on every piece of [0, s_k] between interval
+    ends."""
     cuts = np.unique(np.concatenate([basis.nodes, basis.profile.breaks]))
     xi, wxi = np.polynomial.legendre.leggauss(inner)
     nodes, cols = [], []          # inner nodes; per full piece its column range
@@ -97,7 +138,7 @@ def _rule(basis, s_out, inner: int):
     for k, c0, a, s in partial:
         C[k, c0:c0 + inner] = 0.5 * (s - a) * wxi
     Wd = basis.slope_matrix(np.array(nodes))
-    return np.ascontiguousarray(C), np.ascontiguousarray(Wd)
+    return np.ascontiguousarray(C), np.ascontiguousarray(Wd), np.array(nodes)
 
 
 class ExactKinematics:
@@ -119,7 +160,8 @@ class ExactKinematics:
                                              "take a contact_surface effect yet")
         self.model = model
         self.inner = inner
-        self.tables = [_link_tables(b, inner) for b in model.bases]
+        na = model.axial_vars
+        self.tables = [_link_tables(b, inner, na) for b in model.bases]
         nl = model.n_links
         # the tables padded into arrays for the compiled sweep (terms)
         npt = np.array([len(t[0]) for t in self.tables], dtype=np.int64)
@@ -128,11 +170,23 @@ class ExactKinematics:
         self._C = np.zeros((nl, npt.max(), nin.max()))
         self._Wd = np.zeros((nl, nin.max(), nfm))
         self._mw = np.zeros((nl, npt.max()))
-        for i, (s_out, mw, C, Wd) in enumerate(self.tables):
+        self._Ua = np.zeros((nl, nin.max(), max(na, 1)))
+        for i, (s_out, mw, C, Wd, Ua) in enumerate(self.tables):
             self._C[i, :npt[i], :nin[i]] = C
             self._Wd[i, :nin[i], :Wd.shape[1]] = Wd
             self._mw[i, :npt[i]] = mw
+            self._Ua[i, :nin[i], :na] = Ua
         self._npt, self._nin = npt, nin
+        self._na = np.full(nl, na, dtype=np.int64)
+        # the columns a point of link i depends on: the arm's up to its own, the axial
+        # variables of links 0..i
+        cols = [np.concatenate([np.arange(model.off[i] + model.nf[i] + 1),
+                                np.arange(model.axial_off[0], model.axial_off[i] + na)])
+                for i in range(nl)]
+        self._ncols = np.array([len(c) for c in cols], dtype=np.int64)
+        self._cols = np.zeros((nl, self._ncols.max()), dtype=np.int64)
+        for i, c in enumerate(cols):
+            self._cols[i, :len(c)] = c
         self.m_minus = np.array([lk.M_minus for lk in arm.links])
         self.j_minus = np.array([lk.J_minus for lk in arm.links])
         self.m_plus = np.zeros(nl)
@@ -158,19 +212,23 @@ class ExactKinematics:
         origins = [(0.0, 0.0)]
         tipJ = None
         upot = 0.0
-        for i, (s_out, mw, C, Wd) in enumerate(self.tables):
+        for i, (s_out, mw, C, Wd, Ua) in enumerate(self.tables):
             o = int(mdl.off[i])
             n = int(mdl.nf[i])
             f = slice(o + 1, o + 1 + n)
+            u = slice(int(mdl.axial_off[i]), int(mdl.axial_off[i]) + Ua.shape[1])
             qf, vf = q[f], v[f]
             al, om = q[o], v[o]
             ca, sa = np.cos(al), np.sin(al)
             phi = Wd @ qf
+            st, sd = 1.0 + Ua @ q[u], Ua @ v[u]    # stretch 1 + eps and its rate
             cp, sp = np.cos(phi), np.sin(phi)
-            rx = C @ cp
-            ry = C @ sp
-            Jlx = C @ (-sp[:, None] * Wd)   # d r_1 / d q_f
-            Jly = C @ (cp[:, None] * Wd)    # d r_2 / d q_f
+            rx = C @ (st * cp)
+            ry = C @ (st * sp)
+            Jlx = C @ (-(st * sp)[:, None] * Wd)   # d r_1 / d q_f
+            Jly = C @ ((st * cp)[:, None] * Wd)    # d r_2 / d q_f
+            Jux = C @ (cp[:, None] * Ua)           # d r_1 / d u
+            Juy = C @ (sp[:, None] * Ua)
             # root mass M- and inertia J-, tip inertia J+ (on alpha and alpha + gamma_n)
             mm = self.m_minus[i]
             g = o + n
@@ -195,6 +253,8 @@ class ExactKinematics:
             Jy[:, o] += rx * ca - ry * sa
             Jx[:, f] += Jlx * ca - Jly * sa
             Jy[:, f] += Jlx * sa + Jly * ca
+            Jx[:, u] += Jux * ca - Juy * sa
+            Jy[:, u] += Jux * sa + Juy * ca
             px = ox + rx * ca - ry * sa
             py = oy + rx * sa + ry * ca
             m = mw.copy()
@@ -203,10 +263,10 @@ class ExactKinematics:
             if need_b:
                 B += (Jx * m[:, None]).T @ Jx + (Jy * m[:, None]).T @ Jy
             pd = Wd @ vf
-            rdx = Jlx @ vf
-            rdy = Jly @ vf
-            kx = -(C @ (cp * pd * pd))
-            ky = -(C @ (sp * pd * pd))
+            rdx = Jlx @ vf + Jux @ v[u]
+            rdy = Jly @ vf + Juy @ v[u]
+            kx = -(C @ (st * cp * pd * pd + 2.0 * sd * sp * pd))
+            ky = -(C @ (st * sp * pd * pd - 2.0 * sd * cp * pd))
             lx = -om * om * rx - 2.0 * om * rdy + kx
             ly = -om * om * ry + 2.0 * om * rdx + ky
             xix = xox + lx * ca - ly * sa
@@ -227,7 +287,8 @@ class ExactKinematics:
         """The arrays of the compiled sweep :func:`terms` (end masses as set now)."""
         m = self.model
         return (m.off, m.nf, self._npt, self._nin, self._C, self._Wd, self._mw,
-                self.m_minus, self.j_minus, self.m_plus, self.j_plus, m.B_const)
+                self.m_minus, self.j_minus, self.m_plus, self.j_plus, m.B_const,
+                m.axial_off, self._na, self._Ua, self._cols, self._ncols)
 
     def mass_and_bias(self, q, v, gx, gy):
         """(B(q), c(q, v)) with gravity (gx, gy) entering c; B includes B_const
@@ -277,10 +338,13 @@ class ExactKinematics:
                 for b in self.model.bases]
         org = self.link_origins(q)
         out = []
-        for i, (C, Wd) in enumerate(cache[points_per_link]):
+        na = self.model.axial_vars
+        for i, (C, Wd, nodes) in enumerate(cache[points_per_link]):
             o, n = int(self.model.off[i]), int(self.model.nf[i])
             phi = Wd @ q[o + 1:o + 1 + n]
-            rx, ry = C @ np.cos(phi), C @ np.sin(phi)
+            u0 = int(self.model.axial_off[i])
+            st = 1.0 + axial_shapes(nodes, self.model.bases[i].length, na) @ q[u0:u0 + na]
+            rx, ry = C @ (st * np.cos(phi)), C @ (st * np.sin(phi))
             ca, sa = np.cos(q[o]), np.sin(q[o])
             out.append(np.column_stack([org[i, 0] + rx * ca - ry * sa,
                                         org[i, 1] + rx * sa + ry * ca]))
@@ -304,7 +368,8 @@ def terms(q, v, gx, gy, X):
     """(B(q), c(q, v), J_tip) of the exact kinematics, compiled: the sweep of
     ExactKinematics._sweep over the links' mass points, X = ExactKinematics.data; J_tip
     (2 x nq) is the Jacobian of the arm's end."""
-    off, nf, npt, nin, C, Wd, mw, m_minus, j_minus, m_plus, j_plus, Bc = X
+    (off, nf, npt, nin, C, Wd, mw, m_minus, j_minus, m_plus, j_plus, Bc,
+     axo, na, Ua, cols, ncols) = X
     nq = q.shape[0]
     nl = off.shape[0]
     B = Bc.copy()
@@ -318,13 +383,20 @@ def terms(q, v, gx, gy, X):
     nfm = Wd.shape[2]
     jlx = np.zeros(nfm)
     jly = np.zeros(nfm)
+    jux = np.zeros(Ua.shape[2])
+    juy = np.zeros(Ua.shape[2])
     cp = np.zeros(Wd.shape[1])
     sp = np.zeros(Wd.shape[1])
-    p2 = np.zeros(Wd.shape[1])
+    pd = np.zeros(Wd.shape[1])
+    st = np.zeros(Wd.shape[1])
+    sd = np.zeros(Wd.shape[1])
     for i in range(nl):
         o = off[i]
         n = nf[i]
-        ncol = o + n + 1  # columns a point of link i depends on (inboard and own)
+        u0 = axo[i]
+        nu = na[i]
+        nc = ncols[i]
+        ci = cols[i]
         ca = np.cos(q[o])
         sa = np.sin(q[o])
         om = v[o]
@@ -334,14 +406,23 @@ def terms(q, v, gx, gy, X):
             for l in range(n):
                 ph += Wd[i, j, l] * q[o + 1 + l]
                 pv += Wd[i, j, l] * v[o + 1 + l]
+            e = 0.0
+            ed = 0.0
+            for l in range(nu):
+                e += Ua[i, j, l] * q[u0 + l]
+                ed += Ua[i, j, l] * v[u0 + l]
             cp[j] = np.cos(ph)
             sp[j] = np.sin(ph)
-            p2[j] = pv * pv
+            pd[j] = pv
+            st[j] = 1.0 + e
+            sd[j] = ed
         mm = m_minus[i]
         if mm != 0.0:
-            for a in range(ncol):
+            for ia in range(nc):
+                a = ci[ia]
                 c[a] += mm * (Jox[a] * (xox - gx) + Joy[a] * (xoy - gy))
-                for b in range(ncol):
+                for ib in range(nc):
+                    b = ci[ib]
                     B[a, b] += mm * (Jox[a] * Jox[b] + Joy[a] * Joy[b])
         g = o + n
         B[o, o] += j_minus[i] + j_plus[i]
@@ -356,25 +437,38 @@ def terms(q, v, gx, gy, X):
             for l in range(n):
                 jlx[l] = 0.0
                 jly[l] = 0.0
+            for l in range(nu):
+                jux[l] = 0.0
+                juy[l] = 0.0
             for j in range(nin[i]):
                 w = C[i, k, j]
                 if w == 0.0:
                     continue
                 wc = w * cp[j]
                 ws = w * sp[j]
-                rx += wc
-                ry += ws
-                kx -= wc * p2[j]
-                ky -= ws * p2[j]
+                tc = st[j] * wc
+                ts = st[j] * ws
+                rx += tc
+                ry += ts
+                p2 = pd[j] * pd[j]
+                kx -= tc * p2 + 2.0 * sd[j] * ws * pd[j]
+                ky -= ts * p2 - 2.0 * sd[j] * wc * pd[j]
                 for l in range(n):
-                    jlx[l] -= ws * Wd[i, j, l]
-                    jly[l] += wc * Wd[i, j, l]
+                    jlx[l] -= ts * Wd[i, j, l]
+                    jly[l] += tc * Wd[i, j, l]
+                for l in range(nu):
+                    jux[l] += wc * Ua[i, j, l]
+                    juy[l] += ws * Ua[i, j, l]
             rdx = 0.0
             rdy = 0.0
             for l in range(n):
                 rdx += jlx[l] * v[o + 1 + l]
                 rdy += jly[l] * v[o + 1 + l]
-            for a in range(ncol):
+            for l in range(nu):
+                rdx += jux[l] * v[u0 + l]
+                rdy += juy[l] * v[u0 + l]
+            for ia in range(nc):
+                a = ci[ia]
                 Jx[a] = Jox[a]
                 Jy[a] = Joy[a]
             Jx[o] += -rx * sa - ry * ca
@@ -382,6 +476,9 @@ def terms(q, v, gx, gy, X):
             for l in range(n):
                 Jx[o + 1 + l] += jlx[l] * ca - jly[l] * sa
                 Jy[o + 1 + l] += jlx[l] * sa + jly[l] * ca
+            for l in range(nu):
+                Jx[u0 + l] += jux[l] * ca - juy[l] * sa
+                Jy[u0 + l] += jux[l] * sa + juy[l] * ca
             lx = -om * om * rx - 2.0 * om * rdy + kx
             ly = -om * om * ry + 2.0 * om * rdx + ky
             xix = xox + lx * ca - ly * sa
@@ -391,14 +488,17 @@ def terms(q, v, gx, gy, X):
             if m != 0.0:
                 fx = m * (xix - gx)
                 fy = m * (xiy - gy)
-                for a in range(ncol):
+                for ia in range(nc):
+                    a = ci[ia]
                     c[a] += Jx[a] * fx + Jy[a] * fy
                     ma = m * Jx[a]
                     mb = m * Jy[a]
-                    for b in range(ncol):
+                    for ib in range(nc):
+                        b = ci[ib]
                         B[a, b] += ma * Jx[b] + mb * Jy[b]
             if tip:
-                for a in range(ncol):
+                for ia in range(nc):
+                    a = ci[ia]
                     Jox[a] = Jx[a]
                     Joy[a] = Jy[a]
                 xox = xix

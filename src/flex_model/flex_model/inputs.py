@@ -18,6 +18,17 @@ class JointPD:
     setpoints: np.ndarray
 
 
+def ramp_fraction(t, t0: float, r: float):
+    """(y, area): a set-point ramp's fraction y(t) = clip((t - t0) / r, 0, 1) over [t0,
+    t0 + r] and its integral from t0 (t a number or an array): the ramps of every
+    scenario's set-point schedule."""
+    t = np.asarray(t, float)
+    y = np.clip((t - t0) / r, 0.0, 1.0)
+    area = np.where(t <= t0, 0.0, np.where(t <= t0 + r, (t - t0) ** 2 / (2 * r),
+                                           r / 2 + (t - t0 - r)))
+    return y, area
+
+
 @dataclass(frozen=True)
 class Pulse:
     """Constant joint torques (N m), tip force (N, base frame) and tip torque (N m) on

@@ -64,8 +64,13 @@ def joint_torques(t, q, v, E):
     through the motor model, clipped to the torque limit, plus torque pulses."""
     kp, kd, theta_set, u, pt0, pt1, ptau, lim, Ga, jd = E[5], E[6], E[7], E[8], E[9], \
         E[10], E[11], E[14], E[16], E[17]
-    th = Ga @ q
-    dth = Ga @ v
+    nl = Ga.shape[0]
+    th = np.zeros(nl)
+    dth = np.zeros(nl)
+    for i in range(nl):     # loops, not BLAS: a call's overhead exceeds these small products
+        for j in range(q.shape[0]):
+            th[i] += Ga[i, j] * q[j]
+            dth[i] += Ga[i, j] * v[j]
     tau = kp * (theta_set - th) - kd * dth + u
     for i in range(tau.shape[0]):
         if jd[i, 9] > 0.0:  # DC motor: tau is the voltage (seed 003 Eq. 48, L neglected)
@@ -79,6 +84,20 @@ def joint_torques(t, q, v, E):
         if pt0[p] <= t < pt1[p]:
             tau += ptau[p]
     return tau
+
+
+@njit(cache=_CACHE)
+def sampled_joint_torques(t, X, U, E):
+    """:func:`joint_torques` at every sample t[j] of a run (X[j] = [q, v, ...], the held
+    inputs U[j] written into E's input u), in one compiled loop (a Python loop of
+    single calls cost about a sixth of a fast run: unboxing E per call)."""
+    n = E[0].shape[0]
+    u = E[8]
+    out = np.empty((t.shape[0], u.shape[0]))
+    for j in range(t.shape[0]):
+        u[:] = U[j]
+        out[j] = joint_torques(t[j], X[j, :n], X[j, n:2 * n], E)
+    return out
 
 
 @njit(cache=_CACHE)
@@ -227,8 +246,15 @@ def applied_force(t, q, v, z, zd, P, E):
     if P[0] == 1 and P[22][1] == 1:  # banded K, D (dynamics._band_structure): linear
         Q = (Ga.T @ tau - band_matvec(K, q, P[22][0], P[23], P[24][2])
              - band_matvec(D, v, P[22][0], P[23], P[24][1]) + joint_passive_forces(q, v, E))
-    else:
-        Q = Ga.T @ tau - K @ q - D @ v + joint_passive_forces(q, v, E)
+    else:   # Ga^T tau - K q - D v by loops (BLAS calls cost more at these sizes)
+        Q = joint_passive_forces(q, v, E)
+        for a in range(q.shape[0]):
+            f = 0.0
+            for i in range(tau.shape[0]):
+                f += Ga[i, a] * tau[i]
+            for b in range(q.shape[0]):
+                f -= K[a, b] * q[b] + D[a, b] * v[b]
+            Q[a] += f
     if z.shape[0] > 0:
         Q += stick_slip_forces(q, v, z, zd, E)
     fx = 0.0

@@ -71,8 +71,19 @@ def inverse_dynamics(q, v, a, gx, gy, P):
         if P[22][1] == 1:  # banded model (dynamics._band_structure): Bc a linear in nq
             f += band_matvec(P[16], a, P[22][0], P[23], P[24][0])
             return f
-        return f + P[16] @ a
-    return _inverse_dynamics_1(q, v, a, gx, gy, P) + P[16] @ a
+        return _add_matvec(f, P[16], a)
+    return _add_matvec(_inverse_dynamics_1(q, v, a, gx, gy, P), P[16], a)
+
+
+@njit(cache=_CACHE)
+def _add_matvec(f, M, x):
+    """f += M x by loops (a BLAS call's overhead exceeds the product at these sizes)."""
+    for i in range(f.shape[0]):
+        s = 0.0
+        for j in range(x.shape[0]):
+            s += M[i, j] * x[j]
+        f[i] += s
+    return f
 
 
 @njit(cache=_CACHE)

@@ -76,15 +76,18 @@ def fill_tip_pose(msg: PoseStamped, t, x, y, phi, rotation=None) -> PoseStamped:
 
 class ShapeMarkers:
     """The /flex/shape MarkerArray, built once and updated in place: the deflected centre
-    line of every link (LINE_STRIP) and its rigid chord (thin)."""
+    line of every link (LINE_STRIP) and its rigid chord (thin); ``labels`` name the
+    links' namespaces (default link1, link2, ...), ``widths`` the line's and chord's (m)."""
 
-    def __init__(self, n_links: int, points: int, frame="base_link", ns="flex"):
+    def __init__(self, n_links: int, points: int, frame="base_link", ns="flex",
+                 labels=None, widths=(0.02, 0.005)):
         self.msg = MarkerArray()
+        labels = labels or [f"link{i + 1}" for i in range(n_links)]
         for i in range(n_links):
             for k, (n, width, color) in enumerate(
-                    ((points, 0.02, ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0)),
-                     (2, 0.005, ColorRGBA(r=0.6, g=0.6, b=0.6, a=0.8)))):
-                m = Marker(header=Header(frame_id=frame), ns=f"{ns}/link{i + 1}",
+                    ((points, widths[0], ColorRGBA(r=0.1, g=0.4, b=0.9, a=1.0)),
+                     (2, widths[1], ColorRGBA(r=0.6, g=0.6, b=0.6, a=0.8)))):
+                m = Marker(header=Header(frame_id=frame), ns=f"{ns}/{labels[i]}",
                            id=2 * i + k, type=Marker.LINE_STRIP, action=Marker.ADD,
                            color=color)
                 m.scale.x = width
@@ -288,6 +291,19 @@ def within_limit(arr, limit: float, what: str, names, parameter: str, unit: str)
 
 _LEVELS = {"ok": DiagnosticStatus.OK, "warn": DiagnosticStatus.WARN,
            "error": DiagnosticStatus.ERROR}
+
+
+def check_payload(items, limit) -> None:
+    """Each (value, name, unit) of a payload (its mass, then an inertia) >= 0 and within
+    its plausibility limit (``limit("max_payload_mass")``, ``limit("max_payload_inertia")``);
+    else ValueError naming it."""
+    for (value, name, unit), key in zip(items, ("max_payload_mass", "max_payload_inertia")):
+        if value < 0:
+            raise ValueError(f"payload {name}: got {value:.6g} {unit}; expected >= 0")
+        if value > limit(key):
+            raise ValueError(f"payload {name}: got {value:.6g} {unit}; expected at most "
+                             f"{key} = {limit(key):.6g} {unit} (a plausibility limit; "
+                             f"raise {key} if intended)")
 
 
 def diagnostic_status(name: str, hardware_id: str, level: str, message: str,

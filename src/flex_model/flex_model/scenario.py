@@ -1,34 +1,45 @@
-"""Simulation scenarios: a declarative YAML file (arm, initial state, joint law, loads).
+"""Simulation scenarios of every arm, one format and one loader (:func:`load_scenario`): a
+declarative YAML file (arm, initial state, joint law, loads), validated on load with
+one-line errors (file, field, value, what is allowed).
 
 Example (shipped as preset ``thesis_three_link_pd``)::
 
     name: thesis_three_link_pd
-    arm: thesis_three_link            # preset name or path (relative to this file)
-    vars_per_link: 4                  # optional override
+    arm: thesis_three_link            # preset name or path (relative to this file); a
+                                      # spatial arm (DH table, URDF side file): run by
+                                      # flex_model.spatial.scenario.SpatialScenario
+    vars_per_link: 4                  # optional override (planar arms)
     kinematics: second_order          # optional override (small_deflection: thesis Eq. 1;
                                       # exact: geometrically exact, simulate only)
+    axial_vars: 0                     # optional, exact only: axial strain variables per
+                                      # link (extensible links; 0: inextensible)
     gravity: true                     # false: no gravity
     duration: 10.0                    # s
-    sample_period: 0.005              # s
+    sample_period: 0.005              # s (default 0.01 s; spatial: 0.005 s or the duration)
     initial:
-      joint_angles_deg: [-20, 20, -20]   # or joint_angles in rad (every angle key: either)
-      joint_rates_deg_s: [0, 0, 0]    # optional
+      joint_angles_deg: [-20, 20, -20]   # or joint_angles in rad (m on a prismatic joint);
+                                      # joint_values(_deg) is the same field
+      joint_rates_deg_s: [0, 0, 0]    # optional; or joint_rates in rad/s (m/s)
       state: undeformed               # or: static (start at the PD/clamped equilibrium)
     control:
       pd: {kp: [...], kd: [...], setpoints_deg: [...]}   # N m/rad, N m s/rad; or setpoints (rad)
+      # spatial arms: pd45: {kpp, kpv, setpoints} (seed 000 Eq. 45) instead of pd, and
+      # gravity_hold: true (the initial static state's holding torques)
       setpoint_schedule:              # steps and ramps of the PD set-points (needs pd)
         - {time: 1.0, setpoints_deg: [10, 0, 0]}               # a step at 1 s
         - {time: 2.0, setpoints_deg: [20, 0, 0], ramp: 0.5}    # a ramp over 2-2.5 s
-      torque_table: {t: [0, 1, 2], torques: [[..], [..], [..]]}   # N m, linear in t
+      torque_table: {t: [0, 1, 2], torques: [[..], [..], [..]]}   # N m, linear in t (planar)
     pulses:                           # joint torque pulses on [start, end); end: .inf = on
-      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}
+      - {joint: joint1, torque: 1000.0, start: 3.0, end: 4.0}      # (force: N, prismatic)
       - {joint: joint2, torque: 5.0, start: 1.0, end: .inf}       # to the end of the run
-    tip_loads:                        # tip force (N, base frame) / torque (N m) on [start, end)
-      - {force: [0.0, -10.0], torque: 0.0, start: 0.0, end: 1.0}
+    tip_loads:                        # tip force (N, base frame: 2 values, spatial 3) and,
+      - {force: [0.0, -10.0], torque: 0.0, start: 0.0, end: 1.0}   # planar, torque (N m)
     payload_changes:                  # pick and place: the tip payload from a time on
-      - {time: 2.0, mass: 0.5, inertia: 0.001}
+      - {time: 2.0, mass: 0.5, inertia: 0.001}     # spatial: inertia 3 values or 3 x 3
     integrator: {method: variable, rtol: 1.0e-7}   # or {method: fixed, step: 1.0e-4,
-                                                   #     rho_inf: 0.9}
+                                                   #     rho_inf: 0.9, newton_tol: 1e-10}
+    # (the integrator's keys are also taken at the top level: step: 1.0e-4; spatial arms
+    # run the fixed mode only, default step 1 ms)
 
 A set-point schedule is the PD of thesis Eq. 27 with a moving set-point s(t): the torque
 ``kp (s(t) - theta) + kd (s'(t) - theta')``, i.e. the constant-set-point PD plus
@@ -45,13 +56,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .arm import KINEMATICS, PRESET_DIR, ArmDescription, arm_from_dict, load_arm, resolve_preset
+from .arm import (AXIAL_VARS_MAX, KINEMATICS, PRESET_DIR, ArmDescription, arm_from_dict,
+                  load_arm, resolve_preset)
 from .config import ConfigError, Fields, read_yaml
 from .dynamics import FlexArmModel
+from .inputs import ramp_fraction
 from .simulate import JointPD, Pulse, SimulationResult, fixed_step, simulate
 from .statics import static_equilibrium
 
 SCENARIO_DIR = PRESET_DIR / "scenarios"
+SPATIAL_SCENARIO_DIR = PRESET_DIR / "spatial" / "scenarios"
 
 
 @dataclass
@@ -100,13 +114,8 @@ class Scenario:
             """kp times the mean of the ramps over [t, t + T] + kd times their mean rate."""
             tau = np.zeros(len(kp))
             for t0, r, delta in ramps:
-                def frac(tt):  # the ramp's fraction at tt, and its integral from t0
-                    y = min(max((tt - t0) / r, 0.0), 1.0)
-                    area = 0.0 if tt <= t0 else (
-                        (tt - t0) ** 2 / (2 * r) if tt <= t0 + r else r / 2 + (tt - t0 - r))
-                    return y, area
-                (y0, a0), (y1, a1) = frac(t), frac(t + T)
-                tau += kp * delta * (a1 - a0) / T + kd * delta * (y1 - y0) / T
+                (y0, a0), (y1, a1) = ramp_fraction(t, t0, r), ramp_fraction(t + T, t0, r)
+                tau += kp * delta * float(a1 - a0) / T + kd * delta * float(y1 - y0) / T
             return tau
         return pulses, ramp_torque
 
@@ -187,11 +196,13 @@ class Scenario:
         return replace(adv, estimate=est, warning=warning)
 
 
-def scenario_names() -> list[str]:
-    return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+def scenario_names(spatial: bool = False) -> list[str]:
+    """The scenario presets of planar arms (``spatial``: of spatial arms)."""
+    return sorted(p.stem for p in (SPATIAL_SCENARIO_DIR if spatial else SCENARIO_DIR)
+                  .glob("*.yaml"))
 
 
-def joint_index(f: Fields, key: str, arm: ArmDescription) -> int:
+def joint_index(f: Fields, key: str, arm) -> int:
     value = f.raw(key)
     names = arm.joint_names
     if isinstance(value, str) and value in names:
@@ -201,124 +212,291 @@ def joint_index(f: Fields, key: str, arm: ArmDescription) -> int:
     raise f.error(key, value, f"a joint name ({', '.join(names)}) or number 1..{len(names)}")
 
 
-def load_scenario(name_or_path, vars_per_link: int | None = None) -> Scenario:
-    """Load and validate a scenario by preset name or path."""
-    path = resolve_preset(name_or_path, SCENARIO_DIR)
+def load_scenario(name_or_path, vars_per_link: int | None = None):
+    """Load and validate a scenario of either arm kind by path or preset name (the planar
+    presets, then the spatial ones): :func:`scenario_from_dict`."""
+    path = Path(name_or_path)
+    if not (path.suffix in (".yaml", ".yml") or path.exists()) and \
+            not (SCENARIO_DIR / f"{name_or_path}.yaml").exists() and \
+            (SPATIAL_SCENARIO_DIR / f"{name_or_path}.yaml").exists():
+        path = SPATIAL_SCENARIO_DIR / f"{name_or_path}.yaml"
+    else:
+        path = resolve_preset(name_or_path, SCENARIO_DIR)
     return scenario_from_dict(read_yaml(path), str(path), Path(path).parent, vars_per_link,
                               default_name=Path(path).stem)
 
 
-def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None,
-                       vars_per_link: int | None = None,
-                       default_name: str = "scenario") -> Scenario:
-    """Validate a scenario mapping (the YAML's content). ``arm`` is a preset name, a path
-    (relative to ``base_dir``) or an inline arm mapping (:func:`flex_model.arm.arm_from_dict`);
-    errors name ``source`` and the field."""
-    src = source
-    f = Fields(data, src, "")
-    name = f.string("name", default_name)
-    if isinstance(f.raw("arm"), dict):
-        arm = arm_from_dict(f.raw("arm"), f"{src}: arm")
-    else:
-        arm_ref = f.string("arm")
-        local = Path(base_dir or Path.cwd()) / arm_ref
-        try:
-            arm = load_arm(local if local.suffix in (".yaml", ".yml") and local.exists()
-                           else arm_ref)
-        except ConfigError as exc:
-            if exc.path == "<preset>":
-                raise f.error("arm", arm_ref, exc.allowed) from None
-            raise
+def _arm(f: Fields, base_dir):
+    """(arm, spatial): ``arm`` a preset name (planar first), a path (relative to
+    ``base_dir``) or an inline mapping; a spatial arm has a ``convention`` (DH) or ``urdf``
+    key or a ``joint`` in its links, or is a spatial preset."""
+    from .spatial.description import is_spatial_arm
+    from .spatial.loader import load_spatial_arm, spatial_arm_from_dict
+    raw = f.raw("arm")
+    if isinstance(raw, dict):
+        links = raw.get("links") if isinstance(raw.get("links"), list) else []
+        if "convention" in raw or "urdf" in raw or \
+                any(isinstance(lk, dict) and "joint" in lk for lk in links):
+            return spatial_arm_from_dict(raw, f"{f.source}: arm"), True
+        return arm_from_dict(raw, f"{f.source}: arm"), False
+    ref = f.string("arm")
+    local = Path(base_dir or Path.cwd()) / ref
+    ref = local if local.suffix in (".yaml", ".yml") and local.exists() else ref
+    spatial = is_spatial_arm(ref)
+    try:
+        return (load_spatial_arm(ref) if spatial else load_arm(ref)), spatial
+    except ConfigError as exc:
+        if exc.path == "<preset>":
+            from .arm import preset_names
+            from .spatial.description import SPATIAL_PRESET_DIR
+            known = preset_names() + sorted(p.stem for p in SPATIAL_PRESET_DIR.glob("*.yaml"))
+            raise f.error("arm", str(ref), "an arm file or preset name (" + ", ".join(known)
+                          + ")") from None
+        raise
+
+
+def _arm_options(f: Fields, arm, spatial: bool, vars_per_link):
+    """The arm with the scenario's ``vars_per_link`` (planar), ``kinematics`` and
+    ``gravity``."""
     nv = f.integer("vars_per_link", 0, min_value=0, max_value=200)
     nv = vars_per_link if vars_per_link is not None else nv
+    if spatial and nv:
+        raise f.error("vars_per_link", nv, "no override on a spatial arm (its beams' "
+                      "variables are set in the arm file)")
     if vars_per_link is not None or nv:
         if nv % 2:
             raise f.error("vars_per_link", nv, "an even integer >= 2")
         arm = arm.with_vars_per_link(nv)
     if f.has("kinematics"):
-        arm = arm.with_kinematics(f.string("kinematics", choices=list(KINEMATICS)))
-    if not f.boolean("gravity", True):
-        arm = arm.without_gravity()
-    nl = arm.n_links
+        kin = f.string("kinematics", choices=list(KINEMATICS))
+        arm = replace(arm, kinematics=kin) if spatial else arm.with_kinematics(kin)
+    if f.has("axial_vars"):
+        if spatial:
+            raise f.error("axial_vars", f.raw("axial_vars"), "planar arms with exact "
+                          "kinematics only (spatial beams are inextensible)")
+        arm = arm.with_axial_vars(f.integer("axial_vars", 0, min_value=0,
+                                            max_value=AXIAL_VARS_MAX))
+    if not spatial and arm.axial_vars:
+        try:
+            arm.check_axial()
+        except ConfigError as exc:
+            raise f.error("axial_vars", arm.axial_vars, exc.allowed) from None
+    return arm if f.boolean("gravity", True) else arm.without_gravity()
+
+
+def _initial(f: Fields, n: int, revolute: bool):
+    """``initial``: (joint values (rad or m), rates (rad/s or m/s), static start). The
+    values as ``joint_values`` or ``joint_angles`` (each also ``_deg``), the rates as
+    ``joint_rates`` or ``joint_rates_deg_s``."""
+    ini = f.mapping("initial", {})
+    keys = [k for k in ("joint_values", "joint_angles") if ini.has(k) or ini.has(k + "_deg")]
+    if len(keys) > 1:
+        raise ini.error("joint_angles", ini.raw("joint_angles", None),
+                        "'joint_values' or 'joint_angles', not both")
+    q0 = ini.joint_vector((keys or ["joint_values"])[0], n, [0.0] * n, all_revolute=revolute)
+    if ini.has("joint_rates") and ini.has("joint_rates_deg_s"):
+        raise ini.error("joint_rates_deg_s", ini.raw("joint_rates_deg_s"),
+                        "'joint_rates' (rad/s or m/s) or 'joint_rates_deg_s', not both")
+    v0 = np.radians(ini.vector("joint_rates_deg_s", n, unit="deg/s")) \
+        if ini.has("joint_rates_deg_s") else \
+        np.array(ini.vector("joint_rates", n, [0.0] * n, unit="rad/s or m/s"), float)
+    static = ini.string("state", "undeformed", choices=["undeformed", "static"]) == "static"
+    ini.done(["joint_values", "joint_values_deg", "joint_angles", "joint_angles_deg",
+              "joint_rates", "joint_rates_deg_s", "state"])
+    return q0, v0, static
+
+
+def _joint_law(ctl: Fields, arm, spatial: bool, q0, revolute: bool):
+    """``control.pd`` (kp, kd, setpoints: thesis Eq. 95 with constant gains) or, on a
+    spatial arm, ``control.pd45`` (seed 000's Eq. 45 gains kpp, kpv): a JointPD or None."""
+    from .spatial.scenario import eq45_joint_gains
+    if ctl.has("pd") and ctl.has("pd45"):
+        raise ctl.error("pd45", ctl.raw("pd45"), "pd or pd45, not both (one joint law)")
+    law = "pd45" if ctl.has("pd45") else "pd" if ctl.has("pd") else None
+    if law is None:
+        return None
+    if law == "pd45" and not spatial:
+        raise ctl.error("pd45", ctl.raw("pd45"), "pd (pd45 is for spatial arms)")
+    n, p = arm.n_links, ctl.mapping(law)
+    keys, units = (("kpp", "kpv"), ("1/s", "N m s/rad, motor side")) if law == "pd45" \
+        else (("kp", "kd"), ("N m/rad or N/m", "N m s/rad or N s/m"))
+    given = [np.array(p.vector(key, n, unit=u), float) for key, u in zip(keys, units)]
+    for key, val in zip(keys, given):
+        if np.any(val < 0):
+            raise p.error(key, val.tolist(), "gains >= 0")
+    kp, kd = eq45_joint_gains(arm, *given) if law == "pd45" else given
+    locked = [lk.joint.name for lk in arm.links if spatial and lk.joint.motor == "locked"]
+    for key, val, gain in zip(keys, given, (kp, kd)):
+        bad = [nm for nm, x in zip(arm.joint_names, gain) if nm in locked and x != 0]
+        if bad:
+            raise p.error(key, val.tolist(), f"0 on the locked joints ({', '.join(bad)}: "
+                          "a locked motor takes no torque)")
+    sp = p.joint_vector("setpoints", n, list(q0), all_revolute=revolute)
+    p.done(list(keys) + ["setpoints", "setpoints_deg"])
+    return JointPD(kp, kd, sp)
+
+
+def _torque_table(ctl: Fields, nl: int):
+    """``control.torque_table``: (t, torques (len(t), nl)), linear in t (planar arms)."""
+    tf = ctl.mapping("torque_table")
+    tt = np.array(tf.vector("t", unit="s"))
+    raw = tf.items("torques", min_len=len(tt))
+    if len(raw) != len(tt) or len(tt) < 1:
+        raise tf.error("torques", raw, f"one row of {nl} torques per time in t")
+    rows = [Fields({"row": r}, tf.source, tf.sub("torques")).vector("row", nl, unit="N m")
+            for r in raw]
+    if np.any(np.diff(tt) <= 0):
+        raise tf.error("t", tt.tolist(), "strictly increasing times")
+    tf.done()
+    return tt, np.array(rows)
+
+
+def _pulses(f: Fields, arm, spatial: bool) -> list:
+    """``pulses``: a joint torque (N m; ``force`` N on a prismatic joint) on [start, end)."""
+    from .spatial.scenario import SpatialPulse
+    out = []
+    for k, raw in enumerate(f.items("pulses", [])):
+        pf = Fields(raw, f.source, f"pulses[{k}]")
+        j = joint_index(pf, "joint", arm)
+        joint = arm.links[j].joint if spatial else None
+        if spatial and joint.motor == "locked":
+            raise pf.error("joint", pf.raw("joint"), "a joint with an active motor (a "
+                           "locked motor takes no torque)")
+        key = "force" if spatial and joint.type == "prismatic" else "torque"
+        other = "torque" if key == "force" else "force"
+        if pf.has(other):
+            raise pf.error(other, pf.raw(other), f"'{key}' ({arm.joint_names[j]})")
+        value = pf.number(key, unit="N" if key == "force" else "N m")
+        start, end = _interval(pf)
+        pf.done(["joint", key, "start", "end"])
+        tau = np.zeros(arm.n_links)
+        tau[j] = value
+        out.append(SpatialPulse(j, value, start, end) if spatial else
+                   Pulse(start, end, tuple(tau)))
+    return out
+
+
+def _tip_loads(f: Fields, spatial: bool) -> list:
+    """``tip_loads``: a tip force (N, base frame; 3 values on a spatial arm) and, planar,
+    a tip torque (N m) on [start, end)."""
+    out = []
+    for k, raw in enumerate(f.items("tip_loads", [])):
+        lf = Fields(raw, f.source, f"tip_loads[{k}]")
+        force = lf.vector("force", 3, unit="N, base frame") if spatial else \
+            lf.vector("force", 2, [0.0, 0.0], unit="N, base frame")
+        torque = 0.0 if spatial else lf.number("torque", 0.0, unit="N m")
+        start, end = _interval(lf)
+        lf.done(["force", "start", "end"] + ([] if spatial else ["torque"]))
+        out.append((np.array(force), start, end) if spatial else
+                   Pulse(start, end, (), tuple(force), torque))
+    return out
+
+
+def _payload_changes(f: Fields, spatial: bool, duration: float) -> tuple:
+    """``payload_changes``: (time, mass kg, inertia: planar kg m^2 about the tip, spatial
+    3 x 3 about the end frame origin), increasing times within the run."""
+    from .spatial.description import rigid_body
+    out = []
+    for k, raw in enumerate(f.items("payload_changes", [])):
+        if not isinstance(raw, dict):
+            raise f.error("payload_changes", raw, "a list of {time, mass, inertia} mappings")
+        cf = Fields(raw, f.source, f"payload_changes[{k}]")
+        tc = cf.number("time", nonnegative=True, unit="s")
+        if spatial and (tc >= duration or (out and tc <= out[-1][0])):
+            raise cf.error("time", tc, f"a time in [0, {duration:g}) s, increasing")
+        if not spatial:
+            out.append((tc, cf.number("mass", nonnegative=True, unit="kg"),
+                        cf.number("inertia", 0.0, nonnegative=True, unit="kg m^2")))
+            cf.done()
+            continue
+        body = Fields({key: val for key, val in raw.items() if key != "time"}, f.source,
+                      f"payload_changes[{k}]")
+        rb = rigid_body(body)
+        if any(rb.offset):
+            raise body.error("offset", list(rb.offset), "no offset (the payload sits at the "
+                             "last link's end frame origin; move the frame or use the arm "
+                             "file's payload)")
+        out.append((tc, rb.mass, np.asarray(rb.inertia, float)))
+    return tuple(out)
+
+
+def _integrator(f: Fields, spatial: bool, sample: float) -> dict:
+    """``integrator: {method, step, rho_inf, rtol, newton_tol}`` (each key also accepted at
+    the top level): variable (planar, DOPRI, rtol) or fixed (generalized-alpha)."""
+    integ = f.mapping("integrator", {})
+    top = [k for k in ("method", "step", "rho_inf", "rtol", "newton_tol") if f.has(k)]
+    for k in top:
+        if integ.has(k):
+            raise f.error(k, f.raw(k), f"'{k}' or 'integrator.{k}', not both")
+    src = Fields({**integ.data, **{k: f.raw(k) for k in top}}, f.source,
+                 "integrator" if f.has("integrator") else "")
+    method = src.string("method", "fixed" if spatial else "variable",
+                        choices=["fixed"] if spatial else ["variable", "fixed"])
+    step = src.number("step", 1e-3 if spatial else 0.0, nonnegative=not spatial,
+                      positive=spatial, unit="s") or None
+    if spatial and step > sample:
+        raise src.error("step", step, f"a step at most the sample period ({sample} s)")
+    out = dict(method=method, step=step,
+               rho_inf=src.number("rho_inf", 0.9, min_value=0.0, max_value=1.0),
+               rtol=src.number("rtol", 1e-7, positive=True, max_value=1e-2),
+               tol=src.number("newton_tol", 1e-10, positive=True, max_value=1e-4))
+    src.done(["method", "step", "rho_inf", "rtol", "newton_tol"])
+    return out
+
+
+def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None,
+                       vars_per_link: int | None = None, default_name: str = "scenario"):
+    """Validate a scenario mapping (the YAML's content) of either arm kind, one grammar:
+    errors name ``source``, the field, the value and what is allowed. A spatial arm
+    (:func:`_arm`) gives a :class:`flex_model.spatial.scenario.SpatialScenario`, a planar
+    one a :class:`Scenario`; fields one kind has no meaning for are refused."""
+    from .spatial.scenario import SpatialScenario
+    f = Fields(data, source, "")
+    name = f.string("name", default_name)
+    arm, spatial = _arm(f, base_dir)
+    motors = [e.target for e in arm.effects if e.TYPE == "dc_motor"] if spatial else []
+    if motors:
+        raise f.error("arm", arm.name, "an arm without dc_motor effects (on "
+                      f"{', '.join(motors)}): a spatial scenario drives joint torques; "
+                      "voltage commands run through integrate.simulate_fixed_compiled")
+    arm = _arm_options(f, arm, spatial, vars_per_link)
+    n = arm.n_links
+    revolute = not spatial or all(lk.joint.type != "prismatic" for lk in arm.links)
     if is_inf(f.raw("duration", 1.0)):
         raise f.error("duration", f.raw("duration"), "a finite time > 0 s (a simulation "
                       "ends; for an open-ended run start the model node: flex-twin up)")
     duration = f.number("duration", positive=True, unit="s")
-    sample = f.number("sample_period", 0.01, positive=True, unit="s")
+    sample = f.number("sample_period", min(0.005, duration) if spatial else 0.01,
+                      positive=True, unit="s")
     if sample > duration:
         raise f.error("sample_period", sample, f"at most the duration ({duration} s)")
-    ini = f.mapping("initial", {})
-    theta0 = ini.joint_vector("joint_angles", nl, [0.0] * nl)
-    dtheta0 = np.radians(ini.vector("joint_rates_deg_s", nl, [0.0] * nl, unit="deg/s"))
-    start_static = ini.string("state", "undeformed", choices=["undeformed", "static"]) == \
-        "static"
-    ini.done()
+    integ = _integrator(f, spatial, sample)
+    q0, v0, static = _initial(f, n, revolute)
     ctl = f.mapping("control", {})
-    pd = None
-    if ctl.has("pd"):
-        p = ctl.mapping("pd")
-        kp = np.array(p.vector("kp", nl, unit="N m/rad"))
-        kd = np.array(p.vector("kd", nl, unit="N m s/rad"))
-        for key, val in (("kp", kp), ("kd", kd)):
-            if np.any(val < 0):
-                raise p.error(key, val.tolist(), "gains >= 0")
-        sp = p.joint_vector("setpoints", nl, list(theta0))
-        p.done()
-        pd = JointPD(kp, kd, sp)
-    schedule = setpoint_schedule(ctl, nl, pd is not None, "control.pd")
-    table = None
-    if ctl.has("torque_table"):
-        tf = ctl.mapping("torque_table")
-        tt = np.array(tf.vector("t", unit="s"))
-        raw = tf.items("torques", min_len=len(tt))
-        if len(raw) != len(tt) or len(tt) < 1:
-            raise tf.error("torques", raw, f"one row of {nl} torques per time in t")
-        rows = [Fields({"row": r}, src, tf.sub("torques")).vector("row", nl, unit="N m")
-                for r in raw]
-        if np.any(np.diff(tt) <= 0):
-            raise tf.error("t", tt.tolist(), "strictly increasing times")
-        tf.done()
-        table = (tt, np.array(rows))
-    ctl.done()
-    pulses = []
-    for k, raw in enumerate(f.items("pulses", [])):
-        pf = Fields(raw, src, f"pulses[{k}]")
-        j = joint_index(pf, "joint", arm)
-        tau = np.zeros(nl)
-        tau[j] = pf.number("torque", unit="N m")
-        start, end = pf.number("start", nonnegative=True), _end(pf)
-        if end <= start:
-            raise pf.error("end", end, f"a time after start ({start} s)")
-        pf.done()
-        pulses.append(Pulse(start, end, tuple(tau)))
-    for k, raw in enumerate(f.items("tip_loads", [])):
-        lf = Fields(raw, src, f"tip_loads[{k}]")
-        force = tuple(lf.vector("force", 2, [0.0, 0.0], unit="N"))
-        torque = lf.number("torque", 0.0, unit="N m")
-        start, end = lf.number("start", nonnegative=True), _end(lf)
-        if end <= start:
-            raise lf.error("end", end, f"a time after start ({start} s)")
-        lf.done()
-        pulses.append(Pulse(start, end, (), force, torque))
-    changes = []
-    for k, raw in enumerate(f.items("payload_changes", [])):
-        cf = Fields(raw, src, f"payload_changes[{k}]")
-        changes.append((cf.number("time", nonnegative=True, unit="s"),
-                        cf.number("mass", nonnegative=True, unit="kg"),
-                        cf.number("inertia", 0.0, nonnegative=True, unit="kg m^2")))
-        cf.done()
-    integ = f.mapping("integrator", {})
-    method = integ.string("method", "variable", choices=["variable", "fixed"])
-    rtol = integ.number("rtol", 1e-7, positive=True, max_value=1e-2)
-    step = integ.number("step", 0.0, nonnegative=True, unit="s") or None
-    rho_inf = integ.number("rho_inf", 0.9, min_value=0.0, max_value=1.0)
-    integ.done()
-    f.done()
+    hold = spatial and ctl.boolean("gravity_hold", False)
+    pd = _joint_law(ctl, arm, spatial, q0, revolute)
+    schedule = setpoint_schedule(ctl, n, pd is not None, "control.pd" + (" or pd45" if
+                                 spatial else ""), all_revolute=revolute)
+    table = None if spatial or not ctl.has("torque_table") else _torque_table(ctl, n)
+    ctl.done(["pd", "setpoint_schedule"] + (["gravity_hold", "pd45"] if spatial else
+                                            ["torque_table"]))
+    pulses, loads = _pulses(f, arm, spatial), _tip_loads(f, spatial)
+    changes = _payload_changes(f, spatial, duration)
+    f.done(["name", "arm", "vars_per_link", "kinematics", "axial_vars", "gravity", "duration",
+            "sample_period", "integrator", "method", "step", "rho_inf", "rtol", "newton_tol",
+            "initial", "control", "pulses", "tip_loads", "payload_changes"])
+    if spatial:
+        return SpatialScenario(name=name, arm=arm, duration=duration, step=integ["step"],
+                               sample_period=sample, rho_inf=integ["rho_inf"],
+                               joint_values=q0, joint_rates=v0, start_static=static,
+                               gravity_hold=hold, pd=pd, setpoint_schedule=schedule,
+                               pulses=tuple(pulses), tol=integ["tol"], source=source,
+                               payload_changes=changes, tip_loads=tuple(loads))
     return Scenario(name=name, arm=arm, duration=duration, sample_period=sample,
-                    theta0=theta0, dtheta0=dtheta0, start_static=start_static, pd=pd,
-                    torque_table=table, pulses=pulses, method=method, rtol=rtol, step=step,
-                    source=src, payload_changes=tuple(changes),
-                    setpoint_schedule=schedule, rho_inf=rho_inf)
+                    theta0=q0, dtheta0=v0, start_static=static, pd=pd, torque_table=table,
+                    pulses=pulses + loads, method=integ["method"], rtol=integ["rtol"],
+                    step=integ["step"], source=source, payload_changes=changes,
+                    setpoint_schedule=schedule, rho_inf=integ["rho_inf"])
 
 
 def setpoint_schedule(ctl: Fields, n: int, has_pd: bool, pd_field: str,
@@ -349,8 +527,11 @@ def is_inf(value) -> bool:
     return isinstance(value, float) and math.isinf(value) and value > 0
 
 
-def _end(f: Fields) -> float:
-    """``end`` of a pulse or tip load: a time >= 0 s, or .inf (to the end of the run)."""
-    if is_inf(f.raw("end")):
-        return math.inf
-    return f.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
+def _interval(f: Fields) -> tuple:
+    """(start, end) of a pulse or a tip load: end after start, ``.inf`` to the run's end."""
+    start = f.number("start", nonnegative=True, unit="s")
+    end = math.inf if is_inf(f.raw("end")) else \
+        f.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
+    if end <= start:
+        raise f.error("end", end, f"a time after start ({start} s)")
+    return start, end

@@ -42,8 +42,8 @@ from .dynamics import FlexArmModel
 from .errors import SimulationDivergedError  # noqa: F401 (raised here; public here)
 from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: public here)
 from .integrators import (consistent_acceleration, dopri5, generalized_alpha,
-                          generalized_alpha_simplified, joint_torques,
-                          restart_acceleration)
+                          generalized_alpha_simplified, restart_acceleration,
+                          sampled_joint_torques)
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
@@ -91,7 +91,8 @@ class SimulationResult:
     def motor_angles(self) -> np.ndarray:
         """(n_samples, n_elastic_joints): motor coordinates of the elastic joints (rad,
         link side)."""
-        return self.q[:, self.model.nq_arm:]
+        m = self.model
+        return self.q[:, m.nq_arm:m.nq_arm + len(m.elastic_joints)]
 
     def link_tips(self) -> np.ndarray:
         """(n_samples, n_links, 2): the tip of every link."""
@@ -125,6 +126,14 @@ class SimulationResult:
             names += ["contact_fx", "contact_fy"]
             cols.append(self.contact_forces)
         return names, np.column_stack(cols)
+
+    def summary(self) -> dict:
+        """The run's figures (``flex-twin simulate``; as SpatialSimulation.summary): final
+        joint angles (deg) and tip, max |tip deflection| per link (mm)."""
+        return {"vars_per_link": [lk.n_vars for lk in self.model.arm.links],
+                "final_joint_angles_deg": np.degrees(self.joint_angles[-1]).tolist(),
+                "final_tip_m": self.tip_xy[-1].tolist(), "max_abs_tip_deflection_mm":
+                (1e3 * np.max(np.abs(self.tip_deflections), axis=0)).tolist()}
 
     def to_csv(self, path) -> None:
         names, data = self.table()
@@ -218,10 +227,7 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
                       changes=changes, newton=newton)
     q = X[:, :nq]
     v = X[:, nq:2 * nq]
-    tau = np.empty((n_samples, nl))
-    for j in range(n_samples):
-        u[:] = U[j]
-        tau[j] = joint_torques(t_samples[j], q[j], v[j], E)
+    tau = sampled_joint_torques(t_samples, np.ascontiguousarray(X), np.asarray(U, float), E)
     stats["method"] = method
     return SimulationResult(model=model, t=t_samples, q=q, v=v, tau=tau, stats=stats, u=U,
                             inputs=E, bristles=X[:, 2 * nq:])

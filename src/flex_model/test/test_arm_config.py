@@ -37,7 +37,8 @@ ARM_ERRORS = [
      "links[0].section.EI", "0.0", "a number > 0"),
     ("unknown_top_key", lambda d: d.update(colour="red"),
      "colour", "'red'",
-     "no such field (known: description, effects, gravity, joints, kinematics, links, "),
+     "no such field (known: axial_vars, description, effects, gravity, joints, kinematics, "
+     "links, "),
     ("unknown_link_key", lambda d: d["links"][1].update(colour="red"),
      "links[1].colour", "'red'", "no such field (known: "),
     ("unknown_section_key", lambda d: d["links"][0]["section"].update(radius=0.1),

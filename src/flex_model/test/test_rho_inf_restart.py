@@ -78,8 +78,8 @@ def test_spatial_hubless_strip_follows_the_converged_run_at_rho_inf_0():
     0.4 ms, rho_inf 0: link 1's in-plane tip deflection within 2.2 % of its largest change
     off a 0.05 ms run at rho_inf 0.9 (the spatial loop restarted consistently: 35 %)."""
     from dataclasses import replace
-    from flex_model.spatial.scenario import load_spatial_scenario
-    base = load_spatial_scenario("seed000_3d_pd_step")
+    from flex_model.scenario import load_scenario
+    base = load_scenario("seed000_3d_pd_step")
 
     def tip_y(step, rho_inf):
         run = replace(base, duration=0.2, step=step, rho_inf=rho_inf).run()

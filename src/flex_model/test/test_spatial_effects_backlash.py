@@ -142,12 +142,12 @@ def test_scenario_static_start_takes_up_the_play():
     beyond the linear spring's deflection, k dz(x) = m g a, and the arm stays at rest
     (0.05 s, the compiled loop); the linear spring's start would not."""
     from flex_model.integrators import dead_zone
-    from flex_model.spatial.scenario import spatial_scenario_from_dict
+    from flex_model.scenario import scenario_from_dict
     arm = _two_inertia()
     arm["gravity"] = [0.0, -9.81, 0.0]
-    sc = spatial_scenario_from_dict({"arm": arm, "duration": 0.05, "step": 1e-3,
-                                     "initial": {"state": "static"},
-                                     "control": {"gravity_hold": True}}, "sc.yaml")
+    sc = scenario_from_dict({"arm": arm, "duration": 0.05, "step": 1e-3,
+                             "initial": {"state": "static"},
+                             "control": {"gravity_hold": True}}, "sc.yaml")
     model = sc.model()
     q0, v0, hold = sc.initial_state(model)
     assert hold[0] == pytest.approx(MASS * 9.81 * A, rel=1e-12)

@@ -14,7 +14,7 @@ from flex_model.config import ConfigError, read_yaml
 from flex_model.spatial import SpatialArmModel, spatial_arm_from_dict
 from flex_model.spatial.integrate import (simulate_fixed, simulate_fixed_compiled,
                                           simulate_variable)
-from flex_model.spatial.scenario import spatial_scenario_from_dict
+from flex_model.scenario import scenario_from_dict
 
 R, KT, KE, N, JR = 2.0, 0.05, 0.06, 40.0, 2e-5       # ohm, N m/A, V s/rad, -, kg m^2
 MASS, A, IZZ = 1.5, 0.4, 0.02
@@ -28,8 +28,8 @@ def _one_joint(imax=None):
     if imax is not None:
         motor["current_limit"] = imax
     return {"name": "motor", "gravity": [0.0, 0.0, -9.81], "links": [
-        {"joint": {"name": "j1", "a": A}, "end_body": {"mass": MASS, "inertia": [0.0, 0.0,
-                                                                                  IZZ]}}],
+        {"joint": {"name": "j1", "a": A},
+         "end_body": {"mass": MASS, "inertia": [0.0, 0.0, IZZ]}}],
         "effects": [{"type": "gear", "joint": "j1", "ratio": N, "rotor_inertia": JR},
                     motor]}
 
@@ -143,5 +143,5 @@ def test_bad_motor_files_name_the_field(change, where):
 
 def test_a_scenario_on_a_dc_motor_arm_is_refused():
     with pytest.raises(ConfigError) as err:
-        spatial_scenario_from_dict({"arm": _one_joint(), "duration": 0.1}, "sc.yaml")
+        scenario_from_dict({"arm": _one_joint(), "duration": 0.1}, "sc.yaml")
     assert "sc.yaml" in str(err.value) and "dc_motor" in str(err.value)

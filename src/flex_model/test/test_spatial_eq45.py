@@ -12,8 +12,8 @@ from flex_model.arm import load_arm
 from flex_model.config import ConfigError
 from flex_model.effects.gear import Gear
 from flex_model.spatial import SpatialArmModel, from_planar
-from flex_model.spatial.scenario import (SpatialPD, SpatialScenario, eq45_joint_gains,
-                                         spatial_scenario_from_dict)
+from flex_model.scenario import scenario_from_dict
+from flex_model.spatial.scenario import SpatialPD, SpatialScenario, eq45_joint_gains
 
 
 def test_table3_step_in_3d_equals_the_planar_step_response():
@@ -56,14 +56,14 @@ def test_pd45_in_a_scenario_file_is_the_joint_pd():
         {"joint": {"name": "joint1", "a": 0.5}, "end_body": {"mass": 1.0}}],
         "effects": [{"type": "gear", "joint": "joint1", "ratio": 10.0,
                      "rotor_inertia": 1e-4}]}, "duration": 0.1}
-    sc = spatial_scenario_from_dict(dict(base, control={"pd45": {"kpp": [20.0], "kpv": [0.5],
+    sc = scenario_from_dict(dict(base, control={"pd45": {"kpp": [20.0], "kpv": [0.5],
                                                          "setpoints": [0.2]}}), "s.yaml")
     assert sc.pd.kp[0] == pytest.approx(100 * 0.5 * 20) and sc.pd.kd[0] == pytest.approx(50)
     with pytest.raises(ConfigError) as err:
-        spatial_scenario_from_dict(dict(base, control={"pd45": {"kpp": [1.0], "kpv": [1.0]},
+        scenario_from_dict(dict(base, control={"pd45": {"kpp": [1.0], "kpv": [1.0]},
                                                "pd": {"kp": [1.0], "kd": [1.0]}}), "s.yaml")
     assert "s.yaml" in str(err.value) and "pd45" in str(err.value)
     with pytest.raises(ConfigError) as err:
-        spatial_scenario_from_dict(dict(base, control={"pd45": {"kpp": [-1.0], "kpv": [1.0]}}),
+        scenario_from_dict(dict(base, control={"pd45": {"kpp": [-1.0], "kpv": [1.0]}}),
                            "s.yaml")
     assert "control.pd45.kpp" in str(err.value)

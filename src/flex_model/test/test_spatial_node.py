@@ -15,7 +15,7 @@ from visualization_msgs.msg import MarkerArray
 
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
 from flex_model.spatial.integrate import simulate_fixed_compiled
-from flex_model.spatial_node import SpatialModelNode
+from flex_model.model_node import SpatialModelNode
 
 ARM = "seed003_like_arm"
 
@@ -35,7 +35,7 @@ class Harness:
         self.probe.create_subscription(JointState, "joint_states", self.states.append, 100)
         self.probe.create_subscription(JointState, "flex/deflections", self.defl.append, 100)
         self.probe.create_subscription(MarkerArray, "flex/shape", self.shapes.append, 100)
-        from flex_model.spatial_node import LATCHED
+        from flex_model.model_node import LATCHED
         self.probe.create_subscription(String, "robot_description", self.desc.append, LATCHED)
         self.cmd = self.probe.create_publisher(Float64MultiArray,
                                                "effort_controller/commands", 100)

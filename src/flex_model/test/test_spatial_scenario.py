@@ -10,23 +10,22 @@ import pytest
 
 from flex_model.arm import load_arm
 from flex_model.config import ConfigError
-from flex_model.scenario import scenario_from_dict
+from flex_model.scenario import load_scenario, scenario_from_dict, scenario_names
 from flex_model.spatial.analysis import static_equilibrium
 from flex_model.spatial.description import from_planar
 from flex_model.spatial.loader import spatial_arm_from_dict
 from flex_model.spatial.scenario import (SpatialPD, SpatialPulse, SpatialScenario,
-                                         is_spatial_scenario, load_spatial_scenario,
-                                         pd_static_equilibrium, spatial_scenario_from_dict,
-                                         spatial_scenario_names)
+                                         pd_static_equilibrium)
 
 
 def test_presets_load_and_are_spatial():
-    assert set(spatial_scenario_names()) >= {"seed000_3d_pd_step", "seed003_like_pd_step"}
-    for name in spatial_scenario_names():
-        assert is_spatial_scenario(name)
-        sc = load_spatial_scenario(name)
+    """One loader: the spatial presets give spatial scenarios, the planar ones planar."""
+    assert set(scenario_names(spatial=True)) >= {"seed000_3d_pd_step", "seed003_like_pd_step"}
+    for name in scenario_names(spatial=True):
+        sc = load_scenario(name)
+        assert isinstance(sc, SpatialScenario)
         assert sc.duration > 0 and sc.step <= sc.sample_period
-    assert not is_spatial_scenario("thesis_three_link_pd")
+    assert not isinstance(load_scenario("thesis_three_link_pd"), SpatialScenario)
 
 
 def test_pd_end_state_is_the_static_spring_balance():
@@ -34,7 +33,7 @@ def test_pd_end_state_is_the_static_spring_balance():
     behind joint 1's elastic gear, on the joints 2, 3) carries the weight. After a
     set-point step the run settles on the PD equilibrium, and that equilibrium is the
     ``static`` analysis at its joint values with kp (s - theta_a) = holding torque."""
-    sc = dataclasses.replace(load_spatial_scenario("seed003_like_pd_step"), duration=4.0,
+    sc = dataclasses.replace(load_scenario("seed003_like_pd_step"), duration=4.0,
                              pulses=(), gravity_hold=False, rho_inf=0.5)
     model = sc.model()
     res = sc.run(model)
@@ -167,20 +166,43 @@ def _base(**over):
     (_base(pulses=[{"joint": 1, "torque": 1.0, "start": 0.5, "end": 0.2}]),
      "pulses[0].end"),
     (_base(rho_inf=1.5), "rho_inf"),
-    (_base(integrator={"method": "variable"}), "integrator"),
+    (_base(integrator={"method": "variable"}), "integrator.method"),
+    (_base(integrator={"step": 1e-3}), "step"),      # top level or integrator, not both
+    (_base(vars_per_link=4), "vars_per_link"),        # one grammar: planar-only fields
+    (_base(control={"torque_table": {"t": [0], "torques": [[0, 0, 0]]}}), "control.torque_table"),
+    (dict(_base(arm="thesis_three_link"), control={"pd45": {"kpp": [1] * 3}}),
+     "control.pd45"),
+    (dict(_base(arm="thesis_three_link"), control={"gravity_hold": True}), "control.gravity_hold"),
 ])
 def test_bad_scenarios_name_the_field(data, field):
     with pytest.raises(ConfigError) as exc:
-        spatial_scenario_from_dict(data, "bad.yaml")
+        scenario_from_dict(data, "bad.yaml")
     msg = str(exc.value)
     assert msg.startswith("bad.yaml: ") and f": {field}: got " in msg
+
+
+def test_one_grammar_for_both_arm_kinds():
+    """The integrator's keys at the top level or under ``integrator`` and the initial values
+    as ``joint_values`` or ``joint_angles`` mean the same on a planar and a spatial arm."""
+    for arm, n in (("thesis_three_link", 3), ("seed003_like_arm", 3)):
+        top = scenario_from_dict({"arm": arm, "duration": 0.1, "method": "fixed",
+                                  "step": 5e-4, "rho_inf": 0.5,
+                                  "initial": {"joint_angles": [0.1] * n}})
+        nested = scenario_from_dict({"arm": arm, "duration": 0.1, "integrator": {
+            "method": "fixed", "step": 5e-4, "rho_inf": 0.5},
+            "initial": {"joint_values_deg": [np.degrees(0.1)] * n}})
+        for sc in (top, nested):
+            assert (sc.method, sc.step, sc.rho_inf) == ("fixed", 5e-4, 0.5)
+        q = [getattr(sc, "joint_values", getattr(sc, "theta0", None)) for sc in (top, nested)]
+        np.testing.assert_allclose(q[0], q[1], rtol=0, atol=1e-15)
+        assert isinstance(top, SpatialScenario) == (arm == "seed003_like_arm")
 
 
 def test_seed000_preset_starts_at_the_static_droop():
     """seed000_3d_pd_step: state static = the droop under gravity in the stiff (248 N m^2)
     plane, q L^4 / 8 EI + P L^3 / 3 EI = 11.33 um; it stays there (to 1e-12 m) until the
     set-point step at 0.1 s."""
-    sc = load_spatial_scenario("seed000_3d_pd_step")
+    sc = load_scenario("seed000_3d_pd_step")
     res = sc.run(duration=0.09)
     L, EI, rhoA, P = 0.28, 248.0, 0.1289, 0.025607 * 9.81
     droop = rhoA * 9.81 * L ** 4 / (8 * EI) + P * L ** 3 / (3 * EI)
@@ -212,9 +234,8 @@ def test_a_payload_change_moves_the_pd_equilibrium_to_the_closed_form():
     assert abs(res.joint_values[-1, 0] - q_after) < 1e-6
     assert np.min(res.joint_values[:, 0]) < q_after                  # it swung past
     with pytest.raises(ConfigError) as err:
-        spatial_scenario_from_dict({"name": "p", "arm": "seed003_like_arm", "duration": 1.0,
-                                    "payload_changes": [{"time": 0.1, "mass": -1.0}]},
-                                   "p.yaml")
+        scenario_from_dict({"name": "p", "arm": "seed003_like_arm", "duration": 1.0,
+                            "payload_changes": [{"time": 0.1, "mass": -1.0}]}, "p.yaml")
     assert "p.yaml" in str(err.value) and "payload_changes[0].mass" in str(err.value)
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from flex_model.scenario import scenario_from_dict
-from flex_model.spatial.scenario import load_spatial_scenario
+from flex_model.scenario import load_scenario
 from flex_model.step_advice import ErrorEstimate, error_warning, estimate_error, tip_error
 
 
@@ -36,7 +36,7 @@ def _sag(nv: int, step: float, kinematics: str = "small_deflection", duration: f
 def _spatial(step: float, nv: int = 2, duration: float = 0.2):
     """seed003_like_pd_step, shortened to its set-point step (at 0.1 s, no pulse)."""
     assert nv in (2, 4)
-    sc = dataclasses.replace(load_spatial_scenario("seed003_like_pd_step"),
+    sc = dataclasses.replace(load_scenario("seed003_like_pd_step"),
                              duration=duration, step=step, pulses=())
     return sc.with_finer_variables() if nv == 4 else sc
 
@@ -88,10 +88,10 @@ def test_spatial_warns_where_the_run_is_off_and_is_quiet_where_it_is_not():
     off, ok = _spatial(2.5e-3), _spatial(6.25e-4)
     assert tip_error(off.tips(), ref) > 0.02
     assert tip_error(ok.tips(), ref) < 0.01
-    warning, est = off.advice()
-    assert warning is not None and "variables per bending plane" in warning
-    assert est.total > 0.015 and est.cost_s > 0
-    assert ok.advice()[0] is None
+    adv = off.advice()
+    assert adv.warning is not None and "variables per bending plane" in adv.warning
+    assert adv.estimate.total > 0.015 and adv.estimate.cost_s > 0
+    assert ok.advice().warning is None
 
 
 def test_the_variable_step_mode_is_checked_with_a_finer_rtol():

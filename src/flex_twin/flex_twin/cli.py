@@ -108,28 +108,50 @@ def cmd_static(args) -> int:
     return 0
 
 
-def _simulate(scenario_ref, args, label: str):
-    from flex_model.plots import plot_simulation
-    from flex_model.scenario import load_scenario
-
-    sc = load_scenario(scenario_ref, args.vars_per_link)
+def _with_options(sc, args, spatial: bool):
+    """The scenario with ``--kinematics``, ``--duration``, ``--method``, ``--step`` and
+    ``--rho-inf``, each checked with one line."""
+    from dataclasses import replace
     if args.kinematics:
-        sc.arm = sc.arm.with_kinematics(args.kinematics)
+        sc = replace(sc, arm=replace(sc.arm, kinematics=args.kinematics) if spatial
+                     else sc.arm.with_kinematics(args.kinematics))
     if args.duration is not None:
         if not args.duration > 0:
             raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
-        sc.duration = args.duration
+        sc = replace(sc, duration=args.duration,
+                     sample_period=min(sc.sample_period, args.duration))
+    if args.method and spatial:
+        raise ValueError(f"--method: not available for a spatial scenario ({args.scenario}); "
+                         "the fixed-step compiled integrator is the only method")
     if args.method:
-        sc.method = args.method
+        sc = replace(sc, method=args.method)
     if getattr(args, "step", None) is not None:
         if not 0 < args.step <= sc.sample_period:
             raise ValueError(f"--step: got {args.step}; expected a step > 0 s and at most "
                              f"the sample period ({sc.sample_period} s)")
-        sc.step, sc.method = args.step, "fixed"
+        sc = replace(sc, step=args.step, **({} if spatial else {"method": "fixed"}))
     if getattr(args, "rho_inf", None) is not None:
         if not 0 <= args.rho_inf <= 1:
             raise ValueError(f"--rho-inf: got {args.rho_inf}; expected 0 <= rho_inf <= 1")
-        sc.rho_inf = args.rho_inf
+        sc = replace(sc, rho_inf=args.rho_inf)
+    return sc
+
+
+def _simulate(scenario_ref, args, label: str):
+    """Any scenario (flex_model.scenario.load_scenario): run it and write CSV, PNG and
+    (``--bag``, spatial arms) a bag. (scenario, result, summary)."""
+    from dataclasses import replace
+
+    from flex_model.plots import plot_simulation
+    from flex_model.scenario import load_scenario
+    from flex_model.spatial.scenario import SpatialScenario
+
+    sc = load_scenario(scenario_ref, args.vars_per_link)
+    spatial = isinstance(sc, SpatialScenario)
+    if getattr(args, "bag", False) and not spatial:
+        raise ValueError(f"--bag: only for spatial scenarios so far ({args.scenario} is "
+                         "planar; record the model node with flex-twin record)")
+    sc = _with_options(sc, args, spatial)
     model = sc.model()
     advice = sc.advice(model, check=not getattr(args, "no_advice", False))
     if advice.warning:
@@ -137,7 +159,6 @@ def _simulate(scenario_ref, args, label: str):
     # numba loads (or compiles) the integrator on its first call: a run of two samples
     # first, timed apart, so the CPU-s per simulated second are the integration's alone
     t0, c0 = time.perf_counter(), time.process_time()
-    from dataclasses import replace
     short = replace(sc, duration=min(sc.duration, 2 * sc.sample_period))
     short.run(model=model, advise=False)
     load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -147,59 +168,63 @@ def _simulate(scenario_ref, args, label: str):
     out_dir = run_dir(args.out, sc.name)
     csv = out_dir / f"{sc.name}.csv"
     res.to_csv(csv)
+    est = advice.estimate
     summary = {"scenario": sc.name, "arm": sc.arm.name, "kinematics": sc.arm.kinematics,
-               "vars_per_link":
-               [lk.n_vars for lk in sc.arm.links], "duration_s": sc.duration,
-               "method": sc.method, "step_s": res.stats.get("dt"),
+               "duration_s": sc.duration, "method": sc.method, "step_s": res.stats.get("dt"),
                "rho_inf": sc.rho_inf if sc.method == "fixed" else None,
-               "wall_s": wall, "cpu_s": cpu,
-               "cpu_s_per_simulated_s": cpu / sc.duration, "steps": res.stats["steps"],
-               "load_compile_wall_s": load_wall, "load_compile_cpu_s": load_cpu,
-               "highest_mode_hz": advice.highest_mode_hz,
+               "wall_s": wall, "cpu_s": cpu, "cpu_s_per_simulated_s": cpu / sc.duration,
+               "steps": res.stats["steps"], "load_compile_wall_s": load_wall,
+               "load_compile_cpu_s": load_cpu, "highest_mode_hz": advice.highest_mode_hz,
                "highest_excited_mode_hz": advice.highest_excited_mode_hz,
-               "warning": advice.warning,
-               "estimated_tip_error": None if advice.estimate is None else {
-                   "step": advice.estimate.step_error, "variables": advice.estimate.vars_error,
-                   "window_s": advice.estimate.window, "cost_s": advice.estimate.cost_s},
-               "csv": str(csv),
-               "final_joint_angles_deg": np.degrees(res.joint_angles[-1]).tolist(),
-               "final_tip_m": res.tip_xy[-1].tolist(),
-               "max_abs_tip_deflection_mm":
-                   (1e3 * np.max(np.abs(res.tip_deflections), axis=0)).tolist()}
+               "warning": advice.warning, "estimated_tip_error": None if est is None else {
+                   "step": est.step_error, "variables": est.vars_error,
+                   "window_s": est.window, "cost_s": est.cost_s},
+               "csv": str(csv), **res.summary()}
     if not args.no_plot:
+        from .spatial_cli import plot_spatial_run
         png = out_dir / f"{sc.name}.png"
-        plot_simulation(res, png, title=f"{sc.name} ({sc.arm.name})")
+        (plot_spatial_run if spatial else plot_simulation)(
+            res, png, title=f"{sc.name} ({sc.arm.name})")
         summary["png"] = str(png)
+    if getattr(args, "bag", False):
+        from .spatial_bags import write_spatial_bag
+        write_spatial_bag(res, out_dir / "bag")
+        summary["bag"] = str(out_dir / "bag")
     return sc, res, summary
 
 
-def _print_summary(summary: dict) -> None:
-    print(f"scenario {summary['scenario']} on arm {summary['arm']} "
-          f"({summary['vars_per_link']} variables per link, {summary['kinematics']} "
-          f"kinematics, {summary['method']} step)")
-    step = f", step {summary['step_s']:.3g} s, rho_inf {summary['rho_inf']:g}" \
-        if summary.get("rho_inf") is not None else ""
-    print(f"  simulated {summary['duration_s']:g} s in {summary['wall_s']:.3f} s wall, "
-          f"{summary['cpu_s_per_simulated_s']:.4f} CPU-s per simulated s, "
-          f"{summary['steps']} steps{step}")
+def _print_summary(s: dict) -> None:
+    step = f", step {s['step_s']:.3g} s, rho_inf {s['rho_inf']:g}" \
+        if s.get("rho_inf") is not None else ""
+    arm = f"spatial arm {s['arm']} ({s['coordinates']} coordinates" if s.get("spatial") \
+        else f"arm {s['arm']} ({s['vars_per_link']} variables per link"
+    print(f"scenario {s['scenario']} on {arm}, {s['kinematics']} kinematics, "
+          f"{s['method']} step{step})")
+    newton = f", {s['newton_iterations']} Newton iterations" if "newton_iterations" in s \
+        else ""
+    print(f"  simulated {s['duration_s']:g} s in {s['wall_s']:.3f} s wall, "
+          f"{s['cpu_s_per_simulated_s']:.4f} CPU-s per simulated s, {s['steps']} steps"
+          + newton)
     print(f"  numba load/compile before the run (not in the figure above): "
-          f"{summary['load_compile_cpu_s']:.2f} CPU-s, {summary['load_compile_wall_s']:.2f} s "
-          "wall")
-    print("  final joint angles [deg]: " + ", ".join(
-        f"{a:.4f}" for a in summary["final_joint_angles_deg"]))
-    print("  final tip [m]: ({:.5f}, {:.5f})".format(*summary["final_tip_m"]))
-    print("  max |tip deflection| [mm]: " + ", ".join(
-        f"{a:.2f}" for a in summary["max_abs_tip_deflection_mm"]))
-    print(f"  wrote {summary['csv']}" + (f" and {summary['png']}" if "png" in summary else ""))
+          f"{s['load_compile_cpu_s']:.2f} CPU-s, {s['load_compile_wall_s']:.2f} s wall")
+    if s.get("spatial"):
+        print("  final joint values [rad or m]: " + ", ".join(
+            f"{n} {a:.6f}" for n, a in zip(s["joint_names"], s["final_joint_values"])))
+        print("  final tip [m]: ({:.5f}, {:.5f}, {:.5f})".format(*s["final_tip_m"]))
+        for name, d in s["max_abs_tip_deflection"].items():
+            print(f"  {name}: max |tip deflection| y {d['y_mm']:.3f} mm, z {d['z_mm']:.3f} "
+                  f"mm, twist {d['twist_mrad']:.3f} mrad")
+    else:
+        print("  final joint angles [deg]: " + ", ".join(
+            f"{a:.4f}" for a in s["final_joint_angles_deg"]))
+        print("  final tip [m]: ({:.5f}, {:.5f})".format(*s["final_tip_m"]))
+        print("  max |tip deflection| [mm]: " + ", ".join(
+            f"{a:.2f}" for a in s["max_abs_tip_deflection_mm"]))
+    print(f"  wrote {s['csv']}" + (f" and {s['png']}" if "png" in s else "")
+          + (f"; bag {s['bag']}" if "bag" in s else ""))
 
 
 def cmd_simulate(args) -> int:
-    from .spatial_cli import cmd_spatial_simulate, is_spatial_scenario
-    if is_spatial_scenario(args.scenario):
-        return cmd_spatial_simulate(args)
-    if getattr(args, "bag", False):
-        raise ValueError(f"--bag: only for spatial scenarios so far ({args.scenario} is "
-                         "planar; record the model node with flex-twin record)")
     _, _, summary = _simulate(args.scenario, args, "simulate")
     print(json.dumps(summary) if args.json else "", end="\n" if args.json else "")
     if not args.json:
@@ -289,7 +314,6 @@ def cmd_presets(args) -> int:
 
     from flex_model.spatial.description import SPATIAL_PRESET_DIR
     from flex_model.spatial.loader import load_spatial_arm
-    from flex_model.spatial.scenario import spatial_scenario_names
 
     arms = {n: load_arm(n).description for n in preset_names()}
     spatial = {p.stem: load_spatial_arm(p).description
@@ -297,7 +321,7 @@ def cmd_presets(args) -> int:
     if args.json:
         print(json.dumps({"arms": arms, "spatial_arms": spatial,
                           "scenarios": scenario_names(),
-                          "spatial_scenarios": spatial_scenario_names()}))
+                          "spatial_scenarios": scenario_names(spatial=True)}))
         return 0
     for title, group in (("arms", arms), ("spatial arms (modes, static)", spatial)):
         print(f"{title}:")
@@ -307,7 +331,7 @@ def cmd_presets(args) -> int:
     for n in scenario_names():
         print(f"  {n}")
     print("spatial scenarios (simulate):")
-    for n in spatial_scenario_names():
+    for n in scenario_names(spatial=True):
         print(f"  {n}")
     return 0
 

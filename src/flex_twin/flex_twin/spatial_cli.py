@@ -5,14 +5,12 @@ table, or a ``urdf`` key: a URDF with a side file) or when its name is a preset 
 ``flex_model/presets/spatial``; the planar options that have no spatial meaning yet are
 refused with one line naming the option. The numbers come from
 :mod:`flex_model.spatial.analysis` (natural modes of M, K plus the gravity stiffness;
-Newton equilibrium with the joints held). ``simulate`` takes a spatial scenario
-(:mod:`flex_model.spatial.scenario`: its arm is a spatial arm) and writes CSV, PNG and,
-with ``--bag``, a bag (:mod:`flex_twin.spatial_bags`).
+Newton equilibrium with the joints held). ``simulate`` runs every scenario through one
+path (flex_twin.cli._simulate); :func:`plot_spatial_run` draws a spatial run.
 """
 from __future__ import annotations
 
 import json
-import sys
 
 import numpy as np
 
@@ -112,11 +110,6 @@ def cmd_spatial_static(args) -> int:
 
 # ---------------------------------------------------------------- simulate
 
-def is_spatial_scenario(name_or_path) -> bool:
-    from flex_model.spatial.scenario import is_spatial_scenario as check
-    return check(name_or_path)
-
-
 def plot_spatial_run(res, path, title: str) -> None:
     """Joint values, tip deflections (y, z) and twist per flexible link, and the tip path."""
     import matplotlib
@@ -146,110 +139,3 @@ def plot_spatial_run(res, path, title: str) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
-
-
-#: planar-only options of ``flex-twin simulate``: {attribute: (default, flag)}
-_SIM_PLANAR_ONLY = {"vars_per_link": (None, "--vars-per-link"),
-                    "method": (None, "--method")}
-
-
-def spatial_simulate(args, label: str = "simulate") -> tuple:
-    """Run a spatial scenario as ``flex-twin simulate`` does a planar one: (scenario,
-    result, summary); CSV, PNG and (``--bag``) a bag in the run directory."""
-    import time
-    from dataclasses import replace
-
-    from flex_model.spatial.scenario import load_spatial_scenario
-
-    from flex_model.command import Progress, run_dir
-    for attr, (default, flag) in _SIM_PLANAR_ONLY.items():
-        if getattr(args, attr, default) != default:
-            raise ValueError(f"{flag}: not available for a spatial scenario ({args.scenario}); "
-                             "the fixed-step compiled integrator is the only method")
-    sc = load_spatial_scenario(args.scenario)
-    if getattr(args, "kinematics", None):
-        sc = replace(sc, arm=replace(sc.arm, kinematics=args.kinematics))
-    if args.duration is not None:
-        if not args.duration > 0:
-            raise ValueError(f"--duration: got {args.duration}; expected a time > 0 s")
-        sc = replace(sc, duration=args.duration,
-                     sample_period=min(sc.sample_period, args.duration))
-    if getattr(args, "step", None) is not None:
-        if not 0 < args.step <= sc.sample_period:
-            raise ValueError(f"--step: got {args.step}; expected a step > 0 s and at most "
-                             f"the sample period ({sc.sample_period} s)")
-        sc = replace(sc, step=args.step)
-    if getattr(args, "rho_inf", None) is not None:
-        if not 0 <= args.rho_inf <= 1:
-            raise ValueError(f"--rho-inf: got {args.rho_inf}; expected 0 <= rho_inf <= 1")
-        sc = replace(sc, rho_inf=args.rho_inf)
-    model = sc.model()
-    # numba loads (or compiles) on the first call: a run of one sample first, timed apart
-    t0, c0 = time.perf_counter(), time.process_time()
-    sc.run(model=model, duration=sc.sample_period)
-    load_wall, load_cpu = time.perf_counter() - t0, time.process_time() - c0
-    warning, est = (None, None) if getattr(args, "no_advice", False) else \
-        sc.advice(model)   # the step and variables advice (step_advice)
-    if warning:
-        print(f"flex-twin: warning: {warning}", file=sys.stderr)
-    t0, c0 = time.perf_counter(), time.process_time()
-    res = sc.run(model=model, progress=Progress(label, not args.json))
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    out_dir = run_dir(args.out, sc.name)
-    csv = out_dir / f"{sc.name}.csv"
-    res.to_csv(csv)
-    tip = res.tip_positions()
-    defl = {k: {"y_mm": float(1e3 * np.max(np.abs(d["y"]))),
-                "z_mm": float(1e3 * np.max(np.abs(d["z"]))),
-                "twist_mrad": float(1e3 * np.max(np.abs(d["twist"])))}
-            for k, d in res.tip_deflections().items()}
-    summary = {"scenario": sc.name, "arm": sc.arm.name, "spatial": True,
-               "kinematics": sc.arm.kinematics,
-               "coordinates": int(model.nq), "duration_s": sc.duration, "method": "fixed",
-               "step_s": res.stats["dt"], "rho_inf": sc.rho_inf, "wall_s": wall, "cpu_s": cpu,
-               "cpu_s_per_simulated_s": cpu / sc.duration, "steps": res.stats["steps"],
-               "newton_iterations": res.stats["newton_iterations"],
-               "load_compile_wall_s": load_wall, "load_compile_cpu_s": load_cpu,
-               "csv": str(csv), "joint_names": sc.arm.joint_names,
-               "final_joint_values": res.joint_values[-1].tolist(),
-               "final_tip_m": tip[-1].tolist(), "max_abs_tip_deflection": defl,
-               "warning": warning, "estimated_tip_error": None if est is None else {
-                   "step": est.step_error, "variables": est.vars_error,
-                   "window_s": est.window, "cost_s": est.cost_s}}
-    if not args.no_plot:
-        png = out_dir / f"{sc.name}.png"
-        plot_spatial_run(res, png, f"{sc.name} ({sc.arm.name})")
-        summary["png"] = str(png)
-    if getattr(args, "bag", False):
-        from .spatial_bags import write_spatial_bag
-        bag = out_dir / "bag"
-        write_spatial_bag(res, bag)
-        summary["bag"] = str(bag)
-    return sc, res, summary
-
-
-def print_spatial_summary(s: dict) -> None:
-    print(f"scenario {s['scenario']} on spatial arm {s['arm']} ({s['coordinates']} "
-          f"coordinates, fixed step {s['step_s']:.3g} s, rho_inf {s['rho_inf']:g})")
-    print(f"  simulated {s['duration_s']:g} s in {s['wall_s']:.3f} s wall, "
-          f"{s['cpu_s_per_simulated_s']:.4f} CPU-s per simulated s, {s['steps']} steps, "
-          f"{s['newton_iterations']} Newton iterations")
-    print(f"  numba load/compile before the run (not in the figure above): "
-          f"{s['load_compile_cpu_s']:.2f} CPU-s, {s['load_compile_wall_s']:.2f} s wall")
-    print("  final joint values [rad or m]: " + ", ".join(
-        f"{n} {a:.6f}" for n, a in zip(s["joint_names"], s["final_joint_values"])))
-    print("  final tip [m]: ({:.5f}, {:.5f}, {:.5f})".format(*s["final_tip_m"]))
-    for name, d in s["max_abs_tip_deflection"].items():
-        print(f"  {name}: max |tip deflection| y {d['y_mm']:.3f} mm, z {d['z_mm']:.3f} mm, "
-              f"twist {d['twist_mrad']:.3f} mrad")
-    print(f"  wrote {s['csv']}" + (f" and {s['png']}" if "png" in s else "")
-          + (f"; bag {s['bag']}" if "bag" in s else ""))
-
-
-def cmd_spatial_simulate(args) -> int:
-    _, _, summary = spatial_simulate(args)
-    if args.json:
-        print(json.dumps(summary))
-    else:
-        print_spatial_summary(summary)
-    return 0

@@ -93,16 +93,19 @@ def _source(args):
     from flex_model.dynamics import FlexArmModel
     from flex_model.scenario import load_scenario, scenario_names
     from flex_model.spatial.description import is_spatial_arm
-    from flex_model.spatial.scenario import is_spatial_scenario
+    from flex_model.spatial.scenario import SpatialScenario
 
     from flex_model.command import Progress
     ref = args.arm_or_scenario
-    if is_spatial_arm(ref) or is_spatial_scenario(ref):
-        raise ValueError(f"{ref}: a spatial arm; flex-twin view streams planar arms only")
-    if ref in scenario_names() or _is_scenario_file(ref):
+    spatial = ValueError(f"{ref}: a spatial arm; flex-twin view streams planar arms only")
+    if is_spatial_arm(ref):
+        raise spatial
+    if ref in scenario_names() + scenario_names(spatial=True) or _is_scenario_file(ref):
+        sc = load_scenario(ref, args.vars_per_link)
+        if isinstance(sc, SpatialScenario):
+            raise spatial
         if args.joint_angles_deg is not None:
             raise ValueError("--joint-angles-deg: for an arm; a scenario has its own start")
-        sc = load_scenario(ref, args.vars_per_link)
         if args.duration is not None:
             sc.duration = args.duration
         res = sc.run(progress=Progress("view: simulating first"), advise=False)

@@ -1,13 +1,7 @@
 """Batch work on a real Dask cluster: a scheduler and two workers as separate processes on
-127.0.0.1 (issue 26). Three diagnoses and a small sweep give the same results as the local
-run, and a worker killed mid-run loses no result."""
-import os
-import signal
-import subprocess
-import sys
-import time
-
-import numpy as np
+127.0.0.1 (issue 26; the cluster fixture: conftest.py). Two diagnoses give the same results
+as the local run; bad inputs and the CLI's manifest. The sweeps on the cluster:
+test_dask_batch_sweep.py."""
 import pytest
 
 from flex_twin.cluster import SerialExecutor, batch_executor, check_scheduler
@@ -15,49 +9,6 @@ from flex_twin.diagnosis.batch import RunSpec, diagnose_many, expand_runs
 from flex_twin.sweep import run_sweep
 
 pytest.importorskip("distributed")
-
-SWEEP = ["payload.mass=0,0.5,1", "duration=0.4"]
-
-
-def _spawn(args, log):
-    return subprocess.Popen([sys.executable, "-m", *args], stdout=log, stderr=subprocess.STDOUT,
-                            start_new_session=True)
-
-
-@pytest.fixture(scope="module")
-def cluster(tmp_path_factory):
-    """(scheduler file, worker processes): scheduler and two single-threaded workers without
-    nanny (a killed worker stays dead), all on 127.0.0.1."""
-    from distributed import Client
-    d = tmp_path_factory.mktemp("dask")
-    sfile = d / "scheduler.json"
-    log = open(d / "cluster.log", "w")
-    procs = [_spawn(["distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", "0",
-                     "--scheduler-file", str(sfile), "--no-dashboard"], log)]
-    deadline = time.monotonic() + 60
-    while not sfile.exists():
-        assert time.monotonic() < deadline, "the Dask scheduler did not start"
-        time.sleep(0.2)
-    workers = [_spawn(["distributed.cli.dask_worker", "--scheduler-file", str(sfile),
-                       "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
-                       "--no-dashboard", "--name", f"w{k}"], log) for k in (1, 2)]
-    procs += workers
-    try:
-        with Client(scheduler_file=str(sfile), timeout=60) as c:
-            c.wait_for_workers(2, timeout=120)
-            assert all(v["host"] == "127.0.0.1" for v in c.scheduler_info()["workers"].values()
-                       ) or all("127.0.0.1" in a for a in c.scheduler_info()["workers"])
-        yield str(sfile), workers
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                os.killpg(p.pid, signal.SIGTERM)
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-        log.close()
 
 
 @pytest.fixture(scope="module")
@@ -97,44 +48,6 @@ def test_diagnoses_on_the_cluster_equal_the_local_run(cluster, cases, tmp_path):
     for r in cases:
         assert (tmp_path / "dask" / r.name / "diagnosis.json").is_file()
     assert (tmp_path / "dask" / "summary.csv").read_text().count("\n") == 1 + len(cases)
-
-
-def test_sweep_on_the_cluster_equals_the_local_run(cluster, tmp_path):
-    sfile, _ = cluster
-    local = run_sweep("seed002_step", SWEEP, tmp_path / "local", SerialExecutor(),
-                      plot=False)
-    with batch_executor(sfile) as ex:
-        remote = run_sweep("seed002_step", SWEEP, tmp_path / "dask", ex, plot=False)
-    assert [r["payload.mass"] for r in remote] == [0.0, 0.5, 1.0]
-    for a, b in zip(local, remote):
-        assert a["error"] == b["error"] == ""
-        for k in ("tip_peak_deflection_m", "residual_vibration_m", "tip_final_error_m"):
-            assert a[k] == b[k]  # the same computation, bit for bit
-    # the payload reached the model: a heavier tip deflects less at the same step (it lags
-    # the joints' motion, the arm being slower), by more than round-off
-    peak = [r["tip_peak_deflection_m"] for r in remote]
-    assert len(set(peak)) == 3
-
-
-def test_a_worker_killed_mid_run_loses_no_result(cluster, tmp_path):
-    """Six sweep points on two workers; one worker is SIGKILLed after the first result
-    arrives, while it computes: Dask reruns its task on the other worker."""
-    sfile, workers = cluster
-    vary = ["payload.mass=0:1.25:0.25", "duration=0.6"]
-    local = run_sweep("seed002_step", vary, tmp_path / "local", SerialExecutor(), plot=False)
-    done = []
-
-    def log(line):
-        done.append(line)
-        if len(done) == 1:
-            os.killpg(workers[0].pid, signal.SIGKILL)
-
-    with batch_executor(sfile) as ex:
-        remote = run_sweep("seed002_step", vary, tmp_path / "dask", ex, plot=False, log=log)
-    assert workers[0].wait(timeout=10) == -signal.SIGKILL
-    assert len(remote) == 6 and all(r["error"] == "" for r in remote)
-    np.testing.assert_array_equal([r["residual_vibration_m"] for r in remote],
-                                  [r["residual_vibration_m"] for r in local])
 
 
 def test_bad_inputs_get_one_line(tmp_path):

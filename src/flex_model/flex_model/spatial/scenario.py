@@ -1,34 +1,9 @@
 """Spatial simulation scenarios (issue 25): a YAML file, validated on load, run by the
 compiled generalized-alpha loop (integrate.simulate_fixed_compiled).
 
-Example (preset ``seed000_3d_pd_step``, ``presets/spatial/scenarios/``)::
-
-    name: seed000_3d_pd_step
-    arm: seed000_real_arm_3d          # spatial preset name or path (relative to this file)
-    gravity: true                     # false: no gravity
-    duration: 2.0                     # s
-    step: 1.0e-3                      # s, fixed step (at most the sample period)
-    sample_period: 0.005              # s, output rows (default: 0.005 s or the duration)
-    rho_inf: 0.9                      # generalized-alpha spectral radius (1: no damping)
-    initial:
-      joint_values: [0.0]             # rad (revolute) or m (prismatic), SI; or joint_values_deg
-      joint_rates: [0.0]              # rad/s or m/s
-      state: static                   # undeformed | static: the equilibrium under gravity
-                                      # (joints held; with a PD: the PD's equilibrium)
-    control:
-      gravity_hold: true              # constant holding torques of the initial static state
-      pd: {kp: [2.0], kd: [0.05], setpoints: [0.0]}    # N m/rad (N/m), N m s/rad, rad (m)
-      # (every set-point key also as setpoints_deg, in deg, when every joint is revolute)
-      # or seed 000's Eq. (45): pd45: {kpp: [70.0], kpv: [50.0], setpoints: [0.0]}
-      setpoint_schedule:              # set-point steps and ramps
-        - {time: 0.5, setpoints: [0.2]}               # a step at 0.5 s
-        - {time: 1.0, setpoints: [0.4], ramp: 0.5}    # a ramp over 1-1.5 s
-    pulses:                           # joint torques (N m) / forces (N) on [start, end)
-      - {joint: joint1, torque: 0.05, start: 0.1, end: 0.2}   # end: .inf = to the end
-    tip_loads:                        # a force (N, base frame) at the tip on [start, end)
-      - {force: [0.0, 0.0, -5.0], start: 0.2, end: 0.4}
-    payload_changes:                  # pick and place: the payload at the end frame
-      - {time: 0.5, mass: 0.2, inertia: [1.0e-4, 1.0e-4, 1.0e-4]}   # from 0.5 s on
+The file format is the one of every scenario (:mod:`flex_model.scenario`, one loader:
+``load_scenario``); its arm here is a spatial arm (a DH table, a URDF side file or a
+spatial preset).
 
 ``pd45`` is seed 000's PD-like cascade, Eq. (45), in continuous time (as the seed's runs
 and flex_control.step_response): on the motor angle n theta_a it is the joint PD
@@ -51,22 +26,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from ..config import ConfigError, Fields, read_yaml
 from ..errors import SimulationDivergedError, StaticConvergenceError
-from ..inputs import JointPD
-from ..scenario import is_inf, joint_index, setpoint_schedule
-from .description import SPATIAL_PRESET_DIR, SpatialArm
-from .loader import load_spatial_arm
+from ..inputs import JointPD, ramp_fraction
+from .description import SpatialArm
 from .dynamics import SpatialArmModel
 from .limits import joint_limits
-
-SPATIAL_SCENARIO_DIR = SPATIAL_PRESET_DIR / "scenarios"
-
 
 #: tau = kp (s - theta_a) - kd theta_a' per joint (thesis Eq. 95, constant gains) on the
 #: actuator coordinate: the planar scenario's JointPD
@@ -131,6 +100,8 @@ class SpatialScenario:
     #: link's end frame) on [start, end), as the pulses: evaluated at mid-step, a restart
     #: at its edges
     tip_loads: tuple = ()
+
+    method = "fixed"    # the one method (not a field): the compiled generalized-alpha loop
 
     # ------------------------------------------------------------ model and grid
     def model(self) -> SpatialArmModel:
@@ -230,7 +201,7 @@ class SpatialScenario:
                 if ramp <= 0.0:
                     u[t >= ts] += self.pd.kp * delta
                     continue
-                (y0, a0), (y1, a1) = _ramp(tk, ts, ramp), _ramp(tk + T, ts, ramp)
+                (y0, a0), (y1, a1) = ramp_fraction(tk, ts, ramp), ramp_fraction(tk + T, ts, ramp)
                 u += np.outer((a1 - a0) / T, self.pd.kp * delta) + \
                     np.outer((y1 - y0) / T, self.pd.kd * delta)
         return u
@@ -255,11 +226,15 @@ class SpatialScenario:
 
     # ------------------------------------------------------------ run
     def run(self, model: SpatialArmModel | None = None, progress=None,
-            duration: float | None = None) -> "SpatialSimulation":
+            duration: float | None = None, advise: bool = False) -> "SpatialSimulation":
         """Integrate (compiled generalized-alpha); ``duration`` overrides the scenario's
-        (e.g. a short first run that loads the numba cache)."""
+        (e.g. a short first run that loads the numba cache); ``advise``: a run estimated
+        more than 2 % off (:meth:`advice`) is a ``UserWarning``, as the planar run's."""
         from .integrate import simulate_fixed_compiled
         model = model or self.model()
+        warning = self.advice(model).warning if advise else None
+        if warning:
+            warnings.warn(warning, stacklevel=2)
         h, per, n_samples = self.grid()
         if duration is not None:
             n_samples = max(1, int(round(duration / self.sample_period)))
@@ -339,18 +314,20 @@ class SpatialScenario:
                       for lk in self.arm.links)
         return dataclasses.replace(self, arm=dataclasses.replace(self.arm, links=links))
 
-    def advice(self, model: SpatialArmModel | None = None):
-        """(warning or None, step_advice.ErrorEstimate): the a-posteriori estimate of the
-        planar scenario (flex_model.scenario.Scenario.advice) over step_advice.probe_window:
-        the run, the run at a quarter of the step and that run with twice the variables."""
+    def advice(self, model: SpatialArmModel | None = None, check: bool = True):
+        """step_advice.StepAdvice with the a-posteriori estimate of the planar scenario
+        (flex_model.scenario.Scenario.advice) over step_advice.probe_window: the run, the
+        run at a quarter of the step and that run with twice the variables (``check``
+        False, or no flexible link: no estimate, no warning)."""
         from .. import step_advice as sa
         h = self.grid()[0]
+        none = sa.StepAdvice(None, None, h, None, None)
         jumps = [p.start for p in self.pulses] + [e[0] for e in self.setpoint_schedule] + \
             [a for _, a, _ in self.tip_loads]
         window = sa.probe_window(self.duration, self.sample_period, jumps)
         beams = [lk.flexible for lk in self.arm.links if lk.flexible is not None]
-        if not beams:
-            return None, None
+        if not beams or not check:
+            return none
         finer = self.with_finer_variables()
 
         def tips(divisor, factor):
@@ -360,17 +337,8 @@ class SpatialScenario:
         est = sa.estimate_error(tips, window)
         nv = sorted({b.variables for b in beams})
         label = f"{'/'.join(map(str, nv))} variables per bending plane"
-        return sa.error_warning(est, h, label), est
-
-
-def _ramp(t, t0: float, r: float):
-    """(y, area): a ramp's fraction y(t) = clip((t - t0) / r, 0, 1) and its integral from t0
-    (arrays of t)."""
-    t = np.asarray(t, float)
-    y = np.clip((t - t0) / r, 0.0, 1.0)
-    area = np.where(t <= t0, 0.0, np.where(t <= t0 + r, (t - t0) ** 2 / (2 * r),
-                                           r / 2 + (t - t0 - r)))
-    return y, area
+        return dataclasses.replace(none, warning=sa.error_warning(est, h, label),
+                                   estimate=est)
 
 
 def _dead_zone_inverse(y: float, half: float, smooth: float) -> float:
@@ -486,182 +454,21 @@ class SpatialSimulation:
             cols.append(self.contact_forces())
         return names, np.column_stack(cols)
 
+    def summary(self) -> dict:
+        """The run's figures (``flex-twin simulate``; as SimulationResult.summary): final
+        joint values and tip, max |tip deflection| per flexible link (mm, mrad)."""
+        defl = {k: {"y_mm": float(1e3 * np.max(np.abs(d["y"]))),
+                    "z_mm": float(1e3 * np.max(np.abs(d["z"]))),
+                    "twist_mrad": float(1e3 * np.max(np.abs(d["twist"])))}
+                for k, d in self.tip_deflections().items()}
+        return {"spatial": True, "coordinates": int(self.model.nq),
+                "newton_iterations": self.stats["newton_iterations"],
+                "joint_names": self.model.arm.joint_names,
+                "final_joint_values": self.joint_values[-1].tolist(),
+                "final_tip_m": self.tip_positions()[-1].tolist(),
+                "max_abs_tip_deflection": defl}
+
     def to_csv(self, path) -> None:
         names, data = self.table()
         np.savetxt(path, data, delimiter=",", header=",".join(names), comments="",
                    fmt="%.17g")
-
-
-# ---------------------------------------------------------------- loading
-
-def is_spatial_scenario(name_or_path) -> bool:
-    """True for a spatial scenario file (its arm a spatial arm) or preset name."""
-    from ..scenario import SCENARIO_DIR
-    path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml") or path.is_file():
-        if not path.is_file():
-            return False
-        data = read_yaml(path)
-        if not isinstance(data, dict):
-            return False
-        arm = data.get("arm")
-        if isinstance(arm, dict):
-            return "convention" in arm or "urdf" in arm
-        if not isinstance(arm, str):
-            return False
-        local = path.parent / arm
-        if local.suffix in (".yaml", ".yml") and local.is_file():
-            d = read_yaml(local)
-            return isinstance(d, dict) and ("convention" in d or "urdf" in d)
-        from ..arm import PRESET_DIR
-        return not (PRESET_DIR / f"{arm}.yaml").exists() and \
-            (SPATIAL_PRESET_DIR / f"{arm}.yaml").exists()
-    return not (SCENARIO_DIR / f"{name_or_path}.yaml").exists() and \
-        (SPATIAL_SCENARIO_DIR / f"{name_or_path}.yaml").exists()
-
-
-def spatial_scenario_names() -> list[str]:
-    return sorted(p.stem for p in SPATIAL_SCENARIO_DIR.glob("*.yaml"))
-
-
-def load_spatial_scenario(name_or_path) -> SpatialScenario:
-    from ..arm import resolve_preset
-    path = resolve_preset(name_or_path, SPATIAL_SCENARIO_DIR)
-    return spatial_scenario_from_dict(read_yaml(path), str(path), Path(path).parent,
-                                      default_name=Path(path).stem)
-
-
-def _interval(f: Fields) -> tuple:
-    """(start, end) of a pulse or a tip load: end after start, ``.inf`` to the run's end."""
-    start = f.number("start", nonnegative=True, unit="s")
-    end = math.inf if is_inf(f.raw("end")) else \
-        f.number("end", nonnegative=True, unit="s (or .inf: to the end of the run)")
-    if end <= start:
-        raise f.error("end", end, f"a time after start ({start} s)")
-    return start, end
-
-
-def spatial_scenario_from_dict(data: dict, source: str = "<memory>",
-                               base_dir: Path | None = None,
-                               default_name: str = "scenario") -> SpatialScenario:
-    """Validate a spatial scenario mapping; errors name ``source``, the field, the value
-    and what is allowed. ``arm``: a spatial preset name, a path (relative to
-    ``base_dir``) or an inline spatial arm mapping."""
-    from .loader import spatial_arm_from_dict
-    f = Fields(data, source, "")
-    name = f.string("name", default_name)
-    raw_arm = f.raw("arm")
-    if isinstance(raw_arm, dict):
-        arm = spatial_arm_from_dict(raw_arm, f"{source}: arm")
-    else:
-        ref = f.string("arm")
-        local = Path(base_dir or Path.cwd()) / ref
-        try:
-            arm = load_spatial_arm(local if local.suffix in (".yaml", ".yml") and
-                                   local.exists() else ref)
-        except ConfigError as exc:
-            if exc.path == "<preset>":
-                raise f.error("arm", ref, "a spatial arm preset or file (" + exc.allowed
-                              + ")") from None
-            raise
-    motors = [e.target for e in arm.effects if e.TYPE == "dc_motor"]
-    if motors:
-        raise f.error("arm", arm.name, "an arm without dc_motor effects (on "
-                      f"{', '.join(motors)}): a spatial scenario drives joint torques; "
-                      "voltage commands run through integrate.simulate_fixed_compiled")
-    if not f.boolean("gravity", True):
-        arm = arm.without_gravity()
-    n = arm.n_links
-    if is_inf(f.raw("duration", 1.0)):
-        raise f.error("duration", f.raw("duration"), "a finite time > 0 s")
-    duration = f.number("duration", positive=True, unit="s")
-    step = f.number("step", 1e-3, positive=True, unit="s")
-    sample = f.number("sample_period", min(0.005, duration), positive=True, unit="s")
-    if sample > duration:
-        raise f.error("sample_period", sample, f"at most the duration ({duration} s)")
-    if step > sample:
-        raise f.error("step", step, f"a step at most the sample period ({sample} s)")
-    rho_inf = f.number("rho_inf", 0.9, min_value=0.0, max_value=1.0)
-    tol = f.number("newton_tol", 1e-10, positive=True, max_value=1e-4)
-    ini = f.mapping("initial", {})
-    revolute = all(lk.joint.type != "prismatic" for lk in arm.links)
-    q0 = ini.joint_vector("joint_values", n, [0.0] * n, all_revolute=revolute)
-    v0 = np.array(ini.vector("joint_rates", n, [0.0] * n, unit="rad/s or m/s"))
-    start_static = ini.string("state", "undeformed", choices=["undeformed", "static"]) == \
-        "static"
-    ini.done(["joint_values", "joint_values_deg", "joint_rates", "state"])
-    ctl = f.mapping("control", {})
-    hold = ctl.boolean("gravity_hold", False)
-    locked = [lk.joint.name for lk in arm.links if lk.joint.motor == "locked"]
-    pd = None
-    if ctl.has("pd") and ctl.has("pd45"):
-        raise ctl.error("pd45", ctl.raw("pd45"), "pd or pd45, not both (one joint law)")
-    law = "pd45" if ctl.has("pd45") else "pd" if ctl.has("pd") else None
-    if law is not None:     # Eq. 95's kp, kd or Eq. 45's kpp, kpv (eq45_joint_gains)
-        p = ctl.mapping(law)
-        keys, units = (("kpp", "kpv"), ("1/s", "N m s/rad, motor side")) if law == "pd45" \
-            else (("kp", "kd"), ("N m/rad or N/m", "N m s/rad or N s/m"))
-        given = [np.array(p.vector(key, n, unit=u)) for key, u in zip(keys, units)]
-        for key, val in zip(keys, given):
-            if np.any(val < 0):
-                raise p.error(key, val.tolist(), "gains >= 0")
-        kp, kd = eq45_joint_gains(arm, *given) if law == "pd45" else given
-        for key, val, gain in zip(keys, given, (kp, kd)):
-            bad = [nm for nm, x in zip(arm.joint_names, gain) if nm in locked and x != 0]
-            if bad:
-                raise p.error(key, val.tolist(), f"0 on the locked joints ({', '.join(bad)}: "
-                              "a locked motor takes no torque)")
-        sp = p.joint_vector("setpoints", n, q0.tolist(), all_revolute=revolute)
-        p.done(list(keys) + ["setpoints", "setpoints_deg"])
-        pd = SpatialPD(kp, kd, sp)
-    schedule = setpoint_schedule(ctl, n, pd is not None, "control.pd or pd45",
-                                 all_revolute=revolute)
-    ctl.done(["gravity_hold", "pd", "pd45", "setpoint_schedule"])
-    pulses = []
-    for k, raw in enumerate(f.items("pulses", [])):
-        pf = Fields(raw, source, f"pulses[{k}]")
-        j = joint_index(pf, "joint", arm)
-        if arm.links[j].joint.motor == "locked":
-            raise pf.error("joint", pf.raw("joint"), "a joint with an active motor (a "
-                           "locked motor takes no torque)")
-        key = "force" if arm.links[j].joint.type == "prismatic" else "torque"
-        other = "torque" if key == "force" else "force"
-        if pf.has(other):
-            raise pf.error(other, pf.raw(other), f"'{key}' ({arm.links[j].joint.type} joint "
-                           f"{arm.joint_names[j]})")
-        value = pf.number(key, unit="N" if key == "force" else "N m")
-        start, end = _interval(pf)
-        pf.done(["joint", key, "start", "end"])
-        pulses.append(SpatialPulse(j, value, start, end))
-    loads = []
-    for k, raw in enumerate(f.items("tip_loads", [])):
-        lf = Fields(raw, source, f"tip_loads[{k}]")
-        force = np.array(lf.vector("force", 3, unit="N, base frame"))
-        a, b = _interval(lf)
-        lf.done(["force", "start", "end"])
-        loads.append((force, a, b))
-    changes = []
-    for k, raw in enumerate(f.items("payload_changes", [])):
-        if not isinstance(raw, dict):
-            raise f.error("payload_changes", raw, "a list of {time, mass, inertia} mappings")
-        cf = Fields(raw, source, f"payload_changes[{k}]")
-        tc = cf.number("time", nonnegative=True, unit="s")
-        if tc >= duration or (changes and tc <= changes[-1][0]):
-            raise cf.error("time", tc, f"a time in [0, {duration:g}) s, increasing")
-        body = Fields({key: val for key, val in raw.items() if key != "time"}, source,
-                      f"payload_changes[{k}]")
-        from .description import rigid_body
-        rb = rigid_body(body)
-        if any(rb.offset):
-            raise body.error("offset", list(rb.offset), "no offset (the payload sits at the "
-                             "last link's end frame origin; move the frame or use the arm "
-                             "file's payload)")
-        changes.append((tc, rb.mass, np.asarray(rb.inertia, float)))
-    f.done(["name", "arm", "gravity", "duration", "step", "sample_period", "rho_inf",
-            "newton_tol", "initial", "control", "pulses", "payload_changes", "tip_loads"])
-    return SpatialScenario(name=name, arm=arm, duration=duration, step=step,
-                           sample_period=sample, rho_inf=rho_inf, joint_values=q0,
-                           joint_rates=v0, start_static=start_static, gravity_hold=hold,
-                           pd=pd, setpoint_schedule=schedule, pulses=tuple(pulses),
-                           tol=tol, source=source, payload_changes=tuple(changes),
-                           tip_loads=tuple(loads))
