@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_spatial_torsion as base  # noqa: E402
+from peer_exudyn import peer_runs  # noqa: E402
 
 #: the soft tube (square, b x t) and the pulse
 B_TUBE, T_TUBE = 0.008, 0.0005
@@ -55,21 +56,6 @@ def _peer(argv) -> int:
     import json
     print("JSON" + json.dumps(base.run_exudyn(a.n_el, a.h, a.duration)))
     return 0
-
-
-def _call_peer(n_el, h, duration):
-    import json
-    import subprocess
-    if not os.path.exists(base.PEER_PY):
-        return None
-    r = subprocess.run([base.PEER_PY, os.path.abspath(__file__), "--peer", "--n-el",
-                        str(n_el), "--h", repr(h), "--duration", repr(duration)],
-                       capture_output=True, text=True)
-    for line in r.stdout.splitlines():
-        if line.startswith("JSON"):
-            return json.loads(line[4:])
-    print(r.stdout[-2000:], r.stderr[-3000:])
-    return None
 
 
 def _row(label, c):
@@ -119,13 +105,9 @@ def main(argv=None) -> int:
         ours_res = [("exact", 4, 5e-4), ("exact", 12, 2.5e-4)] + ours_res
     peer_res = [(16, 5e-4)] if args.quick else [(16, 5e-4), (32, 2.5e-4)]
     ours = {r: run_ours(*r, args.duration) for r in ours_res}
-    peer = {}
-    for r in peer_res:
-        out = _call_peer(*r, args.duration)
-        if out is None:
-            print(f"Exudyn run {r} failed or bench/.venv-peer is missing")
-            return 1
-        peer[r] = out
+    peer = peer_runs(__file__, peer_res, args.duration)
+    if peer is None:
+        return 1
     print(f"soft yaw + pitch tubes ({1e3 * B_TUBE:g} x {1e3 * T_TUBE:g} mm), "
           f"{base.TAU1:g} N m yaw pulse over {base.T_PULSE:g} s, {args.duration:g} s; "
           f"load {os.getloadavg()[0]:.1f}")

@@ -38,14 +38,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 
 import numpy as np
 
 BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
-PEER_PY = os.path.join(BENCH_DIR, ".venv-peer", "bin", "python")
+sys.path.insert(0, BENCH_DIR)
+from peer_exudyn import peer_runs  # noqa: E402
 
 L1, L2 = 0.8, 0.6
 SEC1 = {"EI_y": 600.0, "EI_z": 400.0, "GJ": 300.0, "rhoA": 0.6, "rhoJ": 6e-5}
@@ -306,19 +306,6 @@ def _peer(args) -> int:
     return 0
 
 
-def _call_peer(n_el, h, duration):
-    if not os.path.exists(PEER_PY):
-        return None
-    r = subprocess.run([PEER_PY, os.path.abspath(__file__), "--peer", "--n-el", str(n_el),
-                        "--h", repr(h), "--duration", repr(duration)],
-                       capture_output=True, text=True)
-    for line in r.stdout.splitlines():
-        if line.startswith("JSON"):
-            return json.loads(line[4:])
-    print(r.stdout[-2000:], r.stderr[-3000:])
-    return None
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=1.0)
@@ -334,14 +321,9 @@ def main(argv=None) -> int:
     # the reference at 1.25e-4 s: at 2.5e-4 s Exudyn's own step moves link 2's v by 1.2 %
     peer_res = [(16, 5e-4)] if args.quick else [(16, 5e-4), (32, 2.5e-4), (64, 1.25e-4)]
     ours = {r: run_ours(*r, args.duration) for r in ours_res}
-    peer = {}
-    for r in peer_res:
-        out = _call_peer(*r, args.duration)
-        if out is None:
-            print(f"Exudyn run {r} failed or bench/.venv-peer is missing "
-                  "(python3 bench/peer_exudyn.py --ensure-venv)")
-            return 1
-        peer[r] = out
+    peer = peer_runs(__file__, peer_res, args.duration)
+    if peer is None:
+        return 1
     print(f"two-link L arm, {args.duration:g} s from the static equilibrium under gravity, "
           f"torque pulse {TAU} N m over {T_PULSE} s; CPU s (wall s); load "
           f"{os.getloadavg()[0]:.1f}")

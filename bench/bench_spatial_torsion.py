@@ -35,14 +35,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 
 import numpy as np
 
 BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
-PEER_PY = os.path.join(BENCH_DIR, ".venv-peer", "bin", "python")
+sys.path.insert(0, BENCH_DIR)
+from peer_exudyn import peer_runs  # noqa: E402
 
 E, G_MOD, RHO = 70e9, 70e9 / (2 * 1.33), 2700.0
 D_OUT, WALL = 0.030, 0.002
@@ -320,19 +320,6 @@ def compare(a: dict, b: dict) -> dict:
     return res
 
 
-def _call_peer(n_el, h, duration):
-    if not os.path.exists(PEER_PY):
-        return None
-    r = subprocess.run([PEER_PY, os.path.abspath(__file__), "--peer", "--n-el", str(n_el),
-                        "--h", repr(h), "--duration", repr(duration)],
-                       capture_output=True, text=True)
-    for line in r.stdout.splitlines():
-        if line.startswith("JSON"):
-            return json.loads(line[4:])
-    print(r.stdout[-2000:], r.stderr[-3000:])
-    return None
-
-
 def _row(label, c):
     return (f"  {label}: joints {c['dq_deg']:.1e} deg, tip {c['tip_mm']:.3f} mm (start "
             f"{c['tip0_mm']:.3f}); twist peak ratio link1 {c['link1_phi_peak_ratio']:.3f}, "
@@ -356,13 +343,9 @@ def main(argv=None) -> int:
                                                  (12, 1.25e-4)]
     peer_res = [(16, 2.5e-4)] if args.quick else [(16, 2.5e-4), (32, 1.25e-4)]
     ours = {r: run_ours(*r, args.duration) for r in ours_res}
-    peer = {}
-    for r in peer_res:
-        out = _call_peer(*r, args.duration)
-        if out is None:
-            print(f"Exudyn run {r} failed or bench/.venv-peer is missing")
-            return 1
-        peer[r] = out
+    peer = peer_runs(__file__, peer_res, args.duration)
+    if peer is None:
+        return 1
     print(f"yaw + pitch tubes ({TUBE}, pitch {np.degrees(PITCH0):g} deg, rotary inertia "
           f"{'on' if ROTARY else 'off'}, hubs {HUB}), {TAU1:g} N m yaw pulse over "
           f"{T_PULSE:g} s, {args.duration:g} s; load {os.getloadavg()[0]:.1f}")

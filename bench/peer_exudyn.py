@@ -74,6 +74,27 @@ def ensure_peer_venv(venv=None, base_python=None, pins=PINNED):
     return py
 
 
+def peer_runs(script, resolutions, duration):
+    """Run ``script --peer --n-el N --h H --duration D`` in the peer venv for each
+    (N, H) of ``resolutions``; {(N, H): the JSON it prints after "JSON"}, or None (and
+    why, printed) when the venv is missing or a run fails."""
+    py = _venv_python()
+    if py is None:
+        print("bench/.venv-peer is missing (python3 bench/peer_exudyn.py --ensure-venv)")
+        return None
+    out = {}
+    for n_el, h in resolutions:
+        r = subprocess.run([py, os.path.abspath(script), "--peer", "--n-el", str(n_el),
+                            "--h", repr(h), "--duration", repr(duration)],
+                           capture_output=True, text=True)
+        line = next((x for x in r.stdout.splitlines() if x.startswith("JSON")), None)
+        if line is None:
+            print(f"Exudyn run {(n_el, h)} failed:", r.stdout[-2000:], r.stderr[-3000:])
+            return None
+        out[(n_el, h)] = json.loads(line[4:])
+    return out
+
+
 def _installed_versions(python):
     """exudyn/numpy versions from the venv's dist-info dirs (no import, no subprocess)."""
     out = {}
