@@ -176,7 +176,7 @@ def test_l_shaped_arm_twist_bending_coupling_under_tip_force():
     ("thesis_example1", "small_deflection"), ("thesis_three_link", "small_deflection"),
     ("thesis_example4", "small_deflection"), ("thesis_example1_motors", "small_deflection"),
     ("thesis_example1", "second_order"), ("thesis_three_link", "second_order")])
-def test_planar_dynamics_embedded_in_3d(name, kinematics):
+def test_planar_dynamics_embedded_in_3d(name, kinematics, embedded_state_check):
     """The full nonlinear equations of motion: at random planar states (joint angles,
     rates, deformations and their rates) with joint torques and gravity, the spatial
     model's accelerations equal the planar model's (theta'' = G a_alpha) to 1e-10, and so
@@ -201,20 +201,8 @@ def test_planar_dynamics_embedded_in_3d(name, kinematics):
         flex = rng.normal(scale=0.02 if second else 0.01, size=len(flex_s))
         dflex = rng.normal(scale=0.2 if second else 0.1, size=len(flex_s))
         tau = rng.normal(scale=20.0, size=arm.n_links)
-        qp = planar.q_from_joint_angles(theta, flex)
-        z = np.zeros(planar.nq)
-        z[planar.off] = rates
-        z[planar.flex_indices] = dflex
-        vp = planar.joint_coordinate_matrix() @ z
-        ap = planar.acceleration(qp, vp, planar.input_matrix() @ tau)
-        qs, vs = np.zeros(spatial.nq), np.zeros(spatial.nq)
-        qs[spatial.off], qs[flex_s] = theta, flex
-        vs[spatial.off], vs[flex_s] = rates, dflex
-        as_ = spatial.acceleration(qs, vs, H @ tau)
-        scale = np.max(np.abs(ap))
-        np.testing.assert_allclose(as_[spatial.off], planar.G @ ap, rtol=0, atol=1e-10 * scale)
-        np.testing.assert_allclose(as_[flex_s], ap[planar.flex_indices], rtol=0,
-                                   atol=1e-10 * scale)
+        qp, vp, ap, qs, vs, as_, scale = embedded_state_check(
+            planar, spatial, flex_s, H, theta, rates, flex, dflex, tau, atol=1e-10)
         assert np.max(np.abs(np.delete(as_, vidx))) < 1e-12 * scale   # stays planar
         e_p, e_s = planar.energy(qp, vp), spatial.energy(qs, vs)
         assert e_s["kinetic"] == pytest.approx(e_p["kinetic"], rel=1e-12)

@@ -136,7 +136,7 @@ def test_energy_decays_at_the_rate_v_D_v():
     assert e[-1] - e[0] == pytest.approx(-lost, rel=1e-6)
 
 
-def test_embedded_planar_arm_has_the_planar_damping():
+def test_embedded_planar_arm_has_the_planar_damping(embedded_state_check):
     """thesis_example1 with a structural_damping effect on every link (internal
     friction, Rayleigh mass and stiffness; the planar M_ff: beam, M+, J+) embedded by
     from_planar: accelerations at random planar states with deformation rates equal
@@ -160,20 +160,8 @@ def test_embedded_planar_arm_has_the_planar_damping():
         flex = rng.normal(scale=0.01, size=len(flex_s))
         dflex = rng.normal(scale=0.5, size=len(flex_s))
         tau = rng.normal(scale=20.0, size=arm.n_links)
-        qp = planar.q_from_joint_angles(theta, flex)
-        z = np.zeros(planar.nq)
-        z[planar.off] = rates
-        z[planar.flex_indices] = dflex
-        vp = planar.joint_coordinate_matrix() @ z
-        ap = planar.acceleration(qp, vp, planar.input_matrix() @ tau)
-        qs, vs = np.zeros(spatial.nq), np.zeros(spatial.nq)
-        qs[spatial.off], qs[flex_s] = theta, flex
-        vs[spatial.off], vs[flex_s] = rates, dflex
-        as_ = spatial.acceleration(qs, vs, H @ tau)
-        scale = np.max(np.abs(ap))
-        np.testing.assert_allclose(as_[spatial.off], planar.G @ ap, rtol=0, atol=1e-10 * scale)
-        np.testing.assert_allclose(as_[flex_s], ap[planar.flex_indices], rtol=0,
-                                   atol=1e-10 * scale)
+        embedded_state_check(planar, spatial, flex_s, H, theta, rates, flex, dflex, tau,
+                             atol=1e-10)
 
 
 def test_embedded_calibrated_quanser_arm_has_the_planar_damping_block():

@@ -39,7 +39,7 @@ def _elastica(P, EI):
 
 
 @pytest.mark.parametrize("name", ["thesis_example1", "thesis_three_link"])
-def test_in_plane_it_is_the_planar_exact_model(name):
+def test_in_plane_it_is_the_planar_exact_model(name, embedded_state_check):
     """At random planar states with large deflections (slopes ~0.2 rad), rates, joint
     torques and gravity, the spatial exact model's accelerations equal the planar exact
     model's (theta'' = G a_alpha) to 1e-9 of their scale (measured 4e-14), the motion
@@ -55,19 +55,8 @@ def test_in_plane_it_is_the_planar_exact_model(name):
         theta, rates = rng.uniform(-1, 1, arm.n_links), rng.uniform(-2, 2, arm.n_links)
         flex, dflex = rng.normal(scale=0.2, size=len(flex_s)), rng.normal(size=len(flex_s))
         tau = rng.normal(scale=20.0, size=arm.n_links)
-        qp = planar.q_from_joint_angles(theta, flex)
-        z = np.zeros(planar.nq)
-        z[planar.off], z[planar.flex_indices] = rates, dflex
-        vp = planar.joint_coordinate_matrix() @ z
-        ap = planar.acceleration(qp, vp, planar.input_matrix() @ tau)
-        qs, vs = np.zeros(spatial.nq), np.zeros(spatial.nq)
-        qs[spatial.off], qs[flex_s] = theta, flex
-        vs[spatial.off], vs[flex_s] = rates, dflex
-        as_ = spatial.acceleration(qs, vs, H @ tau)
-        scale = np.max(np.abs(ap))
-        np.testing.assert_allclose(as_[spatial.off], planar.G @ ap, rtol=0, atol=1e-9 * scale)
-        np.testing.assert_allclose(as_[flex_s], ap[planar.flex_indices], rtol=0,
-                                   atol=1e-9 * scale)
+        qp, vp, ap, qs, vs, as_, scale = embedded_state_check(
+            planar, spatial, flex_s, H, theta, rates, flex, dflex, tau, atol=1e-9)
         assert np.max(np.abs(np.delete(as_, vidx))) < 1e-12 * scale
         e_p, e_s = planar.energy(qp, vp), spatial.energy(qs, vs)
         for k in ("kinetic", "elastic", "gravity"):
