@@ -45,15 +45,17 @@ weight (exact from m = 1 and 2), the clamped-free rod's first axial frequency c 
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from .integrators import (LINE_SEARCH_HALVINGS, NEWTON_MAX_ITER, joint_passive_forces,
-                          joint_tangent, joint_torques)
-from .solvers.galpha import Step, galpha_coefficients, galpha_state, restart_choice, step_status
-from .solvers.newton import backtrack_done, residual_norm
-from .solvers.status import FINISHED
-from .kernels import solve_spd
+from .integrators import joint_passive_forces, joint_tangent, joint_torques
+from .solvers.galpha import galpha_coefficients, galpha_state, restart_choice
+from .solvers.loop import (fixed_step, id_residual, implements, iteration_factor, residual,
+                           tangent)
+from .solvers.status import newton_settings
+from .kernels import cholesky, solve_spd
 from .sections import area_and_inertia
 
 _CACHE = True
@@ -572,69 +574,59 @@ def restart_acceleration(t, x, a, h, rho_inf, X, E):
     return a1, not np.array_equal(a1, ac)
 
 
+class ExactModel(NamedTuple):
+    """The exact kinematics' compiled data for solvers.loop: X (:meth:`ExactKinematics.data`)
+    and E (inputs.input_data)."""
+    X: tuple
+    E: tuple
+
+
 @njit(cache=_CACHE)
-def _residual(a1, st, c, X, E):
+def _residual(md, a1, st, c):
     """Residual B(q1) a1 - (Q - c) of a generalized-alpha step (solvers.galpha.Step st,
-    coefficients c) with :func:`balance`, and B, v1 (no bristle states)."""
+    coefficients c) with :func:`balance`, and (B, v1, no bristle states)."""
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
-    B, rhs = balance(st.t, q1, v1, X, E)
-    return B @ a1 - rhs, B, v1
+    B, rhs = balance(st.t, q1, v1, md.X, md.E)
+    return B @ a1 - rhs, (B, v1, st.z)
 
 
 @njit(cache=_CACHE)
-def _tangent(B, v1, c, E):
+def _tangent(md, ctx, st, c):
     """B(q1) + gamma' (D + C_joints) + beta' (K + K_joints)."""
-    Kj, Cj = joint_tangent(v1, E)
-    return B + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj)
+    B, v1 = ctx[0], ctx[1]
+    Kj, Cj = joint_tangent(v1, md.E)
+    return B + c.gp * (md.E[1] + Cj) + c.bp * (md.E[0] + Kj)
+
+
+@njit(cache=_CACHE)
+def _id_residual(md, a1, st, c):
+    """:func:`_residual` with (q1, v1) (simplified Newton)."""
+    r, ctx = _residual(md, a1, st, c)
+    q1 = galpha_state(st.q, st.v, st.a, st.abar, a1, c)[0]
+    return r, q1, ctx[1]
+
+
+@njit(cache=_CACHE)
+def _iteration_factor(md, q1, v1, c):
+    """Dense Cholesky factor of :func:`_tangent` at (q1, v1) (iteration_matrix's tuple)."""
+    B = terms(q1, v1, 0.0, 0.0, md.X)[0]
+    z2 = np.zeros((0, 0))
+    Lc = cholesky(_tangent(md, (B, v1, np.zeros(0)), None, c))
+    return Lc, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, 0
+
+
+for _hook, _fn in ((residual, _residual), (tangent, _tangent), (id_residual, _id_residual),
+                   (iteration_factor, _iteration_factor)):
+    implements(_hook, ExactModel, _fn)
 
 
 @njit(cache=_CACHE)
 def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, X, E):
-    """Fixed-step generalized-alpha with exact kinematics: integrators.generalized_alpha
-    (flex_model.solvers: the same coefficients, update, backtracking and status; full
-    Newton, pulses at mid-step) on :func:`balance`; no bristle states. Same returns."""
-    c = galpha_coefficients(rho_inf, h)
-    n = E[0].shape[0]
-    X_out = np.full((n_steps // every + 1, 2 * n), np.nan)
-    X_out[0] = x0
-    q, v = x0[:n].copy(), x0[n:2 * n].copy()
-    a = a0.copy()
-    abar = abar0.copy()
-    t = t0
-    r = 1
-    iters = 0
-    for s in range(1, n_steps + 1):
-        t1 = t0 + s * h
-        st = Step(q, v, np.zeros(0), a, abar, t1 - 0.5 * h)
-        a1 = a.copy()
-        res, B, v1 = _residual(a1, st, c, X, E)
-        norm = residual_norm(res)
-        ok = False
-        for it in range(NEWTON_MAX_ITER):
-            da = solve_spd(_tangent(B, v1, c, E), -res)
-            lam = 1.0
-            for ls in range(LINE_SEARCH_HALVINGS):
-                a_try = a1 + lam * da
-                r_try, B_try, v_try = _residual(a_try, st, c, X, E)
-                n_try = residual_norm(r_try)
-                if backtrack_done(n_try, norm, lam, ls, LINE_SEARCH_HALVINGS):
-                    break
-                lam *= 0.5
-            a1, res, B, v1, norm = a_try, r_try, B_try, v_try, n_try
-            iters += 1
-            if np.max(np.abs(da)) * lam * c.bp <= tol:
-                ok = True
-                break
-        q, v, abar = galpha_state(q, v, a, abar, a1, c)
-        a, t = a1, t1
-        x = np.concatenate((q, v))
-        status = step_status(x, limit, ok)
-        if status != FINISHED:
-            return X_out, status, t, x, a, abar, iters
-        if s % every == 0:
-            X_out[r] = x
-            r += 1
-    return X_out, FINISHED, t, np.concatenate((q, v)), a, abar, iters
+    """Fixed-step generalized-alpha with exact kinematics: solvers.loop.fixed_step (the
+    planar arm's loop: full Newton, pulses at mid-step) on :func:`balance`; no bristle
+    states. The returns of integrators.generalized_alpha."""
+    return fixed_step(ExactModel(X, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
+                      every, newton_settings(rho_inf, tol, limit, False))
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
@@ -643,11 +635,11 @@ def _guard_caches():
     from . import integrators, iteration_matrix, kernels
     from .effects import friction, stick_slip
     from .numba_cache import guard
-    from .solvers import galpha, newton
+    from .solvers import galpha, loop, newton
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
           [integrators.__file__, kernels.__file__, stick_slip.__file__, friction.__file__,
-           iteration_matrix.__file__, galpha.__file__, newton.__file__])
+           iteration_matrix.__file__, galpha.__file__, newton.__file__, loop.__file__])
 
 
 _guard_caches()

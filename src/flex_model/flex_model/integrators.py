@@ -28,34 +28,25 @@ Schemes
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from .effects.friction import friction_law_compiled
 from .effects.stick_slip import bristle_rate, bristle_step
-from .iteration_matrix import empty_factor, factor_solve, structured_factor
-from .solvers.status import DIVERGED, FINISHED, NO_CONVERGENCE
-from .solvers.galpha import (Step, finite_within, galpha_coefficients, galpha_parameters,
-                             galpha_state, restart_choice, step_status)
-from .solvers.newton import backtrack_done, residual_norm
+from .iteration_matrix import structured_factor
+from .solvers.galpha import finite_within, galpha_parameters, galpha_state, restart_choice
+from .solvers.loop import (fixed_step, id_residual, implements, iteration_factor, residual,
+                           tangent)
+from .solvers.status import newton_settings
 from .kernels import (band_matvec, cholesky, inverse_dynamics, link_origins, mass_matrix,
                       solve_spd, tip_jacobian)
 
 _CACHE = True
-#: full Newton (generalized_alpha): iterations a step, halvings of its line search
-NEWTON_MAX_ITER = 50
-LINE_SEARCH_HALVINGS = 30
 
 #: first column of the stick_slip_friction data in joint_data (FlexArmModel.JOINT_DATA)
 SS = 19
-#: generalized_alpha_simplified: a contraction rate above this refreshes the iteration
-#: matrix for the next step (section E: 2.2 iterations per step, as with a fresh
-#: matrix every step; 2.9 when refreshed only on divergence)
-THETA_REFRESH = 0.003
-#: the same for the banded-plus-low-rank matrix (flex_model.iteration_matrix), itself an
-#: approximation (contraction about 0.002 on the hub-less arm): a fresh one would not
-#: contract faster
-THETA_REFRESH_STRUCTURED = 0.03
 
 
 @njit(cache=_CACHE)
@@ -497,11 +488,19 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
     return a1, a1.copy(), share, overshoot
 
 
+class PlanarModel(NamedTuple):
+    """The planar arm's compiled data for solvers.loop: P (kernels) and E (module
+    docstring)."""
+    P: tuple
+    E: tuple
+
+
 @njit(cache=_CACHE)
-def _alpha_residual(a1, st, c, P, E):
+def _residual(md, a1, st, c):
     """Residual B(q1) a1 - (Q - c) of a generalized-alpha step (solvers.galpha.Step st,
-    coefficients c) for the guess a1, with B, v1, the bristle deflections z1 at the
-    step's end and their slopes g (stick-slip joints)."""
+    coefficients c) for the guess a1, with (B, v1, the bristle deflections z1 at the
+    step's end, their slopes g) (stick-slip joints)."""
+    P, E = md
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     z1 = st.z
     g = st.z
@@ -510,14 +509,16 @@ def _alpha_residual(a1, st, c, P, E):
         z1, g = bristle_update(c.h, st.v, v1, st.z, E)
         zd = (z1 - st.z) / c.h
     B, rhs = _balance(st.t, q1, v1, z1, zd, P, E)
-    return B @ a1 - rhs, B, v1, z1, g
+    return B @ a1 - rhs, (B, v1, z1, g)
 
 
 @njit(cache=_CACHE)
-def _alpha_tangent(B, v1, z1, g, st, c, P, E):
+def _tangent(md, ctx, st, c):
     """Newton iteration matrix B + gamma' (D + C_j) + beta' (K + K_j) of
-    :func:`_alpha_residual` (PD gains, joint springs, friction slope and back-EMF at v1;
+    :func:`_residual` (PD gains, joint springs, friction slope and back-EMF at v1;
     the bristles' slope and damping)."""
+    E = md.E
+    B, v1, z1, g = ctx
     Kj, Cj = joint_tangent(v1, E)
     if st.z.shape[0] > 0:
         _stick_slip_tangent(Kj, Cj, v1, st.z, z1, g, c.h, E)
@@ -525,9 +526,10 @@ def _alpha_tangent(B, v1, z1, g, st, c, P, E):
 
 
 @njit(cache=_CACHE)
-def _alpha_residual_id(a1, st, c, P, E):
-    """Residual of :func:`_alpha_residual` without the mass matrix (no bristles): one
+def _id_residual(md, a1, st, c):
+    """Residual of :func:`_residual` without the mass matrix (no bristles): one
     inverse-dynamics pass gives B(q1) a1 + c(q1, v1) (thesis Eq. 27) directly."""
+    P, E = md
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     z = np.zeros(0)
     return (inverse_dynamics(q1, v1, a1, E[3], E[4], P)
@@ -535,126 +537,49 @@ def _alpha_residual_id(a1, st, c, P, E):
 
 
 @njit(cache=_CACHE)
-def _iteration_factor(q1, v1, gp, bp, P, E):
+def _iteration_factor(md, q1, v1, c):
     """Factor of the Newton iteration matrix B + gamma' (D + C_j) + beta' (K + K_j) at
     (q1, v1): banded plus low rank, linear in the variables, for second-order kinematics
     from dynamics.STRUCTURED_MIN_VARS variables per link (flex_model.iteration_matrix),
     else dense Cholesky (an empty factor when it is not positive definite)."""
+    P, E = md
     if P[0] == 1 and P[22][1] == 1:
-        F = structured_factor(q1, v1, gp, bp, P, E)
+        F = structured_factor(q1, v1, c.gp, c.bp, P, E)
         if F[0].shape[0] > 0:
             return F
     Kj, Cj = joint_tangent(v1, E)
-    Lc = cholesky(mass_matrix(q1, P) + gp * (E[1] + Cj) + bp * (E[0] + Kj))
+    Lc = cholesky(mass_matrix(q1, P) + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj))
     z2 = np.zeros((0, 0))
     return Lc, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, 0
 
 
-@njit(cache=_CACHE)
-def _simplified_step(a1, st, c, tol, F, P, E):
-    """One generalized-alpha step by simplified Newton (Hairer-Wanner IV.8): the factor F
-    of the iteration matrix is kept from earlier steps, refreshed here (at the predictor)
-    when the corrections contract by less than half per iteration. The iterations stop,
-    without evaluating the next residual, when the position correction ``|da| beta'`` is
-    below ``tol`` (as full Newton's; the error left is theta times that, theta the
-    contraction rate). Returns (a1, F, theta, iterations, ok); ok False when even a
-    fresh factor does not converge (the caller then takes full Newton)."""
-    iters = 0
-    theta = 0.0
-    for attempt in range(2):
-        x1 = a1.copy()
-        res = _alpha_residual_id(x1, st, c, P, E)[0]
-        prev = 0.0
-        for it in range(12):
-            da = factor_solve(F, -res)
-            nd = 0.0
-            for i in range(da.shape[0]):
-                x1[i] += da[i]
-                nd = max(nd, abs(da[i]))
-            nd *= c.bp
-            iters += 1
-            if not np.isfinite(nd):
-                break
-            if it > 0:
-                theta = nd / prev if prev > 0.0 else 0.0
-                if theta >= 0.5:
-                    break
-            if nd <= tol:
-                return x1, F, theta, iters, True
-            prev = nd
-            res = _alpha_residual_id(x1, st, c, P, E)[0]
-        # slow or diverging: a fresh factor at the predictor's state, once
-        _, q1, v1 = _alpha_residual_id(a1, st, c, P, E)
-        F = _iteration_factor(q1, v1, c.gp, c.bp, P, E)
-        theta = 0.0
-        if F[0].shape[0] == 0:
-            break
-    return a1, F, theta, iters, False
+for _hook, _fn in ((residual, _residual), (tangent, _tangent), (id_residual, _id_residual),
+                   (iteration_factor, _iteration_factor)):
+    implements(_hook, PlanarModel, _fn)
 
 
 @njit(cache=_CACHE)
 def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, P, E):
-    """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form).
+    """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form) on the planar
+    arm: solvers.loop.fixed_step, full Newton (at most 50 iterations, backtracking).
 
     Second-order accurate, unconditionally stable for linear systems, with numerical
     damping of the unresolved high modes set by the spectral radius ``rho_inf`` at
     infinite frequency (1 = none). Each step solves B(q1) a1 = Q - c by Newton's method on
     the iteration matrix B + gamma' (D + C_joints) + beta' (K + K_joints) (PD gains, joint
     springs, friction slope and back-EMF at the current speed) until the position
-    correction is below ``tol`` (m or rad). Pulses are evaluated at mid-step, so a
-    pulse edge on the step grid is resolved exactly. The bristle deflections z of
-    stick-slip joints (x = [q; v; z]) are advanced by backward Euler inside every residual
-    (L-stable; flex_model.effects.stick_slip), their slope and damping enter the
-    iteration matrix.
+    correction is below ``tol`` (m or rad). Pulses are evaluated at mid-step. The bristle
+    deflections z of stick-slip joints (x = [q; v; z]) are advanced by backward Euler
+    inside every residual (L-stable; flex_model.effects.stick_slip), their slope and
+    damping enter the iteration matrix.
 
     Returns ``(X, status, t_end, x_end, a_end, abar_end, iterations)``; X holds every
     ``every``-th state, X[0] = x0. Status 1 = non-finite or diverging state, 2 = Newton did
-    not converge in 50 iterations (with backtracking line search).
+    not converge.
     """
     _check_state(x0, E)
-    c = galpha_coefficients(rho_inf, h)
-    n = E[0].shape[0]
-    X = np.full((n_steps // every + 1, x0.shape[0]), np.nan)
-    X[0] = x0
-    q, v, z = x0[:n].copy(), x0[n:2 * n].copy(), x0[2 * n:].copy()
-    a = a0.copy()
-    abar = abar0.copy()
-    t = t0
-    r = 1
-    iters = 0
-    for s in range(1, n_steps + 1):
-        t1 = t0 + s * h
-        st = Step(q, v, z, a, abar, t1 - 0.5 * h)
-        # full Newton with backtracking on the residual norm (solvers.newton.backtrack)
-        a1 = a.copy()
-        res, B, v1, z1, g = _alpha_residual(a1, st, c, P, E)
-        norm = residual_norm(res)
-        ok = False
-        for it in range(NEWTON_MAX_ITER):
-            da = solve_spd(_alpha_tangent(B, v1, z1, g, st, c, P, E), -res)
-            lam = 1.0
-            for ls in range(LINE_SEARCH_HALVINGS):
-                a_try = a1 + lam * da
-                r_try, B_try, v_try, z_try, g_try = _alpha_residual(a_try, st, c, P, E)
-                n_try = residual_norm(r_try)
-                if backtrack_done(n_try, norm, lam, ls, LINE_SEARCH_HALVINGS):
-                    break
-                lam *= 0.5
-            a1, res, B, v1, norm, z1, g = a_try, r_try, B_try, v_try, n_try, z_try, g_try
-            iters += 1
-            if np.max(np.abs(da)) * lam * c.bp <= tol:
-                ok = True
-                break
-        q, v, abar = galpha_state(q, v, a, abar, a1, c)
-        a, z, t = a1, z1, t1
-        x = np.concatenate((q, v, z))
-        status = step_status(x, limit, ok)
-        if status != FINISHED:
-            return X, status, t, x, a, abar, iters
-        if s % every == 0:
-            X[r] = x
-            r += 1
-    return X, FINISHED, t, np.concatenate((q, v, z)), a, abar, iters
+    return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
+                      every, newton_settings(rho_inf, tol, limit, False))
 
 
 @njit(cache=_CACHE)
@@ -662,70 +587,14 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
                                  P, E):
     """:func:`generalized_alpha` by simplified Newton: same arguments, same results to
     ``tol``. The factor of the iteration matrix is kept across steps and refreshed when
-    the iterations contract slowly (:func:`_simplified_step`), the residual is one
+    the iterations contract slowly (solvers.loop.simplified_newton), the residual is one
     inverse-dynamics pass without the mass matrix and the acceleration is extrapolated
     as the predictor (section E, second order, 1 ms: tip within 0.003 um of fully
     converged Newton over 10 s, 2.2 iterations per step, about a third of the cost). A
     step it cannot solve, and arms with bristle states, take full Newton."""
     _check_state(x0, E)
-    n = E[0].shape[0]
-    if x0.shape[0] > 2 * n:
-        return generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
-                                 P, E)
-    c = galpha_coefficients(rho_inf, h)
-    nrec = n_steps // every + 1
-    X = np.full((nrec, x0.shape[0]), np.nan)
-    X[0] = x0
-    q = x0[:n].copy()
-    v = x0[n:].copy()
-    a = a0.copy()
-    abar = abar0.copy()
-    a_old = a0.copy()
-    t = t0
-    r = 1
-    iters = 0
-    F = empty_factor()
-    for s in range(1, n_steps + 1):
-        t1 = t0 + s * h
-        tm = t1 - 0.5 * h
-        a1 = a.copy()
-        ok = False
-        st = Step(q, v, np.zeros(0), a, abar, tm)
-        if F[0].shape[0] == 0:
-            _, q1, v1 = _alpha_residual_id(a1, st, c, P, E)
-            F = _iteration_factor(q1, v1, c.gp, c.bp, P, E)
-        if s > 1:  # linear extrapolation of the acceleration as the predictor
-            a1 = 2.0 * a - a_old
-        if F[0].shape[0] > 0:
-            a1, F, theta, it, ok = _simplified_step(a1, st, c, tol, F, P, E)
-            iters += it
-            if ok and theta > (THETA_REFRESH_STRUCTURED if F[6] == 1 else THETA_REFRESH):
-                F = empty_factor()  # contracting slowly: a fresh factor next step
-        if ok:
-            q, v, abar1 = galpha_state(q, v, a, abar, a1, c)
-            a_old = a
-            a = a1
-            abar = abar1
-            x = np.concatenate((q, v))
-        else:  # full Newton for this step, a fresh factor for the next
-            F = empty_factor()
-            _, status, _, x, a1, abar1, it = generalized_alpha(
-                t1 - h, np.concatenate((q, v)), a, abar, h, 1, 1, rho_inf, tol, limit, P, E)
-            iters += it
-            q = x[:n].copy()
-            v = x[n:].copy()
-            a_old = a
-            a = a1
-            abar = abar1
-            if status == NO_CONVERGENCE:
-                return X, NO_CONVERGENCE, t1, x, a, abar, iters
-        t = t1
-        if not finite_within(x, limit):
-            return X, DIVERGED, t, x, a, abar, iters
-        if s % every == 0:
-            X[r] = x
-            r += 1
-    return X, FINISHED, t, np.concatenate((q, v)), a, abar, iters
+    return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
+                      every, newton_settings(rho_inf, tol, limit, True))
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled
@@ -735,11 +604,11 @@ def _guard_caches():
     from . import iteration_matrix, kernels
     from .numba_cache import guard
     from .effects import friction, stick_slip
-    from .solvers import galpha, newton
+    from .solvers import galpha, loop, newton
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
           [kernels.__file__, stick_slip.__file__, friction.__file__, iteration_matrix.__file__,
-           galpha.__file__, newton.__file__])
+           galpha.__file__, newton.__file__, loop.__file__])
 
 
 _guard_caches()

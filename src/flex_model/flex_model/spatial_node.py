@@ -33,10 +33,9 @@ from . import ros_spatial as sr
 from .config import ConfigError
 from .ros_conversions import check_payload, finite_array
 from .ros_main import ParameterError, fmt
+from .solvers.status import refine
 from .urdf import quaternion_from_matrix
 
-#: finer steps (per period: per x k) tried, in turn, over a period whose Newton failed
-REFINEMENTS = (4, 16)
 
 
 def load_arm_parameter(arm: str, planar: bool, kinematics: str = ""):
@@ -273,26 +272,13 @@ class SpatialArm:
 
     def advance_refining(self, dt: float) -> int:
         """The periods of ``dt`` (s), each one compiled call; a period whose Newton fails
-        is done again from the same state in REFINEMENTS x more steps. Returns the
-        refinement needed (1: none); raises the first failure if every one fails."""
-        used = 1
-        for _ in range(max(1, int(round(dt / self.period)))):
-            try:
-                self._period(self.per)
-                continue
-            except RuntimeError as first:
-                failure = first
-            for k in REFINEMENTS:
-                try:
-                    self.acc = None
-                    self._period(self.per * k)
-                    used = max(used, k)
-                    break
-                except RuntimeError:
-                    continue
-            else:
-                raise failure
-        return used
+        is done again from the same state in more steps (solvers.status.refine). Returns
+        the refinement needed (1: none); raises the first failure if every one fails."""
+        def attempt(k):
+            if k > 1:
+                self.acc = None
+            self._period(self.per * k)
+        return max(refine(attempt) for _ in range(max(1, int(round(dt / self.period)))))
 
     def _period(self, n: int) -> None:
         """One period in ``n`` steps of the compiled loop, then the limit check."""

@@ -17,12 +17,10 @@ from .dynamics import FlexArmModel
 from .inputs import input_data
 from .integrators import (consistent_acceleration, generalized_alpha, joint_torques,
                           restart_acceleration)
+from .solvers.status import REFINEMENTS, refine
 from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, SimulationDivergedError,
                        apply_payload_change, diverged, newton_failed)
 
-#: finer steps (max_step / k) that :meth:`Stepper.advance_refining` tries, in turn, over a
-#: duration whose integration failed
-REFINEMENTS = (4, 16)
 
 
 class Stepper:
@@ -99,25 +97,18 @@ class Stepper:
     def advance_refining(self, duration: float, refinements=REFINEMENTS) -> int:
         """:meth:`advance`; if it fails (Newton or a run-away state), the same duration
         again from the same state in steps of max_step / k for each k of ``refinements``
-        in turn. Returns the k that succeeded (1: none needed); raises the first failure
-        if every one fails. A failed attempt leaves the state unchanged."""
-        try:
-            self.advance(duration)
-            return 1
-        except SimulationDivergedError as first:
-            failure = first
+        in turn (solvers.status.refine). Returns the k that succeeded (1: none needed);
+        raises the first failure if every one fails. A failed attempt leaves the state
+        unchanged."""
         step = self.max_step
-        try:
-            for k in refinements:
-                self.max_step = step / k
-                try:
-                    self.advance(duration)
-                    return k
-                except SimulationDivergedError:
-                    continue
-        finally:
-            self.max_step = step
-        raise failure
+
+        def attempt(k):
+            self.max_step = step / k
+            try:
+                self.advance(duration)
+            finally:
+                self.max_step = step
+        return refine(attempt, refinements, SimulationDivergedError)
 
     # ------------------------------------------------------------------ outputs
     @property

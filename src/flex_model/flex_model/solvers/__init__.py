@@ -6,11 +6,11 @@ settings and the status of a run, for the planar and the spatial arms alike.
   an input discontinuity and the status of a step;
 - :mod:`.newton`: the pieces of the Newton iterations (the backtracking test on the
   residual norm, the stagnation test of the spatial loop);
-- :mod:`.status`: the settings (rho_inf, tolerances, iteration limits) and the status of a
-  run (finished / diverged / no convergence) with its one-line message.
-
-Each model keeps its compiled fixed-step entry point (integrators.generalized_alpha and
-generalized_alpha_simplified, exact_kinematics.generalized_alpha,
-spatial.compiled.galpha_loop) built from these pieces (solvers.newton says why the loop
-itself is not passed the residual as a function).
+- :mod:`.status`: the settings (rho_inf, tolerances, iteration limits, simplified Newton,
+  the refinements of a failed step and :func:`.status.refine`, the retry) and the status
+  of a run (finished / diverged / no convergence) with its one-line message;
+- :mod:`.loop`: the one compiled fixed-step loop and its full and simplified Newton,
+  generic over the model (its hooks chosen at compile time by the type of the model's
+  data: the planar arm's and the exact kinematics'; the spatial arm keeps
+  spatial.compiled.galpha_loop, docs/model.md says why).
 """

@@ -3,10 +3,10 @@ planar full Newton (integrators and exact_kinematics.generalized_alpha) and the
 convergence test of the spatial loop (a correction relative to the accelerations, the
 stagnation at their round-off floor).
 
-The Newton loops stay written in each model's compiled entry point: numba (0.68) does not
-cache a function that receives the residual as a first-class function and allocates or
-does array arithmetic (measured: "Cannot cache compiled function ... as it uses dynamic
-globals"), and every process would compile the fixed step again."""
+solvers.loop holds the Newton loops, generic over the model through hooks chosen by the
+type of the model's data (numba.extending.overload): numba (0.68) does not cache a function
+that receives the residual as a first-class function and allocates or does array
+arithmetic (measured: "Cannot cache compiled function ... as it uses dynamic globals")."""
 from __future__ import annotations
 
 import numpy as np

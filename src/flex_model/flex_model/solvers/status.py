@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+from numba import njit
+
 #: status codes returned by the compiled loops (0, 1, 2 as the planar loops always did)
 FINISHED = 0
 DIVERGED = 1
@@ -14,6 +16,10 @@ MESSAGES = {FINISHED: "finished",
             NO_CONVERGENCE: "the step's Newton iteration did not converge"}
 
 
+#: a failed step is tried again as 4, then 16 times shorter steps (Settings.refinements)
+REFINEMENTS = (4, 16)
+
+
 class Settings(NamedTuple):
     """Settings of the fixed-step generalized-alpha solver. ``tol``: the Newton
     correction's bound (planar: position correction beta' |da|, m or rad; spatial:
@@ -21,8 +27,10 @@ class Settings(NamedTuple):
     halvings of the backtracking line search (planar full Newton); ``line_search_from``,
     ``halvings``, ``stagnation``: the spatial loop's halving line search and
     stagnation test (:func:`flex_model.solvers.newton.spatial_converged`); ``limit``: a
-    state component beyond it is a divergence; ``substeps``: a failed step is tried
-    again as that many shorter steps (0: fail)."""
+    state component beyond it is a divergence; ``simplified``: simplified Newton
+    (solvers.loop.fixed_step); ``refinements``: a failed step is tried again as that many
+    times shorter steps, in turn (the model node's retry and, with its first entry, the
+    spatial loop's; :func:`refine`)."""
     rho_inf: float = 0.9
     tol: float = 1e-10
     max_iter: int = 50
@@ -31,10 +39,37 @@ class Settings(NamedTuple):
     halvings: int = 8
     stagnation: float = 1e3
     limit: float = 1e6
-    substeps: int = 4
+    simplified: bool = False
+    refinements: tuple = REFINEMENTS
+
+
+def refine(attempt, refinements=REFINEMENTS, errors=(RuntimeError,)) -> int:
+    """The retry policy of a failed step: ``attempt(k)`` (the same span in k times
+    shorter steps, from the same state) for k = 1, then each k of ``refinements`` in turn
+    until one does not raise ``errors``. Returns that k; raises the first failure if every
+    one fails (the model node's stepper and spatial period)."""
+    try:
+        attempt(1)
+        return 1
+    except errors as first:
+        failure = first
+    for k in refinements:
+        try:
+            attempt(k)
+            return k
+        except errors:
+            continue
+    raise failure
 
 
 def message(status: int, t: float | None = None) -> str:
     """One line for a run's status code, with the time reached."""
     text = MESSAGES.get(int(status), f"unknown status {status}")
     return text if t is None or status == FINISHED else f"{text} at t = {t:.6g} s"
+
+
+@njit(cache=True)
+def newton_settings(rho_inf, tol, limit, simplified):
+    """:class:`Settings` with these four and the other defaults, in compiled code (numba
+    builds a NamedTuple from positional arguments only)."""
+    return Settings(rho_inf, tol, 50, 30, 20, 8, 1e3, limit, simplified, REFINEMENTS)

@@ -34,7 +34,7 @@ from scipy.integrate import solve_ivp
 from ..errors import SimulationDivergedError
 from ..solvers.galpha import galpha_coefficients, galpha_state
 from ..solvers.newton import spatial_converged
-from ..solvers.status import FINISHED, NO_CONVERGENCE, Settings, message
+from ..solvers.status import FINISHED, NO_CONVERGENCE, REFINEMENTS, Settings, message
 from .dynamics import SpatialArmModel
 
 
@@ -223,7 +223,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
                             joint_torques=None, rho_inf: float = 0.9, tol: float = 1e-10,
                             max_iter: int = 50, damping=None,
                             clip_to_effort: bool = True, acceleration=None,
-                            pd_clip=None, substeps: int = 4, tip_force=None,
+                            pd_clip=None, substeps: int = REFINEMENTS[0], tip_force=None,
                             restart_from=None) -> SpatialRun:
     """The generalized-alpha scheme of :func:`simulate_fixed`, compiled (numba, the
     analytic velocity terms of compiled.py). ``joint_torques``: None, a constant
@@ -241,7 +241,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     (compiled._pd_clip), not only the torques. A step whose Newton iteration fails is
     integrated again as ``substeps`` steps of h / substeps from a restart (a consistent
     acceleration), and the run goes on with a restart after it (0: raise instead; the
-    planar replay's SUBSTEPS); the Newton count includes the failed attempts' iterations
+    first of solvers.status.REFINEMENTS, as the planar replay's); the Newton count includes the failed attempts' iterations
     and ``acceleration`` is None when the run ends with such a step (a continuation then
     restarts). The PD clip leaves ``dc_motor`` joints to the motor model's own clip and is
     off with ``clip_to_effort=False``. ``tip_force``: None, a constant (3) or an
@@ -288,8 +288,7 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     tipf = np.zeros((0, 3)) if tip_force is None else np.array(np.broadcast_to(
         np.asarray(tip_force, float), (n_steps, 3)), order="C")
 
-    settings = Settings(rho_inf=float(rho_inf), tol=float(tol), max_iter=int(max_iter),
-                        substeps=int(substeps))
+    settings = Settings(rho_inf=float(rho_inf), tol=float(tol), max_iter=int(max_iter))
 
     def loop(q, v, hh, rows, acc, warm, forces):
         inputs = LoopInputs(K, np.ascontiguousarray(D), model.Q_const.copy(), fric, motors,

@@ -37,12 +37,13 @@ from flex_model.integrators import (consistent_acceleration, generalized_alpha,
 from flex_model.kernels import link_origins
 from flex_model.inputs import JointPD, input_data
 from flex_model.simulate import SimulationDivergedError
+from flex_model.solvers.status import REFINEMENTS
 from flex_model.statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
 
 DEFAULT_STEP = 1e-3
-#: steps per step of a control period retried after a Newton failure
-SUBSTEPS = 4
+#: steps per step of a control period retried after a Newton failure (the first refinement)
+SUBSTEPS = REFINEMENTS[0]
 #: replays on second-order kinematics by simplified Newton (_closed_loop, _continuous_loop)
 SIMPLIFIED = True
 # (the compiled loops pass their integer constants to the integrator as np.int64: a bare
