@@ -37,7 +37,6 @@ from .solvers.status import refine
 from .urdf import quaternion_from_matrix
 
 
-
 def load_arm_parameter(arm: str, planar: bool, kinematics: str = ""):
     """The SpatialArm named by the ``arm`` parameter (ParameterError naming it), with the
     ``kinematics`` parameter's kinematics ('': the arm file's)."""

@@ -22,7 +22,6 @@ from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, SimulationDivergedError,
                        apply_payload_change, diverged, newton_failed)
 
 
-
 class Stepper:
     """Advance a FlexArmModel under a held joint command (N m, or V for DC-motor joints)."""
 

@@ -241,9 +241,9 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     (compiled._pd_clip), not only the torques. A step whose Newton iteration fails is
     integrated again as ``substeps`` steps of h / substeps from a restart (a consistent
     acceleration), and the run goes on with a restart after it (0: raise instead; the
-    first of solvers.status.REFINEMENTS, as the planar replay's); the Newton count includes the failed attempts' iterations
-    and ``acceleration`` is None when the run ends with such a step (a continuation then
-    restarts). The PD clip leaves ``dc_motor`` joints to the motor model's own clip and is
+    first of solvers.status.REFINEMENTS, as the planar replay's); the Newton count
+    includes the failed attempts' iterations and ``acceleration`` is None when the run
+    ends with such a step (a continuation then restarts). The PD clip leaves ``dc_motor`` joints to the motor model's own clip and is
     off with ``clip_to_effort=False``. ``tip_force``: None, a constant (3) or an
     (n_steps, 3) array of forces (N, base frame) at the tip (the origin of the last
     link's end frame), row n over step n, as J_tip^T F (``simulate_fixed``'s ``force``
