@@ -240,17 +240,17 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     torque kp (s - theta_a) - kd theta_a' + u is then clipped to the effort limits
     (compiled._pd_clip), not only the torques. A step whose Newton iteration fails is
     integrated again as ``substeps`` steps of h / substeps from a restart (a consistent
-    acceleration), and the run goes on with a restart after it (0: raise instead; the
-    first of solvers.status.REFINEMENTS, as the planar replay's); the Newton count
-    includes the failed attempts' iterations and ``acceleration`` is None when the run
-    ends with such a step (a continuation then restarts). The PD clip leaves ``dc_motor`` joints to the motor model's own clip and is
-    off with ``clip_to_effort=False``. ``tip_force``: None, a constant (3) or an
-    (n_steps, 3) array of forces (N, base frame) at the tip (the origin of the last
-    link's end frame), row n over step n, as J_tip^T F (``simulate_fixed``'s ``force``
-    does the same with a callback). ``restart_from``: the ``acceleration`` of the run
-    before an input jump at (q0, v0): the restart then takes the part of the jump the
-    step can follow where the rest would kick modes it cannot (integrators.restart_choice,
-    as the planar fixed step), instead of the consistent acceleration."""
+    acceleration), and the run goes on with a restart after it (0: raise instead; the first of
+    solvers.status.REFINEMENTS, as the planar replay's); the Newton count includes the failed
+    attempts' iterations and ``acceleration`` is None when the run ends with such a step (a
+    continuation then restarts). The PD clip leaves ``dc_motor`` joints to the motor model's
+    own clip and is off with ``clip_to_effort=False``. ``tip_force``: None, a constant (3) or
+    an (n_steps, 3) array of forces (N, base frame) at the tip (the origin of the last link's
+    end frame), row n over step n, as J_tip^T F (``simulate_fixed``'s ``force`` does the same
+    with a callback). ``restart_from``: the ``acceleration`` of the run before an input jump at
+    (q0, v0): the restart then takes the part of the jump the step can follow where the rest
+    would kick modes it cannot (integrators.restart_choice, as the planar fixed step), instead
+    of the consistent acceleration."""
     from .compiled import LoopInputs, galpha_loop, pack
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
