@@ -16,7 +16,7 @@ from std_msgs.msg import Float64MultiArray
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 from flex_model.stepper import Stepper
 
 
@@ -318,7 +318,7 @@ def test_entry_point_with_autostart_false_is_managed_and_exits_cleanly():
     import subprocess
     import sys
     ns = f"/lcp{os.getpid()}_{uuid.uuid4().hex[:6]}"
-    proc = subprocess.Popen([sys.executable, "-m", "flex_model.model_node", "--ros-args",
+    proc = subprocess.Popen([sys.executable, "-m", "flex_model.ros.model_node", "--ros-args",
                              "-r", f"__ns:={ns}", "-p", "autostart:=false"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     ctx = rclpy.Context()
@@ -410,7 +410,7 @@ def test_spatial_model_node_transitions_with_a_lifecycle_client():
     cleanup; a bad arm and a bad per-joint value fail configure with their line; another
     arm configures and runs."""
     from std_srvs.srv import Trigger
-    from flex_model.model_node import SpatialModelNode
+    from flex_model.ros.model_node import SpatialModelNode
     spatial_core(SPATIAL, None, None, [[0.0] * 3])  # compile before the node waits
     h = Manager(SpatialModelNode, "flex_model", autostart=False, arm=SPATIAL,
                 mode="lockstep", rate=200.0, step=1e-3, lockstep_timeout=100.0,
@@ -491,7 +491,7 @@ def test_spatial_model_node_transitions_with_a_lifecycle_client():
 
 
 def test_spatial_autostart_default_is_active():
-    from flex_model.model_node import SpatialModelNode
+    from flex_model.ros.model_node import SpatialModelNode
     h = Manager(SpatialModelNode, "flex_model", arm=SPATIAL)
     try:
         assert h.state() == "active"

@@ -17,10 +17,10 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from flex_model.arm import load_arm
-from flex_model.cdr_messages import read_joint_state, read_joint_state_names
+from flex_model.ros.cdr_messages import read_joint_state, read_joint_state_names
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import _arm_argument
-from flex_model.observer_node import ObserverNode, measurements_named
+from flex_model.ros.model_node import _arm_argument
+from flex_model.ros.observer_node import ObserverNode, measurements_named
 from flex_model.stepper import Stepper
 
 RELIABLE = QoSProfile(depth=2000, reliability=ReliabilityPolicy.RELIABLE)
@@ -277,7 +277,7 @@ def test_flex_twin_observe_and_up_start_the_observer():
     assert argv[:4] == ["flex-twin-observe", "--ros-args", "-r", "__ns:=/arm1"]
     assert {"mode:=observer", "arm:=thesis_example1", "measure:=q1,w1", "adapt:=''"} <= \
         set(argv)
-    assert node_class("flex_model", {"mode": "observer"}) == ("flex_model.observer_node",
+    assert node_class("flex_model", {"mode": "observer"}) == ("flex_model.ros.observer_node",
                                                               "ObserverNode")
     assert node_class("flex_model", {"mode": "lockstep"})[1] == "ModelNode"
     params = {"flex_model": {"mode": "observer"}, "flex_controller": {"rate_hz": 500.0}}
@@ -288,7 +288,7 @@ def test_a_spatial_arm_is_observed_with_the_spatial_nodes_layout():
     """seed003_like_arm (spatial, issue 25) held at zero joint angles: every sample gives
     flex/deflections named and ordered as the spatial node's (ros_spatial), and the tip
     pose with its covariance is the end frame of the estimated state (tip_frame)."""
-    from flex_model import ros_spatial as sr
+    from flex_model.ros import spatial as sr
     from flex_model.spatial.dynamics import SpatialArmModel
     from flex_model.spatial.loader import load_spatial_arm
 
@@ -316,7 +316,7 @@ def test_one_default_noise_table_for_the_cli_and_the_observer():
     """flex-twin estimate and the observer default a channel's std alike (DEFAULT_STD;
     they were q 1e-4 against 1e-3 rad and w 5e-4 against 1e-4 m)."""
     from flex_model.estimation.measurements import DEFAULT_STD
-    from flex_model.observer_node import NAMED_KINDS
+    from flex_model.ros.observer_node import NAMED_KINDS
     from flex_twin.estimate import CHANNELS
     for k in "qvw":
         assert CHANNELS[k] == NAMED_KINDS[k]

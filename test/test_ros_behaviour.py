@@ -34,7 +34,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from flex_control.controller_node import ControllerNode
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 from flex_model.simulate import SimulationDivergedError
 from flex_model.stepper import Stepper
 from flex_planner.planner_node import PlannerNode

@@ -239,7 +239,7 @@ def test_deflections_malformed_rejected_and_picked_by_name(make_harness):
 def test_controller_takes_the_model_nodes_deflections():
     """The two nodes connect on flex/deflections (sensor_msgs/JointState): the controller
     holds the model's tip deflections under gravity (the arm at rest, deflected)."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -398,7 +398,7 @@ def test_default_model_and_default_controller_run_stably(loop):
     divergence). The model's default arm now has geared motors, the controller node's
     default gains are h = 5, a = 5; the pair holds the first measured pose (within a sag
     under gravity) for 1.5 s of model time."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ns = _ns("pair")
     model = loop.add(ModelNode, ns)
     ctrl = loop.add(ControllerNode, ns)
@@ -418,7 +418,7 @@ def test_default_model_and_default_controller_run_stably(loop):
 def test_default_gains_hold_the_default_arm_in_lockstep(loop):
     """The default pair in lockstep (no latency from load): the first measured pose held
     within the gravity sag of h = 5, a = 5 (< 10 deg), at rest, after 1 s of model time."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ns = _ns("hold")
     model = loop.add(ModelNode, ns, mode="lockstep", lockstep_timeout=0.2)
     ctrl = loop.add(ControllerNode, ns, state_timeout=5.0)
@@ -436,7 +436,7 @@ def test_controller_takes_three_joints_from_the_lockstep_model(loop):
     (the controller's default two joints: "got 2 values; expected 3") and stepped once a
     second on the watchdog. The default controller takes the joints from joint_states:
     every command is accepted and steps the model."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ns = _ns("three")
     model = loop.add(ModelNode, ns, arm="thesis_three_link", mode="lockstep")
     ctrl = loop.add(ControllerNode, ns)
@@ -465,7 +465,7 @@ def test_two_namespaced_twins_close_their_own_loops(loop):
     """Issue 23 defect 8: every node uses relative names, so two twins (model + controller
     each, lockstep) in /twinA and /twinB run side by side in one process: each controller
     holds its own model's start pose, each model is stepped by its own controller only."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     twins = {}
     for tag, angles in (("twinA", [30.0, 0.0]), ("twinB", [-60.0, 20.0])):
         ns = _ns(tag)

@@ -1,4 +1,4 @@
-"""Messages serialized from a CDR template (flex_model.cdr_messages): byte for byte what
+"""Messages serialized from a CDR template (flex_model.ros.cdr_messages): byte for byte what
 rclpy's ``serialize_message`` makes of the same message object (except the CDR padding,
 which rclpy leaves as it was in memory and the template sets to zero), decoded to the
 same message by rclpy and by the independent ``rosbags`` CDR reader (what a bag reader
@@ -18,8 +18,8 @@ from std_msgs.msg import Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from flex_model import ros_conversions as conv
-from flex_model.cdr_messages import CdrTemplate, encode, padding_mask
+from flex_model.ros import conversions as conv
+from flex_model.ros.cdr_messages import CdrTemplate, encode, padding_mask
 
 ODD = [-0.0, 5e-324, 1e-310, math.inf, -math.inf, math.nan, 1.0e300, -123.456]
 TIMES = [0.0, 1e-9, 0.0015, 12.345678901, 86399.999999999, 1.7e9 + 0.123456789]

@@ -16,7 +16,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 from flex_model.stepper import Stepper
 
 
@@ -130,7 +130,7 @@ def test_reset_pause_and_shape_markers(lockstep):
 
 
 def test_stamps_round_to_the_nanosecond_without_wrapping():
-    from flex_model.ros_conversions import stamp
+    from flex_model.ros.conversions import stamp
     for t, want in ((2.9999999999, (3, 0)), (3.0000000004, (3, 0)), (0.0015, (0, 1500000)),
                     (12.5, (12, 500000000))):
         s = stamp(t)
@@ -146,10 +146,10 @@ def test_realtime_ticks_integrate_whole_steps_and_catch_up(monkeypatch):
                 initial_joint_angles_deg=[10.0, -20.0], hold_until_command=False)
     try:
         node, clock = h.node, [100.0]
-        monkeypatch.setattr("flex_model.model_node.time.monotonic", lambda: clock[0])
+        monkeypatch.setattr("flex_model.ros.model_node.time.monotonic", lambda: clock[0])
         node.last_wall = clock[0]
         published = []
-        node.pub_js.publish = lambda raw: published.append(  # bytes: flex_model.cdr_messages
+        node.pub_js.publish = lambda raw: published.append(  # bytes: flex_model.ros.cdr_messages
             stamp_s(deserialize_message(raw, JointState)))
         for elapsed_ms, t_ms in ((1.0, 1), (3.4, 4), (0.7, 5), (0.95, 6), (0.2, 6), (0.55, 7)):
             clock[0] += 1e-3 * elapsed_ms
@@ -329,7 +329,7 @@ def test_startup_parameters_accept_ints_and_refuse_bad_values_in_one_line():
     """Issue 23 defect 10: rate:=500 (an integer) was refused where a float is expected;
     shape_points:=0 raised IndexError; a wrong-length initial_joint_angles_deg was
     silently resized; a negative command_timeout was accepted."""
-    from flex_model.ros_main import ParameterError
+    from flex_model.ros.main import ParameterError
     h = Harness(arm="thesis_example1", mode="lockstep", rate=500, lockstep_timeout=30)
     try:
         assert h.node.p["rate"] == 500.0 and isinstance(h.node.p["rate"], float)
@@ -349,7 +349,7 @@ def test_startup_parameters_accept_ints_and_refuse_bad_values_in_one_line():
                 ({"rate": "fast"}, "parameter rate: got 'fast'; expected a finite number"),
                 ({"max_step": 0.0}, "parameter max_step: got 0; expected a step in (0, 0.1]"),
                 ({"mode": "turbo"}, "parameter mode: got 'turbo'; expected realtime or "
-                 "lockstep (mode observer is flex_model.observer_node")):
+                 "lockstep (mode observer is flex_model.ros.observer_node")):
             with pytest.raises(ParameterError) as err:
                 ModelNode(context=ctx, namespace=f"/b{uuid.uuid4().hex[:8]}",
                           parameter_overrides=[Parameter(k, value=v)

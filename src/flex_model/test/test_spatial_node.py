@@ -15,7 +15,7 @@ from visualization_msgs.msg import MarkerArray
 
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
 from flex_model.spatial.integrate import simulate_fixed_compiled
-from flex_model.model_node import SpatialModelNode
+from flex_model.ros.model_node import SpatialModelNode
 
 ARM = "seed003_like_arm"
 
@@ -35,7 +35,7 @@ class Harness:
         self.probe.create_subscription(JointState, "joint_states", self.states.append, 100)
         self.probe.create_subscription(JointState, "flex/deflections", self.defl.append, 100)
         self.probe.create_subscription(MarkerArray, "flex/shape", self.shapes.append, 100)
-        from flex_model.model_node import LATCHED
+        from flex_model.ros.model_node import LATCHED
         self.probe.create_subscription(String, "robot_description", self.desc.append, LATCHED)
         self.cmd = self.probe.create_publisher(Float64MultiArray,
                                                "effort_controller/commands", 100)
@@ -141,7 +141,7 @@ def test_lockstep_equals_the_compiled_loop_and_bad_commands_are_dropped(harness)
                                atol=1e-15)
     assert abs(d.position[1]) > 1e-6      # the arm moves: not a zero test
     # /flex/shape: the forearm's centre line ends at its tip frame
-    from flex_model.ros_spatial import frame_poses
+    from flex_model.ros.spatial import frame_poses
     tip = [T for _, c, T in frame_poses(model, q) if c == "forearm_tip"][0]
     line = [m for m in h.shapes if round(stamp_s(m.markers[0]) * 200) == 12][-1].markers[0]
     np.testing.assert_allclose([line.points[-1].x, line.points[-1].y, line.points[-1].z],
@@ -185,7 +185,7 @@ def test_in_loop_eq95_equals_the_compiled_loop_with_the_pd(harness):
 
 
 def test_bad_parameters_name_the_parameter():
-    from flex_model.ros_main import ParameterError
+    from flex_model.ros.main import ParameterError
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -210,7 +210,7 @@ def test_bad_parameters_name_the_parameter():
 
 def test_model_node_entry_point_dispatches_spatial_arms():
     """``flex-model-node -p arm:=<spatial>`` runs the spatial node, a planar arm the planar."""
-    from flex_model.model_node import _arm_argument
+    from flex_model.ros.model_node import _arm_argument
     from flex_model.spatial.description import is_spatial_arm
     argv = ["flex-model-node", "--ros-args", "-p", "arm:=thesis_example1",
             "-p", "arm:=seed003_like_arm"]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from flex_model.ros_spatial import (centre_lines, deflection_index, deflection_names,
+from flex_model.ros.spatial import (centre_lines, deflection_index, deflection_names,
                                     deflection_values, frame_poses, joint_state, relative,
                                     shape_markers, skeleton_urdf, stamp, transforms)
 
@@ -32,7 +32,7 @@ from .bags.message_types import jazzy_typestore
 from .bags.writer import BagWriter
 
 TF_TYPE = "tf2_msgs/msg/TFMessage"
-#: the message layout is flex_model.ros_spatial's (shared with the spatial model node)
+#: the message layout is flex_model.ros.spatial's (shared with the spatial model node)
 __all__ = ["TF_TYPE", "centre_lines", "frame_poses", "relative", "skeleton_urdf",
            "write_spatial_bag"]
 

@@ -2,7 +2,7 @@
 
 One node class hosts a planar arm (an arm preset or YAML: :class:`PlanarArm`, a thin
 adapter around flex_model.stepper.Stepper) and a spatial one (a DH/modified-DH YAML or a
-URDF, or a planar arm embedded with ``from_planar``: flex_model.spatial_node.SpatialArm,
+URDF, or a planar arm embedded with ``from_planar``: flex_model.ros.spatial_node.SpatialArm,
 around the compiled generalized-alpha loop of spatial/integrate.py). The arm kind is read
 from ``arm`` at configure; the parameters, topics, services, lifecycle, lockstep and
 realtime loops, command timeout, plausibility limits, divergence handling and the message
@@ -66,7 +66,7 @@ controller_rate inside the model's loop (flex_model.control_loop) - planar arms;
 spatial arm ``controller`` eq95 or eq45 is the continuous PD inside the compiled loop
 (kp, kd or kpp, kpv; set-points on flex/setpoints), a plugin is refused with the reason.
 
-Lifecycle (issue 46, flex_model.ros_main.Managed): ``autostart`` (default true)
+Lifecycle (issue 46, flex_model.ros.main.Managed): ``autostart`` (default true)
 configures and activates at start; false: unconfigured for a lifecycle manager. configure
 loads the arm, activate runs the loop, deactivate holds the state (time stands still,
 inputs refused), cleanup releases the arm.
@@ -84,7 +84,7 @@ the node alone in its executor one callback runs the periods of up to REALTIME_S
 a wait set of its own. lockstep: each command advances the model by 1/rate and publishes
 joint_states (and /clock) at once, the other topics at their rates; without a command for
 ``lockstep_timeout`` (wall) the model steps with the held one. The state messages are
-serialized once (CDR templates, flex_model.cdr_messages) and published as bytes.
+serialized once (CDR templates, flex_model.ros.cdr_messages) and published as bytes.
 """
 from __future__ import annotations
 
@@ -110,16 +110,16 @@ from sensor_msgs.msg import Imu, JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from . import ros_conversions as conv
-from . import urdf
-from .control_loop import ControlLoop
-from .controller_interface import load_controller
-from .dynamics import FlexArmModel
-from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
-                       lean_node, planar_arm_parameter, read_parameters, run_node)
-from .stepper import Stepper
-from .ros_trajectory_action import action_server
-from .trajectory_action import INVALID_GOAL
+from . import conversions as conv
+from .. import urdf
+from ..control_loop import ControlLoop
+from ..controller_interface import load_controller
+from ..dynamics import FlexArmModel
+from .main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
+                   lean_node, planar_arm_parameter, read_parameters, run_node)
+from ..stepper import Stepper
+from .trajectory_action import action_server
+from ..trajectory_action import INVALID_GOAL
 
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
@@ -158,7 +158,7 @@ def _gains(v):
 
 
 def _payload_check(v):
-    from .spatial.payload import payload_inertia
+    from ..spatial.payload import payload_inertia
     try:
         payload_inertia(v)
     except ValueError as exc:
@@ -210,10 +210,10 @@ PARAMETERS = (
           check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
     Param("kinematics", "", "kinematics override of the flexible links: small_deflection, "
           "second_order, exact (empty: the arm's)"),
-    Param("mode", "realtime", "realtime | lockstep (observer: flex_model.observer_node, "
+    Param("mode", "realtime", "realtime | lockstep (observer: flex_model.ros.observer_node, "
           "which the entry point starts for -p mode:=observer)",
           check=lambda v: None if v in ("realtime", "lockstep") else
-          "realtime or lockstep (mode observer is flex_model.observer_node: started by "
+          "realtime or lockstep (mode observer is flex_model.ros.observer_node: started by "
           "the entry point with -p mode:=observer, flex-twin observe, or flex-twin up)"),
     Param("rate", 1000.0, "model loop rate (Hz); lockstep: a command advances 1/rate",
           check=_positive),
@@ -300,8 +300,8 @@ PARAMETERS = (
     Param("restart_on_change", True, "spatial: restart the integrator (consistent "
           "acceleration) when the command or a set-point changes, as the planar Stepper; "
           "false: continue"),
-    Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
-    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
+    Param("parameter_services", True, "false: no parameter services (flex_model.ros.main)"),
+    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros.main)"),
 )
 
 #: ranges of the numeric parameters in their descriptors (ros_main.descriptor): the bounds
@@ -397,7 +397,7 @@ class ModelNode(Managed, LifecycleNode):
         p = read_parameters(self, self.specs, RANGES)
         _aliases(p, self.specs)
         self.p = p
-        from .spatial.description import is_spatial_arm
+        from ..spatial.description import is_spatial_arm
         spatial = bool(p["from_planar"]) or is_spatial_arm(p["arm"])
         _refuse_other_kind(p, self.specs, spatial)
         if spatial:
@@ -443,7 +443,7 @@ class ModelNode(Managed, LifecycleNode):
                                   "(hold_until_command)" if self.braked else ""))
 
     def _make_entities(self, p) -> None:
-        """Publishers (state messages as CDR templates, flex_model.cdr_messages: published
+        """Publishers (state messages as CDR templates, flex_model.ros.cdr_messages: published
         as bytes), subscriptions and services."""
         arm, n, qos = self.arm_io, len(self.names), 10
         self.cdr_js = conv.joint_state_cdr(self.names, n)
@@ -943,7 +943,7 @@ class PlanarArm:
         theta0 = np.broadcast_to(np.asarray(values, float), (n,))
         q0 = model.q_from_joint_angles(theta0)
         if p["start_static"]:  # at rest, deflected under gravity with the joints held
-            from .statics import static_equilibrium
+            from ..statics import static_equilibrium
             q0 = static_equilibrium(model, theta0, joints="clamped").q
         self.stepper = Stepper(model, q0, max_step=p["max_step"], rho_inf=p["rho_inf"])
         self.auto_limits = plausibility_limits(model)
@@ -961,7 +961,7 @@ class PlanarArm:
         self.shape_labels = [f"link{i + 1}" for i in range(n)]
         self.shape_widths = (0.02, 0.005)
         self.cdr_imu = conv.imu_cdr(self.frames.tips[-1]) if self.has_imu else None
-        from .live_view import node_live_view  # Foxglove WebSocket (issue 46); 0: None
+        from ..live_view import node_live_view  # Foxglove WebSocket (issue 46); 0: None
         self.live_view = node_live_view(model, p["foxglove_port"], p["frame_prefix"],
                                         p["frame_id"], p["shape_points"],
                                         node.get_logger())
@@ -1068,7 +1068,7 @@ class PlanarArm:
 
     def tf_setup(self, tf_type) -> list:
         """The static transforms (base -> arm_plane); the moving ones as numbers into a
-        CDR template (flex_model.cdr_messages)."""
+        CDR template (flex_model.ros.cdr_messages)."""
         self.tf_values = urdf.ArmTransforms(self.model, self.frames)
         self.cdr_tf = conv.transforms_cdr(tf_type, self.tf_values.pairs)
         return urdf.static_transforms(self.model, self.frames)
@@ -1101,14 +1101,14 @@ def spatial_main(args=None) -> None:
 
 def main(args=None) -> None:
     """A spatial arm (issue 25) runs with :data:`SPATIAL_DEFAULTS`, ``mode:=observer``
-    (issue 45) is :mod:`flex_model.observer_node`."""
+    (issue 45) is :mod:`flex_model.ros.observer_node`."""
     argv = sys.argv if args is None else args
     if _arm_argument(argv, "mode") == "observer":
         from .observer_node import main as observer_main
         return observer_main(args)
     arm = _arm_argument(argv)
     if arm:
-        from .spatial.description import is_spatial_arm
+        from ..spatial.description import is_spatial_arm
         if is_spatial_arm(arm) or _arm_argument(argv, "from_planar") == "true":
             return run_node(SpatialModelNode, args)
     run_node(ModelNode, args)

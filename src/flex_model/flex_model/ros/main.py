@@ -21,7 +21,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
-from flex_model import ros_environment
+from flex_model.ros import ros_environment
 from flex_model.command import stop_on_signals
 
 
@@ -88,7 +88,7 @@ class ParameterError(ValueError):
 def planar_arm_parameter(p: dict):
     """The planar arm of a node's ``arm``, ``vars_per_link`` (0: the arm file's) and
     ``kinematics`` ('': the arm file's) parameters; a ParameterError naming ``arm``."""
-    from .arm import load_arm
+    from ..arm import load_arm
     try:
         arm = load_arm(p["arm"], p["vars_per_link"] or None)
         return arm.with_kinematics(p["kinematics"]) if p["kinematics"] else arm
@@ -103,8 +103,8 @@ def fmt(value) -> str:
         return repr(value)
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, (list, tuple)) or (hasattr(value, "tolist") and
-                                           getattr(value, "ndim", 0) > 0):
+    if isinstance(value, (list, tuple)) or (hasattr(value, "tolist")
+                                            and getattr(value, "ndim", 0) > 0):
         items = value.tolist() if hasattr(value, "tolist") else value
         return "[" + ", ".join(fmt(v) for v in items) + "]"
     if hasattr(value, "item") and not isinstance(value, (int, float)):

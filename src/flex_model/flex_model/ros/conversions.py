@@ -14,7 +14,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .cdr_messages import CdrTemplate
-from .trajectory import JointTrajectoryData
+from ..trajectory import JointTrajectoryData
 
 
 def stamp(t: float) -> Time:
@@ -95,7 +95,7 @@ class ShapeMarkers:
                 m.points = [Point() for _ in range(n)]
                 self.msg.markers.append(m)
 
-        # the serialized message (flex_model.cdr_messages), built here: at 10,000 points
+        # the serialized message (flex_model.ros.cdr_messages), built here: at 10,000 points
         # per link it takes about 1 s, which a realtime tick must not wait for
         self._raw = CdrTemplate(
             self.msg, [f"markers[{j}].header.stamp" for j in range(len(self.msg.markers))],
@@ -119,7 +119,7 @@ class ShapeMarkers:
     def serialized(self, t, shapes) -> bytes:
         """The message of :meth:`update` (stamp t, centre lines ``shapes``) serialized
         (CDR), written straight into a serialized copy of the message
-        (:class:`flex_model.cdr_messages.CdrTemplate`): what rclpy would send, without
+        (:class:`flex_model.ros.cdr_messages.CdrTemplate`): what rclpy would send, without
         converting 4 markers of Point objects on every publication (0.2-0.3 ms of the 1 ms
         realtime tick; Publisher.publish takes bytes)."""
         values = []
@@ -158,7 +158,7 @@ def tip_pose_values(x, y, phi, rotation=None) -> list[float]:
     s, c = math.sin(phi / 2), math.cos(phi / 2)
     if rotation is None:
         return [float(x), float(y), 0.0, 0.0, 0.0, s, c]
-    from .urdf import quaternion_from_matrix
+    from ..urdf import quaternion_from_matrix
     r = rotation
     qx, qy, qz, qw = quaternion_from_matrix(r)
     return [float(r[0, 0] * x + r[0, 1] * y), float(r[1, 0] * x + r[1, 1] * y),

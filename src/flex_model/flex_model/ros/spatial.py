@@ -1,5 +1,5 @@
 """ROS message layout of a spatial arm (issue 25), written once for the spatial model node
-(flex_model.spatial_node) and the spatial bag writer (flex_twin.spatial_bags).
+(flex_model.ros.spatial_node) and the spatial bag writer (flex_twin.spatial_bags).
 
 No physics here: the frames come from the model's chain (spatial/dynamics.py, seed 000
 Eqs. 17-21), the deflections are the tip variables of the beams. The message classes are
@@ -23,7 +23,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from .urdf import quaternion_from_matrix, rpy_from_matrix
+from ..urdf import quaternion_from_matrix, rpy_from_matrix
 
 #: sampled bases of the centre lines per (beam, points); the beam is kept (its id stays
 #: unique while cached)

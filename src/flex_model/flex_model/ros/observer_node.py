@@ -1,17 +1,17 @@
 """ObserverNode: the model node in observer mode (issue 45): the twin follows a real arm.
 
 Started as the model node with ``mode: observer`` (``model_node`` dispatches here, as it
-dispatches a spatial arm to :mod:`flex_model.spatial_node`; ``flex-twin observe``;
+dispatches a spatial arm to :mod:`flex_model.ros.spatial_node`; ``flex-twin observe``;
 ``flex-twin up`` with ``mode: observer`` in the flex_model section). It does not integrate
 open loop: every sample of the real arm's joint_states runs one step of the state estimator
 (:class:`flex_model.estimation.Estimator`, a Kalman filter on the flexible model) inside
 the subscription callback, and the estimate goes out at once from messages serialized at
-start (flex_model.cdr_messages: only stamps and numbers are written per sample). No timer
+start (flex_model.ros.cdr_messages: only stamps and numbers are written per sample). No timer
 is in the hot path (one 1 s wall-clock timer publishes the filter's health).
 
 A planar arm (FlexArmModel) or a spatial one (issue 25: SpatialArmModel, loaded as the
 spatial node loads it; flex/deflections then in its layout, tip v, w and twist per flexible
-link, :mod:`flex_model.ros_spatial`). Topic names are relative (a namespace moves them);
+link, :mod:`flex_model.ros.spatial`). Topic names are relative (a namespace moves them);
 /diagnostics stays global.
 
 Subscriptions (reliable, depth ``queue_depth``: a burst of samples is queued, not lost):
@@ -79,14 +79,14 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from . import ros_conversions as conv
-from . import urdf
+from . import conversions as conv
+from .. import urdf
 from .cdr_messages import read_joint_state, read_joint_state_names
-from .dynamics import FlexArmModel
-from .estimation.measurements import DEFAULT_STD, NAME_PATTERN
-from .estimation.recording import initial_q
-from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
-                       lean_node, planar_arm_parameter, read_parameters, run_node)
+from ..dynamics import FlexArmModel
+from ..estimation.measurements import DEFAULT_STD, NAME_PATTERN
+from ..estimation.recording import initial_q
+from .main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
+                   lean_node, planar_arm_parameter, read_parameters, run_node)
 
 
 def _positive(v):
@@ -106,7 +106,7 @@ PARAMETERS = (
           check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
     Param("kinematics", "", "joint-to-link kinematics override (empty: the arm's)"),
     Param("mode", "observer", "observer (this node); realtime | lockstep simulate "
-          "(flex_model.model_node)", check=lambda v: None if v == "observer" else
+          "(flex_model.ros.model_node)", check=lambda v: None if v == "observer" else
           "observer (realtime and lockstep are the simulating model node's)"),
     Param("measure", "q", "measurements, comma-separated, as flex-twin estimate --measure "
           "(q: every joint angle; q1, v1: joint 1's angle, rate, from joint_states; the "
@@ -139,8 +139,8 @@ PARAMETERS = (
     Param("frame_id", "base_link", "the base frame of the tip pose (z up, REP 103)",
           check=lambda v: None if v else "a non-empty frame name"),
     Param("frame_prefix", "", "prefix of the frame name (e.g. robot1/)"),
-    Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
-    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
+    Param("parameter_services", True, "false: no parameter services (flex_model.ros.main)"),
+    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros.main)"),
 )
 
 #: wall time (s) one joint_states callback goes on taking the samples queued behind its
@@ -193,7 +193,7 @@ def measurements_named(model, names, stds=(0.0,)) -> list:
     joint or link where it has one, else the default of the kind (:data:`NAMED_KINDS`);
     ``stds`` one per measurement or one for all overrides the std (0: keep it);
     ValueError naming a bad one."""
-    from .estimation import Measurement
+    from ..estimation import Measurement
     out, count = [], model.n_links
     for name in names:
         if name in NAMED_COMPONENTS:
@@ -263,7 +263,7 @@ class SpatialOutputs:
     rotation (J: the frame's 6 x nq Jacobian, linear then angular)."""
 
     def __init__(self, model):
-        from . import ros_spatial as sr
+        from . import spatial as sr
         self.model, self.nq = model, model.nq
         self.names = sr.deflection_names(model)
         index = sr.deflection_index(model)
@@ -327,7 +327,7 @@ class ObserverNode(Managed, LifecycleNode):
 
     # ------------------------------------------------------------- lifecycle
     def _configure(self) -> None:
-        from .estimation import Estimator
+        from ..estimation import Estimator
         p = self.p = read_parameters(self, PARAMETERS, RANGES)
         self.model, self.outputs = self._model(p)
         n = self.model.n_links
@@ -392,9 +392,9 @@ class ObserverNode(Managed, LifecycleNode):
     def _model(p):
         """(model, outputs) of the ``arm`` parameter: a planar FlexArmModel, or a spatial
         arm's SpatialArmModel (issue 25; loaded as the spatial node loads it)."""
-        from .spatial.description import is_spatial_arm
+        from ..spatial.description import is_spatial_arm
         if is_spatial_arm(p["arm"]):
-            from .spatial.dynamics import SpatialArmModel
+            from ..spatial.dynamics import SpatialArmModel
             from .spatial_node import load_arm_parameter
             model = SpatialArmModel(load_arm_parameter(p["arm"], False))
             return model, SpatialOutputs(model)
@@ -424,7 +424,7 @@ class ObserverNode(Managed, LifecycleNode):
         return found, sources
 
     def _settings(self, p):
-        from .estimation import EstimatorSettings
+        from ..estimation import EstimatorSettings
         adapt = tuple(s.strip() for s in p["adapt"].split(",") if s.strip())
         return EstimatorSettings(sample_period=p["sample_period"], adapt=adapt)
 
