@@ -112,3 +112,78 @@ def pytest_sessionfinish(session):
     if proc is not None and proc.poll() is None:
         proc.kill()
         proc.wait()
+
+
+class RosGraph:
+    """The tests' ROS harness: a node under test (``factory(**kwargs)``, its parameters
+    ``params``) and a probe node in one private context and namespace, spun by one
+    SingleThreadedExecutor; ``subscribe`` collects a topic's messages in a list;
+    ``spin_until`` waits ``timeout`` s unless told."""
+
+    timeout = 10.0
+
+    def __init__(self, factory, params: dict, prefix: str = "t"):
+        import uuid
+
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter import Parameter
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx)
+        self.ns = f"/{prefix}{uuid.uuid4().hex[:8]}"
+        self.node = self.probe = None
+        try:
+            self.node = factory(context=self.ctx, namespace=self.ns, parameter_overrides=[
+                Parameter(k, value=v) for k, v in params.items()])
+        except BaseException:
+            rclpy.try_shutdown(context=self.ctx)
+            raise
+        # the node's topics are relative: the probe in its namespace uses the same names
+        self.probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=self.ctx,
+                                       namespace=self.ns)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self.ex.add_node(self.probe)
+
+    def subscribe(self, msg_type, topic: str, qos=10) -> list:
+        got = []
+        self.probe.create_subscription(msg_type, topic, got.append, qos)
+        return got
+
+    def spin_until(self, pred, what: str, timeout: float | None = None) -> None:
+        import time
+        end = time.monotonic() + (timeout or self.timeout)
+        while not pred():
+            assert time.monotonic() < end, f"timed out waiting for {what}"
+            self.ex.spin_once(timeout_sec=0.005)
+
+    def spin_for(self, seconds: float, step: float = 0.01) -> None:
+        import time
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=step)
+
+    def discovered(self, publisher, timeout: float | None = None) -> None:
+        """Spin until the node subscribes to the probe's ``publisher``."""
+        self.spin_until(lambda: publisher.get_subscription_count() > 0, "discovery", timeout)
+
+    def close(self) -> None:
+        import rclpy
+        self.ex.shutdown()
+        for node in (self.node, self.probe):
+            if node is not None:
+                node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+@pytest.fixture
+def ros_graph():
+    """``ros_graph(factory, **params)``: a :class:`RosGraph`, closed after the test."""
+    made = []
+
+    def make(factory, prefix: str = "t", **params) -> RosGraph:
+        made.append(RosGraph(factory, params, prefix))
+        return made[-1]
+    yield make
+    for graph in made:
+        graph.close()

@@ -96,9 +96,7 @@ from contextlib import ExitStack
 from dataclasses import replace
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -106,7 +104,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 from geometry_msgs.msg import PoseStamped
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
@@ -115,8 +113,9 @@ from .. import urdf
 from ..control_loop import ControlLoop
 from ..controller_interface import load_controller
 from ..dynamics import FlexArmModel
-from .main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
-                   lean_node, planar_arm_parameter, read_parameters, run_node)
+from .main import (FLOAT_MAX, INT_MAX, MODEL_PARAMETERS, ModelPlumbing, Param, ParameterError,
+                   ReasonLog, fmt, lean_node, planar_arm_parameter, read_parameters,
+                   run_node)
 from ..stepper import Stepper
 from .trajectory_action import action_server
 from ..trajectory_action import INVALID_GOAL
@@ -205,11 +204,7 @@ PARAMETERS = (
           check=lambda v: None if v else "a preset name or a YAML path"),
     Param("from_planar", False, "embed the planar arm ``arm`` in 3D (spatial.from_planar) "
           "and run it as a spatial arm"),
-    Param("vars_per_link", 0, "planar: deformation variables per link (0: as in the arm "
-          "file)",
-          check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
-    Param("kinematics", "", "kinematics override of the flexible links: small_deflection, "
-          "second_order, exact (empty: the arm's)"),
+    MODEL_PARAMETERS["vars_per_link"], MODEL_PARAMETERS["kinematics"],
     Param("mode", "realtime", "realtime | lockstep (observer: flex_model.ros.observer_node, "
           "which the entry point starts for -p mode:=observer)",
           check=lambda v: None if v in ("realtime", "lockstep") else
@@ -245,11 +240,7 @@ PARAMETERS = (
           "the continuous PD the feed-forward)", True, _choice("hold", "zero")),
     Param("lockstep_timeout", 1.0, "lockstep: wall s without a command before the model "
           "steps with the held one", True, _positive),
-    Param("frame_id", "base_link", "the robot's base frame (REP 105): root of "
-          "robot_description and of the TF tree; flex/shape is drawn in it, z up (REP 103)",
-          check=lambda v: None if v else "a non-empty frame name"),
-    Param("frame_prefix", "", "prefix of every frame name (frame_id too), e.g. robot1/ for "
-          "two arms in one TF tree"),
+    MODEL_PARAMETERS["frame_id"], MODEL_PARAMETERS["frame_prefix"],
     Param("publish_tf", True, "publish /tf, /tf_static (needs the tf2_msgs package; without "
           "it TF is off, logged once at start); robot_description is always published"),
     Param("clock_topic", "/clock", "topic of the simulation clock (lockstep, or "
@@ -300,8 +291,7 @@ PARAMETERS = (
     Param("restart_on_change", True, "spatial: restart the integrator (consistent "
           "acceleration) when the command or a set-point changes, as the planar Stepper; "
           "false: continue"),
-    Param("parameter_services", True, "false: no parameter services (flex_model.ros.main)"),
-    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros.main)"),
+    MODEL_PARAMETERS["parameter_services"], MODEL_PARAMETERS["qos_event_warnings"],
 )
 
 #: ranges of the numeric parameters in their descriptors (ros_main.descriptor): the bounds
@@ -368,7 +358,7 @@ def _refuse_other_kind(p: dict, specs, spatial: bool) -> None:
                                  f"{why}")
 
 
-class ModelNode(Managed, LifecycleNode):
+class ModelNode(ModelPlumbing, LifecycleNode):
     """Any arm simulated at ``rate`` and published at ``publish_rate``; a lifecycle node
     (ros_main.Managed): configure loads the arm, activate runs the loop, deactivate holds
     the state (time stands still), cleanup releases the arm. ``defaults``: other default
@@ -428,8 +418,6 @@ class ModelNode(Managed, LifecycleNode):
         # control_msgs/FollowJointTrajectory for the in-loop controller (trajectory_action)
         self.fjt = action_server(self) if self.loop is not None else None
         self.timer = None  # the model loop's, while active
-        self.create_timer(1.0, self.on_status,  # wall time: sim time may stand still
-                          clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
@@ -445,10 +433,7 @@ class ModelNode(Managed, LifecycleNode):
     def _make_entities(self, p) -> None:
         """Publishers (state messages as CDR templates, flex_model.ros.cdr_messages: published
         as bytes), subscriptions and services."""
-        arm, n, qos = self.arm_io, len(self.names), 10
-        self.cdr_js = conv.joint_state_cdr(self.names, n)
-        self.cdr_defl = conv.joint_state_cdr(arm.deflection_names, len(arm.deflection_names),
-                                             effort=False)
+        arm, qos = self.arm_io, 10
         self.cdr_tip = conv.tip_pose_cdr(arm.base_frame)
         self.cdr_clock = conv.clock_cdr()
         self.msg_shape = conv.ShapeMarkers(len(arm.shape_labels), int(p["shape_points"]),
@@ -456,8 +441,7 @@ class ModelNode(Managed, LifecycleNode):
                                            widths=arm.shape_widths)
         # relative names: a namespace (__ns:=/robot1) moves the whole loop; /diagnostics
         # stays global, as ROS tools (the aggregator) expect; the clock is clock_topic
-        self.pub_js = self.create_publisher(JointState, "joint_states", qos)
-        self.pub_defl = self.create_publisher(JointState, "flex/deflections", qos)
+        self._state_publishers("joint_states", arm.deflection_names, qos)
         self.pub_tip = self.create_publisher(PoseStamped, "flex/tip_pose", qos)
         self.pub_shape = self.create_publisher(MarkerArray, "flex/shape", qos)
         self.pub_imu = self.create_publisher(Imu, "flex/tip_imu", qos) if arm.has_imu \
@@ -467,7 +451,7 @@ class ModelNode(Managed, LifecycleNode):
         self.pub_description = self.create_publisher(String, "robot_description", LATCHED)
         self.pub_tf = None
         self._tf_setup(p)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
+        self._diagnostics()
         self.create_subscription(Float64MultiArray, "effort_controller/commands",
                                  self.on_command, qos)
         if arm.has_setpoints:
@@ -887,11 +871,6 @@ class ModelNode(Managed, LifecycleNode):
             return ""
         return f"; the largest command before: {fmt(u)} at t = {fmt(tc)} s"
 
-    def publish_diagnostic(self, status) -> None:
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.pub_diag.publish(msg)
-
     def publish_state(self, full: bool = True, shape: bool = True) -> None:
         """/joint_states, then /clock (a sim-time controller, woken by the clock, then has
         the new state also across processes); with ``full`` the other topics (/flex/shape
@@ -957,7 +936,8 @@ class PlanarArm:
         self.frames = urdf.Frames.of(model, p["frame_prefix"], p["frame_id"])
         self.plane = urdf.plane_rotation(model.gravity)
         self.base_frame = self.frames.base
-        self.deflection_names = conv.deflection_names(self.links)
+        self.outputs = conv.PlanarOutputs(model, self.plane)
+        self.deflection_names = self.outputs.names
         self.shape_labels = [f"link{i + 1}" for i in range(n)]
         self.shape_widths = (0.02, 0.005)
         self.cdr_imu = conv.imu_cdr(self.frames.tips[-1]) if self.has_imu else None
@@ -965,12 +945,7 @@ class PlanarArm:
         self.live_view = node_live_view(model, p["foxglove_port"], p["frame_prefix"],
                                         p["frame_id"], p["shape_points"],
                                         node.get_logger())
-        self._values = np.empty(4 * n)  # the float64 fields of one message
-        # what Stepper.deflections and FlexArmModel.tip_pose compute, with their index and
-        # selection matrices built once (the same arithmetic: test_ros_model_node_bytes.py)
-        self._tip_index = np.array([model.tip_deflection_index(i) for i in range(n)])
-        self._tip_rotation = model.tip_rotation_matrix()
-        self._last_alpha = model.alpha_index(n - 1)
+        self._values = np.empty(3 * n)  # the float64 fields of joint_states
         self._origins = None
 
     # the state, the stepping
@@ -1035,18 +1010,14 @@ class PlanarArm:
         return values[:3 * n]
 
     def deflection_values(self) -> np.ndarray:
-        """Per link (deflection, rotation), then their rates (conv.fill_deflection_state)."""
-        n, values, st = self.model.n_links, self._values, self.stepper
-        q, v, r = st.q, st.v, self._tip_rotation
-        values[0:2 * n:2], values[1:2 * n:2] = q[self._tip_index], r @ q
-        values[2 * n::2], values[2 * n + 1::2] = v[self._tip_index], r @ v
-        return values
+        """Per link (deflection, rotation), then their rates (conv.PlanarOutputs)."""
+        return self.outputs.deflections(self.stepper.q, self.stepper.v)
 
     def tip_values(self):
         q = self.stepper.q
         self._origins = self.model.link_origins(q)
         x, y = self._origins[-1]  # st.tip_pose()
-        self._phi = float(q[self._last_alpha] + self._tip_rotation[-1] @ q)
+        self._phi = self.outputs.phi(q)
         return conv.tip_pose_values(x, y, self._phi, self.plane)
 
     def shape_lines(self, points: int) -> list:

@@ -33,7 +33,6 @@ from . import spatial as sr
 from ..config import ConfigError
 from .conversions import check_payload, finite_array
 from .main import ParameterError, fmt
-from ..urdf import quaternion_from_matrix
 
 #: finer steps (per period: per x k) tried, in turn, over a period whose Newton failed
 REFINEMENTS = (4, 16)
@@ -110,9 +109,8 @@ class SpatialArm:
         self.q0, self.v0 = self._initial_state(vec["initial_joint_values"],
                                                p["start_static"])
         self.model0 = self.model
-        self.dindex = sr.deflection_index(self.model)
-        self.deflection_names = self.dnames = sr.deflection_names(self.model)
-        self._present = self.dindex >= 0
+        self.outputs = sr.SpatialOutputs(self.model)
+        self.deflection_names = self.outputs.names
         self.base_frame = self.base = sr.frame_name("base_link", p["frame_prefix"],
                                                     p["frame_id"])
         self.shape_labels = [lk.name for lk, b in zip(self.arm.links, self.model.beams)
@@ -336,15 +334,10 @@ class SpatialArm:
         return np.concatenate([self.q[off], self.v[off], self.applied()])
 
     def deflection_values(self) -> np.ndarray:
-        """Per flexible link tip v, w, twist (0 without a twist variable), then rates."""
-        m, idx = len(self.dindex), self.dindex[self._present]
-        out = np.zeros(2 * m)
-        out[:m][self._present], out[m:][self._present] = self.q[idx], self.v[idx]
-        return out
+        return self.outputs.deflections(self.q, self.v)
 
-    def tip_values(self) -> list:
-        tip = self.model.tip_frame(self.q)
-        return [*map(float, np.real(tip.o)), *quaternion_from_matrix(np.real(tip.R))]
+    def tip_values(self) -> np.ndarray:
+        return self.outputs.tip_values(self.q, model=self.model)
 
     def shape_lines(self, points: int) -> list:
         return sr.centre_lines(self.model, self.q, points)
