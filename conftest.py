@@ -157,11 +157,17 @@ class RosGraph:
             assert time.monotonic() < end, f"timed out waiting for {what}"
             self.ex.spin_once(timeout_sec=0.005)
 
-    def spin_for(self, seconds: float, step: float = 0.01) -> None:
+    def spin_for(self, seconds: float, step: float = 0.005) -> None:
         import time
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.ex.spin_once(timeout_sec=step)
+
+    def call(self, client, request):
+        """The answer of a service ``client`` to ``request``."""
+        future = client.call_async(request)
+        self.spin_until(future.done, client.srv_name)
+        return future.result()
 
     def discovered(self, publisher, timeout: float | None = None) -> None:
         """Spin until the node subscribes to the probe's ``publisher``."""

@@ -223,7 +223,7 @@ def test_divergence_reports_diagnostic_zero_torque_and_reset_restarts(harness):
     t_div, n_states = h.node.stepper.t, len(h.states)
     h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
     h.spin_until(lambda: log.count("call ~/reset", "warning") >= 1, "a drop reason")
-    h.spin_for(1.2, 0.005)                                  # stopped, yet alive: diagnostic again
+    h.spin_for(1.2)                                  # stopped, yet alive: diagnostic again
     assert h.node.stepper.t == t_div and len(h.states) > n_states + 50  # held, 100 Hz
     assert all(stamp_s(m) == pytest.approx(t_div) for m in h.states[n_states:])
     assert all(list(m.effort) == [0.0, 0.0] for m in h.states[n_states:])
@@ -339,7 +339,7 @@ def test_drop_reasons_are_throttled_per_reason_not_per_call_site(lockstep):
     for bad in ([1.0], [1.0, 2.0, 3.0], [np.nan, 0.0], [0.0, np.inf], [5e3, 0.0]):
         h.cmd.publish(Float64MultiArray(data=bad))
     h.spin_until(lambda: len(log.records) >= 3, "three drop lines")
-    h.spin_for(0.1, 0.005)
+    h.spin_for(0.1)
     lines = [m for _, m in log.records]
     assert len(lines) == 3, lines                 # wrong length, non-finite, beyond limit
     assert "got 1 values; expected 2" in lines[0]

@@ -278,7 +278,7 @@ def test_a_paused_node_keeps_its_clock(harness):
     for k in range(3):
         h.cmd.publish(Float64MultiArray(data=[0.5 * k, 0.0, 0.0]))
     h.spin_until(lambda: node.u[0] == 1.0, "the last command")
-    h.spin_for(0.2, 0.005)
+    h.spin_for(0.2)
     assert node.steps == 0 and node.t == 0.0 and len(clocks) == n_clock
     assert call(h, SetBool, "flex_model/pause", SetBool.Request(data=False)).message == \
         "running"
@@ -289,13 +289,13 @@ def test_a_paused_node_keeps_its_clock(harness):
     assert h.shapes[-1].markers[0].header.frame_id == "robot1/world"
     # realtime
     r = harness(arm=ARM, mode="realtime", rate=100.0, step=2e-3, start_paused=True)
-    r.spin_for(0.3, 0.005)
+    r.spin_for(0.3)
     assert r.node.t == 0.0
     call(r, SetBool, "flex_model/pause", SetBool.Request(data=False))
     r.spin_until(lambda: r.node.t >= 0.05, "the realtime loop")
     call(r, SetBool, "flex_model/pause", SetBool.Request(data=True))
     t = r.node.t
-    r.spin_for(0.3, 0.005)
+    r.spin_for(0.3)
     assert r.node.t == t
 
 
