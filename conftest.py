@@ -115,35 +115,49 @@ def pytest_sessionfinish(session):
 
 
 class RosGraph:
-    """The tests' ROS harness: a node under test (``factory(**kwargs)``, its parameters
-    ``params``) and a probe node in one private context and namespace, spun by one
-    SingleThreadedExecutor; ``subscribe`` collects a topic's messages in a list;
-    ``spin_until`` waits ``timeout`` s unless told."""
+    """The tests' ROS harness: a private context and namespace ``ns``, a probe node and
+    the nodes under test (``factory(**kwargs)`` with the parameters ``params``, if
+    given, as ``node``; more with ``add``), spun by one SingleThreadedExecutor.
+    ``subscribe`` collects a topic's messages in a list; ``spin_until`` waits
+    ``timeout`` s unless told."""
 
     timeout = 10.0
 
-    def __init__(self, factory, params: dict, prefix: str = "t"):
+    def __init__(self, factory=None, params=None, prefix: str = "t", args=None):
         import uuid
 
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
-        from rclpy.parameter import Parameter
         self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
+        rclpy.init(context=self.ctx, args=args)
         self.ns = f"/{prefix}{uuid.uuid4().hex[:8]}"
-        self.node = self.probe = None
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.nodes, self.node = [], None
         try:
-            self.node = factory(context=self.ctx, namespace=self.ns, parameter_overrides=[
-                Parameter(k, value=v) for k, v in params.items()])
+            if factory is not None:
+                self.node = self.make(factory, **params)
         except BaseException:
-            rclpy.try_shutdown(context=self.ctx)
+            self.close()
             raise
         # the node's topics are relative: the probe in its namespace uses the same names
-        self.probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=self.ctx,
-                                       namespace=self.ns)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self.ex.add_node(self.probe)
+        self.probe = self.add(rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}",
+                                                context=self.ctx, namespace=self.ns))
+
+    def make(self, factory, **params):
+        """A node ``factory(...)`` of this context and namespace with ``params``."""
+        from rclpy.parameter import Parameter
+        return self.add(factory(context=self.ctx, namespace=self.ns, parameter_overrides=[
+            Parameter(k, value=v) for k, v in params.items()]))
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.ex.add_node(node)
+        return node
+
+    def remove(self, node) -> None:
+        self.ex.remove_node(node)
+        self.nodes.remove(node)
+        node.destroy_node()
 
     def subscribe(self, msg_type, topic: str, qos=10) -> list:
         got = []
@@ -163,10 +177,11 @@ class RosGraph:
         while time.monotonic() < end:
             self.ex.spin_once(timeout_sec=step)
 
-    def call(self, client, request):
+    def call(self, client, request, timeout: float | None = None):
         """The answer of a service ``client`` to ``request``."""
+        self.spin_until(client.service_is_ready, f"the service {client.srv_name}", timeout)
         future = client.call_async(request)
-        self.spin_until(future.done, client.srv_name)
+        self.spin_until(future.done, f"the answer of {client.srv_name}", timeout)
         return future.result()
 
     def discovered(self, publisher, timeout: float | None = None) -> None:
@@ -176,19 +191,19 @@ class RosGraph:
     def close(self) -> None:
         import rclpy
         self.ex.shutdown()
-        for node in (self.node, self.probe):
-            if node is not None:
-                node.destroy_node()
+        for node in self.nodes:
+            node.destroy_node()
         rclpy.try_shutdown(context=self.ctx)
 
 
 @pytest.fixture
 def ros_graph():
-    """``ros_graph(factory, **params)``: a :class:`RosGraph`, closed after the test."""
+    """``ros_graph(factory, prefix, args=None, **params)``: a :class:`RosGraph` (factory
+    None: no node yet), closed after the test."""
     made = []
 
-    def make(factory, prefix: str = "t", **params) -> RosGraph:
-        made.append(RosGraph(factory, params, prefix))
+    def make(factory=None, prefix: str = "t", args=None, **params) -> RosGraph:
+        made.append(RosGraph(factory, params, prefix, args))
         return made[-1]
     yield make
     for graph in made:
