@@ -284,6 +284,11 @@ def guard_parameters(node, specs, apply: Callable | None = None,
 
 
 #: the ``autostart`` parameter of the lifecycle nodes (:class:`Managed`)
+def positive(v):
+    """A parameter check: ``v`` > 0."""
+    return None if v > 0 else "a number > 0"
+
+
 #: the parameters the model node and its observer mode declare alike (ModelPlumbing)
 MODEL_PARAMETERS = {p.name: p for p in (
     Param("vars_per_link", 0, "planar: deformation variables per link (0: as in the arm "

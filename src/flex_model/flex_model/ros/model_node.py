@@ -114,8 +114,8 @@ from ..control_loop import ControlLoop
 from ..controller_interface import load_controller
 from ..dynamics import FlexArmModel
 from .main import (FLOAT_MAX, INT_MAX, MODEL_PARAMETERS, ModelPlumbing, Param, ParameterError,
-                   ReasonLog, fmt, lean_node, planar_arm_parameter, read_parameters,
-                   run_node)
+                   ReasonLog, fmt, lean_node, planar_arm_parameter, positive,
+                   read_parameters, run_node)
 from ..stepper import Stepper
 from .trajectory_action import action_server
 from ..trajectory_action import INVALID_GOAL
@@ -142,10 +142,6 @@ def tf_message_type():
     except ImportError as exc:
         return None, str(exc)
     return TFMessage, None
-
-
-def _positive(v):
-    return None if v > 0 else "a number > 0"
 
 
 def _non_negative(v):
@@ -211,11 +207,11 @@ PARAMETERS = (
           "realtime or lockstep (mode observer is flex_model.ros.observer_node: started by "
           "the entry point with -p mode:=observer, flex-twin observe, or flex-twin up)"),
     Param("rate", 1000.0, "model loop rate (Hz); lockstep: a command advances 1/rate",
-          check=_positive),
+          check=positive),
     Param("publish_rate", 250.0, "rate of the state topics (Hz; at or above rate: every "
-          "model period)", True, _positive),
+          "model period)", True, positive),
     Param("shape_rate", 50.0, "rate of flex/shape (Hz), at most publish_rate", True,
-          _positive),
+          positive),
     Param("max_step", 1e-3, "integration step (s); a spatial arm splits 1/rate into "
           "ceil((1/rate)/max_step) equal steps",
           check=lambda v: None if 0 < v <= 0.1 else "a step in (0, 0.1] s"),
@@ -239,7 +235,7 @@ PARAMETERS = (
     Param("timeout_action", "zero", "hold | zero (the command after command_timeout; with "
           "the continuous PD the feed-forward)", True, _choice("hold", "zero")),
     Param("lockstep_timeout", 1.0, "lockstep: wall s without a command before the model "
-          "steps with the held one", True, _positive),
+          "steps with the held one", True, positive),
     MODEL_PARAMETERS["frame_id"], MODEL_PARAMETERS["frame_prefix"],
     Param("publish_tf", True, "publish /tf, /tf_static (needs the tf2_msgs package; without "
           "it TF is off, logged once at start); robot_description is always published"),
@@ -277,7 +273,7 @@ PARAMETERS = (
           "spatial, eq95 | eq45: the continuous PD in the compiled loop (kp, kd | kpp, "
           "kpv); empty or none: commands come over effort_controller/commands"),
     Param("controller_rate", 500.0, "planar: rate of the in-loop controller plugin (Hz); "
-          "its period is split into steps of at most max_step", check=_positive),
+          "its period is split into steps of at most max_step", check=positive),
     Param("kpp", [0.0], "spatial eq45: K_pp (1/s), one per joint or one for all",
           check=_gains),
     Param("kpv", [0.0], "spatial eq45: K_pv (N m s/rad, motor side), one per joint or one "

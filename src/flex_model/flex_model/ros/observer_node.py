@@ -89,12 +89,8 @@ from ..dynamics import FlexArmModel
 from ..estimation.measurements import DEFAULT_STD, NAME_PATTERN
 from ..estimation.recording import initial_q
 from .main import (FLOAT_MAX, INT_MAX, MODEL_PARAMETERS, ModelPlumbing, Param, ParameterError,
-                   ReasonLog, fmt, lean_node, planar_arm_parameter, read_parameters,
-                   run_node)
-
-
-def _positive(v):
-    return None if v > 0 else "a number > 0"
+                   ReasonLog, fmt, lean_node, planar_arm_parameter, positive,
+                   read_parameters, run_node)
 
 
 def _names(v):
@@ -135,7 +131,7 @@ PARAMETERS = (
     Param("queue_depth", 1000, "depth of the reliable input subscriptions (samples queued "
           "while a step runs)", check=lambda v: None if v >= 1 else "an integer >= 1"),
     Param("max_gap", 0.1, "s: a longer gap between samples restarts the filter at the next "
-          "sample; shorter ones are predicted over", check=_positive),
+          "sample; shorter ones are predicted over", check=positive),
     Param("nis_window", 1000, "samples of the NIS statistics on /diagnostics",
           check=lambda v: None if v >= 10 else "an integer >= 10"),
     *(MODEL_PARAMETERS[k] for k in ("frame_id", "frame_prefix", "parameter_services",
