@@ -143,11 +143,13 @@ class RosGraph:
         self.probe = self.add(rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}",
                                                 context=self.ctx, namespace=self.ns))
 
-    def make(self, factory, **params):
-        """A node ``factory(...)`` of this context and namespace with ``params``."""
+    def make(self, factory, namespace: str | None = None, **params):
+        """A node ``factory(...)`` of this context in ``namespace`` (default ``ns``) with
+        the parameters ``params``, spun with the others."""
         from rclpy.parameter import Parameter
-        return self.add(factory(context=self.ctx, namespace=self.ns, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()]))
+        return self.add(factory(context=self.ctx, namespace=namespace or self.ns,
+                                parameter_overrides=[Parameter(k, value=v)
+                                                     for k, v in params.items()]))
 
     def add(self, node):
         self.nodes.append(node)
