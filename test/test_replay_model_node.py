@@ -11,7 +11,6 @@ import uuid
 from pathlib import Path
 
 import numpy as np
-import pytest
 import rclpy
 import yaml
 from rclpy.executors import SingleThreadedExecutor

@@ -339,5 +339,5 @@ def test_tf_bytes_decode_to_the_transform_messages(arm):
                 round(t * 1e9)
             tl, r = m.transform.translation, m.transform.rotation
             assert (tl.x, tl.y, tl.z, r.x, r.y, r.z, r.w) == (*tr.translation,
-                                                               *tr.rotation)
+                                                              *tr.rotation)
         assert abs(got[1].transform.translation.y) > 1e-4  # a deflected tip, not zeros

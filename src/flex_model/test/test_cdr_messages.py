@@ -91,7 +91,7 @@ def test_tip_pose_clock_and_imu():
         assert_same_bytes(raw, conv.fill_tip_pose(msg_tip, t, x, y, phi))
         pose = STORE.deserialize_cdr(raw, "geometry_msgs/msg/PoseStamped").pose
         assert (pose.orientation.z, pose.orientation.w) == (math.sin(phi / 2),
-                                                           math.cos(phi / 2))
+                                                            math.cos(phi / 2))
         conv.set_time(msg_clock.clock, t)
         assert_same_bytes(clock.fill(t), msg_clock)
         force, rate = values_of(rng, 2), float(rng.normal())
