@@ -196,6 +196,7 @@ class Estimator:
         self._angle = self.plant.angle_map()
         self._defl = self.plant.deflection_map()
         self.reset(np.zeros(nq), np.zeros(nq))
+        self._noise_input()     # the noise settings' shapes checked on construction
 
     # ------------------------------------------------------------------ setup
     def reset(self, q0, v0=None, P0=None, t0: float = 0.0) -> None:
