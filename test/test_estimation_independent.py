@@ -67,7 +67,8 @@ def test_a_friction_appearing_mid_run_is_adapted_within_5_s():
     covariance resetting (NIS per reading over 0.2 s above 4) and the process noise of the
     innovations' best likelihood on the healthy run (0.5 N m, 0.3 N; bench_estimation.py
     --only noise): near 0 before, no reset before the change, both within 10 % at 15 s.
-    With the deflections' noise (0.5 N m, 1 N) and walk 1 the viscous one is 9.6 (+20 %)."""
+    With the deflections' noise (0.5 N m, 1 N) and walk 1 the viscous one is 9.6 (+20 %).
+    A regression check of seed 1 only: on seed 2 these settings run away (docs/estimation.md)."""
     rec = _read(CHANGE, 6.0, 15.0)   # from 6 s (started at the 8 s step: viscous 3.7 at 9.9 s)
     model = FlexArmModel(load_arm(CHANGE / "arm.yaml"))
     names = ("coulomb_friction:joint1", "viscous_friction:joint1")
