@@ -52,10 +52,9 @@ from numba import njit
 
 from .integrators import joint_passive_forces, joint_tangent, joint_torques
 from .solvers.galpha import galpha_coefficients, galpha_state, restart_choice
-from .solvers.loop import (fixed_step, id_residual, implements, iteration_factor, residual,
-                           tangent)
+from .solvers.loop import fixed_step, implements, residual, tangent
 from .solvers.status import newton_settings
-from .kernels import cholesky, solve_spd
+from .kernels import solve_spd
 from .sections import area_and_inertia
 
 _CACHE = True
@@ -598,26 +597,8 @@ def _tangent(md, ctx, st, c):
     return B + c.gp * (md.E[1] + Cj) + c.bp * (md.E[0] + Kj)
 
 
-@njit(cache=_CACHE)
-def _id_residual(md, a1, st, c):
-    """:func:`_residual` with (q1, v1) (simplified Newton)."""
-    r, ctx = _residual(md, a1, st, c)
-    q1 = galpha_state(st.q, st.v, st.a, st.abar, a1, c)[0]
-    return r, q1, ctx[1]
-
-
-@njit(cache=_CACHE)
-def _iteration_factor(md, q1, v1, c):
-    """Dense Cholesky factor of :func:`_tangent` at (q1, v1) (iteration_matrix's tuple)."""
-    B = terms(q1, v1, 0.0, 0.0, md.X)[0]
-    z2 = np.zeros((0, 0))
-    Lc = cholesky(_tangent(md, (B, v1, np.zeros(0)), None, c))
-    return Lc, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, 0
-
-
-for _hook, _fn in ((residual, _residual), (tangent, _tangent), (id_residual, _id_residual),
-                   (iteration_factor, _iteration_factor)):
-    implements(_hook, ExactModel, _fn)
+implements(residual, ExactModel, _residual)
+implements(tangent, ExactModel, _tangent)
 
 
 @njit(cache=_CACHE)
@@ -626,7 +607,7 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     planar arm's loop: full Newton, pulses at mid-step) on :func:`balance`; no bristle
     states. The returns of integrators.generalized_alpha."""
     return fixed_step(ExactModel(X, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit, False))
+                      every, newton_settings(rho_inf, tol, limit), None)
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled

@@ -35,7 +35,7 @@ from numba import njit
 
 from .effects.friction import friction_law_compiled
 from .effects.stick_slip import bristle_rate, bristle_step
-from .iteration_matrix import structured_factor
+from .iteration_matrix import empty_factor, structured_factor
 from .solvers.galpha import finite_within, galpha_parameters, galpha_state, restart_choice
 from .solvers.loop import (fixed_step, id_residual, implements, iteration_factor, residual,
                            tangent)
@@ -579,7 +579,7 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
     """
     _check_state(x0, E)
     return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit, False))
+                      every, newton_settings(rho_inf, tol, limit), None)
 
 
 @njit(cache=_CACHE)
@@ -594,7 +594,7 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
     step it cannot solve, and arms with bristle states, take full Newton."""
     _check_state(x0, E)
     return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit, True))
+                      every, newton_settings(rho_inf, tol, limit), empty_factor())
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled

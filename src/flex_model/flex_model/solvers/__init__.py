@@ -6,8 +6,8 @@ settings and the status of a run, for the planar and the spatial arms alike.
   an input discontinuity and the status of a step;
 - :mod:`.newton`: the pieces of the Newton iterations (the backtracking test on the
   residual norm, the stagnation test of the spatial loop);
-- :mod:`.status`: the settings (rho_inf, tolerances, iteration limits, simplified Newton,
-  the refinements of a failed step and :func:`.status.refine`, the retry) and the status
+- :mod:`.status`: the settings (rho_inf, tolerances, iteration limits, the
+  refinements of a failed step and :func:`.status.refine`, the retry) and the status
   of a run (finished / diverged / no convergence) with its one-line message;
 - :mod:`.loop`: the one compiled fixed-step loop and its full and simplified Newton,
   generic over the model (its hooks chosen at compile time by the type of the model's

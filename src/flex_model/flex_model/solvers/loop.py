@@ -155,19 +155,20 @@ def _simplified(md, st, c, tol, F, a_old, extrapolate):
 
 
 @njit(cache=_CACHE)
-def fixed_step(md, n, t0, x0, a0, abar0, h, n_steps, every, s):
+def fixed_step(md, n, t0, x0, a0, abar0, h, n_steps, every, s, F0):
     """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form: solvers.
     galpha) on the model ``md`` with n coordinates, x = [q; v; z] (z: bristle
     deflections, advanced inside the residual). Each step solves the residual at the
     mid-step time (a pulse edge on the step grid is resolved exactly) by :func:`newton`
-    or, with ``s.simplified`` and no bristles, by :func:`simplified_newton` (factor kept
-    across steps, acceleration extrapolated; a step it cannot solve takes full Newton).
-    ``s``: solvers.status.Settings (rho_inf, tol, max_iter, backtrack, limit).
+    (``F0`` None: numba compiles no other path) or, with ``F0`` an empty factor and no
+    bristles, by :func:`simplified_newton` (factor kept across steps, acceleration
+    extrapolated; a step it cannot solve takes full Newton). ``s``: solvers.status.Settings
+    (rho_inf, tol, max_iter, backtrack, limit).
 
     Returns ``(X, status, t_end, x_end, a_end, abar_end, iterations)``; X holds every
     ``every``-th state, X[0] = x0; status of solvers.status (DIVERGED: non-finite or
     beyond ``s.limit``; NO_CONVERGENCE: Newton did not converge)."""
-    simplified = s.simplified and x0.shape[0] == 2 * n
+    simplified = x0.shape[0] == 2 * n
     c = galpha_coefficients(s.rho_inf, h)
     X = np.full((n_steps // every + 1, x0.shape[0]), np.nan)
     X[0] = x0
@@ -182,11 +183,13 @@ def fixed_step(md, n, t0, x0, a0, abar0, h, n_steps, every, s):
         st = Step(q, v, z, a, abar, t1 - 0.5 * h)
         ok = False
         z1 = z
-        if simplified:
-            a1, F, it, ok = _simplified(md, st, c, s.tol, F, a_old, k > 1)
-            iters += it
+        if F0 is not None:
+            if simplified:
+                a1, F, it, ok = _simplified(md, st, c, s.tol, F, a_old, k > 1)
+                iters += it
         if not ok:  # full Newton for this step, a fresh factor for the next
-            F = empty_factor()
+            if F0 is not None:
+                F = empty_factor()
             a1, z1, it, ok = newton(md, st, c, a.copy(), s.tol, s.max_iter, s.backtrack)
             iters += it
         q, v, abar = galpha_state(q, v, a, abar, a1, c)

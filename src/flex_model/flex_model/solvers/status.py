@@ -27,10 +27,9 @@ class Settings(NamedTuple):
     halvings of the backtracking line search (planar full Newton); ``line_search_from``,
     ``halvings``, ``stagnation``: the spatial loop's halving line search and
     stagnation test (:func:`flex_model.solvers.newton.spatial_converged`); ``limit``: a
-    state component beyond it is a divergence; ``simplified``: simplified Newton
-    (solvers.loop.fixed_step); ``refinements``: a failed step is tried again as that many
-    times shorter steps, in turn (the model node's retry and, with its first entry, the
-    spatial loop's; :func:`refine`)."""
+    state component beyond it is a divergence; ``refinements``: a failed step is tried
+    again as that many times shorter steps, in turn (the model node's retry and, with its
+    first entry, the spatial loop's; :func:`refine`)."""
     rho_inf: float = 0.9
     tol: float = 1e-10
     max_iter: int = 50
@@ -39,7 +38,6 @@ class Settings(NamedTuple):
     halvings: int = 8
     stagnation: float = 1e3
     limit: float = 1e6
-    simplified: bool = False
     refinements: tuple = REFINEMENTS
 
 
@@ -69,7 +67,7 @@ def message(status: int, t: float | None = None) -> str:
 
 
 @njit(cache=True)
-def newton_settings(rho_inf, tol, limit, simplified):
-    """:class:`Settings` with these four and the other defaults, in compiled code (numba
+def newton_settings(rho_inf, tol, limit):
+    """:class:`Settings` with these three and the other defaults, in compiled code (numba
     builds a NamedTuple from positional arguments only)."""
-    return Settings(rho_inf, tol, 50, 30, 20, 8, 1e3, limit, simplified, REFINEMENTS)
+    return Settings(rho_inf, tol, 50, 30, 20, 8, 1e3, limit, REFINEMENTS)
