@@ -249,7 +249,7 @@ def _sampled(model, ctl, q0, v0, qset, ff, h, per, n_periods, stride):
         cmd = ff[k] + kp * (qset[k] - q[act]) - kd * v[act]
         cmds.append(cmd)
         run = simulate_fixed_compiled(model, q, v, h, per, joint_torques=cmd, rho_inf=0.9,
-                                      tol=1e-8, acceleration=acc)
+                                      tol=1e-8, restart_from=acc)
         acc = run.acceleration
         Qs += list(run.q[1:])
         Vs += list(run.v[1:])
