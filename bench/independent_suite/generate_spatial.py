@@ -127,7 +127,7 @@ SPECS = (
     ('payload', 'samp500', [_payload(0.2)], 2),
 )
 #: stored in test/data (the tests' cases)
-CI_SUBSET = ('S-cont-healthy-s1', 'S-cont-bending-link1-y-0.8-s1')
+CI_SUBSET = ('S-cont-healthy-s1', 'S-cont-bending-link1-y-0.8-s1', 'S-samp500-healthy-s1')
 
 
 def all_cases():
