@@ -457,7 +457,11 @@ def main():
     ap.add_argument('--list', action='store_true')
     ap.add_argument('--skip-existing', action='store_true')
     ap.add_argument('--noise', type=float, default=1.0, help='factor on the noise levels')
+    ap.add_argument('--step', type=float, default=H,
+                    help='Exudyn step h (s; a divisor of the control and recording periods: '
+                         'a convergence check, bench_spatial_sampled_replay.py)')
     a = ap.parse_args()
+    globals()['H'] = a.step
     cases = all_cases()
     if a.list:
         for c in cases:
