@@ -90,7 +90,7 @@ def plot_tracking(run, trajectory, path) -> None:
     """Tip x and y of the nonlinear closed loop against the nominal tip (thesis Fig. 43)."""
     fig, ax = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     for k, name in enumerate(("x", "y")):
-        ax[k].plot(run.t, run.tip_xy[:, k], label="closed loop")
+        ax[k].plot(run.t, run.tip_positions[:, k], label="closed loop")
         if trajectory.tip is not None:
             ax[k].plot(trajectory.t, trajectory.tip[:, k], "--", label="nominal")
         ax[k].set(ylabel=f"tip {name} [m]")

@@ -257,7 +257,7 @@ def test_off_effect_and_default_arm_are_bit_identical():
     for method, (angles, tip) in before.items():
         r = simulate(model, model.q_from_joint_angles(th0), method=method, **kw)
         np.testing.assert_allclose(r.joint_angles[-1], angles, rtol=1e-13, atol=0)
-        np.testing.assert_allclose(r.tip_xy[-1], tip, rtol=1e-13, atol=0)
+        np.testing.assert_allclose(r.tip_positions[-1], tip, rtol=1e-13, atol=0)
 
 
 def test_stick_slip_acts_on_the_motor_side_of_an_elastic_joint():

@@ -144,10 +144,9 @@ def _simulate(scenario_ref, args, label: str):
 
     from flex_model.plots import plot_simulation
     from flex_model.scenario import load_scenario
-    from flex_model.spatial.scenario import SpatialScenario
 
     sc = load_scenario(scenario_ref, args.vars_per_link)
-    spatial = isinstance(sc, SpatialScenario)
+    spatial = sc.spatial
     if getattr(args, "bag", False) and not spatial:
         raise ValueError(f"--bag: only for spatial scenarios so far ({args.scenario} is "
                          "planar; record the model node with flex-twin record)")

@@ -118,10 +118,10 @@ def plot_spatial_run(res, path, title: str) -> None:
     fig, ax = plt.subplots(2, 2, figsize=(11, 7))
     names = res.model.arm.joint_names
     for i, n in enumerate(names):
-        ax[0, 0].plot(res.t, res.joint_values[:, i], label=n)
+        ax[0, 0].plot(res.t, res.joint_angles[:, i], label=n)
     ax[0, 0].set(xlabel="t [s]", ylabel="joint value [rad or m]", title="joints")
     ax[0, 0].legend(fontsize=8)
-    for name, d in res.tip_deflections().items():
+    for name, d in res.link_deflections().items():
         ax[0, 1].plot(res.t, 1e3 * d["y"], label=f"{name} y")
         ax[0, 1].plot(res.t, 1e3 * d["z"], "--", label=f"{name} z")
         ax[1, 0].plot(res.t, 1e3 * d["twist"], label=f"{name}")
@@ -130,7 +130,7 @@ def plot_spatial_run(res, path, title: str) -> None:
     for a in (ax[0, 1], ax[1, 0]):
         if a.lines:
             a.legend(fontsize=8)
-    tip = res.tip_positions()
+    tip = res.tip_positions
     for k, lab in enumerate("xyz"):
         ax[1, 1].plot(res.t, 1e3 * (tip[:, k] - tip[0, k]), label=f"tip {lab} - {lab}(0)")
     ax[1, 1].set(xlabel="t [s]", ylabel="[mm]", title="tip position")
