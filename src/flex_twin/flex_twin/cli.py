@@ -180,10 +180,8 @@ def _simulate(scenario_ref, args, label: str):
                    "window_s": est.window, "cost_s": est.cost_s},
                "csv": str(csv), **res.summary()}
     if not args.no_plot:
-        from .spatial_cli import plot_spatial_run
         png = out_dir / f"{sc.name}.png"
-        (plot_spatial_run if spatial else plot_simulation)(
-            res, png, title=f"{sc.name} ({sc.arm.name})")
+        plot_simulation(res, png, title=f"{sc.name} ({sc.arm.name})")
         summary["png"] = str(png)
     if getattr(args, "bag", False):
         from .spatial_bags import write_spatial_bag
