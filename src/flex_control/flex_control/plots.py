@@ -22,7 +22,7 @@ def plot_step(resp, path) -> None:
     ax[2].plot(resp.t, resp.torque)
     ax[2].set(xlabel="t [s]", ylabel="joint torque [N m]", yscale="symlog")
     finish_figure(fig, ax, path, f"{resp.arm}: Eq. (45) step "
-            f"{np.degrees(resp.start):.0f} -> {np.degrees(resp.end):.0f} deg")
+                  f"{np.degrees(resp.start):.0f} -> {np.degrees(resp.end):.0f} deg")
 
 
 def plot_design(result, path) -> None:

@@ -49,7 +49,7 @@ class ArmSource:
 
 
 class PlaybackSource:
-    """A finished simulation (flex_model.simulate.SimulationResult), by sample."""
+    """A finished simulation (flex_model.result.SimulationResult), by sample."""
 
     def __init__(self, result):
         self.result, self.duration = result, float(result.t[-1])
