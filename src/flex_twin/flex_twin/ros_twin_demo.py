@@ -64,6 +64,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(context=ctx)
     wall0 = time.perf_counter()
+    phases = _Phases()
     # the model's in-loop kernels compile on the second core while the planner compiles its
     # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo)
     ahead = compile_ahead_in_background(ARM, 1.0 / rate) if in_loop else None
@@ -71,11 +72,15 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     try:
         demo.start()
         plan = demo.plan()
+        phases.mark("plan")
         if ahead is not None:
             ahead.wait()
+            phases.mark("wait for compile_ahead")
         model = demo.start_model(plan, publish_rate)
+        phases.mark("model node")
         loop_wall, loop_cpu = demo.record(model, out_dir / "bag", duration, publish_rate,
                                           progress)
+        phases.mark("loop and recording")
         wall = time.perf_counter() - wall0
     finally:
         if ahead is not None and ahead.poll() is None:   # the demo failed before the model
@@ -91,8 +96,30 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                    else "controller node over topics",
                    loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall,
                    loop_cpu_s=loop_cpu, loop_cpu_real_time_factor=duration / loop_cpu)
+    phases.mark("summary and plot")
+    summary["phases"] = phases.table()
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
+
+
+class _Phases:
+    """Wall and CPU seconds of the demo's phases (where a first run's time goes,
+    docs/development.md): this process's, and the compile_ahead process's (a child)."""
+
+    def __init__(self):
+        self.t, self.c = time.perf_counter(), time.process_time()
+        self.rows = [{"phase": "imports, rclpy.init", "wall_s": None, "cpu_s": self.c}]
+
+    def mark(self, name: str) -> None:
+        t, c = time.perf_counter(), time.process_time()
+        self.rows.append({"phase": name, "wall_s": t - self.t, "cpu_s": c - self.c})
+        self.t, self.c = t, c
+
+    def table(self) -> dict:
+        import resource
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return {"this_process": self.rows,
+                "children_cpu_s": kids.ru_utime + kids.ru_stime}
 
 
 def _lean():
