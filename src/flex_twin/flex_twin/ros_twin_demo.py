@@ -43,6 +43,10 @@ KEPT = {name: RECORDED[name] for name in ("/flex/tip_pose", "/joint_states",
 #: recorder takes the messages after every step itself); after the last step: the quiet
 #: time (s) that ends taking the last messages
 SPIN_PERIOD, QUIET = 0.05, 0.01
+#: wall time (s) the demo waits for the planner: a fresh clone's planner compiles its loop
+#: first (about 18 CPU-s, beside the in-loop kernels' 55), which took 12 min of wall time at
+#: load average 30 on 2 cores (2026-12-07)
+PLAN_TIMEOUT = 1800.0
 
 
 def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0,
@@ -180,7 +184,7 @@ class _Demo:
         self.ex.add_node(node)
         return node
 
-    def spin_until(self, pred, what: str, timeout: float = 600.0) -> None:
+    def spin_until(self, pred, what: str, timeout: float = PLAN_TIMEOUT) -> None:
         end = time.monotonic() + timeout
         while not pred():
             if time.monotonic() > end:
