@@ -157,7 +157,7 @@ class _Demo:
         from flex_planner.planner_node import PlannerNode
         from .bags.message_types import get_message
         ctx, rate, in_loop = self.ctx, self.rate, self.in_loop
-        self._add(PlannerNode(context=ctx, parameter_overrides=[
+        self.planner = self._add(PlannerNode(context=ctx, parameter_overrides=[
             P("arm", value=ARM), P("sample_period", value=1.0 / rate), *_lean()]))
         if not in_loop:
             self._add(ControllerNode(context=ctx, parameter_overrides=[
@@ -197,6 +197,13 @@ class _Demo:
         self.spin_until(lambda: self.pub.get_subscription_count() > 0, "the planner")
         self.pub.publish(waypoints_msg([(x, y, t) for (x, y), t in zip(WAYPOINTS, TIMES)]))
         self.spin_until(lambda: self.plans, "the plan")
+        if self.in_loop:
+            # done with the planner: at load 30 (a first run planning for 12 min) it planned
+            # again when the recorder subscribed to the latched waypoints, and the model
+            # took that second plan on flex_planner/trajectory (tip 9-12 mm off)
+            self.ex.remove_node(self.planner)
+            self.nodes.remove(self.planner)
+            self.planner.destroy_node()
         return self.plans[-1]
 
     def start_model(self, plan, publish_rate: float):
