@@ -112,9 +112,10 @@ need_compilers() {
     return 1
   fi
 }
-interfaces() {
+interfaces() {  # returns non-zero on failure also where set -e does not apply (a && b)
   step_start
-  "$VENV/bin/python" "$ROOT/scripts/gen_interfaces.py" --venv "$VENV"
+  "$VENV/bin/python" "$ROOT/scripts/gen_interfaces.py" --venv "$VENV" \
+    || { log "error: step 5 (interfaces) failed; bootstrap.sh tries it again"; return 1; }
   step_done "5) interfaces (tf2_msgs, control_msgs)"
 }
 finish() {
