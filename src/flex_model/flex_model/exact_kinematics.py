@@ -568,7 +568,7 @@ def restart_acceleration(t, x, a, h, rho_inf, X, E):
     the overshoot: with the position of the damper-held root modes completed
     (simulate._exact_jump_step) the filtered restart is the closer at every step; the
     consistent one converges (as h^2) to the same limit but with a constant ~ kd / J_root
-    (issue 47, hub-less arm, 16 variables, 0.3 s: 0.082 / 0.028 mm at the end of link 2
+    (issue 47, hub-less arm, 16 variables, 0.3 s: 0.110 / 0.028 mm at the end of link 2
     at 1/32 / 1/64 ms, filtered 0.006 / 0.003 mm; bench_hubless_floor --own-convergence)."""
     n = E[0].shape[0]
     B, rhs = balance(t, x[:n], x[n:2 * n], X, E)
