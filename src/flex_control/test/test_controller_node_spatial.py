@@ -18,7 +18,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from flex_control.controller_node import ControllerNode
 from flex_control.laws import DecentralizedPD
 from flex_control.ros_conversions import trajectory_from_msg
-from flex_model.model_node import SpatialModelNode
+from flex_model.ros.model_node import SpatialModelNode
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
 from flex_model.spatial.integrate import simulate_fixed_compiled
 from flex_model.spatial.scenario import SpatialScenario

@@ -8,8 +8,8 @@ import pytest
 import rclpy
 from rclpy.parameter import Parameter
 
-from flex_model.model_node import ModelNode, SpatialModelNode
-from flex_model.ros_main import ParameterError
+from flex_model.ros.model_node import ModelNode, SpatialModelNode
+from flex_model.ros.main import ParameterError
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
 from flex_model.spatial.scenario import SpatialPD, SpatialScenario, pd_static_equilibrium
 

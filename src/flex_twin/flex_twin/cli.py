@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from flex_model import ros_environment
+from flex_model.ros import ros_environment
 from flex_model.command import Progress, run_command, run_dir  # noqa: F401 (exit codes)
 
 

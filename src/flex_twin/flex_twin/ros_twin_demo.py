@@ -8,7 +8,7 @@ and publishes at 50 Hz. With ``in_loop=False`` (``flex-twin twin-demo --topic-lo
 controller node applies the law instead, over ROS topics (the model publishes /joint_states
 and /clock after every control period, the controller answers on
 /effort_controller/commands). The nodes share one process (one SingleThreadedExecutor,
-see flex_model.ros_main). Everything is
+see flex_model.ros.main). Everything is
 recorded into a rosbag2 (MCAP) bag under runs/<timestamp>/ with the simulation time as log
 time (bag duration = simulated duration; ``flex-twin play --clock`` replays it in sim time);
 then a summary table and PNG plots.
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flex_model import ros_environment
+from flex_model.ros import ros_environment
 from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS
 
 WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
@@ -96,7 +96,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
 
 
 def _lean():
-    """Lean nodes (flex_model.ros_main.lean_node, as ros2_ws/params/suite.yaml): a faster
+    """Lean nodes (flex_model.ros.main.lean_node, as ros2_ws/params/suite.yaml): a faster
     loop."""
     from rclpy.parameter import Parameter
     return [Parameter(name, value=False) for name in (
@@ -174,8 +174,8 @@ class _Demo:
         it would start when it arrives), paused (the demo steps it itself)."""
         from rclpy.parameter import Parameter as P
 
-        from flex_model import ros_conversions as conv
-        from flex_model.model_node import ModelNode
+        from flex_model.ros import conversions as conv
+        from flex_model.ros.model_node import ModelNode
         own = [P("controller", value="eq95"), P("controller_rate", value=self.rate),
                P("controller_params.h", value=[25.0]), P("controller_params.a", value=[5.0]),
                P("start_paused", value=True)] if self.in_loop else []

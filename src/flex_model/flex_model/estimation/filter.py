@@ -44,15 +44,22 @@ class EstimatorSettings:
     """Settings of the filter (SI units). ``torque_noise``: std (N m) of the input torque
     error per joint held over a sample (a scalar for every joint, or one per joint);
     ``modal_noise``: std (N) of a force at each link's tip normal to the link (what excites
-    its modes: the model-form error of the link), held likewise, scalar or one per link;
+    its modes: the model-form error of the link), held likewise, scalar or one per link
+    (spatial arms: also one per link and bending plane, shape (n_links, 2): v, w);
+    ``twist_noise``: std (N m) of a moment about each spatial link's axis at its tip
+    (scalar or one per link; planar arms: must be 0);
     ``adapt``: names of the adapted parameters (flex_model.estimation.plant), with optional
     ``adapt_initial``, ``adapt_std`` (initial std) and ``adapt_walk`` (random-walk std per
-    sqrt(s)) by name; ``relinearize_every``: samples between Jacobians (0: only at reset)."""
+    sqrt(s)) by name; ``relinearize_every``: samples between Jacobians (0: only at reset);
+    ``adapt_reset_nis`` (0: off): covariance resetting, a change detector: when the NIS mean
+    per reading over the last ``adapt_reset_window`` s exceeds it, the parameters'
+    covariance goes back to their initial stds (their walk can then be small)."""
 
     sample_period: float = 1e-3
     adapt: tuple = ()
     torque_noise: float | tuple = 0.1
     modal_noise: float | tuple = 0.0
+    twist_noise: float | tuple = 0.0
     relinearize_every: int = 10
     initial_angle_std: float = 0.01
     initial_deflection_std: float = 0.02
@@ -61,6 +68,8 @@ class EstimatorSettings:
     adapt_std: dict = field(default_factory=dict)
     adapt_walk: dict = field(default_factory=dict)
     friction_smoothing: float = 0.02
+    adapt_reset_nis: float = 0.0
+    adapt_reset_window: float = 0.2
 
     def __post_init__(self):
         if not self.sample_period > 0:
@@ -68,9 +77,13 @@ class EstimatorSettings:
         if int(self.relinearize_every) < 0:
             raise ValueError(f"relinearize_every: got {self.relinearize_every}; expected "
                              ">= 0 samples")
-        if np.any(np.asarray(self.torque_noise, float) < 0) or \
-                np.any(np.asarray(self.modal_noise, float) < 0):
-            raise ValueError("torque_noise and modal_noise must be >= 0")
+        if any(np.any(np.asarray(v, float) < 0) for v in
+               (self.torque_noise, self.modal_noise, self.twist_noise)):
+            raise ValueError("torque_noise, modal_noise and twist_noise must be >= 0")
+        if self.adapt_reset_nis < 0 or not self.adapt_reset_window > 0:
+            raise ValueError(f"adapt_reset_nis: got {self.adapt_reset_nis}, "
+                             f"adapt_reset_window: got {self.adapt_reset_window}; "
+                             "expected >= 0 and > 0 s")
         object.__setattr__(self, "adapt", tuple(self.adapt))
 
 
@@ -183,6 +196,7 @@ class Estimator:
         self._angle = self.plant.angle_map()
         self._defl = self.plant.deflection_map()
         self.reset(np.zeros(nq), np.zeros(nq))
+        self._noise_input()     # the noise settings' shapes checked on construction
 
     # ------------------------------------------------------------------ setup
     def reset(self, q0, v0=None, P0=None, t0: float = 0.0) -> None:
@@ -202,6 +216,8 @@ class Estimator:
         self._since = None
         self._nis_sum, self._nis_in, self._nis_count = 0.0, 0, 0
         self._past = deque(maxlen=int(self.delays.max(initial=0)) + 1)
+        self._window = deque(maxlen=max(int(round(s.adapt_reset_window / s.sample_period)), 1))
+        self.resets = []   # times of the parameters' covariance resets
 
     def _initial_cov(self) -> np.ndarray:
         s, nq = self.settings, self.plant.nq
@@ -233,10 +249,16 @@ class Estimator:
         """(N, W): generalized-force directions of the process noise and their variances."""
         s, plant = self.settings, self.plant
         tn = np.broadcast_to(np.asarray(s.torque_noise, float), (plant.n_joints,))
-        mn = np.broadcast_to(np.asarray(s.modal_noise, float), (plant.n_links,))
         L = plant.link_force_map(self.x[:plant.nq])
-        mn = np.repeat(mn, L.shape[1] // plant.n_links)  # spatial: two planes per link
-        return np.hstack([plant.actuator_map(), L]), np.concatenate([tn ** 2, mn ** 2])
+        mn = _per_link(s.modal_noise, plant.n_links, L.shape[1] // plant.n_links,
+                       "modal_noise")                 # spatial: v and w planes per link
+        N, W = [plant.actuator_map(), L], [tn ** 2, mn ** 2]
+        if np.any(np.asarray(s.twist_noise, float) > 0):
+            if not plant.spatial:
+                raise ValueError("twist_noise: planar links do not twist; leave it 0")
+            N.append(plant.link_moment_map())
+            W.append(_per_link(s.twist_noise, plant.n_links, 1, "twist_noise") ** 2)
+        return np.hstack(N), np.concatenate(W)
 
     def relinearize(self, u) -> None:
         """A, F, S, Q_d and H at the current estimate (the gain schedule's update)."""
@@ -269,6 +291,7 @@ class Estimator:
             self.relinearize(u)
         nu, Sk, used, nis = self._correct(u, np.asarray(y, float))
         sample = self._report(nu, Sk, used, nis)
+        self._watch(nis, used.size)
         self._predict(u)
         return sample
 
@@ -303,6 +326,21 @@ class Estimator:
             Sk[np.ix_(used, used)] = S
         self._remember()
         return nu, Sk, used, float(v @ sol[:, -1])
+
+    def _watch(self, nis, dof) -> None:
+        """Covariance resetting: the parameters' block of P back to the initial stds (cross
+        terms zero) when the NIS mean per reading over the window passes adapt_reset_nis."""
+        s, off = self.settings, 2 * self.plant.nq
+        if not (s.adapt_reset_nis and self.plant.params and dof):
+            return
+        self._window.append(nis / dof)
+        if len(self._window) == self._window.maxlen and \
+                np.mean(self._window) > s.adapt_reset_nis:
+            self.P[off:, :] = 0.0
+            self.P[:, off:] = 0.0
+            self.P[off:, off:] = self._initial_cov()[off:, off:]
+            self._window.clear()
+            self.resets.append(self.t)
 
     def _remember(self) -> None:
         """The corrected estimate into the buffer of past ones (delayed readings)."""
@@ -351,6 +389,17 @@ class Estimator:
                       (self._angle, self._defl), nu, Sk, nis, dof,
                       self._nis_sum / count if self._nis_count else np.nan,
                       self._nis_in / count if self._nis_count else np.nan)
+
+
+def _per_link(value, n_links, per, name) -> np.ndarray:
+    """A noise std given as a scalar, one per link or (n_links, per): flat, link-major."""
+    v = np.asarray(value, float)
+    v = v[:, None] if v.ndim == 1 else v
+    try:
+        return np.broadcast_to(v, (n_links, per)).ravel()
+    except ValueError:
+        raise ValueError(f"{name}: got shape {np.shape(value)}; expected a scalar, "
+                         f"{n_links} values or ({n_links}, {per})") from None
 
 
 def _std(M, P) -> np.ndarray:

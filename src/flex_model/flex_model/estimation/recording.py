@@ -62,7 +62,9 @@ def estimate_recording(model, times, inputs, measurements_array, measurements,
         q0 = initial_q(est, Y[0], inputs[0])
     est.reset(q0, v0, P0, t0=float(times[0]))
     samples = [est.step(u, y) for u, y in zip(inputs, Y)]
-    return _stack(samples, est.plant.param_names)
+    result = _stack(samples, est.plant.param_names)
+    result.summary["parameter_resets"] = [round(t, 6) for t in est.resets]
+    return result
 
 
 def initial_q(est: Estimator, y0, u0) -> np.ndarray:

@@ -142,6 +142,15 @@ class SpatialPlant:
                 out[s + b.tip_v, 2 * i] = out[s + b.tip_w, 2 * i + 1] = 1.0
         return out
 
+    def link_moment_map(self) -> np.ndarray:
+        """(nq, n_links): a unit moment about each flexible link's axis on its tip twist
+        variable (zero for a link without torsion variables)."""
+        out = np.zeros((self.nq, self.n_links))
+        for i, b in enumerate(self.model.beams):
+            if b is not None and b.tip_phi is not None:
+                out[self.model.flex_slice(i).start + b.tip_phi, i] = 1.0
+        return out
+
     # ---------------------------------------------------------------- outputs
     def joint_angles(self, q):
         return np.asarray(q)[self.model.off]
