@@ -56,11 +56,6 @@ class SimulationResult:
         return np.array([self.model.link_origins(q)[-1] for q in self.q])
 
     @property
-    def tip_xy(self) -> np.ndarray:
-        """:attr:`tip_positions` under the README example's old name (remove with it)."""
-        return self.tip_positions
-
-    @property
     def contact_forces(self) -> np.ndarray:
         """(n, 2) planar, (n, 3) spatial: force of the contact surface on the tip (N, base
         frame)."""
