@@ -112,3 +112,101 @@ def pytest_sessionfinish(session):
     if proc is not None and proc.poll() is None:
         proc.kill()
         proc.wait()
+
+
+class RosGraph:
+    """The tests' ROS harness: a private context and namespace ``ns``, a probe node and
+    the nodes under test (``factory(**kwargs)`` with the parameters ``params``, if
+    given, as ``node``; more with ``add``), spun by one SingleThreadedExecutor.
+    ``subscribe`` collects a topic's messages in a list; ``spin_until`` waits
+    ``timeout`` s unless told."""
+
+    timeout = 10.0
+
+    def __init__(self, factory=None, params=None, prefix: str = "t", args=None):
+        import uuid
+
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, args=args)
+        self.ns = f"/{prefix}{uuid.uuid4().hex[:8]}"
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.nodes, self.node = [], None
+        try:
+            if factory is not None:
+                self.node = self.make(factory, **params)
+        except BaseException:
+            self.close()
+            raise
+        # the node's topics are relative: the probe in its namespace uses the same names
+        self.probe = self.add(rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}",
+                                                context=self.ctx, namespace=self.ns))
+
+    def make(self, factory, namespace: str | None = None, **params):
+        """A node ``factory(...)`` of this context in ``namespace`` (default ``ns``) with
+        the parameters ``params``, spun with the others."""
+        from rclpy.parameter import Parameter
+        return self.add(factory(context=self.ctx, namespace=namespace or self.ns,
+                                parameter_overrides=[Parameter(k, value=v)
+                                                     for k, v in params.items()]))
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.ex.add_node(node)
+        return node
+
+    def remove(self, node) -> None:
+        self.ex.remove_node(node)
+        self.nodes.remove(node)
+        node.destroy_node()
+
+    def subscribe(self, msg_type, topic: str, qos=10) -> list:
+        got = []
+        self.probe.create_subscription(msg_type, topic, got.append, qos)
+        return got
+
+    def spin_until(self, pred, what: str, timeout: float | None = None) -> None:
+        import time
+        end = time.monotonic() + (timeout or self.timeout)
+        while not pred():
+            assert time.monotonic() < end, f"timed out waiting for {what}"
+            self.ex.spin_once(timeout_sec=0.005)
+
+    def spin_for(self, seconds: float, step: float = 0.005) -> None:
+        import time
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=step)
+
+    def call(self, client, request, timeout: float | None = None):
+        """The answer of a service ``client`` to ``request``."""
+        self.spin_until(client.service_is_ready, f"the service {client.srv_name}", timeout)
+        future = client.call_async(request)
+        self.spin_until(future.done, f"the answer of {client.srv_name}", timeout)
+        return future.result()
+
+    def discovered(self, publisher, timeout: float | None = None) -> None:
+        """Spin until the node subscribes to the probe's ``publisher``."""
+        self.spin_until(lambda: publisher.get_subscription_count() > 0, "discovery", timeout)
+
+    def close(self) -> None:
+        import rclpy
+        self.ex.shutdown()
+        for node in self.nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+@pytest.fixture
+def ros_graph():
+    """``ros_graph(factory, prefix, args=None, **params)``: a :class:`RosGraph` (factory
+    None: no node yet), closed after the test."""
+    made = []
+
+    def make(factory=None, prefix: str = "t", args=None, **params) -> RosGraph:
+        made.append(RosGraph(factory, params, prefix, args))
+        return made[-1]
+    yield make
+    for graph in made:
+        graph.close()

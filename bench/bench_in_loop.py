@@ -150,7 +150,7 @@ def listener_main(out: str) -> None:
     rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     node = rclpy.create_node("bench_listener")
     counts = {t: 0 for t in TOPICS}  # /tf: 0 where tf2_msgs does not import
-    from flex_model.model_node import tf_message_type
+    from flex_model.ros.model_node import tf_message_type
     types = {"/joint_states": JointState, "/clock": Clock, "/flex/deflections": JointState,
              "/flex/tip_pose": PoseStamped, "/flex/shape": MarkerArray,
              "/tf": tf_message_type()[0]}
@@ -184,7 +184,7 @@ def run_node(traj, theta0, rate: float, publish_rate: float, listen: bool = Fals
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     child, out = None, tempfile.mktemp(suffix=".json")
     if listen:
         child = subprocess.Popen([sys.executable, __file__, "--listener", out])

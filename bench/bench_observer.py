@@ -52,7 +52,7 @@ def write_bag(path: Path, arm: str, seconds: float, amplitude: float) -> None:
     """``seconds`` of the arm at 1 kHz as /joint_states (joint angles rounded to the arm's
     joint_encoder resolution, if it has one, rates, the input as effort), simulated by
     flex_model.simulate and written with BagWriter from the model node's CDR template."""
-    from flex_model import ros_conversions as conv
+    from flex_model.ros import conversions as conv
     from flex_model.arm import load_arm
     from flex_model.dynamics import FlexArmModel
     from flex_model.simulate import simulate
@@ -115,8 +115,8 @@ def feed(bag: Path, arm: str, measure: str, batch: int) -> dict:
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
 
-    from flex_model import ros_environment
-    from flex_model.observer_node import ObserverNode
+    from flex_model.ros import ros_environment
+    from flex_model.ros.observer_node import ObserverNode
     from flex_twin.bags.reader import iter_raw
 
     raw = [data for _, _, _, data, _ in iter_raw(bag, [TOPIC])]
@@ -183,7 +183,7 @@ def step_alone(bag: Path, arm: str, measure: str, count: int) -> dict:
     from flex_model.arm import load_arm
     from flex_model.dynamics import FlexArmModel
     from flex_model.estimation import Estimator, EstimatorSettings
-    from flex_model.observer_node import measurements_named
+    from flex_model.ros.observer_node import measurements_named
     from flex_twin.bags.reader import iter_raw
 
     model = FlexArmModel(load_arm(arm))

@@ -24,12 +24,12 @@ def _node(kind: str, ctx):
     params = {"mode": "lockstep", "lockstep_timeout": 600.0, "command_timeout": 0.0,
               "hold_until_command": False}
     if kind == "planar":
-        from flex_model.model_node import ModelNode as factory
+        from flex_model.ros.model_node import ModelNode as factory
     else:
         try:
-            from flex_model.model_node import SpatialModelNode as factory
+            from flex_model.ros.model_node import SpatialModelNode as factory
         except ImportError:   # main before issue 43: the class of its own
-            from flex_model.spatial_node import SpatialModelNode as factory
+            from flex_model.ros.spatial_node import SpatialModelNode as factory
         params.pop("hold_until_command")
     return factory(context=ctx, parameter_overrides=[Parameter(k, value=v)
                                                      for k, v in params.items()])

@@ -17,7 +17,7 @@
     in three (``--processes``): the real-time factor (simulated / wall seconds), measured
     in this process from the stamps of /flex/tip_pose.
 
-Every node spins in a SingleThreadedExecutor (flex_model.ros_main); suite.yaml makes the
+Every node spins in a SingleThreadedExecutor (flex_model.ros.main); suite.yaml makes the
 nodes lean (no parameter services, type description service or QoS-event handlers: about
 half the CPU time per control period in one process).
 
@@ -101,7 +101,7 @@ def realtime(seconds: float, tmp: Path, priority: int = 0, controller: bool = Fa
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
 
     probe = start_probe("/joint_states", seconds + 1.0, tmp / "rt.json")
     rclpy.init()
@@ -129,7 +129,7 @@ def realtime(seconds: float, tmp: Path, priority: int = 0, controller: bool = Fa
             period(elapsed)
             ticks[-1] = (t0, time.monotonic() - t0, node.stepper.t - sim0)
 
-        def timed_publish(raw):  # the serialized JointState (flex_model.cdr_messages):
+        def timed_publish(raw):  # the serialized JointState (flex_model.ros.cdr_messages):
             sec, nsec = struct.unpack_from("<iI", raw, 4)  # its stamp leads, after CDR's 4
             published[sec * 1_000_000_000 + nsec] = (ticks[-1][0], time.monotonic())
             publish(raw)

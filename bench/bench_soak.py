@@ -47,7 +47,7 @@ from trajectory_msgs.msg import JointTrajectory  # noqa: E402
 
 from flex_model.arm import load_arm  # noqa: E402
 from flex_model.dynamics import FlexArmModel  # noqa: E402
-from flex_model.model_node import ModelNode  # noqa: E402
+from flex_model.ros.model_node import ModelNode  # noqa: E402
 from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS, plan  # noqa: E402
 from flex_planner.ros_messages import trajectory_msg  # noqa: E402
 

@@ -150,11 +150,11 @@ def entry_points(package: str) -> set:
 def node_parameters(package: str) -> set:
     """The parameter names a node declares, read from its module (rclpy is imported, no
     context or node is created)."""
-    from flex_model.ros_main import lean_node
+    from flex_model.ros.main import lean_node
     lean = set(list(inspect.signature(lean_node).parameters)[1:])  # after ``node``
     if package == "flex_model":
-        from flex_model.model_node import PARAMETERS
-        from flex_model.observer_node import PARAMETERS as OBSERVER  # (-p mode:=observer)
+        from flex_model.ros.model_node import PARAMETERS
+        from flex_model.ros.observer_node import PARAMETERS as OBSERVER  # (-p mode:=observer)
         names = {p.name for p in PARAMETERS + OBSERVER}
     elif package == "flex_control":
         from flex_control.controller_node import NODE_PARAMETERS

@@ -3,6 +3,7 @@ of the package sources, lazy ones inside functions included, read with :mod:`ast
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -131,6 +132,7 @@ def test_importing_the_numeric_core_changes_no_environment_variable():
     import sys
     probe = ("import os; before = dict(os.environ)\n"
              "import flex_model, flex_model.dynamics, flex_model.simulate, flex_model.spatial\n"
+             "import flex_model.ros\n"
              "import flex_control.laws, flex_planner.planning, flex_twin.diagnosis.engine\n"
              "changed = sorted(k for k in set(before) | set(os.environ)\n"
              "                 if before.get(k) != os.environ.get(k))\n"
@@ -169,27 +171,64 @@ def test_imports_of_the_studies_are_found(tmp_path):
                                                      "studies.transfer"]
 
 
-#: the ROS adapters of flex_model: the only modules of the core package that import rclpy
-ROS_ADAPTERS = {"flex_model.model_node", "flex_model.spatial_node", "flex_model.observer_node",
-                "flex_model.ros_main",
-                "flex_model.ros_trajectory_action"}
+#: ROS's Python modules (rclpy, the message packages, the IDL parser)
+ROS_TOPS = re.compile(r"rclpy|rosidl_\w+|builtin_interfaces|rosgraph_msgs|\w+_msgs")
+#: the node and ROS-message modules of the other packages (issue 43: flex_model's are its
+#: subpackage flex_model.ros)
+ROS_MODULES = {"flex_control.controller_node", "flex_control.ros_conversions",
+               "flex_planner.planner_node", "flex_planner.ros_messages",
+               "flex_twin.cli", "flex_twin.bag_cli", "flex_twin.bags.player",
+               "flex_twin.bags.reader", "flex_twin.bags.recorder", "flex_twin.bags.writer",
+               "flex_twin.ros_suite",
+               "flex_twin.ros_twin_demo", "flex_twin.spatial_bags",
+               "flex_twin.real_arms.ros_quanser_import"}
 
 
-def test_only_the_ros_adapters_of_flex_model_import_rclpy():
-    """The numeric core (every other flex_model module) imports no rclpy, lazily either."""
-    found = {name for name, path in module_files().items() if name.startswith("flex_model.")
-             and any(t.split(".")[0] == "rclpy" for t in _all_imports(path))}
-    assert found <= ROS_ADAPTERS, found - ROS_ADAPTERS
+def in_ros(name: str) -> bool:
+    return name == "flex_model.ros" or name.startswith("flex_model.ros.")
 
 
-def _all_imports(path: Path) -> list[str]:
-    """Every module name an import statement of the file names."""
+def ros_importers(files: dict) -> set[str]:
+    """The modules that import ROS (or flex_model.ros) anywhere, lazily too."""
+    return {name for name, path in files.items()
+            if any(ROS_TOPS.fullmatch(t.split(".")[0]) or in_ros(t)
+                   for t in _all_imports(path, name))}
+
+
+def test_only_the_ros_adapters_import_ros():
+    """flex_model's ROS adapters are its subpackage flex_model.ros (the ament convention);
+    no other flex_model module imports ROS or flex_model.ros; the other packages import ROS
+    only in their node and message modules (ROS_MODULES)."""
+    found = ros_importers(module_files())
+    outside = {n for n in found if not in_ros(n)} - ROS_MODULES
+    assert outside == set(), outside
+    assert {n for n in found if in_ros(n)} >= {"flex_model.ros.model_node",
+                                               "flex_model.ros.observer_node"}
+
+
+def test_a_lazy_ros_import_is_found(tmp_path):
+    """The check above sees lazy and relative imports of ROS and of flex_model.ros."""
+    (tmp_path / "a.py").write_text("def f():\n    from sensor_msgs.msg import Imu\n")
+    (tmp_path / "b.py").write_text("def f():\n    from .ros import main\n")
+    (tmp_path / "c.py").write_text("import numpy\nfrom .ros_like import x\n")
+    files = {f"flex_model.{n}": tmp_path / f"{n}.py" for n in "abc"}
+    assert ros_importers(files) == {"flex_model.a", "flex_model.b"}
+
+
+def _all_imports(path: Path, name: str = "") -> list[str]:
+    """Every module name an import statement of the file (module ``name``: relative
+    imports resolved against it) names."""
     out = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             out += [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+        elif isinstance(node, ast.ImportFrom) and not node.level:
             out.append(node.module)
+        elif isinstance(node, ast.ImportFrom) and name:
+            parts = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+            parts = parts[:len(parts) - node.level + 1]
+            out += [".".join(parts + ([node.module] if node.module else [a.name]))
+                    for a in node.names]
     return out
 
 

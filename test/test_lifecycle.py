@@ -16,7 +16,7 @@ from std_msgs.msg import Float64MultiArray
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 from flex_model.stepper import Stepper
 
 
@@ -24,58 +24,25 @@ def stamp_s(msg) -> float:
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
 
-class Manager:
-    """``node`` in its own namespace, spun with a manager node holding its lifecycle
-    clients and a probe of its topics."""
-
-    def __init__(self, factory, name, **params):
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
-        ns = f"/lc{uuid.uuid4().hex[:8]}"
-        self.node = factory(context=self.ctx, namespace=ns, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        self.mgr = rclpy.create_node(f"manager_{uuid.uuid4().hex[:8]}", context=self.ctx,
-                                     namespace=ns)
-        self.change = self.mgr.create_client(ChangeState, f"{ns}/{name}/change_state")
-        self.get = self.mgr.create_client(GetState, f"{ns}/{name}/get_state")
-        self.states = []
-        self.mgr.create_subscription(JointState, "joint_states", self.states.append, 100)
-        self.cmd = self.mgr.create_publisher(Float64MultiArray, "effort_controller/commands",
-                                             100)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self.ex.add_node(self.mgr)
-        self.spin_until(lambda: self.change.service_is_ready() and self.get.service_is_ready(),
-                        "the lifecycle services")
-
-    def spin_until(self, pred, what, timeout=10.0):
-        end = time.monotonic() + timeout
-        while not pred():
-            assert time.monotonic() < end, f"timed out waiting for {what}"
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def spin_for(self, seconds):
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def call(self, client, request):
-        future = client.call_async(request)
-        self.spin_until(future.done, f"{client.srv_name}")
-        return future.result()
-
-    def state(self) -> str:
-        return self.call(self.get, GetState.Request()).current_state.label
-
-    def transition(self, transition_id) -> bool:
-        return self.call(self.change, ChangeState.Request(
+@pytest.fixture
+def manager(ros_graph):
+    """``manager(factory, name, **params)``: the node in its own namespace, spun with a
+    manager (``h.mgr``: the conftest harness's probe) holding its lifecycle clients and
+    a probe of its topics."""
+    def make(factory, name, **params):
+        h = ros_graph(factory, "lc", **params)
+        h.mgr = h.probe
+        h.change = h.mgr.create_client(ChangeState, f"{h.ns}/{name}/change_state")
+        h.get = h.mgr.create_client(GetState, f"{h.ns}/{name}/get_state")
+        h.states = h.subscribe(JointState, "joint_states", 100)
+        h.cmd = h.mgr.create_publisher(Float64MultiArray, "effort_controller/commands", 100)
+        h.state = lambda: h.call(h.get, GetState.Request()).current_state.label
+        h.transition = lambda transition_id: h.call(h.change, ChangeState.Request(
             transition=Transition(id=transition_id))).success
-
-    def close(self):
-        self.ex.shutdown()
-        self.node.destroy_node()
-        self.mgr.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
+        h.spin_until(lambda: h.change.service_is_ready() and h.get.service_is_ready(),
+                     "the lifecycle services")
+        return h
+    return make
 
 
 def core(arm: str, angles_deg, steps: int):
@@ -88,12 +55,10 @@ def core(arm: str, angles_deg, steps: int):
 
 
 @pytest.fixture
-def managed():
-    h = Manager(ModelNode, "flex_model", autostart=False, mode="lockstep", rate=1000.0,
-                publish_rate=1000.0, lockstep_timeout=100.0, hold_until_command=False,
-                initial_joint_angles_deg=[30.0, -20.0])
-    yield h
-    h.close()
+def managed(manager):
+    return manager(ModelNode, "flex_model", autostart=False, mode="lockstep", rate=1000.0,
+                   publish_rate=1000.0, lockstep_timeout=100.0, hold_until_command=False,
+                   initial_joint_angles_deg=[30.0, -20.0])
 
 
 def step(h, k: int) -> None:
@@ -179,16 +144,13 @@ def test_a_bad_configure_fails_and_the_node_stays_unconfigured(managed):
     assert h.state() == "inactive"
 
 
-def test_a_bad_value_fails_configure_with_the_start_line():
+def test_a_bad_value_fails_configure_with_the_start_line(manager):
     """A value the parameter check refuses: configure FAILURE, logged with the same line
     that autostart (run_node) prints and exits with."""
-    h = Manager(ModelNode, "flex_model", autostart=False, rate=-5.0)
-    try:
-        assert not h.transition(Transition.TRANSITION_CONFIGURE)
-        assert h.state() == "unconfigured"
-        assert str(h.node.configure_error) == "parameter rate: got -5; expected a number > 0"
-    finally:
-        h.close()
+    h = manager(ModelNode, "flex_model", autostart=False, rate=-5.0)
+    assert not h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "unconfigured"
+    assert str(h.node.configure_error) == "parameter rate: got -5; expected a number > 0"
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -198,22 +160,19 @@ def test_a_bad_value_fails_configure_with_the_start_line():
         rclpy.try_shutdown(context=ctx)
 
 
-def test_autostart_default_is_active():
-    h = Manager(ModelNode, "flex_model")
-    try:
-        assert h.state() == "active"
-        h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
-    finally:
-        h.close()
+def test_autostart_default_is_active(manager):
+    h = manager(ModelNode, "flex_model")
+    assert h.state() == "active"
+    h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
 
 
-def test_controller_node_transitions_with_a_lifecycle_client():
+def test_controller_node_transitions_with_a_lifecycle_client(manager):
     """Active: Eq. 45 about the first measured pose; deactivate: zero torques once, then
     silence; activate: the same held reference; cleanup and a configure with another
     hold pose; a bad law fails configure."""
     from flex_control.controller_node import ControllerNode
     from flex_control.laws import PDLikeCascade, hold_reference
-    h = Manager(ControllerNode, "flex_controller", autostart=False, law="eq45",
+    h = manager(ControllerNode, "flex_controller", autostart=False, law="eq45",
                 joint_names=["j"], torque_limits=[1e9], state_timeout=30.0)
     got = []
     h.mgr.create_subscription(Float64MultiArray, "effort_controller/commands",
@@ -235,48 +194,45 @@ def test_controller_node_transitions_with_a_lifecycle_client():
     def want(ref, pos, vel):
         return PDLikeCascade(hold_reference(["j"], [ref])).torque(0.0, [pos], [vel])[0]
 
-    try:
-        assert h.state() == "unconfigured"
-        assert h.transition(Transition.TRANSITION_CONFIGURE)
-        h.spin_until(lambda: js.get_subscription_count() > 0, "discovery")
-        assert h.transition(Transition.TRANSITION_ACTIVATE)
-        command_for(0.2, 0.0)  # the first measured pose becomes the held reference
-        w = want(0.2, 0.1, 0.01)
-        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
-        assert h.transition(Transition.TRANSITION_DEACTIVATE)
-        h.spin_for(0.1)
-        assert got[-1] == [0.0]  # zero torques once
-        n = len(got)
-        for _ in range(5):
-            js.publish(JointState(name=["j"], position=[0.1], velocity=[0.01]))
-            h.spin_for(0.05)
-        assert len(got) == n  # inactive: no commands
-        assert h.transition(Transition.TRANSITION_ACTIVATE)
-        w = want(0.2, 0.1, 0.01)
-        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
-        assert h.transition(Transition.TRANSITION_DEACTIVATE)
-        assert h.transition(Transition.TRANSITION_CLEANUP)
-        assert h.node.set_parameters([Parameter("law", value="no_such_law")])[0].successful
-        assert not h.transition(Transition.TRANSITION_CONFIGURE)
-        assert h.state() == "unconfigured"
-        assert h.node.set_parameters([Parameter("law", value="eq45"), Parameter(
-            "hold_joint_angles_deg", value=[-10.0])])[0].successful
-        assert h.transition(Transition.TRANSITION_CONFIGURE)
-        h.spin_until(lambda: h.node.pub.get_subscription_count() > 0, "discovery")
-        assert h.transition(Transition.TRANSITION_ACTIVATE)
-        w = want(np.radians(-10.0), 0.1, 0.01)
-        assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
-    finally:
-        h.close()
+    assert h.state() == "unconfigured"
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    h.spin_until(lambda: js.get_subscription_count() > 0, "discovery")
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    command_for(0.2, 0.0)  # the first measured pose becomes the held reference
+    w = want(0.2, 0.1, 0.01)
+    assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    h.spin_for(0.1)
+    assert got[-1] == [0.0]  # zero torques once
+    n = len(got)
+    for _ in range(5):
+        js.publish(JointState(name=["j"], position=[0.1], velocity=[0.01]))
+        h.spin_for(0.05)
+    assert len(got) == n  # inactive: no commands
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    w = want(0.2, 0.1, 0.01)
+    assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.transition(Transition.TRANSITION_CLEANUP)
+    assert h.node.set_parameters([Parameter("law", value="no_such_law")])[0].successful
+    assert not h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "unconfigured"
+    assert h.node.set_parameters([Parameter("law", value="eq45"), Parameter(
+        "hold_joint_angles_deg", value=[-10.0])])[0].successful
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    h.spin_until(lambda: h.node.pub.get_subscription_count() > 0, "discovery")
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    w = want(np.radians(-10.0), 0.1, 0.01)
+    assert command_for(0.1, 0.01, w) == pytest.approx(w, rel=1e-12)
 
 
-def test_planner_node_plans_only_while_active():
+def test_planner_node_plans_only_while_active(manager):
     from nav_msgs.msg import Path
     from geometry_msgs.msg import PoseStamped
     from trajectory_msgs.msg import JointTrajectory
     from flex_planner import SECTION_F_TIMES, SECTION_F_WAYPOINTS
     from flex_planner.planner_node import PlannerNode
-    h = Manager(PlannerNode, "flex_planner", autostart=False, arm="thesis_example1",
+    h = manager(PlannerNode, "flex_planner", autostart=False, arm="thesis_example1",
                 sample_period=0.02)
     got = []
     h.mgr.create_subscription(JointTrajectory, "flex_planner/trajectory", got.append, 5)
@@ -288,25 +244,22 @@ def test_planner_node_plans_only_while_active():
         ps.header.stamp.sec, ps.header.stamp.nanosec = int(t), int(round((t % 1) * 1e9))
         ps.pose.position.x, ps.pose.position.y, ps.pose.orientation.w = x, y, 1.0
         path.poses.append(ps)
-    try:
-        assert h.transition(Transition.TRANSITION_CONFIGURE)
-        h.spin_until(lambda: pub.get_subscription_count() > 0 and
-                     h.node.pub_trajectory.get_subscription_count() > 0, "discovery")
-        pub.publish(path)  # inactive: refused
-        h.spin_for(0.3)
-        assert got == []
-        assert h.transition(Transition.TRANSITION_ACTIVATE)
-        pub.publish(path)
-        h.spin_until(lambda: got, "a plan", timeout=30.0)
-        assert list(got[0].joint_names) == ["joint1", "joint2"]
-        assert len(got[0].points) == pytest.approx(SECTION_F_TIMES[-1] / 0.02, abs=2)
-        assert h.transition(Transition.TRANSITION_DEACTIVATE)
-        assert h.transition(Transition.TRANSITION_CLEANUP)
-        assert h.node.set_parameters([Parameter("arm", value="no_such_arm")])[0].successful
-        assert not h.transition(Transition.TRANSITION_CONFIGURE)
-        assert h.state() == "unconfigured"
-    finally:
-        h.close()
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    h.spin_until(lambda: pub.get_subscription_count() > 0 and
+                 h.node.pub_trajectory.get_subscription_count() > 0, "discovery")
+    pub.publish(path)  # inactive: refused
+    h.spin_for(0.3)
+    assert got == []
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    pub.publish(path)
+    h.spin_until(lambda: got, "a plan", timeout=30.0)
+    assert list(got[0].joint_names) == ["joint1", "joint2"]
+    assert len(got[0].points) == pytest.approx(SECTION_F_TIMES[-1] / 0.02, abs=2)
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.transition(Transition.TRANSITION_CLEANUP)
+    assert h.node.set_parameters([Parameter("arm", value="no_such_arm")])[0].successful
+    assert not h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "unconfigured"
 
 
 def test_entry_point_with_autostart_false_is_managed_and_exits_cleanly():
@@ -318,7 +271,7 @@ def test_entry_point_with_autostart_false_is_managed_and_exits_cleanly():
     import subprocess
     import sys
     ns = f"/lcp{os.getpid()}_{uuid.uuid4().hex[:6]}"
-    proc = subprocess.Popen([sys.executable, "-m", "flex_model.model_node", "--ros-args",
+    proc = subprocess.Popen([sys.executable, "-m", "flex_model.ros.model_node", "--ros-args",
                              "-r", f"__ns:={ns}", "-p", "autostart:=false"],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     ctx = rclpy.Context()
@@ -403,99 +356,93 @@ def assert_spatial_states(h, model, ref, first: int) -> None:
         np.testing.assert_allclose(by_period[k].velocity, v[model.off], rtol=0, atol=1e-12)
 
 
-def test_spatial_model_node_transitions_with_a_lifecycle_client():
+def test_spatial_model_node_transitions_with_a_lifecycle_client(manager):
     """The spatial node (issue 25) managed as the planar one: silent until activate;
     lockstep periods equal the compiled loop; deactivate holds (inputs and ~/reset
     refused, nothing published, time stands still), activate resumes on the same grid;
     cleanup; a bad arm and a bad per-joint value fail configure with their line; another
     arm configures and runs."""
     from std_srvs.srv import Trigger
-    from flex_model.model_node import SpatialModelNode
+    from flex_model.ros.model_node import SpatialModelNode
     spatial_core(SPATIAL, None, None, [[0.0] * 3])  # compile before the node waits
-    h = Manager(SpatialModelNode, "flex_model", autostart=False, arm=SPATIAL,
+    h = manager(SpatialModelNode, "flex_model", autostart=False, arm=SPATIAL,
                 mode="lockstep", rate=200.0, step=1e-3, lockstep_timeout=100.0,
                 initial_joint_values=[0.1, -0.2, 0.3])
     reset = h.mgr.create_client(Trigger, f"{h.node.get_fully_qualified_name()}/reset")
     torques = [[2.0 * np.sin(0.7 * k), -1.0 + 0.1 * k, 0.5] for k in range(16)]
-    try:
+    assert h.state() == "unconfigured"
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.state() == "inactive"
+    h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0 and
+                 h.cmd.get_subscription_count() > 0, "discovery")
+    h.spin_for(0.2)
+    assert h.states == []  # configured, not active: nothing stepping-related
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    assert h.state() == "active"
+    h.spin_until(lambda: h.states, "the state published on activate")
+    assert stamp_s(h.states[0]) == 0.0
+    spatial_periods(h, torques[:8])
+    q0, v0 = h.node.q0, h.node.v0
+    model, ref = spatial_core(SPATIAL, q0, v0, torques)
+    np.testing.assert_allclose(q0[model.off], [0.1, -0.2, 0.3], rtol=0, atol=1e-15)
+    assert_spatial_states(h, model, ref[:8], 1)
+    assert stamp_s(h.states[-1]) == pytest.approx(0.040, abs=1e-12)
+
+    # deactivate: commands and ~/reset refused, nothing published, time stands still
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.state() == "inactive"
+    held, n, dropped = h.states[-1], len(h.states), h.node.dropped
+    for k in range(5):
+        h.cmd.publish(Float64MultiArray(data=[1.0, 1.0, 1.0]))
+        h.spin_for(0.04)
+    assert not h.call(reset, Trigger.Request()).success
+    h.spin_until(lambda: h.node.dropped == dropped + 5, "five refused commands")
+    assert len(h.states) == n and h.node.t == 0.040 and h.node.steps == 8
+
+    # activate again: the held state first, then the same time grid as the core
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    h.spin_until(lambda: len(h.states) > n, "the held state on activate")
+    assert stamp_s(h.states[n]) == stamp_s(held)
+    np.testing.assert_array_equal(h.states[n].position, held.position)
+    spatial_periods(h, torques[8:])
+    assert_spatial_states(h, model, ref, 9)
+    assert stamp_s(h.states[-1]) == pytest.approx(0.080, abs=1e-12)
+
+    # cleanup releases; bad values fail configure with their line; another arm runs
+    assert h.transition(Transition.TRANSITION_DEACTIVATE)
+    assert h.transition(Transition.TRANSITION_CLEANUP)
+    assert h.state() == "unconfigured"
+    assert not list(h.node.timers) and h.node.model is None
+    for params, line in (({"arm": "no_such_arm"}, "parameter arm: "),
+                         ({"arm": SPATIAL_1}, "parameter initial_joint_values: got "
+                          "[0.1, -0.2, 0.3]; expected 1 values")):
+        assert h.node.set_parameters([Parameter(k, value=v) for k, v in
+                                      params.items()])[0].successful
+        assert not h.transition(Transition.TRANSITION_CONFIGURE)
         assert h.state() == "unconfigured"
-        assert h.transition(Transition.TRANSITION_CONFIGURE)
-        assert h.state() == "inactive"
-        h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0 and
-                     h.cmd.get_subscription_count() > 0, "discovery")
-        h.spin_for(0.2)
-        assert h.states == []  # configured, not active: nothing stepping-related
-        assert h.transition(Transition.TRANSITION_ACTIVATE)
-        assert h.state() == "active"
-        h.spin_until(lambda: h.states, "the state published on activate")
-        assert stamp_s(h.states[0]) == 0.0
-        spatial_periods(h, torques[:8])
-        q0, v0 = h.node.q0, h.node.v0
-        model, ref = spatial_core(SPATIAL, q0, v0, torques)
-        np.testing.assert_allclose(q0[model.off], [0.1, -0.2, 0.3], rtol=0, atol=1e-15)
-        assert_spatial_states(h, model, ref[:8], 1)
-        assert stamp_s(h.states[-1]) == pytest.approx(0.040, abs=1e-12)
-
-        # deactivate: commands and ~/reset refused, nothing published, time stands still
-        assert h.transition(Transition.TRANSITION_DEACTIVATE)
-        assert h.state() == "inactive"
-        held, n, dropped = h.states[-1], len(h.states), h.node.dropped
-        for k in range(5):
-            h.cmd.publish(Float64MultiArray(data=[1.0, 1.0, 1.0]))
-            h.spin_for(0.04)
-        assert not h.call(reset, Trigger.Request()).success
-        h.spin_until(lambda: h.node.dropped == dropped + 5, "five refused commands")
-        assert len(h.states) == n and h.node.t == 0.040 and h.node.steps == 8
-
-        # activate again: the held state first, then the same time grid as the core
-        assert h.transition(Transition.TRANSITION_ACTIVATE)
-        h.spin_until(lambda: len(h.states) > n, "the held state on activate")
-        assert stamp_s(h.states[n]) == stamp_s(held)
-        np.testing.assert_array_equal(h.states[n].position, held.position)
-        spatial_periods(h, torques[8:])
-        assert_spatial_states(h, model, ref, 9)
-        assert stamp_s(h.states[-1]) == pytest.approx(0.080, abs=1e-12)
-
-        # cleanup releases; bad values fail configure with their line; another arm runs
-        assert h.transition(Transition.TRANSITION_DEACTIVATE)
-        assert h.transition(Transition.TRANSITION_CLEANUP)
-        assert h.state() == "unconfigured"
-        assert not list(h.node.timers) and h.node.model is None
-        for params, line in (({"arm": "no_such_arm"}, "parameter arm: "),
-                             ({"arm": SPATIAL_1}, "parameter initial_joint_values: got "
-                              "[0.1, -0.2, 0.3]; expected 1 values")):
-            assert h.node.set_parameters([Parameter(k, value=v) for k, v in
-                                          params.items()])[0].successful
-            assert not h.transition(Transition.TRANSITION_CONFIGURE)
-            assert h.state() == "unconfigured"
-            assert str(h.node.configure_error).startswith(line)
-        # seed000's slender link needs the short step (as in test_spatial_node)
-        assert h.node.set_parameters([Parameter("initial_joint_values", value=[0.4]),
-                                      Parameter("step", value=2.5e-4)])[0].successful
-        assert h.transition(Transition.TRANSITION_CONFIGURE)
-        assert h.node.names == ["joint1"] and h.node.describe_parameter("arm").read_only
-        h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0, "discovery")
-        n = len(h.states)
-        assert h.transition(Transition.TRANSITION_ACTIVATE)
-        h.spin_until(lambda: len(h.states) > n, "the new arm's first state")
-        assert stamp_s(h.states[n]) == 0.0
-        del h.states[:n]
-        one = [[0.3 * np.cos(0.5 * k)] for k in range(6)]
-        spatial_periods(h, one)
-        model, ref = spatial_core(SPATIAL_1, h.node.q0, h.node.v0, one, per=20)
-        assert h.node.q0[model.off] == pytest.approx([0.4], abs=1e-15)
-        assert_spatial_states(h, model, ref, 1)
-        assert abs(ref[-1][1][model.off][0]) > 1e-3  # the commands moved the joint
-    finally:
-        h.close()
+        assert str(h.node.configure_error).startswith(line)
+    # seed000's slender link needs the short step (as in test_spatial_node)
+    assert h.node.set_parameters([Parameter("initial_joint_values", value=[0.4]),
+                                  Parameter("step", value=2.5e-4)])[0].successful
+    assert h.transition(Transition.TRANSITION_CONFIGURE)
+    assert h.node.names == ["joint1"] and h.node.describe_parameter("arm").read_only
+    h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0, "discovery")
+    n = len(h.states)
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    h.spin_until(lambda: len(h.states) > n, "the new arm's first state")
+    assert stamp_s(h.states[n]) == 0.0
+    del h.states[:n]
+    one = [[0.3 * np.cos(0.5 * k)] for k in range(6)]
+    spatial_periods(h, one)
+    model, ref = spatial_core(SPATIAL_1, h.node.q0, h.node.v0, one, per=20)
+    assert h.node.q0[model.off] == pytest.approx([0.4], abs=1e-15)
+    assert_spatial_states(h, model, ref, 1)
+    assert abs(ref[-1][1][model.off][0]) > 1e-3  # the commands moved the joint
 
 
-def test_spatial_autostart_default_is_active():
-    from flex_model.model_node import SpatialModelNode
-    h = Manager(SpatialModelNode, "flex_model", arm=SPATIAL)
-    try:
-        assert h.state() == "active"
-        h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
-        assert stamp_s(h.states[-1]) > stamp_s(h.states[0])  # the realtime loop runs
-    finally:
-        h.close()
+def test_spatial_autostart_default_is_active(manager):
+    from flex_model.ros.model_node import SpatialModelNode
+    h = manager(SpatialModelNode, "flex_model", arm=SPATIAL)
+    assert h.state() == "active"
+    h.spin_until(lambda: len(h.states) >= 3, "joint_states of the autostarted node")
+    assert stamp_s(h.states[-1]) > stamp_s(h.states[0])  # the realtime loop runs

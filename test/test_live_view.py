@@ -382,7 +382,7 @@ def test_model_node_streams_what_it_publishes_over_ros():
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
 
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     ns = f"/lv{uuid.uuid4().hex[:8]}"

@@ -2,25 +2,20 @@
 joint_states (joint angles, the torque as effort) sample by sample into the ObserverNode,
 which publishes the estimate; the estimated deflections are checked against the
 simulation's, and bad messages are dropped with a logged reason while the node runs on."""
-import time
-import uuid
 
 import numpy as np
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from flex_model.arm import load_arm
-from flex_model.cdr_messages import read_joint_state, read_joint_state_names
+from flex_model.ros.cdr_messages import read_joint_state, read_joint_state_names
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import _arm_argument
-from flex_model.observer_node import ObserverNode, measurements_named
+from flex_model.ros.model_node import _arm_argument
+from flex_model.ros.observer_node import ObserverNode, measurements_named
 from flex_model.stepper import Stepper
 
 RELIABLE = QoSProfile(depth=2000, reliability=ReliabilityPolicy.RELIABLE)
@@ -56,58 +51,38 @@ def truth():
     return t, u, np.array(angles), np.array(rates), np.array(defl)
 
 
-class ObserverGraph:
-    """An ObserverNode and a probe (the real arm's joint_states, the estimate's
-    subscribers) in one private context and namespace."""
+@pytest.fixture
+def observer_graph(ros_graph):
+    """``observer_graph(**params)``: an ObserverNode (its logger recorded in ``g.log``)
+    and a probe publishing the real arm's joint_states (``g.pub``, ``g.send``) and
+    collecting the estimate (``g.got``), in the conftest's ROS harness."""
+    def make(**params):
+        g = ros_graph(ObserverNode, "obs",
+                      **{"arm": ARM, "measure": "q", "sample_period": T, **params})
+        g.log, g.timeout = Log(), 60.0
+        g.node.get_logger = lambda: g.log
+        g.pub = g.probe.create_publisher(JointState, "joint_states", RELIABLE)
+        g.got = {key: g.subscribe(cls, topic, qos) for key, cls, topic, qos in (
+            ("js", JointState, "flex/estimate/joint_states", RELIABLE),
+            ("defl", JointState, "flex/deflections", RELIABLE),
+            ("tip", PoseWithCovarianceStamped, "flex/estimate/tip_pose", RELIABLE),
+            ("diag", DiagnosticArray, "/diagnostics", 10))}
+        g.send = lambda *args, **kwargs: send(g.pub, *args, **kwargs)
+        g.discovered(g.pub)
+        return g
+    return make
 
-    def __init__(self, **params):
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
-        ns = f"/obs{uuid.uuid4().hex[:8]}"
-        params = {"arm": ARM, "measure": "q", "sample_period": T, **params}
-        self.node = ObserverNode(context=self.ctx, namespace=ns, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        self.log = Log()
-        self.node.get_logger = lambda: self.log
-        self.probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=self.ctx,
-                                       namespace=ns)
-        self.pub = self.probe.create_publisher(JointState, "joint_states", RELIABLE)
-        self.got = {"js": [], "defl": [], "tip": [], "diag": []}
-        for key, cls, topic in (("js", JointState, "flex/estimate/joint_states"),
-                                ("defl", JointState, "flex/deflections"),
-                                ("tip", PoseWithCovarianceStamped, "flex/estimate/tip_pose")):
-            self.probe.create_subscription(cls, topic, self.got[key].append, RELIABLE)
-        self.probe.create_subscription(DiagnosticArray, "/diagnostics",
-                                       self.got["diag"].append, 10)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self.ex.add_node(self.probe)
-        self.spin_until(lambda: self.pub.get_subscription_count() > 0, "discovery")
 
-    def spin_until(self, pred, what, timeout=60.0):
-        end = time.monotonic() + timeout
-        while not pred():
-            assert time.monotonic() < end, f"timed out waiting for {what}"
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def send(self, t, position, velocity=(), effort=(), names=("joint1", "joint2")):
-        msg = JointState(name=list(names), position=list(map(float, position)),
-                         velocity=list(map(float, velocity)), effort=list(map(float, effort)))
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(round(t * 1e9)), 10 ** 9)
-        self.pub.publish(msg)
-
-    def close(self):
-        self.ex.shutdown()
-        self.node.destroy_node()
-        self.probe.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
+def send(pub, t, position, velocity=(), effort=(), names=("joint1", "joint2")):
+    msg = JointState(name=list(names), position=list(map(float, position)),
+                     velocity=list(map(float, velocity)), effort=list(map(float, effort)))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(round(t * 1e9)), 10 ** 9)
+    pub.publish(msg)
 
 
 @pytest.fixture
-def observer():
-    g = ObserverGraph()
-    yield g
-    g.close()
+def observer(observer_graph):
+    return observer_graph()
 
 
 def _values(diagnostic) -> dict:
@@ -151,38 +126,35 @@ def test_the_estimate_follows_the_simulated_arm_from_its_joint_angles(observer, 
     assert warnings(g) == []
 
 
-def test_a_gauge_topic_feeds_the_tip_deflection(truth):
+def test_a_gauge_topic_feeds_the_tip_deflection(observer_graph, truth):
     """measure q,w2: the joint angles from joint_states, link 2's tip deflection from
     flex/gauges (a JointState named w2 stamped as its sample, sent before it, 10 um noise;
     every 7th missing: that sample is corrected with the angles alone): after 0.4 s the
     estimated deflection of link 2 follows the truth within 3 gauge stds (RMS; the filter
     alone on the same readings: 8 um)."""
     t, u, angles, _, defl = truth
-    g = ObserverGraph(measure="q,w2", measure_std=[1e-3, 1e-3, 1e-5])
-    try:
-        gauge = g.probe.create_publisher(JointState, "flex/gauges", RELIABLE)
-        g.spin_until(lambda: gauge.get_subscription_count() > 0, "the gauge subscription")
-        n = 600
-        for k in range(n):
-            if k % 7:  # every 7th reading missing
-                reading = defl[k, 1] + 1e-5 * np.sin(1.7 * k)  # (a deterministic noise)
-                msg = JointState(name=["w2"], position=[float(reading)])
-                msg.header.stamp.sec, msg.header.stamp.nanosec = 0, int(round(t[k] * 1e9))
-                gauge.publish(msg)
-            g.send(t[k], angles[k], effort=u[k])
-            if k % 100 == 99:
-                g.spin_until(lambda: len(g.got["js"]) >= k - 50, "the estimates")
-        g.spin_until(lambda: len(g.got["defl"]) == n, "every estimate")
-        est = np.array([m.position[2] for m in g.got["defl"]])  # link2/tip_deflection
-        late = t[:n] >= 0.4
-        rms = np.sqrt(np.mean((est[late] - defl[:n][late, 1]) ** 2))
-        assert rms < 3e-5 < 0.1 * np.max(np.abs(defl[:n][late, 1])), rms
-        assert warnings(g) == [] and g.node.counts["gauge_dropped"] == 0
-        # (two topics are not ordered by DDS: a reading that comes after its sample is
-        # dropped and counted, not used for the next one)
-        assert g.node.counts["gauge_late"] < 0.02 * n
-    finally:
-        g.close()
+    g = observer_graph(measure="q,w2", measure_std=[1e-3, 1e-3, 1e-5])
+    gauge = g.probe.create_publisher(JointState, "flex/gauges", RELIABLE)
+    g.spin_until(lambda: gauge.get_subscription_count() > 0, "the gauge subscription")
+    n = 600
+    for k in range(n):
+        if k % 7:  # every 7th reading missing
+            reading = defl[k, 1] + 1e-5 * np.sin(1.7 * k)  # (a deterministic noise)
+            msg = JointState(name=["w2"], position=[float(reading)])
+            msg.header.stamp.sec, msg.header.stamp.nanosec = 0, int(round(t[k] * 1e9))
+            gauge.publish(msg)
+        g.send(t[k], angles[k], effort=u[k])
+        if k % 100 == 99:
+            g.spin_until(lambda: len(g.got["js"]) >= k - 50, "the estimates")
+    g.spin_until(lambda: len(g.got["defl"]) == n, "every estimate")
+    est = np.array([m.position[2] for m in g.got["defl"]])  # link2/tip_deflection
+    late = t[:n] >= 0.4
+    rms = np.sqrt(np.mean((est[late] - defl[:n][late, 1]) ** 2))
+    assert rms < 3e-5 < 0.1 * np.max(np.abs(defl[:n][late, 1])), rms
+    assert warnings(g) == [] and g.node.counts["gauge_dropped"] == 0
+    # (two topics are not ordered by DDS: a reading that comes after its sample is
+    # dropped and counted, not used for the next one)
+    assert g.node.counts["gauge_late"] < 0.02 * n
 
 
 def test_bad_messages_are_dropped_with_a_reason_and_the_node_runs_on(observer, truth):
@@ -277,46 +249,43 @@ def test_flex_twin_observe_and_up_start_the_observer():
     assert argv[:4] == ["flex-twin-observe", "--ros-args", "-r", "__ns:=/arm1"]
     assert {"mode:=observer", "arm:=thesis_example1", "measure:=q1,w1", "adapt:=''"} <= \
         set(argv)
-    assert node_class("flex_model", {"mode": "observer"}) == ("flex_model.observer_node",
+    assert node_class("flex_model", {"mode": "observer"}) == ("flex_model.ros.observer_node",
                                                               "ObserverNode")
     assert node_class("flex_model", {"mode": "lockstep"})[1] == "ModelNode"
     params = {"flex_model": {"mode": "observer"}, "flex_controller": {"rate_hz": 500.0}}
     assert in_loop_parameters(params) == params
 
 
-def test_a_spatial_arm_is_observed_with_the_spatial_nodes_layout():
+def test_a_spatial_arm_is_observed_with_the_spatial_nodes_layout(observer_graph):
     """seed003_like_arm (spatial, issue 25) held at zero joint angles: every sample gives
     flex/deflections named and ordered as the spatial node's (ros_spatial), and the tip
     pose with its covariance is the end frame of the estimated state (tip_frame)."""
-    from flex_model import ros_spatial as sr
+    from flex_model.ros import spatial as sr
     from flex_model.spatial.dynamics import SpatialArmModel
     from flex_model.spatial.loader import load_spatial_arm
 
-    g = ObserverGraph(arm="seed003_like_arm", measure="q")
-    try:
-        names = ("joint1", "joint2", "joint3")
-        for k in range(20):
-            g.send(k * T, [0.0, 0.0, 0.0], effort=[0.0, 0.0, 0.0], names=names)
-        g.spin_until(lambda: len(g.got["tip"]) == 20, "20 spatial estimates", 120.0)
-        model = SpatialArmModel(load_spatial_arm("seed003_like_arm"))
-        assert list(g.got["defl"][-1].name) == sr.deflection_names(model)
-        q = g.node._last_sample.q  # (the published sample: corrected, not yet predicted)
-        pose = g.got["tip"][-1].pose
-        p = pose.pose.position
-        np.testing.assert_allclose([p.x, p.y, p.z], model.tip_position(q), atol=1e-12)
-        cov = np.array(pose.covariance).reshape(6, 6)
-        np.testing.assert_allclose(cov, cov.T, atol=1e-15)
-        assert np.min(np.linalg.eigvalsh(cov)) > -1e-12 and cov[2, 2] > 0
-        assert warnings(g) == []
-    finally:
-        g.close()
+    g = observer_graph(arm="seed003_like_arm", measure="q")
+    names = ("joint1", "joint2", "joint3")
+    for k in range(20):
+        g.send(k * T, [0.0, 0.0, 0.0], effort=[0.0, 0.0, 0.0], names=names)
+    g.spin_until(lambda: len(g.got["tip"]) == 20, "20 spatial estimates", 120.0)
+    model = SpatialArmModel(load_spatial_arm("seed003_like_arm"))
+    assert list(g.got["defl"][-1].name) == sr.deflection_names(model)
+    q = g.node._last_sample.q  # (the published sample: corrected, not yet predicted)
+    pose = g.got["tip"][-1].pose
+    p = pose.pose.position
+    np.testing.assert_allclose([p.x, p.y, p.z], model.tip_position(q), atol=1e-12)
+    cov = np.array(pose.covariance).reshape(6, 6)
+    np.testing.assert_allclose(cov, cov.T, atol=1e-15)
+    assert np.min(np.linalg.eigvalsh(cov)) > -1e-12 and cov[2, 2] > 0
+    assert warnings(g) == []
 
 
 def test_one_default_noise_table_for_the_cli_and_the_observer():
     """flex-twin estimate and the observer default a channel's std alike (DEFAULT_STD;
     they were q 1e-4 against 1e-3 rad and w 5e-4 against 1e-4 m)."""
     from flex_model.estimation.measurements import DEFAULT_STD
-    from flex_model.observer_node import NAMED_KINDS
+    from flex_model.ros.observer_node import NAMED_KINDS
     from flex_twin.estimate import CHANNELS
     for k in "qvw":
         assert CHANNELS[k] == NAMED_KINDS[k]

@@ -11,7 +11,6 @@ import uuid
 from pathlib import Path
 
 import numpy as np
-import pytest
 import rclpy
 import yaml
 from rclpy.executors import SingleThreadedExecutor
@@ -21,7 +20,7 @@ from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 
 BAG = Path(__file__).resolve().parent / "data" / "bags" / "model_lockstep"
 TOL = 1e-9

@@ -28,8 +28,8 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from flex_control.controller_node import ControllerNode
-from flex_model.model_node import ModelNode
-from flex_model.ros_main import ParameterError
+from flex_model.ros.model_node import ModelNode
+from flex_model.ros.main import ParameterError
 from flex_planner.planner_node import PlannerNode
 from flex_planner.ros_messages import waypoints_msg
 
@@ -340,7 +340,7 @@ def test_controller_with_empty_joint_names_takes_the_models():
 
 
 @pytest.mark.parametrize("module, arg, text", [
-    ("flex_model.model_node", "shape_points:=0",
+    ("flex_model.ros.model_node", "shape_points:=0",
      "parameter shape_points: got 0; expected an integer in [2, 10000]"),
     ("flex_control.controller_node", "rate_hz:=0.5",
      "parameter rate_hz: got 0.5; expected a number in [1, 20000]"),

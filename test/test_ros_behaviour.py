@@ -18,11 +18,9 @@ import uuid
 
 import numpy as np
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Path
 from rcl_interfaces.srv import SetParameters
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
@@ -34,7 +32,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from flex_control.controller_node import ControllerNode
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 from flex_model.simulate import SimulationDivergedError
 from flex_model.stepper import Stepper
 from flex_planner.planner_node import PlannerNode
@@ -43,52 +41,13 @@ from flex_planner.ros_messages import waypoints_msg
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 
-class Graph:
-    """A private context, its executor and a probe node in namespace ``ns``."""
-
-    def __init__(self, args=None):
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx, args=args)
-        self.ns = f"/b{uuid.uuid4().hex[:8]}"
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.nodes = []
-        self.probe = self.add(rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}",
-                                                context=self.ctx, namespace=self.ns))
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.ex.add_node(node)
-        return node
-
-    def remove(self, node):
-        self.ex.remove_node(node)
-        self.nodes.remove(node)
-        node.destroy_node()
-
-    def spin_until(self, pred, what, timeout=30.0):
-        end = time.monotonic() + timeout
-        while not pred():
-            assert time.monotonic() < end, f"timed out waiting for {what}"
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def call(self, client, request, timeout=30.0):
-        self.spin_until(client.service_is_ready, f"the service {client.srv_name}", timeout)
-        future = client.call_async(request)
-        self.spin_until(future.done, f"the answer of {client.srv_name}", timeout)
-        return future.result()
-
-    def close(self):
-        self.ex.shutdown()
-        for node in self.nodes:
-            node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
-
-
 @pytest.fixture
-def graph():
-    g = Graph()
-    yield g
-    g.close()
+def graph(ros_graph):
+    """A private context, its executor and a probe node in namespace ``g.ns`` (the
+    conftest's ROS harness), waiting 30 s."""
+    g = ros_graph(prefix="b")
+    g.timeout = 30.0
+    return g
 
 
 class Recorder:
@@ -143,33 +102,31 @@ def test_list_parameters_set_through_the_parameter_service(graph):
 
 
 # ------------------------------------------------------------------ item 9
-def test_renamed_planner_publishes_on_the_documented_topics():
+def test_renamed_planner_publishes_on_the_documented_topics(ros_graph):
     """Issue 46.9: the planner published under its node name (~/trajectory): renamed with
     ``-r flex_planner:__node:=arm_planner`` it went to /arm_planner/trajectory while the
     model and the controller listen on flex_planner/trajectory. Now its topics are
     flex_planner/... in its namespace whatever its name, and remapping still applies."""
-    g = Graph(args=["--ros-args", "-r", "flex_planner:__node:=arm_planner",
-                    "-r", "flex_planner/nominal_path:=rviz/nominal_path"])
-    try:
-        plan = g.add(PlannerNode(context=g.ctx, namespace=g.ns, parameter_overrides=[
-            Parameter("sample_period", value=0.05)]))
-        ctrl = g.add(ControllerNode(context=g.ctx, namespace=g.ns))
-        assert plan.get_name() == "arm_planner"
-        assert plan.pub_trajectory.topic_name == f"{g.ns}/flex_planner/trajectory"
-        assert plan.pub_path.topic_name == f"{g.ns}/rviz/nominal_path"
-        trajectories = []
-        g.probe.create_subscription(JointTrajectory, "flex_planner/trajectory",
-                                    trajectories.append, RELIABLE)
-        waypoints = g.probe.create_publisher(Path, "flex_planner/waypoints", RELIABLE)
-        g.spin_until(lambda: waypoints.get_subscription_count() and
-                     plan.pub_trajectory.get_subscription_count() >= 2, "discovery")
-        waypoints.publish(waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
-        g.spin_until(lambda: trajectories, "the renamed planner's trajectory", 120.0)
-        assert len(trajectories[0].points) == 21  # 1 s every 0.05 s
-        # the controller in the namespace has it too (kept until joint_states name joints)
-        g.spin_until(lambda: "trajectory" in ctrl.pending, "the controller's trajectory")
-    finally:
-        g.close()
+    g = ros_graph(prefix="b", args=["--ros-args", "-r", "flex_planner:__node:=arm_planner",
+                                    "-r", "flex_planner/nominal_path:=rviz/nominal_path"])
+    g.timeout = 30.0
+    plan = g.add(PlannerNode(context=g.ctx, namespace=g.ns, parameter_overrides=[
+        Parameter("sample_period", value=0.05)]))
+    ctrl = g.add(ControllerNode(context=g.ctx, namespace=g.ns))
+    assert plan.get_name() == "arm_planner"
+    assert plan.pub_trajectory.topic_name == f"{g.ns}/flex_planner/trajectory"
+    assert plan.pub_path.topic_name == f"{g.ns}/rviz/nominal_path"
+    trajectories = []
+    g.probe.create_subscription(JointTrajectory, "flex_planner/trajectory",
+                                trajectories.append, RELIABLE)
+    waypoints = g.probe.create_publisher(Path, "flex_planner/waypoints", RELIABLE)
+    g.spin_until(lambda: waypoints.get_subscription_count() and
+                 plan.pub_trajectory.get_subscription_count() >= 2, "discovery")
+    waypoints.publish(waypoints_msg([(-1.0, -1.0, 0.0), (-2.0, -1.0, 1.0)]))
+    g.spin_until(lambda: trajectories, "the renamed planner's trajectory", 120.0)
+    assert len(trajectories[0].points) == 21  # 1 s every 0.05 s
+    # the controller in the namespace has it too (kept until joint_states name joints)
+    g.spin_until(lambda: "trajectory" in ctrl.pending, "the controller's trajectory")
 
 
 # ------------------------------------------------------------------ item 2
@@ -207,7 +164,7 @@ def test_path_bytes_are_a_path():
     assert (p.pose.position.x, p.pose.position.y, p.pose.orientation.w) == (-2.0, -2.5, 1.0)
 
 
-def test_planner_refuses_a_million_waypoints_at_once_and_keeps_serving():
+def test_planner_refuses_a_million_waypoints_at_once_and_keeps_serving(graph):
     """Issue 46.2: 10^6 waypoints 0.1 ms apart (a 100 s plan, within max_samples) hung
     the planner for minutes (rclpy alone takes ~46 s to build the message) and it ignored
     SIGINT. Now, in its own process, it refuses the request from its serialized size in
@@ -232,7 +189,7 @@ def test_planner_refuses_a_million_waypoints_at_once_and_keeps_serving():
                 return line
         raise AssertionError(f"no line with {text!r} within {timeout} s")
 
-    g = Graph()
+    g = graph
     try:
         trajectories = []
         g.probe.create_subscription(JointTrajectory, f"{ns}/flex_planner/trajectory",
@@ -261,7 +218,6 @@ def test_planner_refuses_a_million_waypoints_at_once_and_keeps_serving():
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-        g.close()
 
 
 def test_planner_refuses_a_long_plan_from_its_first_and_last_stamps(graph):
@@ -270,7 +226,7 @@ def test_planner_refuses_a_long_plan_from_its_first_and_last_stamps(graph):
     g = graph
     plan = g.add(PlannerNode(context=g.ctx, namespace=g.ns))
     msg = serialize_message(waypoints_msg([(-1.0, -1.0, 0.0), (float("nan"), 0.0, 1.0),
-                                      (-2.0, -1.0, 1e5)]))
+                                           (-2.0, -1.0, 1e5)]))
     with pytest.raises(ValueError, match=r"needing 100000002 samples .* expected at most "
                        r"max_samples = 200000"):
         plan.bounded_request(msg)  # not the NaN of pose 1: the size comes first

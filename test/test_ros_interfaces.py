@@ -136,7 +136,7 @@ def test_tf_from_another_process_ends_at_the_tip_pose(repo_root):
     ns = f"/tf{uuid.uuid4().hex[:6]}"
     env = dict(os.environ, FLEX_TWIN_NUMBA_WARMUP="0")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "flex_model.model_node", "--ros-args", "-r", f"__ns:={ns}",
+        [sys.executable, "-m", "flex_model.ros.model_node", "--ros-args", "-r", f"__ns:={ns}",
          "-p", f"frame_prefix:={prefix}", "-p", "initial_joint_angles_deg:=[40.0, -30.0]",
          "-p", "publish_rate:=100.0",
          "-p", "hold_until_command:=false"],  # (it falls: the chain must follow it)

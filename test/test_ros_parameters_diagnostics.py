@@ -14,7 +14,7 @@ from rcl_interfaces.srv import DescribeParameters, SetParameters
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 
 
 @pytest.fixture
@@ -109,7 +109,7 @@ def test_diagnostics_status_every_second_in_every_mode(ctx, mode):
     ns = f"/g{uuid.uuid4().hex[:8]}"
     factory = ModelNode
     if mode.startswith("spatial"):  # the spatial arm's node (issue 25) too
-        from flex_model.model_node import SpatialModelNode as factory
+        from flex_model.ros.model_node import SpatialModelNode as factory
     node = factory(context=ctx, namespace=ns, parameter_overrides=MODES[mode])
     probe = rclpy.create_node("diagnostics_probe", context=ctx)
     got = []

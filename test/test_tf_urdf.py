@@ -212,7 +212,7 @@ def test_late_subscriber_gets_the_description_and_outputs_are_z_up(tmp_path):
                    + "sensors:\n  - {kind: tip_accelerometer}\n")
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ns = f"/u{uuid.uuid4().hex[:8]}"
     node = probe = None
     try:
@@ -288,7 +288,7 @@ def test_late_subscriber_gets_the_description_and_outputs_are_z_up(tmp_path):
 def test_transform_messages_carry_the_chain():
     """The geometry_msgs/TransformStamped the node puts on /tf (where tf2_msgs exists):
     frames, stamp and numbers of flex_model.urdf's transforms, updated in place."""
-    from flex_model import ros_conversions as conv
+    from flex_model.ros import conversions as conv
     model = FlexArmModel(load_arm("thesis_example1_motors"))
     frames = urdf.Frames.of(model)
     q = deflected_state(model)
@@ -315,9 +315,9 @@ def test_tf_bytes_decode_to_the_transform_messages(arm):
     and rclpy decodes them to those frames, stamps and numbers."""
     from rclpy.serialization import deserialize_message
 
-    from flex_model import ros_conversions as conv
-    from flex_model.cdr_messages import encode
-    from flex_model.model_node import tf_message_type
+    from flex_model.ros import conversions as conv
+    from flex_model.ros.cdr_messages import encode
+    from flex_model.ros.model_node import tf_message_type
     tf_type, why = tf_message_type()
     if tf_type is None:
         pytest.skip(f"tf2_msgs: {why}")
@@ -339,5 +339,5 @@ def test_tf_bytes_decode_to_the_transform_messages(arm):
                 round(t * 1e9)
             tl, r = m.transform.translation, m.transform.rotation
             assert (tl.x, tl.y, tl.z, r.x, r.y, r.z, r.w) == (*tr.translation,
-                                                               *tr.rotation)
+                                                              *tr.rotation)
         assert abs(got[1].transform.translation.y) > 1e-4  # a deflected tip, not zeros

@@ -23,7 +23,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter as P
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from flex_model import ros_trajectory_action as rta
+from flex_model.ros import trajectory_action as rta
 from flex_model import trajectory_action as ta
 
 NAMES = ["joint1", "joint2"]
@@ -126,7 +126,7 @@ class Rig:
     """A lockstep model node with eq95 in its loop and an ActionClient, one executor."""
 
     def __init__(self):
-        from flex_model.model_node import ModelNode
+        from flex_model.ros.model_node import ModelNode
         self.ctx = rclpy.Context()
         rclpy.init(context=self.ctx)
         ns = f"/a{uuid.uuid4().hex[:8]}"

@@ -42,10 +42,10 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'flex-model-node = flex_model.model_node:main',
-            'model_node = flex_model.model_node:main',
-            'flex-spatial-model-node = flex_model.model_node:spatial_main',
-            'spatial_model_node = flex_model.model_node:spatial_main',
+            'flex-model-node = flex_model.ros.model_node:main',
+            'model_node = flex_model.ros.model_node:main',
+            'flex-spatial-model-node = flex_model.ros.model_node:spatial_main',
+            'spatial_model_node = flex_model.ros.model_node:spatial_main',
         ],
     },
 )

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from flex_model import ros_conversions as conv
+from flex_model.ros import conversions as conv
 from flex_model.arm import load_arm
 from flex_twin.bags import BagWriter
 from flex_model.dynamics import FlexArmModel

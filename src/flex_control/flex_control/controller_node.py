@@ -13,7 +13,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from flex_model.ros_main import (Managed, Param, ParameterError, ReasonLog, clock_topic_param, fmt,
+from flex_model.ros.main import (Managed, Param, ParameterError, ReasonLog, clock_topic_param, fmt,
                                  follow_clock, lean_node, read_parameters, run_node)
 
 from .laws import hold_reference
@@ -48,7 +48,7 @@ def parameter_specs() -> tuple:
         default = NODE_DEFAULTS.get(f.name, default)
         specs.append(Param(f.name, default, doc, runtime=f.name not in READ_ONLY,
                            item=float if isinstance(default, list) else None))
-    specs += [Param(name, default, "false: see flex_model.ros_main.lean_node")
+    specs += [Param(name, default, "false: see flex_model.ros.main.lean_node")
               for name, default in NODE_PARAMETERS]
     specs.append(Param("hold_joint_angles_deg", [], "joint angles (deg) held until a "
                        "trajectory arrives, one per joint or one for all, e.g. the model's "
@@ -67,7 +67,7 @@ def stand_in_joints(values: dict) -> tuple:
 
 
 class ControllerNode(Managed, LifecycleNode):
-    """Joint torque controller; a lifecycle node (flex_model.ros_main.Managed): configure
+    """Joint torque controller; a lifecycle node (flex_model.ros.main.Managed): configure
     builds the controller, activate starts its timer, deactivate stops it and commands
     zero torques once, cleanup releases the controller.
 
@@ -97,10 +97,10 @@ class ControllerNode(Managed, LifecycleNode):
     the parameter, the value and what is allowed. Node parameters ``parameter_services``
     and ``qos_event_warnings`` (default true): false leaves out rclpy's parameter services
     (no run-time changes then), resp. its QoS-event handlers, for a faster lockstep loop
-    (flex_model.ros_main). With ``use_sim_time: true`` the timer, the state-age checks and
+    (flex_model.ros.main). With ``use_sim_time: true`` the timer, the state-age checks and
     the trajectory time run on the simulation clock of ``clock_topic`` (default /clock; a
     relative ``clock`` is the namespace's: one clock per lockstep twin,
-    flex_model.ros_main.follow_clock).
+    flex_model.ros.main.follow_clock).
 
     Safety: until a trajectory arrives the controller holds ``hold_joint_angles_deg`` (one
     per joint or one for all; e.g. the model's initial_joint_angles_deg, so that restarts
@@ -390,7 +390,7 @@ class ControllerNode(Managed, LifecycleNode):
 
 def main(args=None) -> int:
     """Spin the node (SingleThreadedExecutor); on SIGINT/SIGTERM publish zero torques, then
-    shut down (flex_model.ros_main.run_node: rclpy's signal handlers replaced by ours, so
+    shut down (flex_model.ros.main.run_node: rclpy's signal handlers replaced by ours, so
     the context is still valid for the last command)."""
     run_node(ControllerNode, args, on_stop=ControllerNode.stop)
     return 0

@@ -13,7 +13,7 @@ import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from flex_model.ros_conversions import trajectory_from_msg  # noqa: F401 (the node's import)
+from flex_model.ros.conversions import trajectory_from_msg  # noqa: F401 (the node's import)
 
 
 def _finite(field: str, values) -> np.ndarray:

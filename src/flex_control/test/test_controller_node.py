@@ -239,7 +239,7 @@ def test_deflections_malformed_rejected_and_picked_by_name(make_harness):
 def test_controller_takes_the_model_nodes_deflections():
     """The two nodes connect on flex/deflections (sensor_msgs/JointState): the controller
     holds the model's tip deflections under gravity (the arm at rest, deflected)."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -349,40 +349,13 @@ def test_sigint_publishes_zero_torques(tmp_path):
         rclpy.try_shutdown(context=ctx)
 
 
-class Loop:
-    """Model and controller nodes on one executor of a private context (namespaced)."""
-
-    def __init__(self):
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.nodes = []
-
-    def add(self, factory, ns, **params):
-        node = factory(context=self.ctx, namespace=ns, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        self.ex.add_node(node)
-        self.nodes.append(node)
-        return node
-
-    def spin_until(self, pred, what, timeout=30.0):
-        deadline = time.monotonic() + timeout
-        while not pred():
-            assert time.monotonic() < deadline, f"timed out waiting for {what}"
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def close(self):
-        self.ex.shutdown()
-        for node in self.nodes:
-            node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
-
-
 @pytest.fixture
-def loop():
-    lp = Loop()
-    yield lp
-    lp.close()
+def loop(ros_graph):
+    """Model and controller nodes (``loop.make(factory, ns, **params)``) on one executor
+    of a private context (the conftest's ROS harness), waiting 30 s."""
+    g = ros_graph(prefix="l")
+    g.timeout = 30.0
+    return g
 
 
 def _ns(tag):
@@ -398,10 +371,10 @@ def test_default_model_and_default_controller_run_stably(loop):
     divergence). The model's default arm now has geared motors, the controller node's
     default gains are h = 5, a = 5; the pair holds the first measured pose (within a sag
     under gravity) for 1.5 s of model time."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ns = _ns("pair")
-    model = loop.add(ModelNode, ns)
-    ctrl = loop.add(ControllerNode, ns)
+    model = loop.make(ModelNode, ns)
+    ctrl = loop.make(ControllerNode, ns)
     # (a long first tick when numba compiles the integrator: generous timeouts)
     loop.spin_until(lambda: ctrl.names is not None, "the controller learning the joints",
                     timeout=120.0)
@@ -418,10 +391,10 @@ def test_default_model_and_default_controller_run_stably(loop):
 def test_default_gains_hold_the_default_arm_in_lockstep(loop):
     """The default pair in lockstep (no latency from load): the first measured pose held
     within the gravity sag of h = 5, a = 5 (< 10 deg), at rest, after 1 s of model time."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ns = _ns("hold")
-    model = loop.add(ModelNode, ns, mode="lockstep", lockstep_timeout=0.2)
-    ctrl = loop.add(ControllerNode, ns, state_timeout=5.0)
+    model = loop.make(ModelNode, ns, mode="lockstep", lockstep_timeout=0.2)
+    ctrl = loop.make(ControllerNode, ns, state_timeout=5.0)
     loop.spin_until(lambda: model.stepper.t >= 1.0, "1 s of model time", timeout=120.0)
     assert model.diverged is None
     angles, rates, _ = model.stepper.joint_state()
@@ -436,10 +409,10 @@ def test_controller_takes_three_joints_from_the_lockstep_model(loop):
     (the controller's default two joints: "got 2 values; expected 3") and stepped once a
     second on the watchdog. The default controller takes the joints from joint_states:
     every command is accepted and steps the model."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ns = _ns("three")
-    model = loop.add(ModelNode, ns, arm="thesis_three_link", mode="lockstep")
-    ctrl = loop.add(ControllerNode, ns)
+    model = loop.make(ModelNode, ns, arm="thesis_three_link", mode="lockstep")
+    ctrl = loop.make(ControllerNode, ns)
     drops = []
     model.drops.warning = lambda text, key=None: drops.append(text)
     loop.spin_until(lambda: model.stepper.t >= 0.1, "100 lockstep steps")
@@ -465,13 +438,13 @@ def test_two_namespaced_twins_close_their_own_loops(loop):
     """Issue 23 defect 8: every node uses relative names, so two twins (model + controller
     each, lockstep) in /twinA and /twinB run side by side in one process: each controller
     holds its own model's start pose, each model is stepped by its own controller only."""
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     twins = {}
     for tag, angles in (("twinA", [30.0, 0.0]), ("twinB", [-60.0, 20.0])):
         ns = _ns(tag)
-        model = loop.add(ModelNode, ns, mode="lockstep", initial_joint_angles_deg=angles,
-                         lockstep_timeout=0.5)
-        ctrl = loop.add(ControllerNode, ns, state_timeout=5.0)
+        model = loop.make(ModelNode, ns, mode="lockstep", initial_joint_angles_deg=angles,
+                          lockstep_timeout=0.5)
+        ctrl = loop.make(ControllerNode, ns, state_timeout=5.0)
         twins[tag] = (ns, model, ctrl, np.radians(angles))
     loop.spin_until(lambda: all(m.stepper.t >= 0.05 for _, m, _, _ in twins.values()),
                     "both loops running")

@@ -19,8 +19,8 @@ from flex_model.arm import load_arm
 from flex_model.control_loop import ControlLoop
 from flex_model.controller_interface import load_controller
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import ModelNode
-from flex_model.ros_main import ParameterError
+from flex_model.ros.model_node import ModelNode
+from flex_model.ros.main import ParameterError
 from flex_model.stepper import Stepper
 
 ARM = "thesis_example1_motors"

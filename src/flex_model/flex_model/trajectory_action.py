@@ -30,7 +30,7 @@ Pure part (no ROS; SI units, radians): :func:`check_goal`, :func:`goal_tolerance
 - cancel, and an abort for a tolerance, hold the joints where they are; a new goal
   preempts the active one (aborted with INVALID_GOAL, "preempted", as JTC).
 
-No ROS here: the rclpy adapter is :mod:`flex_model.ros_trajectory_action`.
+No ROS here: the rclpy adapter is :mod:`flex_model.ros.trajectory_action`.
 """
 from __future__ import annotations
 

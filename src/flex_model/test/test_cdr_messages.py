@@ -1,4 +1,4 @@
-"""Messages serialized from a CDR template (flex_model.cdr_messages): byte for byte what
+"""Messages serialized from a CDR template (flex_model.ros.cdr_messages): byte for byte what
 rclpy's ``serialize_message`` makes of the same message object (except the CDR padding,
 which rclpy leaves as it was in memory and the template sets to zero), decoded to the
 same message by rclpy and by the independent ``rosbags`` CDR reader (what a bag reader
@@ -18,8 +18,8 @@ from std_msgs.msg import Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from flex_model import ros_conversions as conv
-from flex_model.cdr_messages import CdrTemplate, encode, padding_mask
+from flex_model.ros import conversions as conv
+from flex_model.ros.cdr_messages import CdrTemplate, encode, padding_mask
 
 ODD = [-0.0, 5e-324, 1e-310, math.inf, -math.inf, math.nan, 1.0e300, -123.456]
 TIMES = [0.0, 1e-9, 0.0015, 12.345678901, 86399.999999999, 1.7e9 + 0.123456789]
@@ -91,7 +91,7 @@ def test_tip_pose_clock_and_imu():
         assert_same_bytes(raw, conv.fill_tip_pose(msg_tip, t, x, y, phi))
         pose = STORE.deserialize_cdr(raw, "geometry_msgs/msg/PoseStamped").pose
         assert (pose.orientation.z, pose.orientation.w) == (math.sin(phi / 2),
-                                                           math.cos(phi / 2))
+                                                            math.cos(phi / 2))
         conv.set_time(msg_clock.clock, t)
         assert_same_bytes(clock.fill(t), msg_clock)
         force, rate = values_of(rng, 2), float(rng.normal())

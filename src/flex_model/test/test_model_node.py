@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -16,54 +15,32 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from flex_model.arm import load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 from flex_model.stepper import Stepper
 
 
-class Harness:
-    def __init__(self, **params):
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
-        ns = f"/m{uuid.uuid4().hex[:8]}"
-        self.node = ModelNode(context=self.ctx, namespace=ns, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        # the model's topics are relative: a probe in its namespace uses the same names
-        self.probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=self.ctx,
-                                       namespace=ns)
-        self.states, self.shapes, self.diagnostics = [], [], []
-        self.probe.create_subscription(JointState, "joint_states", self.states.append, 100)
-        self.probe.create_subscription(MarkerArray, "flex/shape", self.shapes.append, 10)
-        self.probe.create_subscription(DiagnosticArray, "/diagnostics",
-                                       self.diagnostics.append, 10)
-        self.cmd = self.probe.create_publisher(Float64MultiArray,
-                                               "effort_controller/commands", 100)
-        self.payload = self.probe.create_publisher(Float64MultiArray, "flex/payload", 10)
-        self.reset = self.probe.create_client(Trigger, f"{ns}/flex_model/reset")
-        self.pause = self.probe.create_client(SetBool, f"{ns}/flex_model/pause")
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self.ex.add_node(self.probe)
-        self.spin_until(lambda: self.cmd.get_subscription_count() > 0, "discovery")
-
-    def spin_until(self, pred, what, timeout=10.0):
-        end = time.monotonic() + timeout
-        while not pred():
-            assert time.monotonic() < end, f"timed out waiting for {what}"
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def close(self):
-        self.ex.shutdown()
-        self.node.destroy_node()
-        self.probe.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
+@pytest.fixture
+def harness(ros_graph):
+    """``harness(**params)``: a ModelNode and a probe (states, shapes, diagnostics,
+    commands, payload, ~/reset, ~/pause) in the conftest's ROS harness."""
+    def make(**params):
+        h = ros_graph(ModelNode, "m", **params)
+        h.states = h.subscribe(JointState, "joint_states", 100)
+        h.shapes = h.subscribe(MarkerArray, "flex/shape")
+        h.diagnostics = h.subscribe(DiagnosticArray, "/diagnostics")
+        h.cmd = h.probe.create_publisher(Float64MultiArray, "effort_controller/commands", 100)
+        h.payload = h.probe.create_publisher(Float64MultiArray, "flex/payload", 10)
+        h.reset = h.probe.create_client(Trigger, f"{h.ns}/flex_model/reset")
+        h.pause = h.probe.create_client(SetBool, f"{h.ns}/flex_model/pause")
+        h.discovered(h.cmd)
+        return h
+    return make
 
 
 @pytest.fixture
-def lockstep():
-    h = Harness(arm="thesis_example1", mode="lockstep", rate=1000.0, publish_rate=100.0,
-                initial_joint_angles_deg=[10.0, -20.0], lockstep_timeout=30.0)
-    yield h
-    h.close()
+def lockstep(harness):
+    return harness(arm="thesis_example1", mode="lockstep", rate=1000.0, publish_rate=100.0,
+                   initial_joint_angles_deg=[10.0, -20.0], lockstep_timeout=30.0)
 
 
 def stamp_s(msg):
@@ -130,92 +107,80 @@ def test_reset_pause_and_shape_markers(lockstep):
 
 
 def test_stamps_round_to_the_nanosecond_without_wrapping():
-    from flex_model.ros_conversions import stamp
+    from flex_model.ros.conversions import stamp
     for t, want in ((2.9999999999, (3, 0)), (3.0000000004, (3, 0)), (0.0015, (0, 1500000)),
                     (12.5, (12, 500000000))):
         s = stamp(t)
         assert (s.sec, s.nanosec) == want
 
 
-def test_realtime_ticks_integrate_whole_steps_and_catch_up(monkeypatch):
+def test_realtime_ticks_integrate_whole_steps_and_catch_up(monkeypatch, harness):
     """A tick integrates the wall time owed in steps of exactly max_step: late ticks catch
     up (rcl timers skip missed periods), the remainder waits, a tick up to a quarter step
     early still steps; the state equals the core stepper's after the same number of 1 ms
     steps, published at publish_rate."""
-    h = Harness(arm="thesis_example1", mode="realtime", rate=1000.0, publish_rate=250.0,
+    h = harness(arm="thesis_example1", mode="realtime", rate=1000.0, publish_rate=250.0,
                 initial_joint_angles_deg=[10.0, -20.0], hold_until_command=False)
-    try:
-        node, clock = h.node, [100.0]
-        monkeypatch.setattr("flex_model.model_node.time.monotonic", lambda: clock[0])
-        node.last_wall = clock[0]
-        published = []
-        node.pub_js.publish = lambda raw: published.append(  # bytes: flex_model.cdr_messages
-            stamp_s(deserialize_message(raw, JointState)))
-        for elapsed_ms, t_ms in ((1.0, 1), (3.4, 4), (0.7, 5), (0.95, 6), (0.2, 6), (0.55, 7)):
-            clock[0] += 1e-3 * elapsed_ms
-            node.on_tick()
-            assert node.stepper.t == pytest.approx(1e-3 * t_ms, abs=1e-12)
-        assert node.behind == pytest.approx(-0.2e-3, abs=1e-12)
-        ref = Stepper(node.model, node.stepper.q0)
-        for _ in range(7):
-            ref.advance(1e-3)
-        np.testing.assert_allclose(node.stepper.x, ref.x, rtol=0, atol=1e-12)
-        # 250 Hz: at 1 ms (the first step) and at 5 ms
-        assert published == pytest.approx([1e-3, 5e-3], abs=1e-9)
-    finally:
-        h.close()
+    node, clock = h.node, [100.0]
+    monkeypatch.setattr("flex_model.ros.model_node.time.monotonic", lambda: clock[0])
+    node.last_wall = clock[0]
+    published = []
+    node.pub_js.publish = lambda raw: published.append(  # bytes: flex_model.ros.cdr_messages
+        stamp_s(deserialize_message(raw, JointState)))
+    for elapsed_ms, t_ms in ((1.0, 1), (3.4, 4), (0.7, 5), (0.95, 6), (0.2, 6), (0.55, 7)):
+        clock[0] += 1e-3 * elapsed_ms
+        node.on_tick()
+        assert node.stepper.t == pytest.approx(1e-3 * t_ms, abs=1e-12)
+    assert node.behind == pytest.approx(-0.2e-3, abs=1e-12)
+    ref = Stepper(node.model, node.stepper.q0)
+    for _ in range(7):
+        ref.advance(1e-3)
+    np.testing.assert_allclose(node.stepper.x, ref.x, rtol=0, atol=1e-12)
+    # 250 Hz: at 1 ms (the first step) and at 5 ms
+    assert published == pytest.approx([1e-3, 5e-3], abs=1e-9)
 
 
-def test_lean_node_leaves_only_its_own_entities():
+def test_lean_node_leaves_only_its_own_entities(harness):
     """parameter_services / qos_event_warnings false (ros2_ws/params/suite.yaml): of the
     services only ~/reset and ~/pause remain and no QoS-event waitables (rclpy makes one
     per publisher and subscription for incompatible QoS and one for incompatible types);
     the lockstep loop still runs (a command steps the model)."""
-    full = Harness(arm="thesis_example1", mode="lockstep")
-    try:
-        n_entities = len([*full.node.publishers, *full.node.subscriptions])
-        assert len([*full.node.waitables]) == 2 * n_entities
-        # own, parameters, type description, lifecycle (issue 46)
-        assert len([*full.node.services]) == 2 + 6 + 1 + 5
-    finally:
-        full.close()
-    h = Harness(arm="thesis_example1", mode="lockstep", lockstep_timeout=30.0,
+    full = harness(arm="thesis_example1", mode="lockstep")
+    n_entities = len([*full.node.publishers, *full.node.subscriptions])
+    assert len([*full.node.waitables]) == 2 * n_entities
+    # own, parameters, type description, lifecycle (issue 46)
+    assert len([*full.node.services]) == 2 + 6 + 1 + 5
+    h = harness(arm="thesis_example1", mode="lockstep", lockstep_timeout=30.0,
                 parameter_services=False, qos_event_warnings=False)
-    try:
-        assert sorted(s.srv_name.rsplit("/", 1)[-1] for s in h.node.services) == [
-            "get_type_description", "pause", "reset"]
-        assert not [*h.node.waitables]
-        h.cmd.publish(Float64MultiArray(data=[0.0, 0.0]))
-        h.spin_until(lambda: h.node.stepper.t > 0, "a lockstep step")
-        assert h.node.stepper.t == pytest.approx(1e-3)
-    finally:
-        h.close()
+    assert sorted(s.srv_name.rsplit("/", 1)[-1] for s in h.node.services) == [
+        "get_type_description", "pause", "reset"]
+    assert not [*h.node.waitables]
+    h.cmd.publish(Float64MultiArray(data=[0.0, 0.0]))
+    h.spin_until(lambda: h.node.stepper.t > 0, "a lockstep step")
+    assert h.node.stepper.t == pytest.approx(1e-3)
 
 
-def test_lockstep_survives_commands_stopping_and_resuming():
+def test_lockstep_survives_commands_stopping_and_resuming(harness):
     """Issue 23 defect 1: the watchdog's first step logged at INFO and the stall at WARN from
     one call site, which rclpy refuses (ValueError) about 1 s after commands stopped. Ten
     stops and resumes: the node keeps stepping with the held command through each stall and
     answers every command again afterwards."""
-    h = Harness(arm="thesis_example1", mode="lockstep", rate=1000.0, publish_rate=100.0,
+    h = harness(arm="thesis_example1", mode="lockstep", rate=1000.0, publish_rate=100.0,
                 lockstep_timeout=0.02)
-    try:
-        h.spin_until(lambda: h.states and stamp_s(h.states[-1]) > 0, "the start step")
-        for cycle in range(10):
-            for _ in range(5):  # commands flow: one step each
-                n = len(h.states)
-                h.cmd.publish(Float64MultiArray(data=[0.1, 0.0]))
-                h.spin_until(lambda: len(h.states) > n, f"a step of cycle {cycle}")
-            t_stop = stamp_s(h.states[-1])
-            # commands stop: the watchdog steps with the held command, twice at least
-            h.spin_until(lambda: stamp_s(h.states[-1]) >= t_stop + 2e-3 - 1e-9,
-                         f"watchdog steps after stop {cycle}")
-        assert "lockstep" in h.node.warned and "start" in h.node.warned
-        stamps = [stamp_s(m) for m in h.states]
-        assert np.all(np.diff(stamps) > 0)  # every state a new step, none lost or repeated
-        assert np.allclose(np.diff(stamps), 1e-3, atol=1e-9)
-    finally:
-        h.close()
+    h.spin_until(lambda: h.states and stamp_s(h.states[-1]) > 0, "the start step")
+    for cycle in range(10):
+        for _ in range(5):  # commands flow: one step each
+            n = len(h.states)
+            h.cmd.publish(Float64MultiArray(data=[0.1, 0.0]))
+            h.spin_until(lambda: len(h.states) > n, f"a step of cycle {cycle}")
+        t_stop = stamp_s(h.states[-1])
+        # commands stop: the watchdog steps with the held command, twice at least
+        h.spin_until(lambda: stamp_s(h.states[-1]) >= t_stop + 2e-3 - 1e-9,
+                     f"watchdog steps after stop {cycle}")
+    assert "lockstep" in h.node.warned and "start" in h.node.warned
+    stamps = [stamp_s(m) for m in h.states]
+    assert np.all(np.diff(stamps) > 0)  # every state a new step, none lost or repeated
+    assert np.allclose(np.diff(stamps), 1e-3, atol=1e-9)
 
 
 class Logs:
@@ -231,13 +196,7 @@ class Logs:
         return sum(1 for lv, m in self.records if text in m and level in (None, lv))
 
 
-def spin_for(h, seconds):
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        h.ex.spin_once(timeout_sec=0.005)
-
-
-def test_divergence_reports_diagnostic_zero_torque_and_reset_restarts():
+def test_divergence_reports_diagnostic_zero_torque_and_reset_restarts(harness):
     """Issue 23 defect 2: a 10 kN m command (the plausibility limit raised to let it
     through) makes the hub-less arm's integration fail (within 0.15 s; with the finer
     steps of issue 46 after its 0.5 s command timeout, ~9 s). The node stays up: one ERROR
@@ -245,43 +204,40 @@ def test_divergence_reports_diagnostic_zero_torque_and_reset_restarts():
     reason, the last good state published with zero effort (issue 46); ~/reset restarts
     the realtime loop (states flow again, the diagnostic goes back to OK). Before: the
     timer was cancelled for good, the message said "reduce max_step"."""
-    h = Harness(arm="thesis_example1", mode="realtime", rate=1000.0, publish_rate=100.0,
+    h = harness(arm="thesis_example1", mode="realtime", rate=1000.0, publish_rate=100.0,
                 max_torque=1e5)
-    try:
-        log = Logs()
-        h.node.get_logger = lambda: log
-        h.spin_until(lambda: h.node.pub_diag.get_subscription_count() > 0 and h.states,
-                     "the diagnostics probe and a state")
-        h.cmd.publish(Float64MultiArray(data=[1e4, 0.0]))
-        h.spin_until(lambda: h.node.diverged is not None, "the divergence", timeout=60.0)
-        h.spin_until(lambda: h.diagnostics and h.diagnostics[-1].status[0].level ==
-                     DiagnosticStatus.ERROR, "the diagnostic")  # (OK ones every second)
-        status = h.diagnostics[-1].status[0]
-        assert status.level == DiagnosticStatus.ERROR
-        assert "diverged" in status.message and "10000" in status.message
-        assert "command" in status.message and "reduce max_step" not in status.message
-        assert log.count("model diverged at t =", "error") == 1
-        np.testing.assert_array_equal(h.node.stepper.u, [0.0, 0.0])     # zero torque
-        t_div, n_states = h.node.stepper.t, len(h.states)
-        h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
-        h.spin_until(lambda: log.count("call ~/reset", "warning") >= 1, "a drop reason")
-        spin_for(h, 1.2)                                  # stopped, yet alive: diagnostic again
-        assert h.node.stepper.t == t_div and len(h.states) > n_states + 50  # held, 100 Hz
-        assert all(stamp_s(m) == pytest.approx(t_div) for m in h.states[n_states:])
-        assert all(list(m.effort) == [0.0, 0.0] for m in h.states[n_states:])
-        n_states = len(h.states)
-        assert len(h.diagnostics) >= 2 and not h.node.timer.is_canceled()
-        fut = h.reset.call_async(Trigger.Request())
-        h.spin_until(fut.done, "reset")
-        assert fut.result().success
-        h.spin_until(lambda: len(h.states) > n_states + 20, "states after the reset")
-        assert 0.0 < stamp_s(h.states[-1]) < 5.0 and h.node.diverged is None
-        h.spin_until(lambda: h.diagnostics[-1].status[0].level == DiagnosticStatus.OK,
-                     "the OK diagnostic")
-        h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
-        h.spin_until(lambda: np.array_equal(h.node.stepper.u, [1.0, 0.0]), "a command")
-    finally:
-        h.close()
+    log = Logs()
+    h.node.get_logger = lambda: log
+    h.spin_until(lambda: h.node.pub_diag.get_subscription_count() > 0 and h.states,
+                 "the diagnostics probe and a state")
+    h.cmd.publish(Float64MultiArray(data=[1e4, 0.0]))
+    h.spin_until(lambda: h.node.diverged is not None, "the divergence", timeout=60.0)
+    h.spin_until(lambda: h.diagnostics and h.diagnostics[-1].status[0].level ==
+                 DiagnosticStatus.ERROR, "the diagnostic")  # (OK ones every second)
+    status = h.diagnostics[-1].status[0]
+    assert status.level == DiagnosticStatus.ERROR
+    assert "diverged" in status.message and "10000" in status.message
+    assert "command" in status.message and "reduce max_step" not in status.message
+    assert log.count("model diverged at t =", "error") == 1
+    np.testing.assert_array_equal(h.node.stepper.u, [0.0, 0.0])     # zero torque
+    t_div, n_states = h.node.stepper.t, len(h.states)
+    h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
+    h.spin_until(lambda: log.count("call ~/reset", "warning") >= 1, "a drop reason")
+    h.spin_for(1.2)                                  # stopped, yet alive: diagnostic again
+    assert h.node.stepper.t == t_div and len(h.states) > n_states + 50  # held, 100 Hz
+    assert all(stamp_s(m) == pytest.approx(t_div) for m in h.states[n_states:])
+    assert all(list(m.effort) == [0.0, 0.0] for m in h.states[n_states:])
+    n_states = len(h.states)
+    assert len(h.diagnostics) >= 2 and not h.node.timer.is_canceled()
+    fut = h.reset.call_async(Trigger.Request())
+    h.spin_until(fut.done, "reset")
+    assert fut.result().success
+    h.spin_until(lambda: len(h.states) > n_states + 20, "states after the reset")
+    assert 0.0 < stamp_s(h.states[-1]) < 5.0 and h.node.diverged is None
+    h.spin_until(lambda: h.diagnostics[-1].status[0].level == DiagnosticStatus.OK,
+                 "the OK diagnostic")
+    h.cmd.publish(Float64MultiArray(data=[1.0, 0.0]))
+    h.spin_until(lambda: np.array_equal(h.node.stepper.u, [1.0, 0.0]), "a command")
 
 
 def test_implausible_command_and_payload_are_dropped_with_a_reason(lockstep):
@@ -325,17 +281,14 @@ def test_runtime_parameters_refused_with_a_reason_or_applied(lockstep):
     assert node.set_parameters([Parameter("use_sim_time", value=False)])[0].successful
 
 
-def test_startup_parameters_accept_ints_and_refuse_bad_values_in_one_line():
+def test_startup_parameters_accept_ints_and_refuse_bad_values_in_one_line(harness):
     """Issue 23 defect 10: rate:=500 (an integer) was refused where a float is expected;
     shape_points:=0 raised IndexError; a wrong-length initial_joint_angles_deg was
     silently resized; a negative command_timeout was accepted."""
-    from flex_model.ros_main import ParameterError
-    h = Harness(arm="thesis_example1", mode="lockstep", rate=500, lockstep_timeout=30)
-    try:
-        assert h.node.p["rate"] == 500.0 and isinstance(h.node.p["rate"], float)
-        assert h.node.p["lockstep_timeout"] == 30.0
-    finally:
-        h.close()
+    from flex_model.ros.main import ParameterError
+    h = harness(arm="thesis_example1", mode="lockstep", rate=500, lockstep_timeout=30)
+    assert h.node.p["rate"] == 500.0 and isinstance(h.node.p["rate"], float)
+    assert h.node.p["lockstep_timeout"] == 30.0
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -349,7 +302,7 @@ def test_startup_parameters_accept_ints_and_refuse_bad_values_in_one_line():
                 ({"rate": "fast"}, "parameter rate: got 'fast'; expected a finite number"),
                 ({"max_step": 0.0}, "parameter max_step: got 0; expected a step in (0, 0.1]"),
                 ({"mode": "turbo"}, "parameter mode: got 'turbo'; expected realtime or "
-                 "lockstep (mode observer is flex_model.observer_node")):
+                 "lockstep (mode observer is flex_model.ros.observer_node")):
             with pytest.raises(ParameterError) as err:
                 ModelNode(context=ctx, namespace=f"/b{uuid.uuid4().hex[:8]}",
                           parameter_overrides=[Parameter(k, value=v)
@@ -386,7 +339,7 @@ def test_drop_reasons_are_throttled_per_reason_not_per_call_site(lockstep):
     for bad in ([1.0], [1.0, 2.0, 3.0], [np.nan, 0.0], [0.0, np.inf], [5e3, 0.0]):
         h.cmd.publish(Float64MultiArray(data=bad))
     h.spin_until(lambda: len(log.records) >= 3, "three drop lines")
-    spin_for(h, 0.1)
+    h.spin_for(0.1)
     lines = [m for _, m in log.records]
     assert len(lines) == 3, lines                 # wrong length, non-finite, beyond limit
     assert "got 1 values; expected 2" in lines[0]

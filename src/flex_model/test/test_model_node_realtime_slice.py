@@ -16,7 +16,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool
 
-from flex_model.model_node import ModelNode
+from flex_model.ros.model_node import ModelNode
 
 
 def test_realtime_slice_takes_inputs_and_steps_on_the_grid():

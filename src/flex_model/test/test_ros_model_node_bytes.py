@@ -1,5 +1,5 @@
 """The model node publishes its state topics as bytes from CDR templates
-(flex_model.cdr_messages): every publication is the message the object path built before
+(flex_model.ros.cdr_messages): every publication is the message the object path built before
 (ros_conversions.fill_joint_state, fill_deflection_state, fill_tip_pose, imu, from the
 stepper's joint_state, deflections, tip_pose, tip_specific_force), byte for byte, and a
 subscriber decodes it to that message. Lockstep with Eq. 95 in the loop, an arm with a
@@ -18,10 +18,10 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
-from flex_model import ros_conversions as conv
+from flex_model.ros import conversions as conv
 from flex_model import urdf
 from flex_model.arm import resolve_preset
-from flex_model.cdr_messages import encode
+from flex_model.ros.cdr_messages import encode
 
 
 def reference(node, topic):
@@ -48,7 +48,7 @@ def test_published_bytes_are_the_object_path_messages(tmp_path):
     arm = tmp_path / "imu_arm.yaml"
     arm.write_text(resolve_preset("thesis_example1_motors").read_text()
                    + "sensors:\n  - {kind: tip_accelerometer}\n")
-    from flex_model.model_node import ModelNode
+    from flex_model.ros.model_node import ModelNode
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:

@@ -1,4 +1,4 @@
-"""/flex/shape serialized in place (flex_model.ros_conversions.ShapeMarkers.serialized):
+"""/flex/shape serialized in place (flex_model.ros.conversions.ShapeMarkers.serialized):
 the bytes the model node publishes are the MarkerArray rclpy would send for the same
 stamp and centre lines (every field equal after deserializing; only CDR padding bytes,
 which rclpy leaves unset, may differ), for planar and 3-D lines and any link count."""
@@ -7,7 +7,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from visualization_msgs.msg import MarkerArray
 
-from flex_model.ros_conversions import ShapeMarkers
+from flex_model.ros.conversions import ShapeMarkers
 
 
 @pytest.mark.parametrize("links, points, dim", [(2, 15, 3), (3, 7, 2), (1, 2, 3)])

@@ -1,13 +1,10 @@
 """The spatial model node (issue 25) in-process: lockstep against the compiled loop,
 the in-loop Eq. 95 PD, bad messages dropped and counted."""
 import re
-import time
-import uuid
 
 import numpy as np
 import pytest
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -15,55 +12,9 @@ from visualization_msgs.msg import MarkerArray
 
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
 from flex_model.spatial.integrate import simulate_fixed_compiled
-from flex_model.model_node import SpatialModelNode
+from flex_model.ros.model_node import LATCHED, SpatialModelNode
 
 ARM = "seed003_like_arm"
-
-
-class Harness:
-    def __init__(self, **params):
-        # lockstep: no watchdog step while a test waits for discovery (unless asked for)
-        params.setdefault("lockstep_timeout", 60.0)
-        self.ctx = rclpy.Context()
-        rclpy.init(context=self.ctx)
-        ns = f"/s{uuid.uuid4().hex[:8]}"
-        self.node = SpatialModelNode(context=self.ctx, namespace=ns, parameter_overrides=[
-            Parameter(k, value=v) for k, v in params.items()])
-        self.probe = rclpy.create_node(f"probe_{uuid.uuid4().hex[:8]}", context=self.ctx,
-                                       namespace=ns)
-        self.states, self.defl, self.shapes, self.desc = [], [], [], []
-        self.probe.create_subscription(JointState, "joint_states", self.states.append, 100)
-        self.probe.create_subscription(JointState, "flex/deflections", self.defl.append, 100)
-        self.probe.create_subscription(MarkerArray, "flex/shape", self.shapes.append, 100)
-        from flex_model.model_node import LATCHED
-        self.probe.create_subscription(String, "robot_description", self.desc.append, LATCHED)
-        self.cmd = self.probe.create_publisher(Float64MultiArray,
-                                               "effort_controller/commands", 100)
-        self.sp = self.probe.create_publisher(Float64MultiArray, "flex/setpoints", 10)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self.ex.add_node(self.probe)
-        self.spin_until(lambda: self.cmd.get_subscription_count() > 0 and
-                        self.node.pub_shape.get_subscription_count() > 0 and self.desc,
-                        "discovery")
-
-    def spin_until(self, pred, what, timeout=20.0):
-        end = time.monotonic() + timeout
-        while not pred():
-            assert time.monotonic() < end, f"timed out waiting for {what}"
-            self.ex.spin_once(timeout_sec=0.005)
-
-    def command(self, u):
-        n = self.node.steps
-        self.cmd.publish(Float64MultiArray(data=list(map(float, u))))
-        self.spin_until(lambda: self.node.steps > n and
-                        len(self.states) > n + 1 - self._skip, "a lockstep period")
-
-    def close(self):
-        self.ex.shutdown()
-        self.node.destroy_node()
-        self.probe.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
 
 
 @pytest.fixture(scope="module")
@@ -75,17 +26,34 @@ def compiled_loop():
 
 
 @pytest.fixture
-def harness(compiled_loop):
-    made = []
-
+def harness(compiled_loop, ros_graph):
+    """``harness(**params)``: a spatial model node and a probe (states, deflections,
+    shapes, robot_description, commands, set-points) in the conftest's ROS harness;
+    ``h.command(u)``: one lockstep period."""
     def make(**params):
-        h = Harness(**params)
-        h._skip = 0 if h.states else 1   # the initial state may arrive before discovery
-        made.append(h)
+        # lockstep: no watchdog step while a test waits for discovery (unless asked for)
+        params.setdefault("lockstep_timeout", 60.0)
+        h = ros_graph(SpatialModelNode, "s", **params)
+        h.timeout = 20.0
+        h.states = h.subscribe(JointState, "joint_states", 100)
+        h.defl = h.subscribe(JointState, "flex/deflections", 100)
+        h.shapes = h.subscribe(MarkerArray, "flex/shape", 100)
+        h.desc = h.subscribe(String, "robot_description", LATCHED)
+        h.cmd = h.probe.create_publisher(Float64MultiArray, "effort_controller/commands", 100)
+        h.sp = h.probe.create_publisher(Float64MultiArray, "flex/setpoints", 10)
+        h.spin_until(lambda: h.cmd.get_subscription_count() > 0 and
+                     h.node.pub_shape.get_subscription_count() > 0 and h.desc, "discovery")
+        skip = 0 if h.states else 1   # the initial state may arrive before discovery
+        h.command = lambda u: command(h, u, skip)
         return h
-    yield make
-    for h in made:
-        h.close()
+    return make
+
+
+def command(h, u, skip: int) -> None:
+    n = h.node.steps
+    h.cmd.publish(Float64MultiArray(data=list(map(float, u))))
+    h.spin_until(lambda: h.node.steps > n and len(h.states) > n + 1 - skip,
+                 "a lockstep period")
 
 
 def stamp_s(msg):
@@ -141,7 +109,7 @@ def test_lockstep_equals_the_compiled_loop_and_bad_commands_are_dropped(harness)
                                atol=1e-15)
     assert abs(d.position[1]) > 1e-6      # the arm moves: not a zero test
     # /flex/shape: the forearm's centre line ends at its tip frame
-    from flex_model.ros_spatial import frame_poses
+    from flex_model.ros.spatial import frame_poses
     tip = [T for _, c, T in frame_poses(model, q) if c == "forearm_tip"][0]
     line = [m for m in h.shapes if round(stamp_s(m.markers[0]) * 200) == 12][-1].markers[0]
     np.testing.assert_allclose([line.points[-1].x, line.points[-1].y, line.points[-1].z],
@@ -185,7 +153,7 @@ def test_in_loop_eq95_equals_the_compiled_loop_with_the_pd(harness):
 
 
 def test_bad_parameters_name_the_parameter():
-    from flex_model.ros_main import ParameterError
+    from flex_model.ros.main import ParameterError
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     try:
@@ -210,7 +178,7 @@ def test_bad_parameters_name_the_parameter():
 
 def test_model_node_entry_point_dispatches_spatial_arms():
     """``flex-model-node -p arm:=<spatial>`` runs the spatial node, a planar arm the planar."""
-    from flex_model.model_node import _arm_argument
+    from flex_model.ros.model_node import _arm_argument
     from flex_model.spatial.description import is_spatial_arm
     argv = ["flex-model-node", "--ros-args", "-p", "arm:=thesis_example1",
             "-p", "arm:=seed003_like_arm"]
@@ -231,12 +199,6 @@ def call(h, srv_type, name, request):
     future = client.call_async(request)
     h.spin_until(future.done, f"the answer of {name}")
     return future.result()
-
-
-def spin_for(h, seconds):
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        h.ex.spin_once(timeout_sec=0.005)
 
 
 def test_payload_changes_the_static_droop_to_the_closed_form_and_bad_ones_are_dropped(harness):
@@ -316,7 +278,7 @@ def test_a_paused_node_keeps_its_clock(harness):
     for k in range(3):
         h.cmd.publish(Float64MultiArray(data=[0.5 * k, 0.0, 0.0]))
     h.spin_until(lambda: node.u[0] == 1.0, "the last command")
-    spin_for(h, 0.2)
+    h.spin_for(0.2)
     assert node.steps == 0 and node.t == 0.0 and len(clocks) == n_clock
     assert call(h, SetBool, "flex_model/pause", SetBool.Request(data=False)).message == \
         "running"
@@ -327,13 +289,13 @@ def test_a_paused_node_keeps_its_clock(harness):
     assert h.shapes[-1].markers[0].header.frame_id == "robot1/world"
     # realtime
     r = harness(arm=ARM, mode="realtime", rate=100.0, step=2e-3, start_paused=True)
-    spin_for(r, 0.3)
+    r.spin_for(0.3)
     assert r.node.t == 0.0
     call(r, SetBool, "flex_model/pause", SetBool.Request(data=False))
     r.spin_until(lambda: r.node.t >= 0.05, "the realtime loop")
     call(r, SetBool, "flex_model/pause", SetBool.Request(data=True))
     t = r.node.t
-    spin_for(r, 0.3)
+    r.spin_for(0.3)
     assert r.node.t == t
 
 

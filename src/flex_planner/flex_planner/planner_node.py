@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
-from flex_model.ros_main import (Managed, Param, ParameterError, clock_topic_param, follow_clock,
+from flex_model.ros.main import (Managed, Param, ParameterError, clock_topic_param, follow_clock,
                                  lean_node, read_parameters, run_node)
 from nav_msgs.msg import Path
 from rclpy.lifecycle import LifecycleNode
@@ -45,7 +45,7 @@ def parameter_specs() -> tuple:
     specs.append(Param("max_waypoints", MAX_WAYPOINTS, "largest number of waypoints of a "
                        "request: one with more is refused from its size alone, before it is "
                        "deserialized", True, _two_or_more))
-    specs += [Param(name, True, "false: see flex_model.ros_main.lean_node")
+    specs += [Param(name, True, "false: see flex_model.ros.main.lean_node")
               for name in ("parameter_services", "qos_event_warnings")]
     specs.append(clock_topic_param("the stamps of nominal_path"))
     return tuple(specs)
@@ -60,7 +60,7 @@ def samples_needed(times, sample_period: float) -> int:
 
 class PlannerNode(Managed, LifecycleNode):
     """Plans a tip path (thesis Ch. IV-V.1) for every request; a lifecycle node
-    (flex_model.ros_main.Managed): configure loads the arm and makes the topics, only an
+    (flex_model.ros.main.Managed): configure loads the arm and makes the topics, only an
     active node plans (inactive: a request is refused with one line), cleanup releases.
 
     Subscription: ``flex_planner/waypoints`` (nav_msgs/Path; each pose's stamp is its time
@@ -84,7 +84,7 @@ class PlannerNode(Managed, LifecycleNode):
     as an error naming the point, nothing is published for it, and the node keeps serving.
     A bad parameter at start is one line naming it, its value and what is allowed. Node
     parameters ``parameter_services`` and ``qos_event_warnings`` (default true, read-only
-    at run time): flex_model.ros_main.lean_node. With ``use_sim_time: true`` its stamps
+    at run time): flex_model.ros.main.lean_node. With ``use_sim_time: true`` its stamps
     are the simulation time of ``clock_topic`` (default /clock; ``clock``: the
     namespace's).
     """

@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 
-from flex_model import ros_environment
+from flex_model.ros import ros_environment
 from flex_model.command import stop_on_signals
 
 

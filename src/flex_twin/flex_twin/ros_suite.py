@@ -25,12 +25,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from flex_model import ros_environment
+from flex_model.ros import ros_environment
 from flex_model.config import ConfigError, read_yaml
 
 #: the model node in observer mode (``mode: observer`` in its section, issue 45)
-OBSERVER = ("flex_model.observer_node", "ObserverNode")
-NODES = {"flex_model": ("flex_model.model_node", "ModelNode"),
+OBSERVER = ("flex_model.ros.observer_node", "ObserverNode")
+NODES = {"flex_model": ("flex_model.ros.model_node", "ModelNode"),
          "flex_controller": ("flex_control.controller_node", "ControllerNode"),
          "flex_planner": ("flex_planner.planner_node", "PlannerNode")}
 
@@ -91,7 +91,7 @@ def held_at_the_model_start(params: dict) -> dict:
     """Each controller node (over topics) holds its model's initial joint angles until a
     trajectory arrives (``hold_joint_angles_deg``; issue 46 item 8: holding the first
     measured, sagged pose crept at every restart), unless its file gives a pose."""
-    from flex_model.model_node import PARAMETERS
+    from flex_model.ros.model_node import PARAMETERS
     default = next(p.default for p in PARAMETERS if p.name == "initial_joint_angles_deg")
     keys = {split_name(k): k for k in params}
     out = dict(params)
@@ -210,7 +210,7 @@ def _die_with_parent():
 
 def node_class(name: str, values: dict) -> tuple[str, str]:
     """(module, class) of the node ``name`` with parameters ``values``: the model node in
-    observer mode is flex_model.observer_node's."""
+    observer mode is flex_model.ros.observer_node's."""
     if name == "flex_model" and values.get("mode") == "observer":
         return OBSERVER
     return NODES[name]
@@ -221,7 +221,7 @@ def run_in_processes(path, names, values=None) -> int:
     install alike) with the same parameter file; the nodes end with this process. Ctrl-C
     (SIGINT) stops them even where it was inherited ignored (a background job of a
     non-interactive shell, as in CI). ``values``: the parameters per node name (a model
-    in observer mode runs flex_model.observer_node)."""
+    in observer mode runs flex_model.ros.observer_node)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)
     procs, values = [], values or {}
     for key in names:
@@ -287,7 +287,7 @@ def observer_arguments(args) -> list[str]:
 
 
 def cmd_observe(args) -> int:
-    from flex_model.observer_node import main
+    from flex_model.ros.observer_node import main
     main(observer_arguments(args))
     return 0
 

@@ -24,21 +24,21 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from flex_model.ros_spatial import (centre_lines, deflection_index, deflection_names,
-                                    deflection_values, frame_poses, joint_state, relative,
-                                    shape_markers, skeleton_urdf, stamp, transforms)
+from flex_model.ros.spatial import (SpatialOutputs, centre_lines, frame_poses, joint_state,
+                                    relative, shape_markers, skeleton_urdf, stamp,
+                                    transforms)
 
 from .bags.message_types import jazzy_typestore
 from .bags.writer import BagWriter
 
 TF_TYPE = "tf2_msgs/msg/TFMessage"
-#: the message layout is flex_model.ros_spatial's (shared with the spatial model node)
+#: the message layout is flex_model.ros.spatial's (shared with the spatial model node)
 __all__ = ["TF_TYPE", "centre_lines", "frame_poses", "relative", "skeleton_urdf",
            "write_spatial_bag"]
 
 
 def write_spatial_bag(res, path, points: int = 21) -> dict:
-    """Write the run ``res`` (flex_model.spatial.scenario.SpatialSimulation) to a new bag
+    """Write the run ``res`` (flex_model.result.SimulationResult of a spatial arm) to a new bag
     at ``path``; returns the message counts per topic."""
     from rclpy.qos import DurabilityPolicy, QoSProfile
     from sensor_msgs.msg import JointState
@@ -51,8 +51,8 @@ def write_spatial_bag(res, path, points: int = 21) -> dict:
         ("geometry_msgs", "TransformStamped"), ("geometry_msgs", "Transform"),
         ("geometry_msgs", "Vector3"), ("geometry_msgs", "Quaternion"),
         ("std_msgs", "Header"), ("builtin_interfaces", "Time"))})
-    dnames = deflection_names(model)
-    dindex = deflection_index(model)
+    outputs = SpatialOutputs(model)
+    m = len(outputs.names)
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     with BagWriter(path) as w:
         w.add_topic("/robot_description", "std_msgs/msg/String", qos=latched)
@@ -65,11 +65,11 @@ def write_spatial_bag(res, path, points: int = 21) -> dict:
             t = float(t)
             t_ns = int(round(t * 1e9))
             w.write("/joint_states", joint_state(JointState, model.arm.joint_names,
-                                                 res.joint_values[k], res.joint_rates[k],
+                                                 res.joint_angles[k], res.joint_rates[k],
                                                  res.tau[k], t), t_ns)
-            pos, vel = deflection_values(dindex, res.q[k], res.v[k])
-            w.write("/flex/deflections", joint_state(JointState, dnames, pos, vel, (), t,
-                                                     effort=False), t_ns)
+            d = outputs.deflections(res.q[k], res.v[k])
+            w.write("/flex/deflections", joint_state(JointState, outputs.names, d[:m], d[m:],
+                                                     (), t, effort=False), t_ns)
             q = res.q[k]
             lf = []
             tfs = transforms(types, model, q, t, lf)

@@ -8,7 +8,7 @@ file (``/robot1/flex_model``, docs/examples/two_arms.yaml) start in their namesp
 
 Installed with the flex_twin package (share/flex_twin/launch, its default parameter file
 share/flex_twin/params/suite.yaml); ros2_ws/launch/suite.launch.py links here. Every node
-spins in a SingleThreadedExecutor (flex_model.ros_main).
+spins in a SingleThreadedExecutor (flex_model.ros.main).
 """
 import tempfile
 from pathlib import Path

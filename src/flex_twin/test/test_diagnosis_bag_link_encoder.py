@@ -12,7 +12,7 @@ from builtin_interfaces.msg import Duration  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
 
-from flex_model import ros_conversions as conv  # noqa: E402
+from flex_model.ros import conversions as conv  # noqa: E402
 from flex_twin.bags import BagWriter  # noqa: E402
 from flex_twin.cli import main  # noqa: E402
 from flex_twin.diagnosis.batch import RunSpec, expand_runs  # noqa: E402

@@ -1,6 +1,6 @@
 """Import a Quanser lab run into a rosbag2 (MCAP) bag with the suite's topics.
 
-Topics (message conversions of the model node, flex_model.ros_conversions):
+Topics (message conversions of the model node, flex_model.ros.conversions):
 
 - ``/joint_states`` (sensor_msgs/JointState): hub angle (rad), rate (rad/s) and effort,
   the joint torque n K_t (V - K_e n theta_dot) / R of the arm's ``dc_motor`` and ``gear``
@@ -52,7 +52,7 @@ def import_run(run: LabRun, model: FlexArmModel, out) -> dict:
     from std_msgs.msg import Float64MultiArray, Header
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-    from flex_model import ros_conversions as conv
+    from flex_model.ros import conversions as conv
     from ..bags import BagWriter
 
     joint = model.arm.joint_names[0]

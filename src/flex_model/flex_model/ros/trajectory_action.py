@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import math
 
-from .trajectory_action import (CODE_NAMES, INVALID_GOAL, PATH_TOLERANCE_VIOLATED, SUCCESSFUL,
-                                GoalMonitor, GoalPoints, Tolerances, check_goal,
-                                goal_tolerances, hold, trajectory_data)
+from ..trajectory_action import (CODE_NAMES, INVALID_GOAL, PATH_TOLERANCE_VIOLATED, SUCCESSFUL,
+                                 GoalMonitor, GoalPoints, Tolerances, check_goal,
+                                 goal_tolerances, hold, trajectory_data)
 
 #: the action's name, relative: JTC's <controller name>/follow_joint_trajectory
 ACTION_NAME = "joint_trajectory_controller/follow_joint_trajectory"

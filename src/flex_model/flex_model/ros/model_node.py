@@ -2,7 +2,7 @@
 
 One node class hosts a planar arm (an arm preset or YAML: :class:`PlanarArm`, a thin
 adapter around flex_model.stepper.Stepper) and a spatial one (a DH/modified-DH YAML or a
-URDF, or a planar arm embedded with ``from_planar``: flex_model.spatial_node.SpatialArm,
+URDF, or a planar arm embedded with ``from_planar``: flex_model.ros.spatial_node.SpatialArm,
 around the compiled generalized-alpha loop of spatial/integrate.py). The arm kind is read
 from ``arm`` at configure; the parameters, topics, services, lifecycle, lockstep and
 realtime loops, command timeout, plausibility limits, divergence handling and the message
@@ -66,7 +66,7 @@ controller_rate inside the model's loop (flex_model.control_loop) - planar arms;
 spatial arm ``controller`` eq95 or eq45 is the continuous PD inside the compiled loop
 (kp, kd or kpp, kpv; set-points on flex/setpoints), a plugin is refused with the reason.
 
-Lifecycle (issue 46, flex_model.ros_main.Managed): ``autostart`` (default true)
+Lifecycle (issue 46, flex_model.ros.main.Managed): ``autostart`` (default true)
 configures and activates at start; false: unconfigured for a lifecycle manager. configure
 loads the arm, activate runs the loop, deactivate holds the state (time stands still,
 inputs refused), cleanup releases the arm.
@@ -84,7 +84,7 @@ the node alone in its executor one callback runs the periods of up to REALTIME_S
 a wait set of its own. lockstep: each command advances the model by 1/rate and publishes
 joint_states (and /clock) at once, the other topics at their rates; without a command for
 ``lockstep_timeout`` (wall) the model steps with the held one. The state messages are
-serialized once (CDR templates, flex_model.cdr_messages) and published as bytes.
+serialized once (CDR templates, flex_model.ros.cdr_messages) and published as bytes.
 """
 from __future__ import annotations
 
@@ -96,9 +96,7 @@ from contextlib import ExitStack
 from dataclasses import replace
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -106,20 +104,21 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 from std_srvs.srv import SetBool, Trigger
 from geometry_msgs.msg import PoseStamped
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from . import ros_conversions as conv
-from . import urdf
-from .control_loop import ControlLoop
-from .controller_interface import load_controller
-from .dynamics import FlexArmModel
-from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
-                       lean_node, planar_arm_parameter, read_parameters, run_node)
-from .stepper import Stepper
-from .ros_trajectory_action import action_server
-from .trajectory_action import INVALID_GOAL
+from . import conversions as conv
+from .. import urdf
+from ..control_loop import ControlLoop
+from ..controller_interface import load_controller
+from ..dynamics import FlexArmModel
+from .main import (FLOAT_MAX, INT_MAX, MODEL_PARAMETERS, ModelPlumbing, Param, ParameterError,
+                   ReasonLog, fmt, lean_node, planar_arm_parameter, positive,
+                   read_parameters, run_node)
+from ..stepper import Stepper
+from .trajectory_action import action_server
+from ..trajectory_action import INVALID_GOAL
 
 
 #: lockstep with an in-loop controller: wall time (s) of one tick's run of control periods
@@ -145,10 +144,6 @@ def tf_message_type():
     return TFMessage, None
 
 
-def _positive(v):
-    return None if v > 0 else "a number > 0"
-
-
 def _non_negative(v):
     return None if v >= 0 else "a number >= 0 (0: automatic)"
 
@@ -158,7 +153,7 @@ def _gains(v):
 
 
 def _payload_check(v):
-    from .spatial.payload import payload_inertia
+    from ..spatial.payload import payload_inertia
     try:
         payload_inertia(v)
     except ValueError as exc:
@@ -205,22 +200,18 @@ PARAMETERS = (
           check=lambda v: None if v else "a preset name or a YAML path"),
     Param("from_planar", False, "embed the planar arm ``arm`` in 3D (spatial.from_planar) "
           "and run it as a spatial arm"),
-    Param("vars_per_link", 0, "planar: deformation variables per link (0: as in the arm "
-          "file)",
-          check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
-    Param("kinematics", "", "kinematics override of the flexible links: small_deflection, "
-          "second_order, exact (empty: the arm's)"),
-    Param("mode", "realtime", "realtime | lockstep (observer: flex_model.observer_node, "
+    MODEL_PARAMETERS["vars_per_link"], MODEL_PARAMETERS["kinematics"],
+    Param("mode", "realtime", "realtime | lockstep (observer: flex_model.ros.observer_node, "
           "which the entry point starts for -p mode:=observer)",
           check=lambda v: None if v in ("realtime", "lockstep") else
-          "realtime or lockstep (mode observer is flex_model.observer_node: started by "
+          "realtime or lockstep (mode observer is flex_model.ros.observer_node: started by "
           "the entry point with -p mode:=observer, flex-twin observe, or flex-twin up)"),
     Param("rate", 1000.0, "model loop rate (Hz); lockstep: a command advances 1/rate",
-          check=_positive),
+          check=positive),
     Param("publish_rate", 250.0, "rate of the state topics (Hz; at or above rate: every "
-          "model period)", True, _positive),
+          "model period)", True, positive),
     Param("shape_rate", 50.0, "rate of flex/shape (Hz), at most publish_rate", True,
-          _positive),
+          positive),
     Param("max_step", 1e-3, "integration step (s); a spatial arm splits 1/rate into "
           "ceil((1/rate)/max_step) equal steps",
           check=lambda v: None if 0 < v <= 0.1 else "a step in (0, 0.1] s"),
@@ -244,12 +235,8 @@ PARAMETERS = (
     Param("timeout_action", "zero", "hold | zero (the command after command_timeout; with "
           "the continuous PD the feed-forward)", True, _choice("hold", "zero")),
     Param("lockstep_timeout", 1.0, "lockstep: wall s without a command before the model "
-          "steps with the held one", True, _positive),
-    Param("frame_id", "base_link", "the robot's base frame (REP 105): root of "
-          "robot_description and of the TF tree; flex/shape is drawn in it, z up (REP 103)",
-          check=lambda v: None if v else "a non-empty frame name"),
-    Param("frame_prefix", "", "prefix of every frame name (frame_id too), e.g. robot1/ for "
-          "two arms in one TF tree"),
+          "steps with the held one", True, positive),
+    MODEL_PARAMETERS["frame_id"], MODEL_PARAMETERS["frame_prefix"],
     Param("publish_tf", True, "publish /tf, /tf_static (needs the tf2_msgs package; without "
           "it TF is off, logged once at start); robot_description is always published"),
     Param("clock_topic", "/clock", "topic of the simulation clock (lockstep, or "
@@ -286,7 +273,7 @@ PARAMETERS = (
           "spatial, eq95 | eq45: the continuous PD in the compiled loop (kp, kd | kpp, "
           "kpv); empty or none: commands come over effort_controller/commands"),
     Param("controller_rate", 500.0, "planar: rate of the in-loop controller plugin (Hz); "
-          "its period is split into steps of at most max_step", check=_positive),
+          "its period is split into steps of at most max_step", check=positive),
     Param("kpp", [0.0], "spatial eq45: K_pp (1/s), one per joint or one for all",
           check=_gains),
     Param("kpv", [0.0], "spatial eq45: K_pv (N m s/rad, motor side), one per joint or one "
@@ -300,8 +287,7 @@ PARAMETERS = (
     Param("restart_on_change", True, "spatial: restart the integrator (consistent "
           "acceleration) when the command or a set-point changes, as the planar Stepper; "
           "false: continue"),
-    Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
-    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
+    MODEL_PARAMETERS["parameter_services"], MODEL_PARAMETERS["qos_event_warnings"],
 )
 
 #: ranges of the numeric parameters in their descriptors (ros_main.descriptor): the bounds
@@ -368,7 +354,7 @@ def _refuse_other_kind(p: dict, specs, spatial: bool) -> None:
                                  f"{why}")
 
 
-class ModelNode(Managed, LifecycleNode):
+class ModelNode(ModelPlumbing, LifecycleNode):
     """Any arm simulated at ``rate`` and published at ``publish_rate``; a lifecycle node
     (ros_main.Managed): configure loads the arm, activate runs the loop, deactivate holds
     the state (time stands still), cleanup releases the arm. ``defaults``: other default
@@ -397,7 +383,7 @@ class ModelNode(Managed, LifecycleNode):
         p = read_parameters(self, self.specs, RANGES)
         _aliases(p, self.specs)
         self.p = p
-        from .spatial.description import is_spatial_arm
+        from ..spatial.description import is_spatial_arm
         spatial = bool(p["from_planar"]) or is_spatial_arm(p["arm"])
         _refuse_other_kind(p, self.specs, spatial)
         if spatial:
@@ -428,8 +414,6 @@ class ModelNode(Managed, LifecycleNode):
         # control_msgs/FollowJointTrajectory for the in-loop controller (trajectory_action)
         self.fjt = action_server(self) if self.loop is not None else None
         self.timer = None  # the model loop's, while active
-        self.create_timer(1.0, self.on_status,  # wall time: sim time may stand still
-                          clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         if p["mode"] == "realtime" and p["realtime_priority"]:
             self._set_realtime_priority(int(p["realtime_priority"]))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
@@ -443,12 +427,9 @@ class ModelNode(Managed, LifecycleNode):
                                   "(hold_until_command)" if self.braked else ""))
 
     def _make_entities(self, p) -> None:
-        """Publishers (state messages as CDR templates, flex_model.cdr_messages: published
+        """Publishers (state messages as CDR templates, flex_model.ros.cdr_messages: published
         as bytes), subscriptions and services."""
-        arm, n, qos = self.arm_io, len(self.names), 10
-        self.cdr_js = conv.joint_state_cdr(self.names, n)
-        self.cdr_defl = conv.joint_state_cdr(arm.deflection_names, len(arm.deflection_names),
-                                             effort=False)
+        arm, qos = self.arm_io, 10
         self.cdr_tip = conv.tip_pose_cdr(arm.base_frame)
         self.cdr_clock = conv.clock_cdr()
         self.msg_shape = conv.ShapeMarkers(len(arm.shape_labels), int(p["shape_points"]),
@@ -456,8 +437,7 @@ class ModelNode(Managed, LifecycleNode):
                                            widths=arm.shape_widths)
         # relative names: a namespace (__ns:=/robot1) moves the whole loop; /diagnostics
         # stays global, as ROS tools (the aggregator) expect; the clock is clock_topic
-        self.pub_js = self.create_publisher(JointState, "joint_states", qos)
-        self.pub_defl = self.create_publisher(JointState, "flex/deflections", qos)
+        self._state_publishers("joint_states", arm.deflection_names, qos)
         self.pub_tip = self.create_publisher(PoseStamped, "flex/tip_pose", qos)
         self.pub_shape = self.create_publisher(MarkerArray, "flex/shape", qos)
         self.pub_imu = self.create_publisher(Imu, "flex/tip_imu", qos) if arm.has_imu \
@@ -467,7 +447,7 @@ class ModelNode(Managed, LifecycleNode):
         self.pub_description = self.create_publisher(String, "robot_description", LATCHED)
         self.pub_tf = None
         self._tf_setup(p)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", qos)
+        self._diagnostics()
         self.create_subscription(Float64MultiArray, "effort_controller/commands",
                                  self.on_command, qos)
         if arm.has_setpoints:
@@ -887,11 +867,6 @@ class ModelNode(Managed, LifecycleNode):
             return ""
         return f"; the largest command before: {fmt(u)} at t = {fmt(tc)} s"
 
-    def publish_diagnostic(self, status) -> None:
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.pub_diag.publish(msg)
-
     def publish_state(self, full: bool = True, shape: bool = True) -> None:
         """/joint_states, then /clock (a sim-time controller, woken by the clock, then has
         the new state also across processes); with ``full`` the other topics (/flex/shape
@@ -943,7 +918,7 @@ class PlanarArm:
         theta0 = np.broadcast_to(np.asarray(values, float), (n,))
         q0 = model.q_from_joint_angles(theta0)
         if p["start_static"]:  # at rest, deflected under gravity with the joints held
-            from .statics import static_equilibrium
+            from ..statics import static_equilibrium
             q0 = static_equilibrium(model, theta0, joints="clamped").q
         self.stepper = Stepper(model, q0, max_step=p["max_step"], rho_inf=p["rho_inf"])
         self.auto_limits = plausibility_limits(model)
@@ -957,20 +932,16 @@ class PlanarArm:
         self.frames = urdf.Frames.of(model, p["frame_prefix"], p["frame_id"])
         self.plane = urdf.plane_rotation(model.gravity)
         self.base_frame = self.frames.base
-        self.deflection_names = conv.deflection_names(self.links)
+        self.outputs = conv.PlanarOutputs(model, self.plane)
+        self.deflection_names = self.outputs.names
         self.shape_labels = [f"link{i + 1}" for i in range(n)]
         self.shape_widths = (0.02, 0.005)
         self.cdr_imu = conv.imu_cdr(self.frames.tips[-1]) if self.has_imu else None
-        from .live_view import node_live_view  # Foxglove WebSocket (issue 46); 0: None
+        from ..live_view import node_live_view  # Foxglove WebSocket (issue 46); 0: None
         self.live_view = node_live_view(model, p["foxglove_port"], p["frame_prefix"],
                                         p["frame_id"], p["shape_points"],
                                         node.get_logger())
-        self._values = np.empty(4 * n)  # the float64 fields of one message
-        # what Stepper.deflections and FlexArmModel.tip_pose compute, with their index and
-        # selection matrices built once (the same arithmetic: test_ros_model_node_bytes.py)
-        self._tip_index = np.array([model.tip_deflection_index(i) for i in range(n)])
-        self._tip_rotation = model.tip_rotation_matrix()
-        self._last_alpha = model.alpha_index(n - 1)
+        self._values = np.empty(3 * n)  # the float64 fields of joint_states
         self._origins = None
 
     # the state, the stepping
@@ -1035,18 +1006,14 @@ class PlanarArm:
         return values[:3 * n]
 
     def deflection_values(self) -> np.ndarray:
-        """Per link (deflection, rotation), then their rates (conv.fill_deflection_state)."""
-        n, values, st = self.model.n_links, self._values, self.stepper
-        q, v, r = st.q, st.v, self._tip_rotation
-        values[0:2 * n:2], values[1:2 * n:2] = q[self._tip_index], r @ q
-        values[2 * n::2], values[2 * n + 1::2] = v[self._tip_index], r @ v
-        return values
+        """Per link (deflection, rotation), then their rates (conv.PlanarOutputs)."""
+        return self.outputs.deflections(self.stepper.q, self.stepper.v)
 
     def tip_values(self):
         q = self.stepper.q
         self._origins = self.model.link_origins(q)
         x, y = self._origins[-1]  # st.tip_pose()
-        self._phi = float(q[self._last_alpha] + self._tip_rotation[-1] @ q)
+        self._phi = self.outputs.phi(q)
         return conv.tip_pose_values(x, y, self._phi, self.plane)
 
     def shape_lines(self, points: int) -> list:
@@ -1068,7 +1035,7 @@ class PlanarArm:
 
     def tf_setup(self, tf_type) -> list:
         """The static transforms (base -> arm_plane); the moving ones as numbers into a
-        CDR template (flex_model.cdr_messages)."""
+        CDR template (flex_model.ros.cdr_messages)."""
         self.tf_values = urdf.ArmTransforms(self.model, self.frames)
         self.cdr_tf = conv.transforms_cdr(tf_type, self.tf_values.pairs)
         return urdf.static_transforms(self.model, self.frames)
@@ -1101,14 +1068,14 @@ def spatial_main(args=None) -> None:
 
 def main(args=None) -> None:
     """A spatial arm (issue 25) runs with :data:`SPATIAL_DEFAULTS`, ``mode:=observer``
-    (issue 45) is :mod:`flex_model.observer_node`."""
+    (issue 45) is :mod:`flex_model.ros.observer_node`."""
     argv = sys.argv if args is None else args
     if _arm_argument(argv, "mode") == "observer":
         from .observer_node import main as observer_main
         return observer_main(args)
     arm = _arm_argument(argv)
     if arm:
-        from .spatial.description import is_spatial_arm
+        from ..spatial.description import is_spatial_arm
         if is_spatial_arm(arm) or _arm_argument(argv, "from_planar") == "true":
             return run_node(SpatialModelNode, args)
     run_node(ModelNode, args)

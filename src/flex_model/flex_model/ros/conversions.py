@@ -14,7 +14,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .cdr_messages import CdrTemplate
-from .trajectory import JointTrajectoryData
+from ..trajectory import JointTrajectoryData
 
 
 def stamp(t: float) -> Time:
@@ -95,7 +95,7 @@ class ShapeMarkers:
                 m.points = [Point() for _ in range(n)]
                 self.msg.markers.append(m)
 
-        # the serialized message (flex_model.cdr_messages), built here: at 10,000 points
+        # the serialized message (flex_model.ros.cdr_messages), built here: at 10,000 points
         # per link it takes about 1 s, which a realtime tick must not wait for
         self._raw = CdrTemplate(
             self.msg, [f"markers[{j}].header.stamp" for j in range(len(self.msg.markers))],
@@ -119,7 +119,7 @@ class ShapeMarkers:
     def serialized(self, t, shapes) -> bytes:
         """The message of :meth:`update` (stamp t, centre lines ``shapes``) serialized
         (CDR), written straight into a serialized copy of the message
-        (:class:`flex_model.cdr_messages.CdrTemplate`): what rclpy would send, without
+        (:class:`flex_model.ros.cdr_messages.CdrTemplate`): what rclpy would send, without
         converting 4 markers of Point objects on every publication (0.2-0.3 ms of the 1 ms
         realtime tick; Publisher.publish takes bytes)."""
         values = []
@@ -158,7 +158,7 @@ def tip_pose_values(x, y, phi, rotation=None) -> list[float]:
     s, c = math.sin(phi / 2), math.cos(phi / 2)
     if rotation is None:
         return [float(x), float(y), 0.0, 0.0, 0.0, s, c]
-    from .urdf import quaternion_from_matrix
+    from ..urdf import quaternion_from_matrix
     r = rotation
     qx, qy, qz, qw = quaternion_from_matrix(r)
     return [float(r[0, 0] * x + r[0, 1] * y), float(r[1, 0] * x + r[1, 1] * y),
@@ -188,6 +188,46 @@ def planar_tip_covariance(cov_xy_phi, rotation=None) -> np.ndarray:
         r = np.asarray(rotation, float)
         t[:3, :2], t[3:, 2] = r[:, :2], r[:, 2]
     return t @ c @ t.T
+
+
+class PlanarOutputs:
+    """What the model node publishes of a planar arm's (q, v), simulated or estimated:
+    flex/deflections' names and values (per link deflection, rotation, then their rates,
+    as :meth:`flex_model.stepper.Stepper.deflections`, index and selection matrices built
+    once), the tip angle phi (:meth:`FlexArmModel.tip_pose`) and, for an estimate, the
+    tip pose turned by the plane's ``rotation`` into the base frame (tip_pose_values) with
+    its 6 x 6 covariance from the state's (first order: J P_qq J^T, J the tip Jacobian and
+    phi's row, planar_tip_covariance)."""
+
+    def __init__(self, model, rotation):
+        n = model.n_links
+        self.model, self.nq, self.rotation = model, model.nq, rotation
+        self.names = deflection_names([lk.name for lk in model.arm.links])
+        self.tip_index = np.array([model.tip_deflection_index(i) for i in range(n)])
+        self.tip_rotation = model.tip_rotation_matrix()
+        self.last_alpha = model.alpha_index(n - 1)
+        self.values = np.empty(4 * n)
+        self.jacobian = np.empty((3, model.nq))
+
+    def deflections(self, q, v) -> np.ndarray:
+        n, out, r = len(self.tip_index), self.values, self.tip_rotation
+        out[0:2 * n:2], out[1:2 * n:2] = q[self.tip_index], r @ q
+        out[2 * n::2], out[2 * n + 1::2] = v[self.tip_index], r @ v
+        return out
+
+    def phi(self, q) -> float:
+        return float(q[self.last_alpha] + self.tip_rotation[-1] @ q)
+
+    def tip_values(self, q, state_cov, out) -> np.ndarray:
+        """``out`` (43) = position, orientation (x, y, z, w), covariance row-major."""
+        x, y = self.model.link_origins(q)[-1]
+        j = self.jacobian
+        j[:2], j[2] = self.model.tip_jacobian(q), self.tip_rotation[-1]
+        j[2, self.last_alpha] += 1.0
+        out[:7] = tip_pose_values(x, y, self.phi(q), self.rotation)
+        out[7:] = planar_tip_covariance(j @ state_cov[:self.nq, :self.nq] @ j.T,
+                                        self.rotation).ravel()
+        return out
 
 
 def clock_cdr() -> CdrTemplate:

@@ -1,5 +1,5 @@
 """ROS message layout of a spatial arm (issue 25), written once for the spatial model node
-(flex_model.spatial_node) and the spatial bag writer (flex_twin.spatial_bags).
+(flex_model.ros.spatial_node) and the spatial bag writer (flex_twin.spatial_bags).
 
 No physics here: the frames come from the model's chain (spatial/dynamics.py, seed 000
 Eqs. 17-21), the deflections are the tip variables of the beams. The message classes are
@@ -23,7 +23,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from .urdf import quaternion_from_matrix, rpy_from_matrix
+from ..urdf import quaternion_from_matrix, rpy_from_matrix
 
 #: sampled bases of the centre lines per (beam, points); the beam is kept (its id stays
 #: unique while cached)
@@ -150,12 +150,37 @@ def deflection_index(model) -> np.ndarray:
     return np.array(out, dtype=int)
 
 
-def deflection_values(index, q, v):
-    """(positions, velocities) lists of /flex/deflections from q, v (``index``:
-    :func:`deflection_index`)."""
-    pos = [float(q[k]) if k >= 0 else 0.0 for k in index]
-    vel = [float(v[k]) if k >= 0 else 0.0 for k in index]
-    return pos, vel
+class SpatialOutputs:
+    """What the model node publishes of a spatial arm's (q, v), simulated or estimated:
+    flex/deflections (:func:`deflection_names`: per flexible link tip v, w, twist, 0
+    without a twist variable, then their rates) and the end frame
+    (SpatialArmModel.tip_frame, seed 000 Eq. 19) as position and quaternion, for an
+    estimate with the covariance J P_qq J^T of its position and rotation (J: the frame's
+    6 x nq Jacobian, linear then angular)."""
+
+    def __init__(self, model):
+        self.model, self.nq = model, model.nq
+        self.names = deflection_names(model)
+        index = deflection_index(model)
+        self.present, self.index = index >= 0, index[index >= 0]
+        self.values = np.zeros(2 * len(index))
+
+    def deflections(self, q, v) -> np.ndarray:
+        m, out = len(self.present), self.values
+        out[:m][self.present], out[m:][self.present] = q[self.index], v[self.index]
+        return out
+
+    def tip_values(self, q, state_cov=None, out=None, model=None) -> np.ndarray:
+        """Position, orientation (x, y, z, w) and with ``state_cov`` the covariance
+        row-major, into ``out`` (7 or 43 values); ``model``: the arm with its payload."""
+        frame = (model or self.model).tip_frame(np.asarray(q, float))
+        out = np.empty(7 if state_cov is None else 43) if out is None else out
+        out[:3] = np.real(frame.o)
+        out[3:7] = quaternion_from_matrix(np.real(frame.R))
+        if state_cov is not None:
+            j = np.real(np.vstack([frame.Jo, frame.Jw]))
+            out[7:] = (j @ state_cov[:self.nq, :self.nq] @ j.T).ravel()
+        return out
 
 
 def joint_state(JointState, names, values, rates, efforts, t: float, effort=True):

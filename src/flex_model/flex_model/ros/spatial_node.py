@@ -1,7 +1,7 @@
-"""A spatial arm (issue 25) in the one model node (:class:`flex_model.model_node.ModelNode`):
+"""A spatial arm (issue 25) in the one model node (:class:`flex_model.ros.model_node.ModelNode`):
 :class:`SpatialArm` steps the compiled generalized-alpha loop (spatial/integrate.
 simulate_fixed_compiled) and measures what the node publishes, in the message layout of
-flex_model.ros_spatial (the same as ``flex-twin simulate --bag``).
+flex_model.ros.spatial (the same as ``flex-twin simulate --bag``).
 ``flex-spatial-model-node`` (model_node.SpatialModelNode) is the model node with the
 spatial defaults (model_node.SPATIAL_DEFAULTS); the topics, services, parameters and
 lifecycle are the model node's (its docstring).
@@ -29,11 +29,10 @@ import math
 
 import numpy as np
 
-from . import ros_spatial as sr
-from .config import ConfigError
-from .ros_conversions import check_payload, finite_array
-from .ros_main import ParameterError, fmt
-from .urdf import quaternion_from_matrix
+from . import spatial as sr
+from ..config import ConfigError
+from .conversions import check_payload, finite_array
+from .main import ParameterError, fmt
 
 #: finer steps (per period: per x k) tried, in turn, over a period whose Newton failed
 REFINEMENTS = (4, 16)
@@ -43,15 +42,15 @@ def load_arm_parameter(arm: str, planar: bool, kinematics: str = ""):
     """The SpatialArm named by the ``arm`` parameter (ParameterError naming it), with the
     ``kinematics`` parameter's kinematics ('': the arm file's)."""
     from dataclasses import replace
-    from .spatial.description import KINEMATICS
-    from .spatial.loader import load_spatial_arm
+    from ..spatial.description import KINEMATICS
+    from ..spatial.loader import load_spatial_arm
     if kinematics and kinematics not in KINEMATICS:
         raise ParameterError(f"parameter kinematics: got {kinematics!r}; expected one of "
                              f"{', '.join(KINEMATICS)} (empty: the arm file's)")
     try:
         if planar:
-            from .arm import load_arm
-            from .spatial.description import from_planar
+            from ..arm import load_arm
+            from ..spatial.description import from_planar
             out = from_planar(load_arm(arm))
         else:
             out = load_spatial_arm(arm)
@@ -88,9 +87,9 @@ class SpatialArm:
     stepper = None
 
     def __init__(self, node, p: dict):
-        from .spatial.dynamics import SpatialArmModel
-        from .spatial.limits import joint_limits
-        from .spatial.payload import payload_inertia
+        from ..spatial.dynamics import SpatialArmModel
+        from ..spatial.limits import joint_limits
+        from ..spatial.payload import payload_inertia
         self.node, self.p = node, p
         self.arm0 = load_arm_parameter(p["arm"], p["from_planar"],  # without payload
                                        p["kinematics"])
@@ -110,9 +109,8 @@ class SpatialArm:
         self.q0, self.v0 = self._initial_state(vec["initial_joint_values"],
                                                p["start_static"])
         self.model0 = self.model
-        self.dindex = sr.deflection_index(self.model)
-        self.deflection_names = self.dnames = sr.deflection_names(self.model)
-        self._present = self.dindex >= 0
+        self.outputs = sr.SpatialOutputs(self.model)
+        self.deflection_names = self.outputs.names
         self.base_frame = self.base = sr.frame_name("base_link", p["frame_prefix"],
                                                     p["frame_id"])
         self.shape_labels = [lk.name for lk, b in zip(self.arm.links, self.model.beams)
@@ -139,7 +137,7 @@ class SpatialArm:
                 f"voltages, {law}'s PD gives torques")
         self.kp, self.kd = vec["kp"], vec["kd"]
         if law == "eq45":
-            from .spatial.scenario import eq45_joint_gains
+            from ..spatial.scenario import eq45_joint_gains
             self.kp, self.kd = eq45_joint_gains(self.arm, vec["kpp"], vec["kpv"])
         self.setpoints0 = vec["setpoints"]
         self.act = self.model.actuator_index >= 0
@@ -171,8 +169,8 @@ class SpatialArm:
         return sr.skeleton_urdf(self.model, self.p["frame_prefix"], self.p["frame_id"])
 
     def _model_with(self, payload):
-        from .spatial.dynamics import SpatialArmModel
-        from .spatial.payload import with_payload
+        from ..spatial.dynamics import SpatialArmModel
+        from ..spatial.payload import with_payload
         return SpatialArmModel(with_payload(self.arm0, *payload))
 
     def _per_joint(self, name, values) -> np.ndarray:
@@ -183,16 +181,17 @@ class SpatialArm:
         return np.array(np.broadcast_to(np.asarray(values, float), (n,)))
 
     def _initial_state(self, values, static):
-        """(q0, v0) as spatial/scenario.py builds them (SpatialScenario.initial_state)."""
-        from .spatial.scenario import SpatialPD, SpatialScenario
-        sc = SpatialScenario(name=self.arm.name, arm=self.arm, duration=1.0, step=self.h,
-                             sample_period=self.period, rho_inf=self.p["rho_inf"],
-                             joint_values=values, joint_rates=np.zeros(len(values)),
-                             start_static=static,
-                             pd=SpatialPD(self.kp, self.kd, self.setpoints0) if self.in_loop_pd
-                             else None)
+        """(q0, v0) as a scenario builds them (flex_model.scenario.Scenario.initial_state)."""
+        from ..inputs import JointPD
+        from ..scenario import Scenario
+        sc = Scenario(name=self.arm.name, arm=self.arm, duration=1.0, step=self.h,
+                      sample_period=self.period, rho_inf=self.p["rho_inf"],
+                      joint_values=values, joint_rates=np.zeros(len(values)),
+                      start_static=static,
+                      pd=JointPD(self.kp, self.kd, self.setpoints0) if self.in_loop_pd
+                      else None)
         try:
-            q0, v0, _ = sc.initial_state(self.model)
+            q0, v0 = sc.initial_state(self.model)
         except (RuntimeError, np.linalg.LinAlgError) as exc:
             raise ParameterError(f"parameter start_static: no static state ({exc})") from None
         return q0, v0
@@ -230,7 +229,7 @@ class SpatialArm:
     def payload_from(self, data, limit):
         """(mass, 3 x 3 inertia) of a payload vector (spatial/payload.payload_inertia),
         within the plausibility limits (the largest principal inertia)."""
-        from .spatial.payload import payload_inertia
+        from ..spatial.payload import payload_inertia
         m, inertia = payload_inertia(data)
         largest = float(np.max(np.linalg.eigvalsh(inertia)))
         check_payload(((m, "mass", "kg"), (largest, "largest principal inertia", "kg m^2")),
@@ -240,7 +239,7 @@ class SpatialArm:
     def set_payload(self, payload) -> None:
         """The arm's model rebuilt with the payload in the last end body
         (spatial/payload.model_with_payload), the state kept, the method restarted."""
-        from .spatial.payload import model_with_payload
+        from ..spatial.payload import model_with_payload
         self.model = model_with_payload(self.model0, self.arm0, *payload)
         self.payload, self.acc = payload, None
 
@@ -296,7 +295,7 @@ class SpatialArm:
 
     def _period(self, n: int) -> None:
         """One period in ``n`` steps of the compiled loop, then the limit check."""
-        from .spatial import integrate
+        from ..spatial import integrate
         K0 = self.model.K
         try:
             self.model.K = K0 + self.Kp
@@ -336,15 +335,10 @@ class SpatialArm:
         return np.concatenate([self.q[off], self.v[off], self.applied()])
 
     def deflection_values(self) -> np.ndarray:
-        """Per flexible link tip v, w, twist (0 without a twist variable), then rates."""
-        m, idx = len(self.dindex), self.dindex[self._present]
-        out = np.zeros(2 * m)
-        out[:m][self._present], out[m:][self._present] = self.q[idx], self.v[idx]
-        return out
+        return self.outputs.deflections(self.q, self.v)
 
-    def tip_values(self) -> list:
-        tip = self.model.tip_frame(self.q)
-        return [*map(float, np.real(tip.o)), *quaternion_from_matrix(np.real(tip.R))]
+    def tip_values(self) -> np.ndarray:
+        return self.outputs.tip_values(self.q, model=self.model)
 
     def shape_lines(self, points: int) -> list:
         return sr.centre_lines(self.model, self.q, points)
@@ -367,11 +361,3 @@ class SpatialArm:
         return self.tf_types.TFMessage(transforms=sr.transforms(
             self.tf_types, self.model, self.q, t, None, self.p["frame_prefix"],
             self.p["frame_id"]))
-
-
-if __name__ == "__main__":
-    # python -m flex_model.spatial_node (the former node's command, as docs/spatial.md shows
-    # it): the model node with the spatial defaults. By name: model_node imports this module,
-    # which imports nothing of the node back (no import cycle).
-    import importlib
-    importlib.import_module("flex_model.model_node").spatial_main()

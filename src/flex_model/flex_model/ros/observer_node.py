@@ -1,17 +1,17 @@
 """ObserverNode: the model node in observer mode (issue 45): the twin follows a real arm.
 
 Started as the model node with ``mode: observer`` (``model_node`` dispatches here, as it
-dispatches a spatial arm to :mod:`flex_model.spatial_node`; ``flex-twin observe``;
+dispatches a spatial arm to :mod:`flex_model.ros.spatial_node`; ``flex-twin observe``;
 ``flex-twin up`` with ``mode: observer`` in the flex_model section). It does not integrate
 open loop: every sample of the real arm's joint_states runs one step of the state estimator
 (:class:`flex_model.estimation.Estimator`, a Kalman filter on the flexible model) inside
 the subscription callback, and the estimate goes out at once from messages serialized at
-start (flex_model.cdr_messages: only stamps and numbers are written per sample). No timer
+start (flex_model.ros.cdr_messages: only stamps and numbers are written per sample). No timer
 is in the hot path (one 1 s wall-clock timer publishes the filter's health).
 
 A planar arm (FlexArmModel) or a spatial one (issue 25: SpatialArmModel, loaded as the
 spatial node loads it; flex/deflections then in its layout, tip v, w and twist per flexible
-link, :mod:`flex_model.ros_spatial`). Topic names are relative (a namespace moves them);
+link, :mod:`flex_model.ros.spatial`). Topic names are relative (a namespace moves them);
 /diagnostics stays global.
 
 Subscriptions (reliable, depth ``queue_depth``: a burst of samples is queued, not lost):
@@ -48,7 +48,7 @@ Publications (stamps: the joint_states sample's):
 
 Bad messages (wrong lengths, unknown joint names, non-finite values, a stamp not after the
 previous sample's: late) are dropped with the reason logged at most once a second per
-reason (ros_main.ReasonLog) and counted; the node keeps running. A gap of k > 1 sample
+reason (main.ReasonLog) and counted; the node keeps running. A gap of k > 1 sample
 periods is predicted over (k - 1 steps without measurements, counted as missed); a gap
 longer than ``max_gap`` restarts the filter at the next sample's joint angles, as the
 first sample after configure or activate does (at rest, the links in static balance:
@@ -60,8 +60,12 @@ Parameters (:data:`PARAMETERS`): arm, vars_per_link, kinematics (as the model no
 adapt (comma-separated parameters adapted online), sample_period (s: the arm's sample period,
 the filter's step), initial_joint_angles_deg, input_topic, gauge_topic, queue_depth,
 max_gap, nis_window, frame_id, frame_prefix, parameter_services, qos_event_warnings.
-Lifecycle as the model node (ros_main.Managed): configure builds the filter, activate
-takes samples, deactivate refuses them (counted as dropped), cleanup releases the filter.
+The plumbing is the model node's (main.ModelPlumbing: lifecycle, the shared parameters,
+joint_states and flex/deflections as CDR templates, /diagnostics every second; the outputs
+of a state, conversions.PlanarOutputs and spatial.SpatialOutputs): configure builds the
+filter, activate takes samples, deactivate refuses them (counted as dropped), cleanup
+releases the filter. Its own: the filter, the gauges, the health, the tip pose with its
+covariance.
 """
 from __future__ import annotations
 
@@ -71,26 +75,22 @@ from collections import deque
 from dataclasses import replace
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
-from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.lifecycle import LifecycleNode
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from . import ros_conversions as conv
-from . import urdf
+from . import conversions as conv
+from . import spatial as sr
+from .. import urdf
 from .cdr_messages import read_joint_state, read_joint_state_names
-from .dynamics import FlexArmModel
-from .estimation.measurements import DEFAULT_STD, NAME_PATTERN
-from .estimation.recording import initial_q
-from .ros_main import (FLOAT_MAX, INT_MAX, Managed, Param, ParameterError, ReasonLog, fmt,
-                       lean_node, planar_arm_parameter, read_parameters, run_node)
-
-
-def _positive(v):
-    return None if v > 0 else "a number > 0"
+from ..dynamics import FlexArmModel
+from ..estimation.measurements import DEFAULT_STD, NAME_PATTERN
+from ..estimation.recording import initial_q
+from .main import (FLOAT_MAX, INT_MAX, MODEL_PARAMETERS, ModelPlumbing, Param, ParameterError,
+                   ReasonLog, fmt, lean_node, planar_arm_parameter, positive,
+                   read_parameters, run_node)
 
 
 def _names(v):
@@ -102,11 +102,9 @@ def _names(v):
 PARAMETERS = (
     Param("arm", "thesis_example1_motors", "arm preset name or arm YAML path: the model of "
           "the real arm", check=lambda v: None if v else "a preset name or a YAML path"),
-    Param("vars_per_link", 0, "deformation variables per link (0: as in the arm file)",
-          check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
-    Param("kinematics", "", "joint-to-link kinematics override (empty: the arm's)"),
+    MODEL_PARAMETERS["vars_per_link"], MODEL_PARAMETERS["kinematics"],
     Param("mode", "observer", "observer (this node); realtime | lockstep simulate "
-          "(flex_model.model_node)", check=lambda v: None if v == "observer" else
+          "(flex_model.ros.model_node)", check=lambda v: None if v == "observer" else
           "observer (realtime and lockstep are the simulating model node's)"),
     Param("measure", "q", "measurements, comma-separated, as flex-twin estimate --measure "
           "(q: every joint angle; q1, v1: joint 1's angle, rate, from joint_states; the "
@@ -133,14 +131,11 @@ PARAMETERS = (
     Param("queue_depth", 1000, "depth of the reliable input subscriptions (samples queued "
           "while a step runs)", check=lambda v: None if v >= 1 else "an integer >= 1"),
     Param("max_gap", 0.1, "s: a longer gap between samples restarts the filter at the next "
-          "sample; shorter ones are predicted over", check=_positive),
+          "sample; shorter ones are predicted over", check=positive),
     Param("nis_window", 1000, "samples of the NIS statistics on /diagnostics",
           check=lambda v: None if v >= 10 else "an integer >= 10"),
-    Param("frame_id", "base_link", "the base frame of the tip pose (z up, REP 103)",
-          check=lambda v: None if v else "a non-empty frame name"),
-    Param("frame_prefix", "", "prefix of the frame name (e.g. robot1/)"),
-    Param("parameter_services", True, "false: no parameter services (flex_model.ros_main)"),
-    Param("qos_event_warnings", True, "false: no QoS-event handlers (flex_model.ros_main)"),
+    *(MODEL_PARAMETERS[k] for k in ("frame_id", "frame_prefix", "parameter_services",
+                                    "qos_event_warnings")),
 )
 
 #: wall time (s) one joint_states callback goes on taking the samples queued behind its
@@ -193,7 +188,7 @@ def measurements_named(model, names, stds=(0.0,)) -> list:
     joint or link where it has one, else the default of the kind (:data:`NAMED_KINDS`);
     ``stds`` one per measurement or one for all overrides the std (0: keep it);
     ValueError naming a bad one."""
-    from .estimation import Measurement
+    from ..estimation import Measurement
     out, count = [], model.n_links
     for name in names:
         if name in NAMED_COMPONENTS:
@@ -218,70 +213,6 @@ def measurements_named(model, names, stds=(0.0,)) -> list:
                          f"({len(out)}) or one for all")
     return [replace(m, std=float(std)) if std > 0 else m
             for m, std in zip(out, np.broadcast_to(np.asarray(stds, float), (len(out),)))]
-
-
-class PlanarOutputs:
-    """What the simulating model node publishes of a planar (q, v), for an estimate:
-    flex/deflections' names and values (per link deflection, rotation, then their rates,
-    as :meth:`flex_model.stepper.Stepper.deflections`) and the tip pose's values
-    (:meth:`FlexArmModel.tip_pose` turned by the plane's ``rotation`` into the base frame,
-    conv.tip_pose_values) with its 6 x 6 covariance from the state's (first order: J P_qq
-    J^T, J the tip Jacobian and phi's row, conv.planar_tip_covariance)."""
-
-    def __init__(self, model: FlexArmModel, rotation):
-        n = model.n_links
-        self.model, self.nq, self.rotation = model, model.nq, rotation
-        self.names = conv.deflection_names([lk.name for lk in model.arm.links])
-        self.tip_index = np.array([model.tip_deflection_index(i) for i in range(n)])
-        self.tip_rotation = model.tip_rotation_matrix()
-        self.phi_row = self.tip_rotation[-1].copy()
-        self.phi_row[model.alpha_index(n - 1)] += 1.0
-        self.values = np.empty(4 * n)
-        self.jacobian = np.empty((3, model.nq))
-
-    def deflections(self, q, v) -> np.ndarray:
-        n, out, r = len(self.tip_index), self.values, self.tip_rotation
-        out[0:2 * n:2], out[1:2 * n:2] = q[self.tip_index], r @ q
-        out[2 * n::2], out[2 * n + 1::2] = v[self.tip_index], r @ v
-        return out
-
-    def tip_values(self, q, state_cov, out) -> np.ndarray:
-        """``out`` (43) = position, orientation (x, y, z, w), covariance row-major."""
-        x, y = self.model.link_origins(q)[-1]
-        j = self.jacobian
-        j[:2], j[2] = self.model.tip_jacobian(q), self.phi_row
-        p = state_cov[:self.nq, :self.nq]
-        out[:7] = conv.tip_pose_values(x, y, float(self.phi_row @ q), self.rotation)
-        out[7:] = conv.planar_tip_covariance(j @ p @ j.T, self.rotation).ravel()
-        return out
-
-
-class SpatialOutputs:
-    """The same for a spatial arm: flex/deflections as the spatial node publishes them
-    (ros_spatial: per flexible link tip v, w, twist, then their rates) and the end frame
-    (SpatialArmModel.tip_frame) with the covariance J P_qq J^T of its position and
-    rotation (J: the frame's 6 x nq Jacobian, linear then angular)."""
-
-    def __init__(self, model):
-        from . import ros_spatial as sr
-        self.model, self.nq = model, model.nq
-        self.names = sr.deflection_names(model)
-        index = sr.deflection_index(model)
-        self.present, self.index = index >= 0, index[index >= 0]
-        self.values = np.zeros(2 * len(index))
-
-    def deflections(self, q, v) -> np.ndarray:
-        m, out = len(self.present), self.values
-        out[:m][self.present], out[m:][self.present] = q[self.index], v[self.index]
-        return out
-
-    def tip_values(self, q, state_cov, out) -> np.ndarray:
-        frame = self.model.tip_frame(np.asarray(q, float))
-        j = np.real(np.vstack([frame.Jo, frame.Jw]))
-        out[:3] = np.real(frame.o)
-        out[3:7] = urdf.quaternion_from_matrix(np.real(frame.R))
-        out[7:] = (j @ state_cov[:self.nq, :self.nq] @ j.T).ravel()
-        return out
 
 
 class NisWindow:
@@ -318,7 +249,7 @@ class NisWindow:
                 "nis_band": (float(lo), float(hi))}
 
 
-class ObserverNode(Managed, LifecycleNode):
+class ObserverNode(ModelPlumbing, LifecycleNode):
     """The flexible model as an observer of a real arm (module docstring)."""
 
     def __init__(self, **kwargs):
@@ -327,7 +258,7 @@ class ObserverNode(Managed, LifecycleNode):
 
     # ------------------------------------------------------------- lifecycle
     def _configure(self) -> None:
-        from .estimation import Estimator
+        from ..estimation import Estimator
         p = self.p = read_parameters(self, PARAMETERS, RANGES)
         self.model, self.outputs = self._model(p)
         n = self.model.n_links
@@ -344,9 +275,6 @@ class ObserverNode(Managed, LifecycleNode):
                                  f"expected {n} angles (deg) or one for every joint")
         self.theta0 = np.radians(np.broadcast_to(np.asarray(angles, float), (n,)))
         self._reset_filter(self.theta0)
-        self.cdr_js = conv.joint_state_cdr(self.names, n)
-        self.cdr_defl = conv.joint_state_cdr(self.outputs.names, len(self.outputs.names),
-                                             effort=False)
         self.cdr_tip = conv.tip_pose_cov_cdr(p["frame_prefix"] + p["frame_id"])
         self._js_values = np.empty(3 * n)
         self._tip_values = np.empty(7 + 36)
@@ -362,11 +290,10 @@ class ObserverNode(Managed, LifecycleNode):
         self.drops = ReasonLog(self)
         qos = QoSProfile(depth=int(p["queue_depth"]), history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.RELIABLE)
-        self.pub_js = self.create_publisher(JointState, "flex/estimate/joint_states", qos)
-        self.pub_defl = self.create_publisher(JointState, "flex/deflections", qos)
+        self._state_publishers("flex/estimate/joint_states", self.outputs.names, qos)
         self.pub_tip = self.create_publisher(PoseWithCovarianceStamped,
                                              "flex/estimate/tip_pose", qos)
-        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._diagnostics()
         # raw: the samples are read from their bytes (cdr_messages.read_joint_state)
         self.sub_js = self.create_subscription(JointState, p["input_topic"],
                                                self.on_joint_state, qos, raw=True)
@@ -379,8 +306,6 @@ class ObserverNode(Managed, LifecycleNode):
         if p["input"] == "command":
             self.create_subscription(Float64MultiArray, "effort_controller/commands",
                                      self.on_command, qos)
-        self.create_timer(1.0, self.on_status,
-                          clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
         lean_node(self, p["parameter_services"], p["qos_event_warnings"])
         self.get_logger().info(
             f"observer of arm {self.model.arm.name} ({self.model.nq} coordinates), measuring "
@@ -392,14 +317,14 @@ class ObserverNode(Managed, LifecycleNode):
     def _model(p):
         """(model, outputs) of the ``arm`` parameter: a planar FlexArmModel, or a spatial
         arm's SpatialArmModel (issue 25; loaded as the spatial node loads it)."""
-        from .spatial.description import is_spatial_arm
+        from ..spatial.description import is_spatial_arm
         if is_spatial_arm(p["arm"]):
-            from .spatial.dynamics import SpatialArmModel
+            from ..spatial.dynamics import SpatialArmModel
             from .spatial_node import load_arm_parameter
             model = SpatialArmModel(load_arm_parameter(p["arm"], False))
-            return model, SpatialOutputs(model)
+            return model, sr.SpatialOutputs(model)
         model = FlexArmModel(planar_arm_parameter(p))
-        return model, PlanarOutputs(model, urdf.plane_rotation(model.gravity))
+        return model, conv.PlanarOutputs(model, urdf.plane_rotation(model.gravity))
 
     def _cleanup(self) -> None:
         self.estimator = self.model = None
@@ -424,7 +349,7 @@ class ObserverNode(Managed, LifecycleNode):
         return found, sources
 
     def _settings(self, p):
-        from .estimation import EstimatorSettings
+        from ..estimation import EstimatorSettings
         adapt = tuple(s.strip() for s in p["adapt"].split(",") if s.strip())
         return EstimatorSettings(sample_period=p["sample_period"], adapt=adapt)
 
@@ -655,11 +580,8 @@ class ObserverNode(Managed, LifecycleNode):
         if not self.configured:
             return
         level, message, values = self.health()
-        status = conv.diagnostic_status(self.get_fully_qualified_name(),
-                                        self.model.arm.name, level, message, **values)
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.pub_diag.publish(msg)
+        self.publish_diagnostic(conv.diagnostic_status(
+            self.get_fully_qualified_name(), self.model.arm.name, level, message, **values))
 
 
 def main(args=None) -> None:

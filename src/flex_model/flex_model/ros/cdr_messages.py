@@ -159,7 +159,7 @@ class CdrTemplate:
 
     def fill(self, t: float | None = None, values=None) -> bytes:
         """The message with every stamp at the simulation time ``t`` (s, rounded to the
-        nanosecond as :func:`flex_model.ros_conversions.set_time`) and the float64
+        nanosecond as :func:`flex_model.ros.conversions.set_time`) and the float64
         fields set to ``values`` (in the order of ``doubles``), serialized."""
         if t is not None and self._sec.size:
             sec, nsec = divmod(int(round(t * 1e9)), 1_000_000_000)

@@ -16,13 +16,17 @@ from dataclasses import dataclass
 from typing import Callable
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
+from rclpy.clock import Clock as SteadyClock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
 
-from flex_model import ros_environment
+from flex_model.ros import ros_environment
 from flex_model.command import stop_on_signals
+from .conversions import joint_state_cdr
 
 
 PARAMETER_SERVICES = ("describe_parameters", "get_parameter_types", "get_parameters",
@@ -88,7 +92,7 @@ class ParameterError(ValueError):
 def planar_arm_parameter(p: dict):
     """The planar arm of a node's ``arm``, ``vars_per_link`` (0: the arm file's) and
     ``kinematics`` ('': the arm file's) parameters; a ParameterError naming ``arm``."""
-    from .arm import load_arm
+    from ..arm import load_arm
     try:
         arm = load_arm(p["arm"], p["vars_per_link"] or None)
         return arm.with_kinematics(p["kinematics"]) if p["kinematics"] else arm
@@ -103,8 +107,8 @@ def fmt(value) -> str:
         return repr(value)
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, (list, tuple)) or (hasattr(value, "tolist") and
-                                           getattr(value, "ndim", 0) > 0):
+    if isinstance(value, (list, tuple)) or (hasattr(value, "tolist")
+                                            and getattr(value, "ndim", 0) > 0):
         items = value.tolist() if hasattr(value, "tolist") else value
         return "[" + ", ".join(fmt(v) for v in items) + "]"
     if hasattr(value, "item") and not isinstance(value, (int, float)):
@@ -280,6 +284,26 @@ def guard_parameters(node, specs, apply: Callable | None = None,
 
 
 #: the ``autostart`` parameter of the lifecycle nodes (:class:`Managed`)
+def positive(v):
+    """A parameter check: ``v`` > 0."""
+    return None if v > 0 else "a number > 0"
+
+
+#: the parameters the model node and its observer mode declare alike (ModelPlumbing)
+MODEL_PARAMETERS = {p.name: p for p in (
+    Param("vars_per_link", 0, "planar: deformation variables per link (0: as in the arm "
+          "file)",
+          check=lambda v: None if v >= 0 and v % 2 == 0 else "0 or an even integer >= 2"),
+    Param("kinematics", "", "kinematics override of the flexible links: small_deflection, "
+          "second_order, exact (empty: the arm's)"),
+    Param("frame_id", "base_link", "the robot's base frame (REP 105): root of "
+          "robot_description and of the TF tree; flex/shape is drawn in it, z up (REP 103)",
+          check=lambda v: None if v else "a non-empty frame name"),
+    Param("frame_prefix", "", "prefix of every frame name (frame_id too), e.g. robot1/ for "
+          "two arms in one TF tree"),
+    Param("parameter_services", True, "false: no parameter services (lean_node)"),
+    Param("qos_event_warnings", True, "false: no QoS-event handlers (lean_node)"))}
+
 AUTOSTART = Param("autostart", True, "configure and activate at start (lifecycle); "
                   "false: start unconfigured, a lifecycle manager (ros2 lifecycle set, "
                   "lifecycle_msgs/srv/ChangeState on <node>/change_state) drives it")
@@ -450,6 +474,33 @@ class Managed:
 
     def _cleanup(self) -> None:
         """Release what is not an entity of the node (a live view's server)."""
+
+
+class ModelPlumbing(Managed):
+    """What the model node and its observer mode share (issue 43: one node plumbing, the
+    arm or the filter behind it): the lifecycle (:class:`Managed`), the parameters of
+    :data:`MODEL_PARAMETERS`, joint_states and flex/deflections as CDR templates
+    (published as bytes, flex_model.ros.cdr_messages), /diagnostics with the node's
+    ``on_status`` every second of wall time (simulation time may stand still)."""
+
+    def _state_publishers(self, js_topic: str, deflection_names, qos) -> None:
+        """``pub_js``/``cdr_js`` (``self.names``: position, velocity, effort) and
+        ``pub_defl``/``cdr_defl`` (``deflection_names``: positions and rates)."""
+        self.cdr_js = joint_state_cdr(self.names, len(self.names))
+        self.cdr_defl = joint_state_cdr(deflection_names, len(deflection_names), False)
+        self.pub_js = self.create_publisher(JointState, js_topic, qos)
+        self.pub_defl = self.create_publisher(JointState, "flex/deflections", qos)
+
+    def _diagnostics(self) -> None:
+        """/diagnostics (global: ROS tools, the aggregator, expect it there) and the
+        1 s wall-clock timer of ``on_status``."""
+        self.pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_timer(1.0, self.on_status, clock=SteadyClock(clock_type=ClockType.STEADY_TIME))
+
+    def publish_diagnostic(self, status) -> None:
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.pub_diag.publish(msg)
 
 
 _NUMBER = re.compile(r"nan|inf|[-+]?\d[\d.]*(?:e[-+]?\d+)?", re.IGNORECASE)
