@@ -32,11 +32,16 @@ test: venv
 
 # NUMBA_OPT unset: the demo compiles its kernels at LLVM -O1 into the tests' cache, as
 # conftest.py does (a third less compile time on a fresh clone, the same numbers; the demo's
-# loop is bound by its recorder, not the kernel: docs/development.md, fast feedback)
-demo: venv
+# loop is bound by its recorder, not the kernel: docs/development.md, fast feedback).
+# The demo needs neither tf2_msgs nor control_msgs: their build (bootstrap step 5) runs
+# beside the demo, which compiles on one core most of the time; the last bootstrap.sh waits
+# for it (and fails if it failed).
+demo:
+	bash $(ROOT)/scripts/bootstrap.sh --interfaces-in-background
 	cd $(ROOT) && $(ENV) && if [ -z "$${NUMBA_OPT:-}" ]; then export NUMBA_OPT=1 \
 	    NUMBA_CACHE_DIR="$${NUMBA_CACHE_DIR:-$(ROOT)/.numba_test_cache}"; fi \
-	    && flex-twin twin-demo $(DEMO_ARGS)
+	    && status=0 && { flex-twin twin-demo $(DEMO_ARGS) || status=$$?; } \
+	    && bash $(ROOT)/scripts/bootstrap.sh && exit $$status
 
 bench: venv
 	@cd $(ROOT) && if [ -f bench/run_all.py ]; then $(ENV) && python bench/run_all.py; \

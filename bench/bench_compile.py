@@ -65,7 +65,7 @@ def _run(demo: bool) -> None:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--opt", type=int, choices=(1, 2, 3), default=3,
+    p.add_argument("--opt", type=int, choices=(0, 1, 2, 3), default=3,
                    help="NUMBA_OPT (LLVM optimization level; numba's default 3)")
     p.add_argument("--demo", action="store_true", help="the whole twin demo (needs ROS)")
     p.add_argument("--top", type=int, default=25, help="functions to list")

@@ -64,7 +64,7 @@ def eom_cost(nvs=(2, 4, 8, 16, 32, 64), kinematics="small_deflection"):
     for nv in nvs:
         model = FlexArmModel(load_arm("thesis_three_link", nv).with_kinematics(kinematics))
         E = input_data(model, sc.pd, sc.pulses, np.zeros(3))
-        x = np.concatenate([model.q_from_joint_angles(sc.theta0), np.zeros(model.nq)])
+        x = np.concatenate([model.q_from_joint_angles(sc.joint_values), np.zeros(model.nq)])
         x[model.nq:] = 0.01
         derivative(0.0, x, model.P, E)
         n = max(20, int(2e5 / model.nq ** 2))

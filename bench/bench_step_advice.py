@@ -15,7 +15,7 @@ and two spatial, short runs (0.5 s):
 Every run is compared with its own converged run (same arm and kinematics; a step 8x
 below the sweep's smallest, 2x its largest variables): the error is
 step_advice.tip_error (largest error of a link's tip deflection over the run, share of
-that link's largest value). The advice (Scenario.advice / SpatialScenario.advice,
+that link's largest value). The advice (Scenario.advice on either arm,
 step_advice.estimate_error: the distance to the run with a quarter of the step and twice
 the variables) is asked for every setting. Acceptance: every run more than 2 % off
 warned, at most 10 % of the runs within 1 % warned. Prints the table and the two counts.
@@ -101,7 +101,7 @@ ARMS = {
 
 def tips_and_advice(sc, advise: bool):
     """(tip deflections, warning, estimate) of a planar or a spatial scenario."""
-    tips = sc.tips() if hasattr(sc, "tips") else sc.run(advise=False).tip_deflections
+    tips = sc.run(advise=False).tip_deflections
     if not advise:
         return tips, None, None
     adv = sc.advice()

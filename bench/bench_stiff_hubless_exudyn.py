@@ -259,7 +259,7 @@ def our_run(nv: int, step: float, duration: float, repeat: int = 1,
         if best is None or r["cpu_s"] < best["cpu_s"]:
             best = r
     q = res.joint_angles
-    data = np.column_stack([res.t, q, res.joint_rates, res.tip_deflections, res.tip_xy])
+    data = np.column_stack([res.t, q, res.joint_rates, res.tip_deflections, res.tip_positions])
     best["data"] = data
     best["ok"] = bool(np.isfinite(data).all())
     return best

@@ -29,7 +29,7 @@ for name, t, waypoint in zip(("P1", "P2", "P3", "P4"), SECTION_F_TIMES, SECTION_
     if t > run.t[-1] + 1e-9:
         break
     k = int(np.argmin(np.abs(run.t - t)))
-    error = np.hypot(*(run.tip_xy[k] - waypoint))
+    error = np.hypot(*(run.tip_positions[k] - waypoint))
     print(f"{name} at t = {t:4.1f} s: tip error = {1e3 * error:.3f} mm")
 plot_simulation(run, "tracking.png", title="thesis Ch. V task under Eq. (95)")
 print("wrote tracking.png")

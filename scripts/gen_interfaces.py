@@ -133,11 +133,12 @@ def build_libs(pkg, venv, build, flags):
             f.result()
 
 
-def build_python(pkg, venv, build, flags, site):
-    """Install the generated Python package and compile its C support + extension modules."""
+def build_python(pkg, venv, build, flags):
+    """Stage the generated Python package (build/site/<pkg>) with its C support + extension
+    modules compiled; return the staged folder."""
     lib = venv / 'lib'
     src = build / 'py' / pkg
-    dest = site / pkg
+    dest = build / 'site' / pkg
     shutil.rmtree(dest, ignore_errors=True)
     shutil.copytree(src, dest, ignore=shutil.ignore_patterns('*.c', 'tmp'))
     (dest / '__init__.py').touch()
@@ -157,6 +158,7 @@ def build_python(pkg, venv, build, flags, site):
     with cf.ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
         for f in [pool.submit(ext, ts) for ts in ['rosidl_typesupport_c'] + TYPESUPPORTS]:
             f.result()
+    return dest
 
 
 def install_share(pkg, venv, idl, json_files):
@@ -189,8 +191,12 @@ def build_package(pkg, venv, build):
     idl, json_files = generate(pkg, venv / 'share', build)
     flags = compile_flags(venv, build)
     build_libs(pkg, venv, build, flags)
-    build_python(pkg, venv, build, flags, site)
+    staged = build_python(pkg, venv, build, flags)
     install_share(pkg, venv, idl, json_files)
+    # last, in one rename: a process importing pkg meanwhile (make demo runs beside this
+    # build) finds either no package or the whole one, with its libraries in place
+    shutil.rmtree(site / pkg, ignore_errors=True)
+    os.replace(staged, site / pkg)
     return len(idl)
 
 

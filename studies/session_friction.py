@@ -15,11 +15,41 @@ session twins is what the sessions' spread costs a twin of fixed levels.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
+from flex_model.arm import ArmDescription
 from flex_model.dynamics import FlexArmModel
+from flex_model.effects import StickSlipFriction
 from flex_twin.real_arms.replay import rms, replay
-from flex_twin.real_arms.quanser_twin import with_stick_slip
+
+#: pre-sliding displacement F_s / sigma_0 at the hub (rad): one encoder count
+#: (2 pi / 4096) of the SRV02's output-shaft encoder
+PRESLIDING = 2 * np.pi / 4096
+STRIBECK_VELOCITY = 0.01     # rad/s, as the calibrated joint_friction
+ELASTIC_FRACTION = 0.5
+
+
+def with_stick_slip(arm: ArmDescription, coulomb=None, static=None, viscous=None,
+                    presliding: float = PRESLIDING) -> ArmDescription:
+    """The arm with its joint_friction (or given levels) as stick_slip_friction; the
+    bristles critically damped for the hub's inertia n^2 J_r + J_hub + link."""
+    from flex_twin.diagnosis.hypotheses import joint_inertias
+    j = arm.joint_names[0]
+    fr = arm.effect("joint_friction", j)
+    fv = viscous if viscous is not None else (fr["viscous"] if fr else 0.0)
+    fc = coulomb if coulomb is not None else (fr["coulomb"] if fr else 0.0)
+    fs = static if static is not None else (fr["static"] if fr else 0.0)
+    fs = max(fs, fc)
+    base = dataclasses.replace(arm, effects=tuple(e for e in arm.effects
+                                                  if e.TYPE != "joint_friction"))
+    inertia = float(joint_inertias(base, [0.0])[0])
+    sigma0 = max(fs, 1e-6) / presliding
+    return base.with_effects(StickSlipFriction(j, (
+        fv, fc, fs, STRIBECK_VELOCITY, sigma0, 2.0 * np.sqrt(sigma0 * inertia),
+        ELASTIC_FRACTION)))
+
 
 #: the lattice of Coulomb levels (N m at the hub) the start chooses from
 LEVELS = tuple(np.round(np.arange(0.02, 0.105, 0.01), 3))

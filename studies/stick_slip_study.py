@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from flex_twin.real_arms.quanser_twin import PRESLIDING, with_stick_slip
 from flex_twin.real_arms.replay import TRANSIENT, plot_replay, replay
+
+from .session_friction import PRESLIDING, with_stick_slip
 
 
 def hold_evidence(run, gear=48.4, km=0.0107, rm=3.29, last: float = 1.0) -> list:

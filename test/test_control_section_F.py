@@ -65,7 +65,7 @@ def test_nonlinear_arm_goes_through_the_waypoints(task):
     run = simulate_tracking(model, plan, h=25.0, a=5.0)
     for t, p in zip(flex_planner.SECTION_F_TIMES, flex_planner.SECTION_F_WAYPOINTS):
         k = int(np.argmin(np.abs(run.t - t)))
-        assert np.hypot(*(run.tip_xy[k] - p)) < 2e-3          # m
+        assert np.hypot(*(run.tip_positions[k] - p)) < 2e-3          # m
 
 
 def test_the_task_in_3d_equals_the_planar_run(task):

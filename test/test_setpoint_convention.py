@@ -38,7 +38,7 @@ def test_planar_setpoints_in_rad_equal_those_in_degrees():
     rad = planar({"joint_angles": [math.radians(5.0), math.radians(-5.0)]},
                  {"setpoints": [math.radians(10.0), math.radians(-10.0)]},
                  {"setpoints": [math.radians(20.0), 0.0]})
-    np.testing.assert_allclose(rad.theta0, deg.theta0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rad.joint_values, deg.joint_values, rtol=0, atol=1e-15)
     np.testing.assert_allclose(rad.pd.setpoints, deg.pd.setpoints, rtol=0, atol=1e-15)
     np.testing.assert_allclose(rad.setpoint_schedule[0][1], deg.setpoint_schedule[0][1],
                                rtol=0, atol=1e-15)

@@ -44,6 +44,15 @@ def test_twin_demo_passes_the_first_waypoints(demo):
     assert counts["/flex_planner/waypoints"] == 1  # latched, published before the recorder
     assert counts["/clock"] == 5.2 * 50 + 1
     assert summary["controller"] == "in the model's loop (eq95)"
+    # where a first run's time goes (docs/development.md): the phases add up to wall_s,
+    # and the in-loop kernels were compiled (or loaded) in a child process
+    phases = summary["phases"]
+    rows = {r["phase"]: r for r in phases["this_process"]}
+    assert list(rows) == ["imports, rclpy.init", "plan", "wait for compile_ahead",
+                          "model node", "loop and recording", "summary and plot"]
+    timed = [r["wall_s"] for r in phases["this_process"][1:-1]]
+    assert sum(timed) == pytest.approx(summary["wall_s"], abs=1e-3)
+    assert phases["children_cpu_s"] > 0.0
 
 
 def test_twin_demo_bag_plays_in_duration_over_rate(demo, capsys):

@@ -127,7 +127,7 @@ SPECS = (
     ('payload', 'samp500', [_payload(0.2)], 2),
 )
 #: stored in test/data (the tests' cases)
-CI_SUBSET = ('S-cont-healthy-s1', 'S-cont-bending-link1-y-0.8-s1')
+CI_SUBSET = ('S-cont-healthy-s1', 'S-cont-bending-link1-y-0.8-s1', 'S-samp500-healthy-s1')
 
 
 def all_cases():
@@ -457,7 +457,11 @@ def main():
     ap.add_argument('--list', action='store_true')
     ap.add_argument('--skip-existing', action='store_true')
     ap.add_argument('--noise', type=float, default=1.0, help='factor on the noise levels')
+    ap.add_argument('--step', type=float, default=H,
+                    help='Exudyn step h (s; a divisor of the control and recording periods: '
+                         'a convergence check, bench_spatial_sampled_replay.py)')
     a = ap.parse_args()
+    globals()['H'] = a.step
     cases = all_cases()
     if a.list:
         for c in cases:

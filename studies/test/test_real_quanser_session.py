@@ -7,9 +7,9 @@ import pytest
 
 from flex_model.dynamics import FlexArmModel
 from flex_twin.real_arms import quanser_data as qd
-from flex_twin.real_arms.quanser_twin import calibrated_arm_for, with_stick_slip
+from flex_twin.real_arms.quanser_twin import calibrated_arm_for
 from flex_twin.real_arms.replay import replay
-from studies.session_friction import choice_end, compare
+from studies.session_friction import choice_end, compare, with_stick_slip
 from studies.stick_slip_study import hold_stick_spread
 
 state_feedback = pytest.importorskip("flex_control.state_feedback")

@@ -177,7 +177,7 @@ def cmd_check(args) -> int:
         if data.tip is not None:
             ref = np.column_stack([np.interp(run.t, data.t, data.tip[:, k]) for k in (0, 1)])
             out["nonlinear"]["max_tip_error_m"] = float(np.max(np.hypot(
-                *(run.tip_xy - ref).T)))
+                *(run.tip_positions - ref).T)))
     if not args.no_plot:
         from .plots import plot_frozen, plot_ltv
         out_dir = run_dir(args.out, "control-check")

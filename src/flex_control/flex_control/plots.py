@@ -22,7 +22,7 @@ def plot_step(resp, path) -> None:
     ax[2].plot(resp.t, resp.torque)
     ax[2].set(xlabel="t [s]", ylabel="joint torque [N m]", yscale="symlog")
     finish_figure(fig, ax, path, f"{resp.arm}: Eq. (45) step "
-            f"{np.degrees(resp.start):.0f} -> {np.degrees(resp.end):.0f} deg")
+                  f"{np.degrees(resp.start):.0f} -> {np.degrees(resp.end):.0f} deg")
 
 
 def plot_design(result, path) -> None:
@@ -90,7 +90,7 @@ def plot_tracking(run, trajectory, path) -> None:
     """Tip x and y of the nonlinear closed loop against the nominal tip (thesis Fig. 43)."""
     fig, ax = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     for k, name in enumerate(("x", "y")):
-        ax[k].plot(run.t, run.tip_xy[:, k], label="closed loop")
+        ax[k].plot(run.t, run.tip_positions[:, k], label="closed loop")
         if trajectory.tip is not None:
             ax[k].plot(trajectory.t, trajectory.tip[:, k], "--", label="nominal")
         ax[k].set(ylabel=f"tip {name} [m]")

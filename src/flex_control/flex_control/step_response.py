@@ -191,7 +191,7 @@ def step_response(preset: str | ArmDescription = "seed000_real_arm", *,
     res = simulate(model, model.q_from_joint_angles([th0]), t_final=t_final,
                    sample_period=sample_period, pd=pd, method="fixed", dt=step)
     theta = res.joint_angles[:, 0]
-    tip = res.tip_xy
+    tip = res.tip_positions
     tip_angle = np.unwrap(np.arctan2(tip[:, 1], tip[:, 0]))
     w = res.tip_deflections[:, 0]
     rise_j, over_j = rise_and_overshoot(res.t, theta, th0, th1)

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from flex_model.dynamics import FlexArmModel
-from flex_model.simulate import JointPD, SimulationResult, simulate
+from flex_model.result import SimulationResult
+from flex_model.simulate import JointPD, simulate
 from flex_model.trajectory import JointTrajectoryData
 
 from .closed_loop import NominalTrajectory, pd_gains

@@ -21,7 +21,7 @@ from flex_control.ros_conversions import trajectory_from_msg
 from flex_model.ros.model_node import SpatialModelNode
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
 from flex_model.spatial.integrate import simulate_fixed_compiled
-from flex_model.spatial.scenario import SpatialScenario
+from flex_model.spatial.scenario import holding_torques as hold_torques
 
 ARM = "seed003_like_arm"
 TARGET = [0.3, -0.2, 0.4]
@@ -34,10 +34,7 @@ RATE, STEP = 500.0, 2e-3
 
 
 def holding_torques(arm, joints):
-    sc = SpatialScenario(name="hold", arm=arm, duration=1.0, step=STEP,
-                         sample_period=1.0 / RATE, rho_inf=0.9, joint_values=np.array(joints),
-                         joint_rates=np.zeros(3), gravity_hold=True)
-    return sc.holding_torques(SpatialArmModel(arm))
+    return hold_torques(np.array(joints), SpatialArmModel(arm))
 
 
 def target_msg(names, effort):

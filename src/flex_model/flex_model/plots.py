@@ -22,7 +22,10 @@ def finish_figure(fig, ax, path, title: str = "") -> None:
 
 
 def plot_simulation(result, path, title: str = "") -> None:
-    """Joint angles, tip deflections, joint torques and the tip path in one figure."""
+    """Joint angles, tip deflections, joint torques and the tip path in one figure (a
+    spatial arm's run: joints, bending y, z and twist per flexible link, tip position)."""
+    if result.spatial:
+        return _plot_spatial(result, path, title)
     model = result.model
     names = [lk.name for lk in model.arm.links]
     fig, ax = plt.subplots(2, 2, figsize=(12, 8))
@@ -45,6 +48,34 @@ def plot_simulation(result, path, title: str = "") -> None:
     ax[1, 1].set(xlabel="x [m]", ylabel="y [m]", title="tip paths and deflected shapes")
     ax[1, 1].set_aspect("equal", adjustable="datalim")
     finish_figure(fig, ax, path, title)
+
+
+def _plot_spatial(res, path, title: str) -> None:
+    """Joint values, tip deflections (y, z) and twist per flexible link, and the tip path."""
+    fig, ax = plt.subplots(2, 2, figsize=(11, 7))
+    names = res.model.arm.joint_names
+    for i, n in enumerate(names):
+        ax[0, 0].plot(res.t, res.joint_angles[:, i], label=n)
+    ax[0, 0].set(xlabel="t [s]", ylabel="joint value [rad or m]", title="joints")
+    ax[0, 0].legend(fontsize=8)
+    for name, d in res.link_deflections().items():
+        ax[0, 1].plot(res.t, 1e3 * d["y"], label=f"{name} y")
+        ax[0, 1].plot(res.t, 1e3 * d["z"], "--", label=f"{name} z")
+        ax[1, 0].plot(res.t, 1e3 * d["twist"], label=f"{name}")
+    ax[0, 1].set(xlabel="t [s]", ylabel="tip deflection [mm]", title="bending (beam y, z)")
+    ax[1, 0].set(xlabel="t [s]", ylabel="tip twist [mrad]", title="torsion")
+    for a in (ax[0, 1], ax[1, 0]):
+        if a.lines:
+            a.legend(fontsize=8)
+    tip = res.tip_positions
+    for k, lab in enumerate("xyz"):
+        ax[1, 1].plot(res.t, 1e3 * (tip[:, k] - tip[0, k]), label=f"tip {lab} - {lab}(0)")
+    ax[1, 1].set(xlabel="t [s]", ylabel="[mm]", title="tip position")
+    ax[1, 1].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
 
 
 def plot_modes(model, modal, path, count: int = 4, title: str = "") -> None:

@@ -7,7 +7,7 @@ Example (shipped as preset ``thesis_three_link_pd``)::
     name: thesis_three_link_pd
     arm: thesis_three_link            # preset name or path (relative to this file); a
                                       # spatial arm (DH table, URDF side file): run by
-                                      # flex_model.spatial.scenario.SpatialScenario
+                                      # flex_model.spatial.scenario.run_spatial
     vars_per_link: 4                  # optional override (planar arms)
     kinematics: second_order          # optional override (small_deflection: thesis Eq. 1;
                                       # exact: geometrically exact, simulate only)
@@ -61,7 +61,8 @@ from .arm import (AXIAL_VARS_MAX, KINEMATICS, PRESET_DIR, ArmDescription, arm_fr
 from .config import ConfigError, Fields, read_yaml
 from .dynamics import FlexArmModel
 from .inputs import ramp_fraction
-from .simulate import JointPD, Pulse, SimulationResult, fixed_step, simulate
+from .result import SimulationResult
+from .simulate import JointPD, Pulse, fixed_step, simulate
 from .statics import static_equilibrium
 
 SCENARIO_DIR = PRESET_DIR / "scenarios"
@@ -70,25 +71,35 @@ SPATIAL_SCENARIO_DIR = PRESET_DIR / "spatial" / "scenarios"
 
 @dataclass
 class Scenario:
-    """A validated scenario; :meth:`run` simulates it."""
+    """A validated scenario of either arm kind (a planar ArmDescription or a spatial
+    SpatialArm); :meth:`run` simulates it and returns a
+    :class:`flex_model.result.SimulationResult`. The arm-kind specifics are in
+    :mod:`flex_model.simulate` (planar: variable, fixed or exact) and
+    :mod:`flex_model.spatial.scenario` (spatial: the compiled fixed-step loop)."""
 
     name: str
-    arm: ArmDescription
+    arm: object                     # ArmDescription (planar) or SpatialArm
     duration: float
     sample_period: float
-    theta0: np.ndarray
-    dtheta0: np.ndarray
-    start_static: bool
-    pd: JointPD | None
-    torque_table: tuple | None
-    pulses: list
-    method: str
-    rtol: float
-    step: float | None
-    source: str
+    joint_values: np.ndarray        # initial joint values (rad; m on a prismatic joint)
+    joint_rates: np.ndarray
+    start_static: bool = False
+    pd: JointPD | None = None
+    pulses: list = ()               # inputs.Pulse: joint torques and tip loads
+    method: str = "fixed"
+    step: float | None = None
+    rho_inf: float = 0.9            # fixed step: generalized-alpha spectral radius
+    rtol: float = 1e-7              # variable step (planar)
+    tol: float = 1e-10              # Newton tolerance (spatial)
+    source: str = "<memory>"
     payload_changes: tuple = ()
     setpoint_schedule: tuple = ()   # (time, setpoints (rad), ramp (s)), increasing times
-    rho_inf: float = 0.9            # fixed step: generalized-alpha spectral radius
+    torque_table: tuple | None = None   # (t, torques): linear in t (planar)
+    gravity_hold: bool = False      # spatial: the initial state's holding torques
+
+    @property
+    def spatial(self) -> bool:
+        return not isinstance(self.arm, ArmDescription)
 
     def setpoint_inputs(self):
         """(pulses, policy or None): the schedule's steps as torque pulses to the end of the
@@ -119,30 +130,52 @@ class Scenario:
             return tau
         return pulses, ramp_torque
 
-    def model(self) -> FlexArmModel:
+    def model(self):
+        """The arm's model: FlexArmModel (planar) or SpatialArmModel."""
+        if self.spatial:
+            from .spatial.dynamics import SpatialArmModel
+            return SpatialArmModel(self.arm)
         return FlexArmModel(self.arm)
 
-    def initial_state(self, model: FlexArmModel):
+    def step_size(self) -> float:
+        """The fixed step the run takes (it divides the sample period; planar default
+        1 ms, simulate.fixed_step)."""
+        return fixed_step(self.sample_period, self.step)[0]
+
+    def initial_state(self, model=None):
+        """(q0, v0) of the model's coordinates."""
+        model = model or self.model()
+        if self.spatial:
+            from .spatial.scenario import initial_state
+            return initial_state(self, model)[:2]
         if self.start_static:
             if self.pd is not None:
                 q0 = static_equilibrium(model, self.pd.setpoints, joints="pd",
                                         kp=self.pd.kp).q
             else:
-                q0 = static_equilibrium(model, self.theta0, joints="clamped").q
+                q0 = static_equilibrium(model, self.joint_values, joints="clamped").q
         else:
-            q0 = model.q_from_joint_angles(self.theta0)
-        return q0, model.v_from_joint_rates(self.dtheta0)
+            q0 = model.q_from_joint_angles(self.joint_values)
+        return q0, model.v_from_joint_rates(self.joint_rates)
 
-    def run(self, progress=None, model: FlexArmModel | None = None,
-            advise: bool = True) -> SimulationResult:
-        """Simulate the scenario; with ``advise`` a run estimated more than 2 % off
-        (:meth:`advice`; it runs the scenario's first second about 6 times over) is a
-        ``UserWarning`` naming the setting to use (the CLI prints the same line itself)."""
+    def run(self, progress=None, model=None, advise: bool = True) -> SimulationResult:
+        """Simulate the scenario; with ``advise`` the result carries :meth:`advice` and a
+        run estimated more than 2 % off (it runs the scenario's first second about 6 times
+        over) is a ``UserWarning`` naming the setting to use (the CLI prints the same line
+        itself)."""
         model = model or self.model()
-        if advise:
-            warning = self.advice(model).warning
-            if warning:
-                warnings.warn(warning, stacklevel=2)
+        adv = self.advice(model) if advise else None
+        if adv is not None and adv.warning:
+            warnings.warn(adv.warning, stacklevel=2)
+        if self.spatial:
+            from .spatial.scenario import run_spatial
+            res = run_spatial(self, model, progress)
+        else:
+            res = self._run_planar(model, progress)
+        res.advice = adv
+        return res
+
+    def _run_planar(self, model, progress) -> SimulationResult:
         q0, v0 = self.initial_state(model)
         policy = None
         if self.torque_table is not None:
@@ -162,36 +195,57 @@ class Scenario:
                         rtol=self.rtol, dt=self.step, rho_inf=self.rho_inf,
                         payload_changes=self.payload_changes, progress=progress)
 
-    def advice(self, model: FlexArmModel | None = None, check: bool = True):
-        """:func:`flex_model.step_advice.step_advice` (the arm's excited modes) for this
-        scenario; its warning is the a-posteriori estimate (step_advice.estimate_error
-        over step_advice.probe_window: the run, the run at a quarter of the step (variable
-        mode: rtol / 16) and that run with twice the variables per link; the variable mode
-        keeps the modal rule's warning and is not checked where the arm is stiff for the
-        explicit method). ``check`` False: no estimate (fixed mode: no warning)."""
+    def with_finer_variables(self) -> "Scenario":
+        """The scenario with twice the variables on every link (spatial: bending and
+        torsion variables of every beam)."""
+        if not self.spatial:
+            return replace(self, arm=replace(self.arm, links=tuple(
+                replace(lk, n_vars=2 * lk.n_vars) for lk in self.arm.links)))
+
+        def finer(beam):
+            return replace(beam, variables=2 * beam.variables,
+                           torsion_variables=2 * beam.torsion_variables)
+        links = tuple(lk if lk.flexible is None else replace(lk, flexible=finer(lk.flexible))
+                      for lk in self.arm.links)
+        return replace(self, arm=replace(self.arm, links=links))
+
+    def advice(self, model=None, check: bool = True):
+        """:func:`flex_model.step_advice.step_advice` for this scenario (planar: the arm's
+        excited modes; spatial: none) and its a-posteriori estimate
+        (step_advice.estimate_error over step_advice.probe_window: the run, the run at a
+        quarter of the step (variable mode: rtol / 16) and that run with twice the
+        variables, :meth:`with_finer_variables`); the variable mode keeps the modal rule's
+        warning and is not checked where the arm is stiff for the explicit method; a
+        spatial arm without a flexible link is not checked. ``check`` False: no estimate
+        (fixed mode: no warning)."""
         from . import step_advice as sa
         model = model or self.model()
-        h = fixed_step(self.sample_period, self.step)[0]   # the step simulate takes
-        adv = sa.step_advice(model, self.pd.setpoints if self.pd is not None else self.theta0,
-                             method=self.method, step=h,
-                             kp=None if self.pd is None else self.pd.kp)
-        fixed = self.method == "fixed"
+        h, fixed = self.step_size(), self.method == "fixed"
+        if self.spatial:
+            adv = sa.StepAdvice(None, None, h, None, None)
+            beams = [lk.flexible for lk in self.arm.links if lk.flexible is not None]
+            check = check and bool(beams)
+            label = "/".join(str(nv) for nv in sorted({b.variables for b in beams})) + \
+                " variables per bending plane"
+        else:
+            adv = sa.step_advice(model, self.pd.setpoints if self.pd is not None else
+                                 self.joint_values, method=self.method, step=h,
+                                 kp=None if self.pd is None else self.pd.kp)
+            label = "/".join(str(nv) for nv in sorted({lk.n_vars for lk in self.arm.links})) \
+                + " variables per link"
         if not check or (not fixed and adv.warning):   # explicit and stiff: not checked
             return adv if not fixed else replace(adv, warning=None)
         jumps = [p.start for p in self.pulses] + [t for t, _, _ in self.setpoint_schedule]
         window = sa.probe_window(self.duration, self.sample_period, jumps)
-        finer = replace(self.arm, links=tuple(replace(lk, n_vars=2 * lk.n_vars)
-                                              for lk in self.arm.links))
+        finer = self.with_finer_variables()
 
         def tips(divisor, factor):   # variable mode: the error follows rtol (DOPRI)
-            probe = replace(self, duration=window, step=h / divisor if fixed else self.step,
-                            rtol=self.rtol if fixed else self.rtol / divisor ** 2,
-                            arm=finer if factor > 1 else self.arm)
+            probe = replace(finer if factor > 1 else self, duration=window,
+                            step=h / divisor if fixed else self.step,
+                            rtol=self.rtol if fixed else self.rtol / divisor ** 2)
             return probe.run(model=None if factor > 1 else model,
                              advise=False).tip_deflections
         est = sa.estimate_error(tips, window)
-        nv = sorted({lk.n_vars for lk in self.arm.links})
-        label = f"{'/'.join(map(str, nv))} variables per link"
         warning = sa.error_warning(est, h, label, rtol=None if fixed else self.rtol)
         return replace(adv, estimate=est, warning=warning)
 
@@ -353,7 +407,6 @@ def _torque_table(ctl: Fields, nl: int):
 
 def _pulses(f: Fields, arm, spatial: bool) -> list:
     """``pulses``: a joint torque (N m; ``force`` N on a prismatic joint) on [start, end)."""
-    from .spatial.scenario import SpatialPulse
     out = []
     for k, raw in enumerate(f.items("pulses", [])):
         pf = Fields(raw, f.source, f"pulses[{k}]")
@@ -371,8 +424,7 @@ def _pulses(f: Fields, arm, spatial: bool) -> list:
         pf.done(["joint", key, "start", "end"])
         tau = np.zeros(arm.n_links)
         tau[j] = value
-        out.append(SpatialPulse(j, value, start, end) if spatial else
-                   Pulse(start, end, tuple(tau)))
+        out.append(Pulse(start, end, tuple(tau)))
     return out
 
 
@@ -387,8 +439,7 @@ def _tip_loads(f: Fields, spatial: bool) -> list:
         torque = 0.0 if spatial else lf.number("torque", 0.0, unit="N m")
         start, end = _interval(lf)
         lf.done(["force", "start", "end"] + ([] if spatial else ["torque"]))
-        out.append((np.array(force), start, end) if spatial else
-                   Pulse(start, end, (), tuple(force), torque))
+        out.append(Pulse(start, end, (), tuple(force), torque))
     return out
 
 
@@ -447,10 +498,9 @@ def _integrator(f: Fields, spatial: bool, sample: float) -> dict:
 def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | None = None,
                        vars_per_link: int | None = None, default_name: str = "scenario"):
     """Validate a scenario mapping (the YAML's content) of either arm kind, one grammar:
-    errors name ``source``, the field, the value and what is allowed. A spatial arm
-    (:func:`_arm`) gives a :class:`flex_model.spatial.scenario.SpatialScenario`, a planar
-    one a :class:`Scenario`; fields one kind has no meaning for are refused."""
-    from .spatial.scenario import SpatialScenario
+    errors name ``source``, the field, the value and what is allowed: a
+    :class:`Scenario` of a planar or a spatial arm (:func:`_arm`); fields one kind has no
+    meaning for are refused."""
     f = Fields(data, source, "")
     name = f.string("name", default_name)
     arm, spatial = _arm(f, base_dir)
@@ -485,18 +535,12 @@ def scenario_from_dict(data: dict, source: str = "<memory>", base_dir: Path | No
     f.done(["name", "arm", "vars_per_link", "kinematics", "axial_vars", "gravity", "duration",
             "sample_period", "integrator", "method", "step", "rho_inf", "rtol", "newton_tol",
             "initial", "control", "pulses", "tip_loads", "payload_changes"])
-    if spatial:
-        return SpatialScenario(name=name, arm=arm, duration=duration, step=integ["step"],
-                               sample_period=sample, rho_inf=integ["rho_inf"],
-                               joint_values=q0, joint_rates=v0, start_static=static,
-                               gravity_hold=hold, pd=pd, setpoint_schedule=schedule,
-                               pulses=tuple(pulses), tol=integ["tol"], source=source,
-                               payload_changes=changes, tip_loads=tuple(loads))
     return Scenario(name=name, arm=arm, duration=duration, sample_period=sample,
-                    theta0=q0, dtheta0=v0, start_static=static, pd=pd, torque_table=table,
-                    pulses=pulses + loads, method=integ["method"], rtol=integ["rtol"],
-                    step=integ["step"], source=source, payload_changes=changes,
-                    setpoint_schedule=schedule, rho_inf=integ["rho_inf"])
+                    joint_values=q0, joint_rates=v0, start_static=static, pd=pd,
+                    torque_table=table, pulses=pulses + loads, method=integ["method"],
+                    rtol=integ["rtol"], step=integ["step"], tol=integ["tol"], source=source,
+                    payload_changes=changes, setpoint_schedule=schedule,
+                    rho_inf=integ["rho_inf"], gravity_hold=hold)
 
 
 def setpoint_schedule(ctl: Fields, n: int, has_pd: bool, pd_field: str,

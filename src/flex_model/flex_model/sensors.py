@@ -85,7 +85,7 @@ def true_signal(sensor: Sensor, result) -> np.ndarray:
                              for q, v in zip(result.q, result.v)])[:, None]
         return result.tau[:, [i]]
     if sensor.kind == "tip_position":
-        return result.tip_xy
+        return result.tip_positions
     if sensor.kind == "tip_accelerometer":
         return tip_specific_force(result)
     if sensor.kind == "strain_gauge":

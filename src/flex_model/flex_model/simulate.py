@@ -33,7 +33,6 @@ Joints with ``stick_slip_friction`` add one bristle state each: the integrated s
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -44,101 +43,10 @@ from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: pu
 from .integrators import (consistent_acceleration, dopri5, generalized_alpha,
                           generalized_alpha_simplified, restart_acceleration,
                           sampled_joint_torques)
+from .result import SimulationResult
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
-
-
-@dataclass
-class SimulationResult:
-    """Sampled trajectory: t (s), q, v, joint torques tau (N m) at the samples."""
-
-    model: FlexArmModel
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    tau: np.ndarray
-    stats: dict = field(default_factory=dict)
-    u: np.ndarray = None        # held policy input at the samples
-    inputs: tuple = None        # the compiled input data (integrators.py E)
-    bristles: np.ndarray = None  # bristle deflections z (rad) of stick-slip joints
-
-    @property
-    def stick_slip_torques(self) -> np.ndarray:
-        """(n_samples, n_links): torque of the stick-slip friction on every actuator
-        coordinate (N m; zero at joints without the effect)."""
-        z = self.bristles if self.bristles is not None else np.zeros((len(self.t), 0))
-        return np.array([self.model.stick_slip_torques(v, zk) for v, zk in zip(self.v, z)])
-
-    @property
-    def joint_angles(self) -> np.ndarray:
-        return self.q @ self.model.G.T
-
-    @property
-    def joint_rates(self) -> np.ndarray:
-        return self.v @ self.model.G.T
-
-    @property
-    def tip_xy(self) -> np.ndarray:
-        return np.array([self.model.link_origins(q)[-1] for q in self.q])
-
-    @property
-    def contact_forces(self) -> np.ndarray:
-        """(n_samples, 2): force of the contact surface on the tip (N, base frame)."""
-        return np.array([self.model.contact_force(q, v) for q, v in zip(self.q, self.v)])
-
-    @property
-    def motor_angles(self) -> np.ndarray:
-        """(n_samples, n_elastic_joints): motor coordinates of the elastic joints (rad,
-        link side)."""
-        m = self.model
-        return self.q[:, m.nq_arm:m.nq_arm + len(m.elastic_joints)]
-
-    def link_tips(self) -> np.ndarray:
-        """(n_samples, n_links, 2): the tip of every link."""
-        return np.array([self.model.link_origins(q)[1:] for q in self.q])
-
-    @property
-    def tip_deflections(self) -> np.ndarray:
-        if self.model.arm.kinematics == "exact":  # the tips' exact offsets
-            return np.array([self.model.tip_deflections(q) for q in self.q])
-        return self.q[:, [self.model.tip_deflection_index(i)
-                          for i in range(self.model.n_links)]]
-
-    @property
-    def tip_rotations(self) -> np.ndarray:
-        return self.q @ self.model.tip_rotation_matrix().T
-
-    def table(self) -> tuple[list[str], np.ndarray]:
-        """Columns of the CSV output and the data (SI units, rad); motor angles ``qm<i>``
-        of elastic joints and the contact force follow when the arm has them."""
-        nl = self.model.n_links
-        names = (["t"] + [f"q{i + 1}" for i in range(nl)] + [f"v{i + 1}" for i in range(nl)]
-                 + [f"tau{i + 1}" for i in range(nl)] + ["tip_x", "tip_y"]
-                 + [f"link{i + 1}_tip_deflection" for i in range(nl)]
-                 + [f"link{i + 1}_tip_rotation" for i in range(nl)])
-        cols = [self.t, self.joint_angles, self.joint_rates, self.tau, self.tip_xy,
-                self.tip_deflections, self.tip_rotations]
-        if self.model.elastic_joints:
-            names += [f"qm{i + 1}" for i in self.model.elastic_joints]
-            cols.append(self.motor_angles)
-        if self.model.contact[0] > 0:
-            names += ["contact_fx", "contact_fy"]
-            cols.append(self.contact_forces)
-        return names, np.column_stack(cols)
-
-    def summary(self) -> dict:
-        """The run's figures (``flex-twin simulate``; as SpatialSimulation.summary): final
-        joint angles (deg) and tip, max |tip deflection| per link (mm)."""
-        return {"vars_per_link": [lk.n_vars for lk in self.model.arm.links],
-                "final_joint_angles_deg": np.degrees(self.joint_angles[-1]).tolist(),
-                "final_tip_m": self.tip_xy[-1].tolist(), "max_abs_tip_deflection_mm":
-                (1e3 * np.max(np.abs(self.tip_deflections), axis=0)).tolist()}
-
-    def to_csv(self, path) -> None:
-        names, data = self.table()
-        np.savetxt(path, data, delimiter=",", header=",".join(names), comments="",
-                   fmt="%.17g")
 
 
 def diverged(model: FlexArmModel, t: float, x: np.ndarray) -> SimulationDivergedError:

@@ -150,12 +150,12 @@ def test_every_arm_preset_loads(name):
 def test_every_scenario_preset_loads(name):
     sc = load_scenario(name)
     assert sc.name == name and sc.duration > 0 and sc.sample_period <= sc.duration
-    assert sc.theta0.shape == sc.dtheta0.shape == (sc.arm.n_links,)
+    assert sc.joint_values.shape == sc.joint_rates.shape == (sc.arm.n_links,)
 
 
 def test_three_link_pd_scenario_values():
     sc = load_scenario("thesis_three_link_pd")
-    assert np.degrees(sc.theta0) == pytest.approx([-20.0, 20.0, -20.0], abs=1e-12)
+    assert np.degrees(sc.joint_values) == pytest.approx([-20.0, 20.0, -20.0], abs=1e-12)
     assert list(sc.pd.kp) == [5000.0] * 3 and list(sc.pd.kd) == [250.0] * 3
     assert (sc.pulses[0].start, sc.pulses[0].end) == (3.0, 4.0)
     assert list(sc.pulses[0].joint_torques) == [1000.0, 0.0, 0.0]

@@ -11,7 +11,9 @@ from rclpy.parameter import Parameter
 from flex_model.ros.model_node import ModelNode, SpatialModelNode
 from flex_model.ros.main import ParameterError
 from flex_model.spatial import SpatialArmModel, load_spatial_arm
-from flex_model.spatial.scenario import SpatialPD, SpatialScenario, pd_static_equilibrium
+from flex_model.inputs import JointPD
+from flex_model.scenario import Scenario
+from flex_model.spatial.scenario import pd_matrices, pd_static_equilibrium
 
 ARM = "seed003_like_arm"
 
@@ -32,7 +34,7 @@ def make(ctx, factory=ModelNode, **params):
 def test_the_continuous_pd_on_a_spatial_arm_reaches_its_set_point(ctx):
     """ModelNode (not the spatial defaults) with a spatial arm and controller eq95: 1 s
     of 100 Hz periods (2.5 ms steps) from zero to the set-points [0.3, -0.2, 0.4] rad
-    equals the plain-Python core run (SpatialScenario with the same PD, one compiled
+    equals the plain-Python core run (Scenario with the same PD, one compiled
     run) to 1e-10 and settles on the PD's static equilibrium (within 1e-4 rad: the gravity
     sag kp^-1 tau_g, 0.011 rad at joint 2, not a set-point error of the loop)."""
     kp, kd, sp = [400.0, 2500.0, 800.0], [41.0, 107.0, 31.0], [0.3, -0.2, 0.4]
@@ -45,15 +47,14 @@ def test_the_continuous_pd_on_a_spatial_arm_reaches_its_set_point(ctx):
             node.advance()
         assert node.t == pytest.approx(1.0, abs=1e-12) and node.diverged is None
         arm = load_spatial_arm(ARM)
-        sc = SpatialScenario(name="pd", arm=arm, duration=1.0, step=2.5e-3,
-                             sample_period=1e-2, rho_inf=0.9, joint_values=np.zeros(3),
-                             joint_rates=np.zeros(3), pd=SpatialPD(np.array(kp),
-                                                                   np.array(kd),
-                                                                   np.array(sp)))
-        run = sc.run()
+        sc = Scenario(name="pd", arm=arm, duration=1.0, step=2.5e-3,
+                      sample_period=1e-2, rho_inf=0.9, joint_values=np.zeros(3),
+                      joint_rates=np.zeros(3),
+                      pd=JointPD(np.array(kp), np.array(kd), np.array(sp)))
+        run = sc.run(advise=False)
         np.testing.assert_allclose(node.q, run.q[-1], rtol=0, atol=1e-10)
         model = SpatialArmModel(arm)
-        K_pd, _ = sc.pd_matrices(model)
+        K_pd, _ = pd_matrices(sc, model)
         q_eq = pd_static_equilibrium(model, K_pd, np.array(kp) * sp)
         np.testing.assert_allclose(node.q[model.off], q_eq[model.off], rtol=0, atol=1e-4)
         sag = q_eq[model.off] - sp

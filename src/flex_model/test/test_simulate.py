@@ -53,11 +53,11 @@ def test_fixed_step_converges_to_variable_step_at_second_order():
     pd = JointPD(np.full(3, 5e3), np.full(3, 250.0), th0)
     kw = dict(t_final=5.0, sample_period=0.01, pd=pd,
               pulses=[Pulse(3.0, 4.0, (1000.0, 0.0, 0.0))])
-    ref = simulate(model, q0, rtol=1e-10, **kw).tip_xy
+    ref = simulate(model, q0, rtol=1e-10, **kw).tip_positions
     errs = []
     for dt in (2e-3, 1e-3, 5e-4):
         res = simulate(model, q0, method="fixed", dt=dt, **kw)
-        errs.append(np.max(np.hypot(*(res.tip_xy - ref).T)))
+        errs.append(np.max(np.hypot(*(res.tip_positions - ref).T)))
     assert errs[1] < 0.1e-3            # < 0.1 mm at the model node's 1 ms step
     assert errs[0] / errs[2] > 5.0     # second order: 16 in the limit, first order: 4
 

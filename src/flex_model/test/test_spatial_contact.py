@@ -11,7 +11,8 @@ import pytest
 from flex_model.arm import PRESET_DIR, arm_from_dict
 from flex_model.config import ConfigError, read_yaml
 from flex_model.dynamics import FlexArmModel
-from flex_model.scenario import scenario_from_dict
+from flex_model.inputs import JointPD, Pulse
+from flex_model.scenario import Scenario, scenario_from_dict
 from flex_model.spatial.analysis import static_equilibrium
 from flex_model.spatial.compiled import pack, tip_point
 from flex_model.spatial.description import SPATIAL_PRESET_DIR, from_planar
@@ -19,7 +20,6 @@ from flex_model.spatial.loader import spatial_arm_from_dict
 from flex_model.spatial.dynamics import SpatialArmModel
 from flex_model.spatial.integrate import (simulate_fixed, simulate_fixed_compiled,
                                           simulate_variable)
-from flex_model.spatial.scenario import SpatialPD, SpatialPulse, SpatialScenario
 
 L = 0.5
 
@@ -63,19 +63,19 @@ def test_embedded_planar_arm_on_a_floor_follows_the_planar_simulate():
     model = SpatialArmModel(spatial)
     p0, n, k, c = model.contact
     assert np.allclose(p0, [0.0, -0.85, 0.0]) and np.allclose(n, [0.0, 1.0, 0.0], atol=1e-16)
-    sc = SpatialScenario(name="embedded_floor", arm=spatial, duration=1.0, step=1e-3,
-                         sample_period=0.01, rho_inf=0.9, joint_values=sp0,
-                         joint_rates=np.zeros(2), pd=SpatialPD(np.array(kp), np.array(kd), sp0),
-                         setpoint_schedule=((0.3, sp0 - step),),
-                         pulses=(SpatialPulse(0, -5.0, 0.1, 0.2),))
-    res = sc.run(model)
-    assert np.max(np.abs(res.joint_values - planar.joint_angles)) < 1e-9
+    sc = Scenario(name="embedded_floor", arm=spatial, duration=1.0, step=1e-3,
+                  sample_period=0.01, rho_inf=0.9, joint_values=sp0,
+                  joint_rates=np.zeros(2), pd=JointPD(np.array(kp), np.array(kd), sp0),
+                  setpoint_schedule=((0.3, sp0 - step, 0.0),),
+                  pulses=(Pulse(0.1, 0.2, (-5.0, 0.0)),))
+    res = sc.run(model=model, advise=False)
+    assert np.max(np.abs(res.joint_angles - planar.joint_angles)) < 1e-9
     assert np.max(np.abs(res.joint_rates - planar.joint_rates)) < 1e-7
-    tip = res.tip_positions()
-    assert np.max(np.abs(tip[:, :2] - planar.tip_xy)) < 2e-9
+    tip = res.tip_positions
+    assert np.max(np.abs(tip[:, :2] - planar.tip_positions)) < 2e-9
     assert np.max(np.abs(tip[:, 2])) == 0.0
     Fp = planar.contact_forces
-    Fs = res.contact_forces()
+    Fs = res.contact_forces
     names, table = res.table()
     assert names[-3:] == ["contact_fx", "contact_fy", "contact_fz"]
     assert np.array_equal(table[:, -3:], Fs)

@@ -149,12 +149,13 @@ def test_scenario_static_start_takes_up_the_play():
                              "initial": {"state": "static"},
                              "control": {"gravity_hold": True}}, "sc.yaml")
     model = sc.model()
-    q0, v0, hold = sc.initial_state(model)
+    from flex_model.spatial.scenario import initial_state
+    q0, v0, hold = initial_state(sc, model)
     assert hold[0] == pytest.approx(MASS * 9.81 * A, rel=1e-12)
     x = q0[1] - q0[0]
     assert x > GAP                                         # the play taken up
     assert K * dead_zone(x, GAP, SMOOTH)[0] == pytest.approx(hold[0], rel=1e-12)
-    sim = sc.run(model)
+    sim = sc.run(model=model, advise=False)
     assert np.max(np.abs(sim.q - q0)) < 1e-9
     linear = q0.copy()
     linear[1] = q0[0] + hold[0] / K

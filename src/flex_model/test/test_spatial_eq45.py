@@ -12,8 +12,9 @@ from flex_model.arm import load_arm
 from flex_model.config import ConfigError
 from flex_model.effects.gear import Gear
 from flex_model.spatial import SpatialArmModel, from_planar
-from flex_model.scenario import scenario_from_dict
-from flex_model.spatial.scenario import SpatialPD, SpatialScenario, eq45_joint_gains
+from flex_model.inputs import JointPD
+from flex_model.scenario import Scenario, scenario_from_dict
+from flex_model.spatial.scenario import eq45_joint_gains
 
 
 def test_table3_step_in_3d_equals_the_planar_step_response():
@@ -36,17 +37,17 @@ def test_table3_step_in_3d_equals_the_planar_step_response():
     # K_pp on a 5 kg m^2 rotor) the accelerations reach their round-off floor once the
     # joint settles: the loop's stagnation test accepts it (before: no convergence at
     # 0.506 s with the default tolerance 1e-10)
-    sc = SpatialScenario(name="table3_3d", arm=arm, duration=2.0, step=1e-4,
-                         sample_period=dt, rho_inf=0.9, joint_values=np.array([th0]),
-                         joint_rates=np.zeros(1),
-                         pd=SpatialPD(kp, kd, np.array([th1])))
-    res = sc.run(SpatialArmModel(arm))
+    sc = Scenario(name="table3_3d", arm=arm, duration=2.0, step=1e-4,
+                  sample_period=dt, rho_inf=0.9, joint_values=np.array([th0]),
+                  joint_rates=np.zeros(1),
+                  pd=JointPD(kp, kd, np.array([th1])))
+    res = sc.run(model=SpatialArmModel(arm), advise=False)
     n = min(len(res.t), len(ref.t))
-    assert np.max(np.abs(res.joint_values[:n, 0] - ref.joint_angle[:n])) < 1e-9
-    rise, over = rise_and_overshoot(res.t, res.joint_values[:, 0], th0, th1)
+    assert np.max(np.abs(res.joint_angles[:n, 0] - ref.joint_angle[:n])) < 1e-9
+    rise, over = rise_and_overshoot(res.t, res.joint_angles[:, 0], th0, th1)
     assert rise == pytest.approx(ref.joint_rise_time, rel=1e-6)
     assert over == pytest.approx(ref.joint_overshoot_pct, abs=1e-6)
-    d = res.tip_deflections()["link1"]["y"]
+    d = res.link_deflections()["link1"]["y"]
     assert np.max(np.abs(d[:n] - ref.tip_deflection[:n])) < 1e-9
     assert np.max(np.abs(d)) > 0.05                 # the link does swing (m)
 

@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 
 from flex_model.config import ConfigError, read_yaml
+from flex_model.inputs import JointPD
+from flex_model.scenario import Scenario
 from flex_model.spatial.description import SPATIAL_PRESET_DIR, JointStops
 from flex_model.spatial.loader import load_spatial_arm, spatial_arm_from_dict
 from flex_model.spatial.dynamics import SpatialArmModel
 from flex_model.spatial.integrate import (joint_input_matrix, simulate_fixed,
                                           simulate_fixed_compiled, simulate_variable)
-from flex_model.spatial.scenario import SpatialPD, SpatialScenario
 
 L, M_END = 0.5, 1.0
 J = M_END * L * L          # inertia about the joint of the rigid link's end mass
@@ -117,11 +118,11 @@ def test_saturated_pd_follows_the_clipped_law_written_by_hand():
 
     ts = np.linspace(0.0, 1.5, 301)
     ref = simulate_variable(model, q0, v0, ts, force=force, rtol=1e-12, atol=1e-14)
-    sc = SpatialScenario(name="saturated_pd", arm=model.arm, duration=1.5, step=1e-4,
-                         sample_period=5e-3, rho_inf=1.0, joint_values=np.zeros(1),
-                         joint_rates=np.zeros(1), start_static=False,
-                         pd=SpatialPD(np.array([kp]), np.array([kd]), np.array([s])))
-    res = sc.run(model)
+    sc = Scenario(name="saturated_pd", arm=model.arm, duration=1.5, step=1e-4,
+                  sample_period=5e-3, rho_inf=1.0, joint_values=np.zeros(1),
+                  joint_rates=np.zeros(1), start_static=False,
+                  pd=JointPD(np.array([kp]), np.array([kd]), np.array([s])))
+    res = sc.run(model=model, advise=False)
     assert np.max(np.abs(res.q[:, 0] - ref.q[:, 0])) < 1e-6
     early = ts <= 0.2         # saturated: q = t^2 / (2 J) (kp (s - q) - kd q' > 1)
     assert np.max(np.abs(ref.q[early, 0] - ts[early] ** 2 / (2 * J))) < 1e-9
@@ -129,7 +130,7 @@ def test_saturated_pd_follows_the_clipped_law_written_by_hand():
     law = np.clip(kp * (s - res.q[:, 0]) - kd * res.v[:, 0], -1.0, 1.0)
     assert np.max(np.abs(res.tau[:, 0] - law)) < 1e-12
     assert abs(res.q[-1, 0] - s) < 1e-3          # it still reaches the set-point
-    free = sc.run(model.__class__(dataclasses.replace(
+    free = sc.run(advise=False, model=model.__class__(dataclasses.replace(
         model.arm, links=(dataclasses.replace(model.arm.links[0], joint=dataclasses.replace(
             model.arm.links[0].joint, effort=np.inf)),))))
     assert np.max(np.abs(free.tau)) > 50.0        # unclipped: the 100 N m step of kp s
@@ -181,9 +182,9 @@ def test_a_pd_start_beyond_the_effort_limit_is_refused():
     effort limit of 1 N m the loop clips the PD, so that start would not be at rest: the
     scenario says so, naming the joint and both torques."""
     model = _model(effort=1.0, lower=-1.0, upper=1.0, gravity=(0.0, -9.81, 0.0))
-    sc = SpatialScenario(name="held_pd", arm=model.arm, duration=0.1, step=1e-3,
-                         sample_period=5e-3, rho_inf=0.9, joint_values=np.zeros(1),
-                         joint_rates=np.zeros(1), start_static=True,
-                         pd=SpatialPD(np.array([1e3]), np.array([10.0]), np.zeros(1)))
+    sc = Scenario(name="held_pd", arm=model.arm, duration=0.1, step=1e-3,
+                  sample_period=5e-3, rho_inf=0.9, joint_values=np.zeros(1),
+                  joint_rates=np.zeros(1), start_static=True,
+                  pd=JointPD(np.array([1e3]), np.array([10.0]), np.zeros(1)))
     with pytest.raises(ValueError, match="joint1, beyond its effort limit 1"):
-        sc.run(model)
+        sc.run(model=model, advise=False)

@@ -10,12 +10,12 @@ import pytest
 
 from flex_model.arm import load_arm
 from flex_model.config import ConfigError
-from flex_model.scenario import load_scenario, scenario_from_dict, scenario_names
+from flex_model.inputs import JointPD, Pulse
+from flex_model.scenario import Scenario, load_scenario, scenario_from_dict, scenario_names
 from flex_model.spatial.analysis import static_equilibrium
 from flex_model.spatial.description import from_planar
 from flex_model.spatial.loader import spatial_arm_from_dict
-from flex_model.spatial.scenario import (SpatialPD, SpatialPulse, SpatialScenario,
-                                         pd_static_equilibrium)
+from flex_model.spatial.scenario import pd_matrices, pd_static_equilibrium
 
 
 def test_presets_load_and_are_spatial():
@@ -23,9 +23,9 @@ def test_presets_load_and_are_spatial():
     assert set(scenario_names(spatial=True)) >= {"seed000_3d_pd_step", "seed003_like_pd_step"}
     for name in scenario_names(spatial=True):
         sc = load_scenario(name)
-        assert isinstance(sc, SpatialScenario)
+        assert sc.spatial
         assert sc.duration > 0 and sc.step <= sc.sample_period
-    assert not isinstance(load_scenario("thesis_three_link_pd"), SpatialScenario)
+    assert not load_scenario("thesis_three_link_pd").spatial
 
 
 def test_pd_end_state_is_the_static_spring_balance():
@@ -36,9 +36,9 @@ def test_pd_end_state_is_the_static_spring_balance():
     sc = dataclasses.replace(load_scenario("seed003_like_pd_step"), duration=4.0,
                              pulses=(), gravity_hold=False, rho_inf=0.5)
     model = sc.model()
-    res = sc.run(model)
+    res = sc.run(model=model, advise=False)
     sp = sc.setpoint_schedule[-1][1]
-    K_pd, _ = sc.pd_matrices(model)
+    K_pd, _ = pd_matrices(sc, model)
     q_eq = pd_static_equilibrium(model, K_pd, sc.pd.kp * sp, start=sp)
     assert np.max(np.abs(res.q[-1] - q_eq)) < 1e-9
     assert np.max(np.abs(res.v[-1])) < 1e-8
@@ -65,11 +65,11 @@ def test_energy_without_damping_second_order():
     arm = from_planar(load_arm("thesis_example1"))
     errs = []
     for h in (1e-3, 5e-4):
-        sc = SpatialScenario(name="energy", arm=arm, duration=1.0, step=h, sample_period=0.01,
-                             rho_inf=1.0, joint_values=np.array([-0.3, 0.5]),
-                             joint_rates=np.array([0.5, -0.5]))
+        sc = Scenario(name="energy", arm=arm, duration=1.0, step=h, sample_period=0.01,
+                      rho_inf=1.0, joint_values=np.array([-0.3, 0.5]),
+                      joint_rates=np.array([0.5, -0.5]))
         model = sc.model()
-        res = sc.run(model)
+        res = sc.run(model=model, advise=False)
         E = np.array([model.total_energy(q, v) for q, v in zip(res.q, res.v)])
         T = np.array([model.energy(q, v)["kinetic"] for q, v in zip(res.q, res.v)])
         errs.append(np.max(np.abs(E - E[0])) / np.max(T))
@@ -94,21 +94,21 @@ def test_planar_arm_embedded_follows_the_planar_simulate():
         "pulses": [{"joint": "joint1", "torque": 5.0, "start": 0.1, "end": 0.2}],
         "integrator": {"method": "fixed", "step": 1e-3, "rho_inf": 0.9}}).run(
             advise=False)  # both sides at one step: the step's own error is not compared
-    sc = SpatialScenario(name="embedded", arm=from_planar(arm), duration=1.0, step=1e-3,
-                         sample_period=0.01, rho_inf=0.9, joint_values=sp0,
-                         joint_rates=np.zeros(2),
-                         pd=SpatialPD(np.array(kp), np.array(kd), sp0),
-                         setpoint_schedule=((0.3, sp0 + np.radians(5)),),
-                         pulses=(SpatialPulse(0, 5.0, 0.1, 0.2),))
-    res = sc.run()
-    assert np.max(np.abs(res.joint_values - planar.joint_angles)) < 1e-10
+    sc = Scenario(name="embedded", arm=from_planar(arm), duration=1.0, step=1e-3,
+                  sample_period=0.01, rho_inf=0.9, joint_values=sp0,
+                  joint_rates=np.zeros(2),
+                  pd=JointPD(np.array(kp), np.array(kd), sp0),
+                  setpoint_schedule=((0.3, sp0 + np.radians(5), 0.0),),
+                  pulses=(Pulse(0.1, 0.2, (5.0, 0.0)),))
+    res = sc.run(advise=False)
+    assert np.max(np.abs(res.joint_angles - planar.joint_angles)) < 1e-10
     assert np.max(np.abs(res.joint_rates - planar.joint_rates)) < 1e-8
-    d = res.tip_deflections()
+    d = res.link_deflections()
     y = np.column_stack([d[lk.name]["y"] for lk in arm.links])
     assert np.max(np.abs(planar.tip_deflections)) > 0.1       # the run bends the links
     assert np.max(np.abs(y - planar.tip_deflections)) < 1e-10
-    tip = res.tip_positions()
-    assert np.max(np.abs(tip[:, :2] - planar.tip_xy)) < 1e-9
+    tip = res.tip_positions
+    assert np.max(np.abs(tip[:, :2] - planar.tip_positions)) < 1e-9
     assert np.max(np.abs(tip[:, 2])) == 0.0
     assert np.max(np.abs(res.tau - planar.tau)) < 1e-6 * np.max(np.abs(planar.tau))
 
@@ -130,15 +130,14 @@ def test_setpoint_ramps_follow_the_planar_simulate():
                         {"time": 0.3, "setpoints_deg": np.degrees(sp2).tolist(),
                          "ramp": 0.4}]},
         "integrator": {"method": "fixed", "step": 1e-3, "rho_inf": 0.9}}).run(advise=False)
-    sc = SpatialScenario(name="embedded_ramp", arm=from_planar(arm), duration=1.0,
-                         step=1e-3, sample_period=0.01, rho_inf=0.9, joint_values=sp0,
-                         joint_rates=np.zeros(2),
-                         pd=SpatialPD(np.array(kp), np.array(kd), sp0),
-                         setpoint_schedule=((0.1, sp1, 0.0), (0.3, sp2, 0.4)))
-    assert sc.has_ramps
-    res = sc.run()
-    assert np.max(np.abs(res.joint_values - planar.joint_angles)) < 1e-10
-    assert np.max(np.abs(res.joint_values[-1] - sp2)) < 0.05      # it follows the ramp
+    sc = Scenario(name="embedded_ramp", arm=from_planar(arm), duration=1.0,
+                  step=1e-3, sample_period=0.01, rho_inf=0.9, joint_values=sp0,
+                  joint_rates=np.zeros(2),
+                  pd=JointPD(np.array(kp), np.array(kd), sp0),
+                  setpoint_schedule=((0.1, sp1, 0.0), (0.3, sp2, 0.4)))
+    res = sc.run(advise=False)
+    assert np.max(np.abs(res.joint_angles - planar.joint_angles)) < 1e-10
+    assert np.max(np.abs(res.joint_angles[-1] - sp2)) < 0.05      # it follows the ramp
     # reported torques: the planar run gives the law at the sample instant, the spatial
     # one the input held over the next sample period (the ramp averaged over it)
     out = (res.t < 0.3) | (res.t > 0.71)
@@ -193,9 +192,8 @@ def test_one_grammar_for_both_arm_kinds():
             "initial": {"joint_values_deg": [np.degrees(0.1)] * n}})
         for sc in (top, nested):
             assert (sc.method, sc.step, sc.rho_inf) == ("fixed", 5e-4, 0.5)
-        q = [getattr(sc, "joint_values", getattr(sc, "theta0", None)) for sc in (top, nested)]
-        np.testing.assert_allclose(q[0], q[1], rtol=0, atol=1e-15)
-        assert isinstance(top, SpatialScenario) == (arm == "seed003_like_arm")
+        np.testing.assert_allclose(top.joint_values, nested.joint_values, rtol=0, atol=1e-15)
+        assert top.spatial == (arm == "seed003_like_arm")
 
 
 def test_seed000_preset_starts_at_the_static_droop():
@@ -203,10 +201,10 @@ def test_seed000_preset_starts_at_the_static_droop():
     plane, q L^4 / 8 EI + P L^3 / 3 EI = 11.33 um; it stays there (to 1e-12 m) until the
     set-point step at 0.1 s."""
     sc = load_scenario("seed000_3d_pd_step")
-    res = sc.run(duration=0.09)
+    res = dataclasses.replace(sc, duration=0.09).run(advise=False)
     L, EI, rhoA, P = 0.28, 248.0, 0.1289, 0.025607 * 9.81
     droop = rhoA * 9.81 * L ** 4 / (8 * EI) + P * L ** 3 / (3 * EI)
-    w = res.tip_deflections()["link1"]["z"]
+    w = res.link_deflections()["link1"]["z"]
     assert -w[0] == pytest.approx(droop, rel=1e-9)
     assert np.max(np.abs(res.q - res.q[0])) < 1e-12
     assert np.max(np.abs(res.tau)) == 0.0     # vertical joint axis: no holding torque
@@ -222,17 +220,17 @@ def test_a_payload_change_moves_the_pd_equilibrium_to_the_closed_form():
     g, L, M, m, kp = 9.81, 0.5, 1.0, 0.5, 200.0
     arm = spatial_arm_from_dict({"name": "pick", "gravity": [0.0, -g, 0.0], "links": [
         {"joint": {"name": "joint1", "a": L}, "end_body": {"mass": M}}]}, "pick.yaml")
-    sc = SpatialScenario(name="pick", arm=arm, duration=4.0, step=1e-3, sample_period=0.01,
-                         rho_inf=0.9, joint_values=np.zeros(1), joint_rates=np.zeros(1),
-                         start_static=True,
-                         pd=SpatialPD(np.array([kp]), np.array([20.0]), np.zeros(1)),
-                         payload_changes=((0.2, m, np.zeros((3, 3))),))
-    res = sc.run()
+    sc = Scenario(name="pick", arm=arm, duration=4.0, step=1e-3, sample_period=0.01,
+                  rho_inf=0.9, joint_values=np.zeros(1), joint_rates=np.zeros(1),
+                  start_static=True,
+                  pd=JointPD(np.array([kp]), np.array([20.0]), np.zeros(1)),
+                  payload_changes=((0.2, m, np.zeros((3, 3))),))
+    res = sc.run(advise=False)
     q_before = brentq(lambda q: -kp * q - M * g * L * np.cos(q), -1.0, 0.0)
     q_after = brentq(lambda q: -kp * q - (M + m) * g * L * np.cos(q), -1.0, 0.0)
-    assert abs(res.joint_values[15, 0] - q_before) < 1e-9          # t = 0.15 s
-    assert abs(res.joint_values[-1, 0] - q_after) < 1e-6
-    assert np.min(res.joint_values[:, 0]) < q_after                  # it swung past
+    assert abs(res.joint_angles[15, 0] - q_before) < 1e-9          # t = 0.15 s
+    assert abs(res.joint_angles[-1, 0] - q_after) < 1e-6
+    assert np.min(res.joint_angles[:, 0]) < q_after                  # it swung past
     with pytest.raises(ConfigError) as err:
         scenario_from_dict({"name": "p", "arm": "seed003_like_arm", "duration": 1.0,
                             "payload_changes": [{"time": 0.1, "mass": -1.0}]}, "p.yaml")
@@ -252,14 +250,14 @@ def test_a_tip_load_moves_the_pd_equilibrium_and_the_loop_equals_the_reference()
     L, kp, F = 0.5, 200.0, np.array([0.0, 2.0, 0.0])
     arm = spatial_arm_from_dict({"name": "push", "gravity": [0.0, 0.0, 0.0], "links": [
         {"joint": {"name": "joint1", "a": L}, "end_body": {"mass": 1.0}}]}, "push.yaml")
-    sc = SpatialScenario(name="push", arm=arm, duration=3.0, step=1e-3, sample_period=0.01,
-                         rho_inf=0.9, joint_values=np.zeros(1), joint_rates=np.zeros(1),
-                         pd=SpatialPD(np.array([kp]), np.array([20.0]), np.zeros(1)),
-                         tip_loads=((F, 0.1, np.inf),))
-    res = sc.run()
+    sc = Scenario(name="push", arm=arm, duration=3.0, step=1e-3, sample_period=0.01,
+                  rho_inf=0.9, joint_values=np.zeros(1), joint_rates=np.zeros(1),
+                  pd=JointPD(np.array([kp]), np.array([20.0]), np.zeros(1)),
+                  pulses=(Pulse(0.1, np.inf, (), tuple(F)),))
+    res = sc.run(advise=False)
     q_eq = brentq(lambda q: kp * q - F[1] * L * np.cos(q), 0.0, 1.0)
-    assert abs(res.joint_values[5, 0]) < 1e-15                    # before the load
-    assert abs(res.joint_values[-1, 0] - q_eq) < 1e-9
+    assert abs(res.joint_angles[5, 0]) < 1e-15                    # before the load
+    assert abs(res.joint_angles[-1, 0] - q_eq) < 1e-9
     model = SpatialArmModel(arm)
     model.K = model.K + kp * np.eye(1)
     D = 20.0 * np.eye(1)

@@ -13,9 +13,9 @@ at 10 s within 0.12 deg. With ``second_order`` (the axial shortening in 3D) it c
 """
 import numpy as np
 
-from flex_model.scenario import load_scenario
+from flex_model.inputs import JointPD, Pulse
+from flex_model.scenario import Scenario, load_scenario
 from flex_model.spatial.description import from_planar
-from flex_model.spatial.scenario import SpatialPD, SpatialPulse, SpatialScenario
 
 # VALIDATION.md section E (continued): tip of link 3 (m); joint angles at 10 s (deg)
 REF_TIP3 = {3.5: (6.11544, -4.15557), 5.0: (6.29235, -3.91276), 10.0: (6.09177, -4.21345)}
@@ -31,21 +31,21 @@ def test_section_E_in_3d_equals_the_planar_run_and_states_the_exudyn_gap():
     planar = sc.run()
     th0 = np.radians([-20.0, 20.0, -20.0])
     assert np.allclose(sc.pd.setpoints, th0) and np.allclose(sc.pd.kp, 5e3)
-    spatial = SpatialScenario(
+    spatial = Scenario(
         name="section_E_3d", arm=from_planar(sc.arm), duration=10.0, step=1e-3,
         sample_period=0.005, rho_inf=0.9, joint_values=th0, joint_rates=np.zeros(3),
-        pd=SpatialPD(np.full(3, 5e3), np.full(3, 250.0), th0),
-        pulses=(SpatialPulse(0, 1000.0, 3.0, 4.0),))
-    res = spatial.run()
+        pd=JointPD(np.full(3, 5e3), np.full(3, 250.0), th0),
+        pulses=(Pulse(3.0, 4.0, (1000.0, 0.0, 0.0)),))
+    res = spatial.run(advise=False)
     assert res.t[-1] == planar.t[-1] == 10.0
     # embedded = planar: measured 1.1e-10 rad, 4.8e-11 m, tip 1.4e-9 m of a 7.5 m reach
     # over 10 s (both Newton tolerances are 1e-10 relative per step)
-    assert np.max(np.abs(res.joint_values - planar.joint_angles)) < 2e-10
-    d = res.tip_deflections()
+    assert np.max(np.abs(res.joint_angles - planar.joint_angles)) < 2e-10
+    d = res.link_deflections()
     y = np.column_stack([d[lk.name]["y"] for lk in sc.arm.links])
     assert np.all(np.max(np.abs(planar.tip_deflections), axis=0) > [0.14, 0.07, 0.02])
     assert np.max(np.abs(y - planar.tip_deflections)) < 1e-10
-    tip = res.tip_positions()
+    tip = res.tip_positions
     assert np.max(np.abs(tip[:, :2] - planar.link_tips()[:, 2])) < 3e-9
     assert np.max(np.abs(tip[:, 2])) == 0.0     # the motion stays in the x-y plane
     # Exudyn (geometrically exact): the small-deflection gap, as figures
@@ -53,7 +53,7 @@ def test_section_E_in_3d_equals_the_planar_run_and_states_the_exudyn_gap():
         k = int(round(t / 0.005))
         gap = 1e3 * np.hypot(*(tip[k, :2] - ref))
         assert 0.9 * GAP_MM[t] < gap < 1.1 * GAP_MM[t]
-    np.testing.assert_allclose(np.degrees(res.joint_values[-1]), REF_Q_10, atol=0.15)
+    np.testing.assert_allclose(np.degrees(res.joint_angles[-1]), REF_Q_10, atol=0.15)
 
 
 #: the second_order gap to Exudyn (mm), measured as the planar second_order run's
@@ -71,21 +71,21 @@ def test_section_E_in_3d_with_second_order_kinematics_closes_the_exudyn_gap():
     sc.method, sc.step, sc.rho_inf = "fixed", 1e-3, 0.9
     planar = sc.run()
     th0 = np.radians([-20.0, 20.0, -20.0])
-    spatial = SpatialScenario(
+    spatial = Scenario(
         name="section_E_3d_second_order", arm=from_planar(sc.arm), duration=10.0,
         step=1e-3, sample_period=0.005, rho_inf=0.9, joint_values=th0,
-        joint_rates=np.zeros(3), pd=SpatialPD(np.full(3, 5e3), np.full(3, 250.0), th0),
-        pulses=(SpatialPulse(0, 1000.0, 3.0, 4.0),))
+        joint_rates=np.zeros(3), pd=JointPD(np.full(3, 5e3), np.full(3, 250.0), th0),
+        pulses=(Pulse(3.0, 4.0, (1000.0, 0.0, 0.0)),))
     assert spatial.arm.kinematics == "second_order"
-    res = spatial.run()
-    assert np.max(np.abs(res.joint_values - planar.joint_angles)) < 1e-9
-    d = res.tip_deflections()
+    res = spatial.run(advise=False)
+    assert np.max(np.abs(res.joint_angles - planar.joint_angles)) < 1e-9
+    d = res.link_deflections()
     y = np.column_stack([d[lk.name]["y"] for lk in sc.arm.links])
     assert np.max(np.abs(y - planar.tip_deflections)) < 5e-10
-    tip = res.tip_positions()
+    tip = res.tip_positions
     assert np.max(np.abs(tip[:, :2] - planar.link_tips()[:, 2])) < 5e-9
     for t, ref in REF_TIP3.items():
         k = int(round(t / 0.005))
         gap = 1e3 * np.hypot(*(tip[k, :2] - ref))
         assert 0.9 * GAP_MM_SECOND_ORDER[t] < gap < 1.1 * GAP_MM_SECOND_ORDER[t]
-    np.testing.assert_allclose(np.degrees(res.joint_values[-1]), REF_Q_10, atol=0.012)
+    np.testing.assert_allclose(np.degrees(res.joint_angles[-1]), REF_Q_10, atol=0.012)

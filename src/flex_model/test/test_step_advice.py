@@ -1,5 +1,5 @@
 """The step and variables advice (flex_model.step_advice.estimate_error through
-Scenario.advice and SpatialScenario.advice, issue 47): it warns where a run was measured
+Scenario.advice on planar and spatial arms, issue 47): it warns where a run was measured
 more than 2 % off an independent converged run (a much smaller step, more variables) and
 is quiet where the run was within 1 %, planar and spatial (bench/bench_step_advice.py
 runs the sweep of the acceptance).
@@ -84,10 +84,10 @@ def test_planar_warns_where_the_run_is_off_and_is_quiet_where_it_is_not():
 def test_spatial_warns_where_the_run_is_off_and_is_quiet_where_it_is_not():
     """seed003_like_pd_step: 2.5 ms is more than 2 % off a 1/16 ms run with 4 variables
     per plane (12.6 % over 0.5 s in the bench), 0.625 ms within 1 %."""
-    ref = _spatial(2.5e-3 / 16, nv=4).tips()
+    ref = _spatial(2.5e-3 / 16, nv=4).run(advise=False).tip_deflections
     off, ok = _spatial(2.5e-3), _spatial(6.25e-4)
-    assert tip_error(off.tips(), ref) > 0.02
-    assert tip_error(ok.tips(), ref) < 0.01
+    assert tip_error(off.run(advise=False).tip_deflections, ref) > 0.02
+    assert tip_error(ok.run(advise=False).tip_deflections, ref) < 0.01
     adv = off.advice()
     assert adv.warning is not None and "variables per bending plane" in adv.warning
     assert adv.estimate.total > 0.015 and adv.estimate.cost_s > 0

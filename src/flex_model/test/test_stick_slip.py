@@ -257,7 +257,7 @@ def test_off_effect_and_default_arm_are_bit_identical():
     for method, (angles, tip) in before.items():
         r = simulate(model, model.q_from_joint_angles(th0), method=method, **kw)
         np.testing.assert_allclose(r.joint_angles[-1], angles, rtol=1e-13, atol=0)
-        np.testing.assert_allclose(r.tip_xy[-1], tip, rtol=1e-13, atol=0)
+        np.testing.assert_allclose(r.tip_positions[-1], tip, rtol=1e-13, atol=0)
 
 
 def test_stick_slip_acts_on_the_motor_side_of_an_elastic_joint():
@@ -283,8 +283,8 @@ def test_stick_slip_acts_on_the_motor_side_of_an_elastic_joint():
     ({"coulomb": -1.0}, "effects[0].coulomb", ">= 0.0"),
 ])
 def test_stick_slip_config_errors(raw, path, allowed):
-    data = {"name": "t", "links": [{"length": 1.0, "section": {"shape": "explicit", "EI": 1.0,
-                                                              "m": 1.0}}],
+    section = {"shape": "explicit", "EI": 1.0, "m": 1.0}
+    data = {"name": "t", "links": [{"length": 1.0, "section": section}],
             "effects": [{"type": "stick_slip_friction", "joint": "joint1", **raw}]}
     with pytest.raises(ConfigError, match=path.replace("[", r"\[").replace("]", r"\]")) as exc:
         arm_from_dict(data, "arm.yaml")
@@ -292,8 +292,8 @@ def test_stick_slip_config_errors(raw, path, allowed):
 
 
 def test_parsed_effect_and_no_second_friction_model():
-    data = {"name": "t", "links": [{"length": 1.0, "section": {"shape": "explicit", "EI": 1.0,
-                                                              "m": 1.0}}],
+    section = {"shape": "explicit", "EI": 1.0, "m": 1.0}
+    data = {"name": "t", "links": [{"length": 1.0, "section": section}],
             "effects": [{"type": "stick_slip_friction", "joint": "joint1", "coulomb": 0.2,
                          "static": 0.3, "stiffness": 500.0, "damping": 1.0}]}
     arm = arm_from_dict(data, "arm.yaml")

@@ -153,7 +153,7 @@ def residual_vibration(model: FlexArmModel, motion: SampledTrajectory, t_final: 
     q_ac = np.array([motor_angle(tk) for tk in t])
     q_ac_dd = np.array([np.interp(t, motion.t, motion.a[:, i]) for i in range(n)]).T
     torques = motor_inertia * q_ac_dd + kt * (q_ac - sim.joint_angles)
-    return _result(model, motion, t_final, t, sim.tip_xy, torques)
+    return _result(model, motion, t_final, t, sim.tip_positions, torques)
 
 
 def payload_sweep(model: FlexArmModel, payloads, path: int = 1, *, joint_stiffness=None,

@@ -73,7 +73,7 @@ def test_open_loop_nominal_torque_reproduces_the_planned_joints(model, section_f
                    policy=feedforward, control_period=1e-3, method="fixed", dt=1e-3)
     error = np.max(np.abs(sim.joint_angles - traj.positions[:len(sim.t)]))
     assert error < 1e-3          # rad (measured: 2.7e-5)
-    assert np.max(np.abs(sim.tip_xy - traj.tip[:len(sim.t)])) < 1e-3     # m
+    assert np.max(np.abs(sim.tip_positions - traj.tip[:len(sim.t)])) < 1e-3     # m
 
 
 def test_eq95_pd_in_the_loop_passes_every_waypoint(model, section_f):
@@ -94,7 +94,7 @@ def test_eq95_pd_in_the_loop_passes_every_waypoint(model, section_f):
                    policy=reference, control_period=1e-3, method="fixed", dt=1e-3)
     for tk, p in zip(SECTION_F_TIMES, SECTION_F_WAYPOINTS):
         k = int(round(tk / 1e-3))
-        assert np.linalg.norm(sim.tip_xy[k] - p) < 5e-3        # m (measured: <= 0.6 mm)
+        assert np.linalg.norm(sim.tip_positions[k] - p) < 5e-3        # m (measured: <= 0.6 mm)
     assert np.max(np.abs(sim.joint_angles - traj.positions)) < 1e-4
 
 

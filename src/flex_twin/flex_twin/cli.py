@@ -144,10 +144,9 @@ def _simulate(scenario_ref, args, label: str):
 
     from flex_model.plots import plot_simulation
     from flex_model.scenario import load_scenario
-    from flex_model.spatial.scenario import SpatialScenario
 
     sc = load_scenario(scenario_ref, args.vars_per_link)
-    spatial = isinstance(sc, SpatialScenario)
+    spatial = sc.spatial
     if getattr(args, "bag", False) and not spatial:
         raise ValueError(f"--bag: only for spatial scenarios so far ({args.scenario} is "
                          "planar; record the model node with flex-twin record)")
@@ -181,10 +180,8 @@ def _simulate(scenario_ref, args, label: str):
                    "window_s": est.window, "cost_s": est.cost_s},
                "csv": str(csv), **res.summary()}
     if not args.no_plot:
-        from .spatial_cli import plot_spatial_run
         png = out_dir / f"{sc.name}.png"
-        (plot_spatial_run if spatial else plot_simulation)(
-            res, png, title=f"{sc.name} ({sc.arm.name})")
+        plot_simulation(res, png, title=f"{sc.name} ({sc.arm.name})")
         summary["png"] = str(png)
     if getattr(args, "bag", False):
         from .spatial_bags import write_spatial_bag

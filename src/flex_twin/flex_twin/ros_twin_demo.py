@@ -43,6 +43,10 @@ KEPT = {name: RECORDED[name] for name in ("/flex/tip_pose", "/joint_states",
 #: recorder takes the messages after every step itself); after the last step: the quiet
 #: time (s) that ends taking the last messages
 SPIN_PERIOD, QUIET = 0.05, 0.01
+#: wall time (s) the demo waits for the planner: a fresh clone's planner compiles its loop
+#: first (about 18 CPU-s, beside the in-loop kernels' 55), which took 12 min of wall time at
+#: load average 30 on 2 cores (2026-12-07)
+PLAN_TIMEOUT = 1800.0
 
 
 def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0,
@@ -64,6 +68,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     ros_environment()   # LOCALHOST discovery before the participant exists
     rclpy.init(context=ctx)
     wall0 = time.perf_counter()
+    phases = _Phases()
     # the model's in-loop kernels compile on the second core while the planner compiles its
     # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo)
     ahead = compile_ahead_in_background(ARM, 1.0 / rate) if in_loop else None
@@ -71,11 +76,15 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     try:
         demo.start()
         plan = demo.plan()
+        phases.mark("plan")
         if ahead is not None:
             ahead.wait()
+            phases.mark("wait for compile_ahead")
         model = demo.start_model(plan, publish_rate)
+        phases.mark("model node")
         loop_wall, loop_cpu = demo.record(model, out_dir / "bag", duration, publish_rate,
                                           progress)
+        phases.mark("loop and recording")
         wall = time.perf_counter() - wall0
     finally:
         if ahead is not None and ahead.poll() is None:   # the demo failed before the model
@@ -91,8 +100,30 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
                    else "controller node over topics",
                    loop_wall_s=loop_wall, loop_real_time_factor=duration / loop_wall,
                    loop_cpu_s=loop_cpu, loop_cpu_real_time_factor=duration / loop_cpu)
+    phases.mark("summary and plot")
+    summary["phases"] = phases.table()
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     return summary
+
+
+class _Phases:
+    """Wall and CPU seconds of the demo's phases (where a first run's time goes,
+    docs/development.md): this process's, and the compile_ahead process's (a child)."""
+
+    def __init__(self):
+        self.t, self.c = time.perf_counter(), time.process_time()
+        self.rows = [{"phase": "imports, rclpy.init", "wall_s": None, "cpu_s": self.c}]
+
+    def mark(self, name: str) -> None:
+        t, c = time.perf_counter(), time.process_time()
+        self.rows.append({"phase": name, "wall_s": t - self.t, "cpu_s": c - self.c})
+        self.t, self.c = t, c
+
+    def table(self) -> dict:
+        import resource
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return {"this_process": self.rows,
+                "children_cpu_s": kids.ru_utime + kids.ru_stime}
 
 
 def _lean():
@@ -126,7 +157,7 @@ class _Demo:
         from flex_planner.planner_node import PlannerNode
         from .bags.message_types import get_message
         ctx, rate, in_loop = self.ctx, self.rate, self.in_loop
-        self._add(PlannerNode(context=ctx, parameter_overrides=[
+        self.planner = self._add(PlannerNode(context=ctx, parameter_overrides=[
             P("arm", value=ARM), P("sample_period", value=1.0 / rate), *_lean()]))
         if not in_loop:
             self._add(ControllerNode(context=ctx, parameter_overrides=[
@@ -153,7 +184,7 @@ class _Demo:
         self.ex.add_node(node)
         return node
 
-    def spin_until(self, pred, what: str, timeout: float = 600.0) -> None:
+    def spin_until(self, pred, what: str, timeout: float = PLAN_TIMEOUT) -> None:
         end = time.monotonic() + timeout
         while not pred():
             if time.monotonic() > end:
@@ -166,6 +197,13 @@ class _Demo:
         self.spin_until(lambda: self.pub.get_subscription_count() > 0, "the planner")
         self.pub.publish(waypoints_msg([(x, y, t) for (x, y), t in zip(WAYPOINTS, TIMES)]))
         self.spin_until(lambda: self.plans, "the plan")
+        if self.in_loop:
+            # done with the planner: at load 30 (a first run planning for 12 min) it planned
+            # again when the recorder subscribed to the latched waypoints, and the model
+            # took that second plan on flex_planner/trajectory (tip 9-12 mm off)
+            self.ex.remove_node(self.planner)
+            self.nodes.remove(self.planner)
+            self.planner.destroy_node()
         return self.plans[-1]
 
     def start_model(self, plan, publish_rate: float):

@@ -38,7 +38,7 @@ __all__ = ["TF_TYPE", "centre_lines", "frame_poses", "relative", "skeleton_urdf"
 
 
 def write_spatial_bag(res, path, points: int = 21) -> dict:
-    """Write the run ``res`` (flex_model.spatial.scenario.SpatialSimulation) to a new bag
+    """Write the run ``res`` (flex_model.result.SimulationResult of a spatial arm) to a new bag
     at ``path``; returns the message counts per topic."""
     from rclpy.qos import DurabilityPolicy, QoSProfile
     from sensor_msgs.msg import JointState
@@ -65,7 +65,7 @@ def write_spatial_bag(res, path, points: int = 21) -> dict:
             t = float(t)
             t_ns = int(round(t * 1e9))
             w.write("/joint_states", joint_state(JointState, model.arm.joint_names,
-                                                 res.joint_values[k], res.joint_rates[k],
+                                                 res.joint_angles[k], res.joint_rates[k],
                                                  res.tau[k], t), t_ns)
             d = outputs.deflections(res.q[k], res.v[k])
             w.write("/flex/deflections", joint_state(JointState, outputs.names, d[:m], d[m:],

@@ -6,7 +6,7 @@ table, or a ``urdf`` key: a URDF with a side file) or when its name is a preset 
 refused with one line naming the option. The numbers come from
 :mod:`flex_model.spatial.analysis` (natural modes of M, K plus the gravity stiffness;
 Newton equilibrium with the joints held). ``simulate`` runs every scenario through one
-path (flex_twin.cli._simulate); :func:`plot_spatial_run` draws a spatial run.
+path (flex_twin.cli._simulate) and flex_model.plots.plot_simulation draws its run.
 """
 from __future__ import annotations
 
@@ -106,36 +106,3 @@ def cmd_spatial_static(args) -> int:
     for name, d in out["links"].items():
         print(f"  {name}: " + ", ".join(f"{n} {v:.6g}" for n, v in d.items()))
     return 0
-
-
-# ---------------------------------------------------------------- simulate
-
-def plot_spatial_run(res, path, title: str) -> None:
-    """Joint values, tip deflections (y, z) and twist per flexible link, and the tip path."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(2, 2, figsize=(11, 7))
-    names = res.model.arm.joint_names
-    for i, n in enumerate(names):
-        ax[0, 0].plot(res.t, res.joint_values[:, i], label=n)
-    ax[0, 0].set(xlabel="t [s]", ylabel="joint value [rad or m]", title="joints")
-    ax[0, 0].legend(fontsize=8)
-    for name, d in res.tip_deflections().items():
-        ax[0, 1].plot(res.t, 1e3 * d["y"], label=f"{name} y")
-        ax[0, 1].plot(res.t, 1e3 * d["z"], "--", label=f"{name} z")
-        ax[1, 0].plot(res.t, 1e3 * d["twist"], label=f"{name}")
-    ax[0, 1].set(xlabel="t [s]", ylabel="tip deflection [mm]", title="bending (beam y, z)")
-    ax[1, 0].set(xlabel="t [s]", ylabel="tip twist [mrad]", title="torsion")
-    for a in (ax[0, 1], ax[1, 0]):
-        if a.lines:
-            a.legend(fontsize=8)
-    tip = res.tip_positions()
-    for k, lab in enumerate("xyz"):
-        ax[1, 1].plot(res.t, 1e3 * (tip[:, k] - tip[0, k]), label=f"tip {lab} - {lab}(0)")
-    ax[1, 1].set(xlabel="t [s]", ylabel="[mm]", title="tip position")
-    ax[1, 1].legend(fontsize=8)
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)

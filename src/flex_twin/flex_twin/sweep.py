@@ -163,7 +163,7 @@ def metrics(result, setpoints, after: float) -> dict:
     """Tip peak elastic deflection, residual vibration after ``after`` s, final tip error
     against the rigid tip at the set-points (m)."""
     model = result.model
-    tip = result.tip_xy
+    tip = result.tip_positions
     rigid = np.array([model.link_origins(model.q_from_joint_angles(th))[-1]
                       for th in result.joint_angles])
     late = result.t >= after - 1e-12

@@ -49,7 +49,7 @@ class ArmSource:
 
 
 class PlaybackSource:
-    """A finished simulation (flex_model.simulate.SimulationResult), by sample."""
+    """A finished simulation (flex_model.result.SimulationResult), by sample."""
 
     def __init__(self, result):
         self.result, self.duration = result, float(result.t[-1])
@@ -93,7 +93,6 @@ def _source(args):
     from flex_model.dynamics import FlexArmModel
     from flex_model.scenario import load_scenario, scenario_names
     from flex_model.spatial.description import is_spatial_arm
-    from flex_model.spatial.scenario import SpatialScenario
 
     from flex_model.command import Progress
     ref = args.arm_or_scenario
@@ -102,7 +101,7 @@ def _source(args):
         raise spatial
     if ref in scenario_names() + scenario_names(spatial=True) or _is_scenario_file(ref):
         sc = load_scenario(ref, args.vars_per_link)
-        if isinstance(sc, SpatialScenario):
+        if sc.spatial:
             raise spatial
         if args.joint_angles_deg is not None:
             raise ValueError("--joint-angles-deg: for an arm; a scenario has its own start")

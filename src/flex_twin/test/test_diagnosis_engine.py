@@ -50,7 +50,7 @@ def _run(arm, T, noise=0.0, seed=0):
                           ("w", r.tip_deflections[:, i])):
             ch[f"{kind}{i + 1}"] = val + noise * sig[kind] * rng.standard_normal(len(t))
         ch[f"qset{i + 1}"] = qset[:, i]
-    tip = r.tip_xy
+    tip = r.tip_positions
     ch["tip_x"] = tip[:, 0] + noise * 1e-3 * rng.standard_normal(len(t))
     ch["tip_y"] = tip[:, 1] + noise * 1e-3 * rng.standard_normal(len(t))
     return validate(t, ch, 2, "test")
@@ -179,17 +179,16 @@ def test_pair_screening_finds_effects_that_mask_each_other():
     r = -(2.0 * (5 * u + v) + 2.0 * (-5 * u + w)) + 0.01 * rng.standard_normal(n)
     lin = Linearization(Jb, -np.full(3, 0.1), np.full(3, 0.1), 3)
     lin0 = cost(r)
-    pairs = {p.label: v for p, v in _screen_pairs([bias, je, load], cols, r, lin,
-                                                   lin0).items()}
+    screened = _screen_pairs([bias, je, load], cols, r, lin, lin0)
+    pairs = {p.label: v for p, v in screened.items()}
     assert set(pairs) == {f"{bias.label}+{je.label}", f"{bias.label}+{load.label}",
                           f"{je.label}+{load.label}"}
     score, x = pairs[f"{bias.label}+{je.label}"]
     assert score == pytest.approx(lin0 - 1e-4, rel=1e-2)
     np.testing.assert_allclose(x, [2.0, 2.0, 0.0], atol=1e-3)   # bias 2 mrad, compliance 2
     # alone, the bias explains about a tenth of it
-    alone = lin0 - cost(r - (r @ cols[bias.label][0][1]) / (cols[bias.label][0][1] @
-                                                              cols[bias.label][0][1])
-                        * cols[bias.label][0][1])
+    col = cols[bias.label][0][1]
+    alone = lin0 - cost(r - (r @ col) / (col @ col) * col)
     assert alone < 0.15 * score
     scores = {bias.label: alone, je.label: alone, load.label: 0.0}
     screened = _screen_pairs([bias, je, load], cols, r, lin, lin0)

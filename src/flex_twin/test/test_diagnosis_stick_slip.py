@@ -56,7 +56,7 @@ def _run(arm, T, noise=0.0, seed=0):
                           ("w", r.tip_deflections[:, i])):
             ch[f"{kind}{i + 1}"] = val + noise * sig[kind] * rng.standard_normal(len(t))
         ch[f"qset{i + 1}"] = qset[:, i]
-    tip = r.tip_xy
+    tip = r.tip_positions
     ch["tip_x"] = tip[:, 0] + noise * 1e-3 * rng.standard_normal(len(t))
     ch["tip_y"] = tip[:, 1] + noise * 1e-3 * rng.standard_normal(len(t))
     return validate(t, ch, 2, "test"), r

@@ -179,16 +179,17 @@ class SpatialArm:
         return np.array(np.broadcast_to(np.asarray(values, float), (n,)))
 
     def _initial_state(self, values, static):
-        """(q0, v0) as spatial/scenario.py builds them (SpatialScenario.initial_state)."""
-        from ..spatial.scenario import SpatialPD, SpatialScenario
-        sc = SpatialScenario(name=self.arm.name, arm=self.arm, duration=1.0, step=self.h,
-                             sample_period=self.period, rho_inf=self.p["rho_inf"],
-                             joint_values=values, joint_rates=np.zeros(len(values)),
-                             start_static=static,
-                             pd=SpatialPD(self.kp, self.kd, self.setpoints0) if self.in_loop_pd
-                             else None)
+        """(q0, v0) as a scenario builds them (flex_model.scenario.Scenario.initial_state)."""
+        from ..inputs import JointPD
+        from ..scenario import Scenario
+        sc = Scenario(name=self.arm.name, arm=self.arm, duration=1.0, step=self.h,
+                      sample_period=self.period, rho_inf=self.p["rho_inf"],
+                      joint_values=values, joint_rates=np.zeros(len(values)),
+                      start_static=static,
+                      pd=JointPD(self.kp, self.kd, self.setpoints0) if self.in_loop_pd
+                      else None)
         try:
-            q0, v0, _ = sc.initial_state(self.model)
+            q0, v0 = sc.initial_state(self.model)
         except (RuntimeError, np.linalg.LinAlgError) as exc:
             raise ParameterError(f"parameter start_static: no static state ({exc})") from None
         return q0, v0

@@ -111,10 +111,11 @@ def galpha_state(q, v, a, abar, a1, c):
 
 
 @njit(cache=_CACHE)
-def restart_choice(a, ac, B, S, h, rho_inf):
+def restart_choice(a, ac, B, S, h, rho_inf, overshoot_limit=RESTART_OVERSHOOT):
     """(start acceleration, share, overshoot) after a force jump: a + da, the part
     da = S^-1 B (ac - a) of the jump the step follows (S its iteration matrix), where
-    ``share`` > RESTART_SHARE and either ``overshoot`` > RESTART_OVERSHOOT or the
+    ``share`` > RESTART_SHARE and either ``overshoot`` > ``overshoot_limit`` (default
+    RESTART_OVERSHOOT; 0 with exact kinematics, exact_kinematics.restart_acceleration) or the
     consistent restart's kick is mostly the velocity one (:func:`restart_kick`: below
     rho_inf = 0.721; it grows with h omega, not with the jump's size: 2 variables per
     link, 0.25 ms, rho_inf 0: link 2 13 % off consistent, 1.1 % filtered), else the
@@ -131,7 +132,7 @@ def restart_choice(a, ac, B, S, h, rho_inf):
     overshoot = h * h * restart_kick(rho_inf) * np.max(np.abs(e))
     am, af, gam, beta = galpha_parameters(rho_inf)
     velocity_kick = gam - 0.5 > 0.5 - beta
-    if share > RESTART_SHARE and (overshoot > RESTART_OVERSHOOT or velocity_kick):
+    if share > RESTART_SHARE and (overshoot > overshoot_limit or velocity_kick):
         return a + da, share, overshoot
     return ac, share, overshoot
 

@@ -638,12 +638,6 @@ def _with_internal_friction(arm) -> tuple:
     return tuple(effects)
 
 
-def rigid_dh_table(arm: SpatialArm) -> np.ndarray:
-    """(n, 4) standard DH rows [a, alpha, d, theta] of the arm (offsets, joint at zero)."""
-    return np.array([[lk.joint.a, lk.joint.alpha, lk.joint.d, lk.joint.theta]
-                     for lk in arm.links])
-
-
 #: spatial presets live apart from the planar ones (the planar loader reads every
 #: presets/*.yaml as a planar arm)
 SPATIAL_PRESET_DIR = Path(__file__).resolve().parent.parent / "presets" / "spatial"

@@ -632,10 +632,6 @@ class SpatialArmModel:
         return np.setdiff1d(np.arange(self.nq), self.held)
 
     # ------------------------------------------------------------ indexing
-    @property
-    def joint_indices(self) -> np.ndarray:
-        return self.off.copy()
-
     def flex_slice(self, i: int) -> slice:
         n = self.beams[i].n if self.beams[i] is not None else 0
         return slice(int(self.off[i]) + 1, int(self.off[i]) + 1 + n)

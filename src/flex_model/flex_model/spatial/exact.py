@@ -4,7 +4,7 @@ The planar ``exact`` model (flex_model.exact_kinematics) in 3D: the link variabl
 their meaning at small deflections, but the slopes b = v'(s) = W_v' f_v, a = w'(s) =
 W_w' f_w and the twist c = phi(s) = P_t f_t are read as the angles of the section
 rotation (the small-deflection model's own section rotation, seed 000 Eq. 19 with the
-twist about the tangent, kinematics.flex_transform)
+twist about the tangent)
 
     R_s(s) = Ry(-a) Rz(b) Rx(c),
 

@@ -81,22 +81,6 @@ def homogeneous(R, t) -> np.ndarray:
     return T
 
 
-def dh_transform(a: float, alpha: float, d: float, theta: float) -> np.ndarray:
-    """Seed 000 Eq. 17: A = Trans_z(d) Rot_z(theta) Trans_x(a) Rot_x(alpha) (4 x 4)."""
-    ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
-    return np.array([[ct, -st * ca, st * sa, a * ct],
-                     [st, ct * ca, -ct * sa, a * st],
-                     [0.0, sa, ca, d],
-                     [0.0, 0.0, 0.0, 1.0]])
-
-
-def flex_transform(v, w, dv, dw, phi, length) -> np.ndarray:
-    """Seed 000 Eq. 19 in the beam frame, the twist about the tangent: tip rotation
-    Ry(-w') Rz(v') Rx(phi) and displacement (L, v, w) (4 x 4)."""
-    R = rot_y(-dw) @ rot_z(dv) @ rot_x(phi)
-    return homogeneous(R, np.array([length, v, w]))
-
-
 #: the beam frame of placement aux_z: x_beam = z_i, y_beam = y_i, z_beam = -x_i
 P_AUX = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 

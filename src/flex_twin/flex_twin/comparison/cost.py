@@ -35,7 +35,7 @@ def _scenario(disc: str, n_vars: int, options: dict):
 def eom_microseconds(model, sc, repeats: int = 2000) -> float:
     """Best of five: microseconds per evaluation of dx/dt."""
     e = input_data(model, sc.pd, sc.pulses, np.zeros(model.n_links))
-    x = np.concatenate([model.q_from_joint_angles(sc.theta0), np.full(model.nq, 0.01)])
+    x = np.concatenate([model.q_from_joint_angles(sc.joint_values), np.full(model.nq, 0.01)])
     derivative(0.0, x, model.P, e)
     best = np.inf
     for _ in range(5):

@@ -413,6 +413,28 @@ def confidence_intervals(fit: FitResult, n_channels: int, block: int, n_eff: flo
     return reported, resolution, cond
 
 
+def resolved_lower(r_a, r_b, n_channels: int, block: int, level: float = 0.95) -> bool:
+    """Is the cost of the weighted residuals ``r_a`` lower than that of ``r_b`` (one
+    recording, two twins) by a difference the data resolve? The test of equal predictive
+    accuracy of Diebold and Mariano (1995): the loss differential r_a^2 - r_b^2 summed
+    over time blocks of ``block`` samples (all channels: what the twins still miss colours
+    the residuals, as for the block sandwich of :func:`confidence_intervals`), its mean
+    over the G blocks against Student's t with G - 1 degrees of freedom; resolved when the
+    two-sided ``level`` interval of that mean lies below zero."""
+    r_a, r_b = np.asarray(r_a, float), np.asarray(r_b, float)
+    n_t = len(r_a) // max(n_channels, 1)
+    d = (r_a[:n_channels * n_t] ** 2 - r_b[:n_channels * n_t] ** 2)
+    d = d.reshape(n_channels, n_t).sum(axis=0)
+    G = n_t // max(block, 1)
+    if G < 3:
+        return False
+    g = d[:G * block].reshape(G, block).sum(axis=1)
+    sd = float(np.std(g, ddof=1))
+    if sd == 0.0:
+        return bool(np.mean(g) < 0.0)
+    return bool(np.mean(g) + student_t.ppf(0.5 + level / 2, G - 1) * sd / np.sqrt(G) < 0.0)
+
+
 def fit_task(task):
     """Worker function: fit one candidate (serially) and score it on the held-out data:
     (ctx, ctx_holdout, hyp, base, lin, start) -> (FitResult, J_holdout)."""

@@ -120,17 +120,6 @@ class Hypothesis:
     def label(self) -> str:
         return f"{self.kind}@{self.target}" if self.target else self.kind
 
-    @property
-    def klass(self) -> str:
-        """Equivalence class: the effect type (the declared EQUIVALENT entries are shown
-        in the report)."""
-        return self.kind
-
-    @property
-    def equivalent(self) -> list:
-        cls = EFFECT_TYPES.get(self.kind)
-        return list(cls.EQUIVALENT) if cls else []
-
     def values(self, x) -> np.ndarray:
         v = np.asarray(x, float) * np.asarray(self.scale)
         for k, inv in enumerate(self.inverse):

@@ -73,6 +73,11 @@ def write_arm_yaml(path, nominal_path, diagnosis) -> None:
     Path(path).write_text(text)
 
 
+def _alternatives(c) -> str:
+    alt = getattr(c, "alternatives", ())
+    return f"; the held-out data do not resolve it from {', '.join(alt)}" if alt else ""
+
+
 def _candidate_json(c) -> dict:
     return {"label": c.label, "kind": c.kind, "target": c.target,
             "parameters": {n: float(v) for n, v in zip(c.names, c.values)},
@@ -81,7 +86,9 @@ def _candidate_json(c) -> dict:
             "J_holdout": float(c.J_holdout), "share_explained": float(c.share),
             "share_explained_fit": float(c.share_fit),
             "delta_bic": float(c.delta_bic), "condition": float(c.cond),
-            "identifiable": bool(c.identifiable)}
+            "identifiable": bool(c.identifiable),
+            # near-tied rivals the held-out data do not tell from it (engine._tie_break)
+            "not_resolved_from": list(getattr(c, "alternatives", ()))}
 
 
 def summary(diagnosis) -> dict:
@@ -246,7 +253,8 @@ def write_report(out_dir, nominal_path, diagnosis, plots: bool = True) -> dict:
           f"Nominal arm `{nominal_path}`; updated arm `diagnosed_arm.yaml`.", "",
           ] + [f"- named **{c.label}**: " + ", ".join(
               f"{n} = {v:.5g} +- {e:.2g}" for n, v, e in zip(c.names, c.values, c.ci))
-              + f" (held-out share {c.share:.3f})" for c in diagnosis.accepted] + [
+              + f" (held-out share {c.share:.3f})" + _alternatives(c)
+              for c in diagnosis.accepted] + [
           "", "## Gate (cost J in units of a healthy twin's noise power: white-noise estimate "
           "x healthy ratio; excess = J - 1)", "",
           "| twin | J fit | J held out |", "|---|---|---|",

@@ -10,8 +10,9 @@ through five small dispatches, each calling this module where the arm is spatial
   kp qset(t) + ff as the joint torque, as spatial.scenario does; compiled
   generalized-alpha loop, spatial.integrate.simulate_fixed_compiled); a sampled PD reads
   the twin's actuator angle and rate at each control instant, its command held over the
-  period (zero-order hold; the method continues through the periods with its
-  acceleration history). The start: the measured joint angles and rates
+  period (zero-order hold; each period restarts from the command jump's acceleration,
+  integrators.restart_choice: the acceleration history carried across the jumps smears
+  them, a first-order error in the step). The start: the measured joint angles and rates
   (replay.measured_start), the links in static equilibrium with the joints held.
   Channels: ``q<i>``, ``v<i>`` the actuator coordinate (the motor side of an elastic
   gear: a motor encoder), ``tau<i>`` the command, and per flexible link the tip's
@@ -42,6 +43,9 @@ from flex_model.sections import SectionProfile
 #: (model form of the step: 1.35 at 1 ms, 0.81 at 0.5 ms, S-cont-healthy-s1), above the
 #: gate on its own
 MAX_STEP = 1e-3
+#: the sampled law's periods restart at each command jump (False: carry the acceleration
+#: history across it, as before 2026-12-07; bench/bench_spatial_sampled_replay.py)
+SAMPLED_RESTART = True
 #: the spatial hypotheses' kinds: link stiffness per plane and torsion (relative change)
 PLANE_KINDS = {"bending_stiffness_z": "bend_v", "bending_stiffness_y": "bend_w",
                "torsion_stiffness": "torsion"}
@@ -238,7 +242,9 @@ def _continuous(model, ctl, q0, v0, qset, ff, h, per, n):
 
 def _sampled(model, ctl, q0, v0, qset, ff, h, per, n_periods, stride):
     """The sampled PD: ``per`` steps per control period, the state every ``stride``
-    steps (the recording's samples)."""
+    steps (the recording's samples). Each period restarts at its command's jump
+    (``restart_from``): on S-samp500-healthy-s1 at 1 ms the nominal twin's J 1.73 -> 1.11,
+    noise-free against Exudyn at 0.125 ms 1.29 -> 0.54 (docs/diagnosis.md)."""
     from flex_model.spatial.integrate import simulate_fixed_compiled
     kp, kd = ctl.joint_pd() if ctl.law == "pd" else (np.diag(ctl.gains),
                                                      np.diag(ctl.rate_gains))
@@ -249,7 +255,8 @@ def _sampled(model, ctl, q0, v0, qset, ff, h, per, n_periods, stride):
         cmd = ff[k] + kp * (qset[k] - q[act]) - kd * v[act]
         cmds.append(cmd)
         run = simulate_fixed_compiled(model, q, v, h, per, joint_torques=cmd, rho_inf=0.9,
-                                      tol=1e-8, acceleration=acc)
+                                      tol=1e-8, **{"restart_from" if SAMPLED_RESTART
+                                                   else "acceleration": acc})
         acc = run.acceleration
         Qs += list(run.q[1:])
         Vs += list(run.v[1:])

@@ -91,7 +91,7 @@ def record(true_model: FlexArmModel, nominal: FlexArmModel, law: ControllerDescr
     angles, rates = result.q @ G.T, result.v @ G.T
     qm, vm = measured(np.arange(n), angles, rates)
     w = result.tip_deflections
-    tip = result.tip_xy
+    tip = result.tip_positions
     columns = (["t"] + [f"q{i + 1}" for i in range(nl)] + [f"v{i + 1}" for i in range(nl)]
                + [f"tau{i + 1}" for i in range(nl)] + [f"qset{i + 1}" for i in range(nl)]
                + [f"w{i + 1}" for i in range(nl)] + ["tip_x", "tip_y"])

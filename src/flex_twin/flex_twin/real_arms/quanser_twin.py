@@ -7,14 +7,12 @@ values; EI from f_c = 1.8 Hz), ``quanser_cuboulder_calibrated`` (written by
 """
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 
 from flex_model.arm import ArmDescription, load_arm
 from flex_model.dynamics import FlexArmModel
-from flex_model.effects import StickSlipFriction
 from flex_model.modes import natural_modes
 from .quanser_data import CUBOULDER, UCMERCED, LabRun, read_cuboulder_file, read_ucmerced
 
@@ -136,30 +134,3 @@ def closed_loop_frf(model: FlexArmModel, kp: float, f_hz) -> dict:
     n = lin.A.shape[0]
     plant = np.array([c @ np.linalg.solve(si * np.eye(n) - lin.A, b) for si in s])
     return {"plant": plant, "closed": kp * plant / (1 + kp * plant)}
-
-
-#: pre-sliding displacement F_s / sigma_0 at the hub (rad): one encoder count
-#: (2 pi / 4096) of the SRV02's output-shaft encoder
-PRESLIDING = 2 * np.pi / 4096
-STRIBECK_VELOCITY = 0.01     # rad/s, as the calibrated joint_friction
-ELASTIC_FRACTION = 0.5
-
-
-def with_stick_slip(arm: ArmDescription, coulomb=None, static=None, viscous=None,
-                    presliding: float = PRESLIDING) -> ArmDescription:
-    """The arm with its joint_friction (or given levels) as stick_slip_friction; the
-    bristles critically damped for the hub's inertia n^2 J_r + J_hub + link."""
-    from flex_twin.diagnosis.hypotheses import joint_inertias
-    j = arm.joint_names[0]
-    fr = arm.effect("joint_friction", j)
-    fv = viscous if viscous is not None else (fr["viscous"] if fr else 0.0)
-    fc = coulomb if coulomb is not None else (fr["coulomb"] if fr else 0.0)
-    fs = static if static is not None else (fr["static"] if fr else 0.0)
-    fs = max(fs, fc)
-    base = dataclasses.replace(arm, effects=tuple(e for e in arm.effects
-                                                  if e.TYPE != "joint_friction"))
-    inertia = float(joint_inertias(base, [0.0])[0])
-    sigma0 = max(fs, 1e-6) / presliding
-    return base.with_effects(StickSlipFriction(j, (
-        fv, fc, fs, STRIBECK_VELOCITY, sigma0, 2.0 * np.sqrt(sigma0 * inertia),
-        ELASTIC_FRACTION)))
