@@ -13,15 +13,8 @@ import numpy as np
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from flex_model.ros.conversions import finite_field
 from flex_model.ros.conversions import trajectory_from_msg  # noqa: F401 (the node's import)
-
-
-def _finite(field: str, values) -> np.ndarray:
-    arr = np.asarray(values, dtype=float)
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
-        raise ValueError(f"{field}[{bad}]: got {float(arr[bad]):.6g}; expected finite values")
-    return arr
 
 
 def joint_state_arrays(msg: JointState, joint_names) -> tuple[np.ndarray, np.ndarray | None]:
@@ -40,10 +33,10 @@ def joint_state_arrays(msg: JointState, joint_names) -> tuple[np.ndarray, np.nda
         missing = [j for j in joint_names if j not in names]
         raise ValueError(f"JointState.name: got {names}; expected to contain "
                          f"{list(joint_names)} (missing {missing})") from None
-    pos = _finite("JointState.position", np.asarray(msg.position, float)[idx])
+    pos = finite_field("JointState.position", np.asarray(msg.position, float)[idx])
     if not len(msg.velocity):
         return pos, None
-    vel = _finite("JointState.velocity", np.asarray(msg.velocity, float)[idx])
+    vel = finite_field("JointState.velocity", np.asarray(msg.velocity, float)[idx])
     return pos, vel
 
 
@@ -64,8 +57,8 @@ def deflection_array(msg: JointState, n: int) -> np.ndarray:
     if missing:
         raise ValueError(f"deflections.name: got {names}; expected to contain {want} "
                          f"(missing {missing})")
-    return _finite("deflections.position",
-                   np.asarray(msg.position, float)[[names.index(w) for w in want]])
+    return finite_field("deflections.position",
+                        np.asarray(msg.position, float)[[names.index(w) for w in want]])
 
 
 def commands_msg(tau, msg: Float64MultiArray | None = None) -> Float64MultiArray:

@@ -354,7 +354,8 @@ def diagnostic_status(name: str, hardware_id: str, level: str, message: str,
                             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
 
 
-def _finite_field(field: str, values) -> np.ndarray:
+def finite_field(field: str, values) -> np.ndarray:
+    """``values`` as a float array, or a ValueError naming the first non-finite entry."""
     arr = np.asarray(values, dtype=float)
     if not np.all(np.isfinite(arr)):
         bad = int(np.flatnonzero(~np.isfinite(arr))[0])
@@ -433,6 +434,6 @@ def _trajectory_arrays_checked(points, n: int, idx):
                 raise ValueError(f"JointTrajectory.points[{k}].{field}: got {len(values)} "
                                  f"values; expected 0 or {n}")
             if len(values):
-                arrays[field][k] = _finite_field(f"JointTrajectory.points[{k}].{field}",
-                                                 np.asarray(values, float)[idx])
+                arrays[field][k] = finite_field(f"JointTrajectory.points[{k}].{field}",
+                                                np.asarray(values, float)[idx])
     return t, arrays
