@@ -214,16 +214,6 @@ def descriptor(spec: Param, bounds=None) -> ParameterDescriptor:
     return desc
 
 
-def declare_parameters(node, specs, ranges=None) -> dict:
-    """Declare ``specs`` (:class:`Param`) with dynamic typing (so ``rate:=500`` reaches
-    the check as an integer instead of being refused by rclpy) and return their checked
-    values; raises :class:`ParameterError` naming the first bad one. Then each gets its
-    full :func:`descriptor` (read_only, ``ranges[name]``), after the check, so that a bad
-    start value is still the check's one line."""
-    declare_only(node, specs)
-    return read_parameters(node, specs, ranges)
-
-
 def declare_only(node, specs) -> None:
     """Declare ``specs`` with dynamic typing and writable descriptors, unchecked (a
     lifecycle node's constructor: ``ros2 param`` works while it is unconfigured)."""

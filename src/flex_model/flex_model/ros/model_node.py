@@ -325,10 +325,6 @@ SPATIAL_ONLY = {
        for k in ("kp", "kd", "kpp", "kpv", "setpoints")}}
 
 
-def _defaults(overrides: dict) -> dict:
-    return {s.name: overrides.get(s.name, s.default) for s in PARAMETERS}
-
-
 def _aliases(p: dict, specs) -> None:
     """max_step/step and initial_joint_angles_deg/initial_joint_values: one value each
     (the one set), in p["max_step"] and p["initial_joint_values"] (rad or m)."""
