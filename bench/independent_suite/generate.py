@@ -623,10 +623,10 @@ def arm_yaml(arm_id):
     return _yaml(d) + '\n'
 
 
-def controller_yaml(ctrl_id):
-    """The controller as the data's (flex_twin.diagnosis.controller schema): a sampled PD
-    (``period``), or a continuous one (``timing: continuous``, no period)."""
-    c = CONTROLLERS[ctrl_id]
+def pd_body(c) -> dict:
+    """A controller entry ``c`` (kind, kp, kd, period) as the data's controller body
+    (flex_twin.diagnosis.controller schema): a sampled PD (``period``), or a continuous one
+    (``timing: continuous``, no period); both generators write it."""
     body = {'law': 'pd'}
     if c['kind'] != 'sampled':
         body['timing'] = 'continuous'
@@ -634,6 +634,13 @@ def controller_yaml(ctrl_id):
     if c['kind'] == 'sampled':
         body['period'] = c['period']
     body['feedforward'] = 'none'
+    return body
+
+
+def controller_yaml(ctrl_id):
+    """The controller file of a case (:func:`pd_body`)."""
+    c = CONTROLLERS[ctrl_id]
+    body = pd_body(c)
     return ('# %s PD on the joint angles, no gravity compensation\n'
             % ('sampled (zero-order hold, %g Hz)' % (1 / c['period']) if c['kind'] == 'sampled'
                else 'continuous (evaluated inside the integrator)')

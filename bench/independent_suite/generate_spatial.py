@@ -43,7 +43,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 BENCH_DIR = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 sys.path.insert(0, BENCH_DIR)
-from generate import _rng, _yaml  # noqa: E402  (stdlib only at its top)
+from generate import _rng, _yaml, pd_body  # noqa: E402  (stdlib only at its top)
 
 DURATION = 4.0                      # s
 RATE = 200.0                        # Hz, recording
@@ -402,15 +402,7 @@ def arm_yaml():
 
 
 def controller_yaml(ctrl_id):
-    c = CONTROLLERS[ctrl_id]
-    body = {'law': 'pd'}
-    if c['kind'] != 'sampled':
-        body['timing'] = 'continuous'
-    body.update(kp=[float(x) for x in c['kp']], kd=[float(x) for x in c['kd']])
-    if c['kind'] == 'sampled':
-        body['period'] = c['period']
-    body['feedforward'] = 'none'
-    return _yaml({'controller': body}) + '\n'
+    return _yaml({'controller': pd_body(CONTROLLERS[ctrl_id])}) + '\n'
 
 
 def write_case(case, out_dir, cols, data, info):
