@@ -25,3 +25,19 @@ def embedded_state_check():
                                    atol=atol * scale)
         return qp, vp, ap, qs, vs, as_, scale
     return check
+
+
+@pytest.fixture
+def lagrange_bias():
+    """The bias forces of an arm by Lagrange's equations from its mass matrix and gravity
+    energy, by central differences of step ``h``: ``lagrange(m, q, v)`` = dM/dt v -
+    1/2 d(v' M v)/dq + dU/dq (the independent check of ``m.bias(q, v)``)."""
+    def lagrange(m, q, v, h=1e-6):
+        E = np.eye(m.nq)
+        Bd = (m.mass_matrix(q + h * v) - m.mass_matrix(q - h * v)) / (2 * h)
+        dT = [(v @ m.mass_matrix(q + h * e) @ v - v @ m.mass_matrix(q - h * e) @ v) / (2 * h)
+              for e in E]
+        U = [m.energy(q + h * e, v)["gravity"] - m.energy(q - h * e, v)["gravity"]
+             for e in E]
+        return Bd @ v - 0.5 * np.array(dT) + np.array(U) / (2 * h)
+    return lagrange
