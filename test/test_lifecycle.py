@@ -70,6 +70,17 @@ def step(h, k: int) -> None:
         h.spin_until(lambda: len(h.states) > n, "a step")
 
 
+def activate_configured(h):
+    """A configured (inactive) node publishes nothing until activated; on activate it
+    publishes its state at t = 0."""
+    h.spin_for(0.2)
+    assert h.states == []  # configured, not active: nothing stepping-related
+    assert h.transition(Transition.TRANSITION_ACTIVATE)
+    assert h.state() == "active"
+    h.spin_until(lambda: h.states, "the state published on activate")
+    assert stamp_s(h.states[0]) == 0.0
+
+
 def test_model_node_transitions_with_a_lifecycle_client(managed):
     h = managed
     assert h.state() == "unconfigured"
@@ -77,12 +88,7 @@ def test_model_node_transitions_with_a_lifecycle_client(managed):
     assert h.states == []  # unconfigured: no arm, nothing published
     assert h.transition(Transition.TRANSITION_CONFIGURE)
     assert h.state() == "inactive"
-    h.spin_for(0.2)
-    assert h.states == []  # configured, not active: nothing stepping-related
-    assert h.transition(Transition.TRANSITION_ACTIVATE)
-    assert h.state() == "active"
-    h.spin_until(lambda: h.states, "the state published on activate")
-    assert stamp_s(h.states[0]) == 0.0
+    activate_configured(h)
     step(h, 20)
     angles, rates, _ = core("thesis_example1_motors", [30.0, -20.0], 20)
     assert stamp_s(h.states[-1]) == pytest.approx(0.020, abs=1e-12)
@@ -375,12 +381,7 @@ def test_spatial_model_node_transitions_with_a_lifecycle_client(manager):
     assert h.state() == "inactive"
     h.spin_until(lambda: h.node.pub_js.get_subscription_count() > 0 and
                  h.cmd.get_subscription_count() > 0, "discovery")
-    h.spin_for(0.2)
-    assert h.states == []  # configured, not active: nothing stepping-related
-    assert h.transition(Transition.TRANSITION_ACTIVATE)
-    assert h.state() == "active"
-    h.spin_until(lambda: h.states, "the state published on activate")
-    assert stamp_s(h.states[0]) == 0.0
+    activate_configured(h)
     spatial_periods(h, torques[:8])
     q0, v0 = h.node.q0, h.node.v0
     model, ref = spatial_core(SPATIAL, q0, v0, torques)
