@@ -71,10 +71,6 @@ class FunctionBasis(LinkBasis):
     def curvature_matrix(self, z) -> np.ndarray:
         return self._evaluate(z)[2]
 
-    def original_coordinates(self, q_hat) -> np.ndarray:
-        """q_f = T^-1 q_hat (thesis Eq. 83): modal amplitudes / polynomial coefficients."""
-        return np.linalg.solve(self.tip_transform, np.asarray(q_hat, float))
-
 
 def quadrature(profile: SectionProfile, cuts):
     """Gauss points z, weights and EI(z), m(z) on [0, L] split at ``cuts`` and the breaks."""

@@ -82,10 +82,6 @@ GEAR_TYPES = ("rigid", "elastic")
 SPATIAL_EFFECTS = ("gear", "joint_elasticity", "joint_friction", "dc_motor",
                    "structural_damping", "backlash", "contact_surface")
 PLACEMENTS = ("dh_x", "aux_z")
-#: placements of flexible links built from a URDF (not a YAML field): ``link_x`` is a beam
-#: along the x axis of the link (joint) frame from its origin; the link's end frame is the
-#: tip section frame E (seed 000 Eq. 19), the URDF loader moves what follows by Trans_x(-L).
-ALL_PLACEMENTS = PLACEMENTS + ("link_x",)
 SECTION_FIELDS = (("EI_y", "N m^2"), ("EI_z", "N m^2"), ("GJ", "N m^2"), ("rhoA", "kg/m"),
                   ("rhoJ", "kg m"))
 

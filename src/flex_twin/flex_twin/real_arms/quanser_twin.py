@@ -21,8 +21,6 @@ NOMINAL_PRESETS = {("cuboulder", "flexible"): "quanser_cuboulder_flexible",
                    ("ucmerced", "flexible"): "quanser_ucmerced"}
 CALIBRATED_PRESETS = {("cuboulder", "flexible"): "quanser_cuboulder_calibrated",
                       ("cuboulder", "rigid"): "quanser_cuboulder_rigid_calibrated"}
-#: the handout's link frequency (Hz), with the hub clamped
-CUBOULDER_LINK_FREQUENCY = 1.8
 
 
 def stiffness_for_frequency(arm: ArmDescription, f_clamped: float) -> float:
