@@ -319,7 +319,7 @@ def test_the_pages_show_commands():
     assert (ROOT / "docs").is_dir()
     studies = {c.argv[2] for c in COMMANDS if c.argv[1:2] == ("-m",)
                and c.argv[2].startswith("studies.")}
-    assert len(studies) == 10
+    assert len(studies) == 12
     shown = {c.argv[0] for c in COMMANDS}
     assert {"flex-twin", "make", "flex-model-node", "flex-controller-node",
             "flex-planner-node"} <= shown

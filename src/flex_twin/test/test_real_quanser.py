@@ -495,3 +495,5 @@ def test_real_arm_lists_what_it_keeps_and_points_moved_studies_at_studies(capsys
     assert "python -m studies.servo_split --kt-tolerance 0.3 --help" in err[0]
     assert main(["real-arm", "two-mass"]) == 2
     assert "python -m studies.two_mass_study (" in capsys.readouterr().err
+    assert main(["frequency-gap", "--measured-hz", "8.24"]) == 2
+    assert "python -m studies.frequency_gap --measured-hz 8.24 (" in capsys.readouterr().err

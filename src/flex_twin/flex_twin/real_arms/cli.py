@@ -19,6 +19,8 @@ MOVED_STUDIES = {"stick-slip": "stick_slip_study", "units": "unit_calibration",
                  "holds": "stuck_holds", "link-response": "link_response",
                  "floor": "run_floor", "servo-split": "servo_split",
                  "two-mass": "two_mass_study", "transfer": "transfer"}
+#: the same for the top-level sub-commands that were one-off studies
+MOVED_COMMANDS = {"cantilever": "cantilever", "frequency-gap": "frequency_gap"}
 KEPT_ACTIONS = ("calibrate", "report", "diagnose", "estimate")
 
 
@@ -206,20 +208,22 @@ def cmd_estimate(args) -> int:
 
 def moved_study(args) -> int:
     """A sub-command that moved to ``studies/``: one line saying where to run it now."""
-    module = MOVED_STUDIES[args.action]
     given = shlex.join(args.study_args)
-    raise ValueError(f"real-arm {args.action} moved out of the package (issue 43): from the "
-                     f"repository root run python -m studies.{module}"
+    raise ValueError(f"{args.moved} moved out of the package (issue 43): from the "
+                     f"repository root run python -m studies.{args.study}"
                      f"{' ' + given if given else ''} (studies/README.md)")
 
 
-def add_moved_studies(rsub) -> None:
-    """Hidden sub-parsers of the moved studies: they take any arguments (even ``--help``)
-    and point at ``python -m studies.<module>``."""
-    for action in MOVED_STUDIES:
-        mp = rsub.add_parser(action, prefix_chars="\0", add_help=False)
+def add_moved_studies(sub, moved: dict = MOVED_STUDIES, prefix: str = "real-arm ",
+                      listed: bool = False) -> None:
+    """Sub-parsers of the moved studies (``moved``: old name -> module; hidden unless
+    ``listed``): they take any arguments (even ``--help``) and point at ``python -m
+    studies.<module>``."""
+    for name, module in moved.items():
+        shown = {"help": f"moved: python -m studies.{module}"} if listed else {}
+        mp = sub.add_parser(name, prefix_chars="\0", add_help=False, **shown)
         mp.add_argument("study_args", nargs="*")
-        mp.set_defaults(func=moved_study)
+        mp.set_defaults(func=moved_study, moved=prefix + name, study=module)
 
 
 def add_data_option(parser) -> None:

@@ -15,6 +15,7 @@ for a root of finite stiffness ``kp``).
 from __future__ import annotations
 
 import dataclasses
+import sys
 from dataclasses import dataclass
 from typing import Callable
 
@@ -380,3 +381,31 @@ def reach_hz(setup: ModalSetup, candidate: Candidate, mode: int = 1) -> tuple[fl
     """Frequency of ``mode`` (Hz) with the candidate at its lower and its upper bound."""
     return tuple(float(modal_frequencies(candidate.apply(setup, v), mode)[mode - 1])
                  for v in candidate.bounds)
+
+
+# ----------------------------------------------------------------- what the reports print
+def say_for(args):
+    """Progress lines on stderr, ``[<command>] text`` (none with ``--json``)."""
+    quiet = getattr(args, "json", False)
+    return lambda text: None if quiet else print(f"[{args.command}] {text}", file=sys.stderr)
+
+
+def fmt_value(v, unit="") -> str:
+    """A fitted value with its unit for the reports (``rigid`` for inf, ``-`` for none)."""
+    if v is None or not np.isfinite(v):
+        return "rigid" if v is not None and v == np.inf else "-"
+    return f"{v:.4g}{(' ' + unit) if unit and unit != '-' else ''}"
+
+
+def change_text(fit) -> str:
+    """The fit's relative change from nominal, in %."""
+    r = fit.relative_change()[0]
+    return "-" if not np.isfinite(r) else f"{100 * r:+.2f} %"
+
+
+def tolerance_text(fit) -> str:
+    """Whether the fit stays within its manufacturing tolerance."""
+    c, ok = fit.candidates[0], fit.within_tolerance()[0]
+    if ok is None:
+        return "no tolerance"
+    return f"{'yes' if ok else 'no'} (±{100 * c.tolerance:.0f} %)"

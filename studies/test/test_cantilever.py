@@ -1,6 +1,5 @@
 """The steel cantilever on a shaker (issue 9): Euler-Bernoulli model from its dimensions,
 mode identification from force/acceleration records, single-effect diagnosis."""
-import argparse
 import json
 
 import numpy as np
@@ -8,15 +7,11 @@ import pytest
 import scipy.signal as sig
 
 from flex_model.arm import load_arm
-from flex_twin.cli import run_command
-from flex_twin.real_arms.cantilever import (DATA_SET, LBF, MODE_BANDS_HZ, REPORTED_MODES_HZ,
-                                             ShakerRecord, clamped_free_roots,
-                                             euler_bernoulli_clamped_free_hz, frf_h1,
-                                             identify_modes, read_data_set)
-from flex_twin.real_arms.modal_cli import add_modal_parsers
-from flex_twin.real_arms.modal_diagnosis import (ModalSetup, diagnose, link_totals,
-                                                  modal_frequencies, shift_pattern,
-                                                  standard_candidates)
+from studies.cantilever import (DATA_SET, LBF, MODE_BANDS_HZ, REPORTED_MODES_HZ, ShakerRecord,
+                                clamped_free_roots, euler_bernoulli_clamped_free_hz, frf_h1,
+                                identify_modes, main, read_data_set)
+from studies.modal_diagnosis import (ModalSetup, diagnose, link_totals, modal_frequencies,
+                                     shift_pattern, standard_candidates)
 
 REPORTED = np.array(REPORTED_MODES_HZ)
 
@@ -123,19 +118,16 @@ def test_root_spring_and_tip_mass_shift_all_modes_alike_to_first_order(effect, s
     else:
         value, expected = size * mass, -2.0 * size
     shifted = modal_frequencies(cand.apply(setup, value), 3)
-    assert shifted / modal_frequencies(setup, 3) - 1 == pytest.approx([expected] * 3,
-                                                                     rel=0.05)
+    assert shifted / modal_frequencies(setup, 3) - 1 == pytest.approx([expected] * 3, rel=0.05)
 
 
 def test_cantilever_command_reports_the_equivalence_class(shared_dir, tmp_path, capsys):
-    p = argparse.ArgumentParser(prog="flex-twin")
-    add_modal_parsers(p.add_subparsers(dest="cmd", required=True))
     one = tmp_path / "data"       # one record (a link, not a copy) keeps the test short
     one.mkdir()
     name = "data_set_1_downsampled_by_16.lvm"
     (one / name).symlink_to(shared_dir / "data" / "real" / DATA_SET / name)
-    args = ["cantilever", "--data", str(one), "--vars", "8", "--out", str(tmp_path), "--json"]
-    assert run_command(p.parse_args(args)) == 0
+    args = ["--data", str(one), "--vars", "8", "--out", str(tmp_path), "--json"]
+    assert main(args) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["model_over_measured"] == pytest.approx(
         np.array(out["model_hz"][:3]) / REPORTED, rel=1e-12)
@@ -143,6 +135,5 @@ def test_cantilever_command_reports_the_equivalence_class(shared_dir, tmp_path, 
     report = (tmp_path / "report.md").read_text()
     assert "one equivalence class" in report and "F-test" in report
     assert (tmp_path / "cantilever.png").stat().st_size > 20_000
-    bad = ["cantilever", "--data", str(tmp_path / "missing")]
-    assert run_command(p.parse_args(bad)) == 2
+    assert main(["--data", str(tmp_path / "missing")]) == 2
     assert capsys.readouterr().err.count("\n") == 1

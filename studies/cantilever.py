@@ -12,6 +12,7 @@ wavelet model of flex_model (preset ``usc_cantilever``).
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,10 +22,16 @@ from scipy.optimize import brentq
 
 from flex_model.dynamics import FlexArmModel
 from flex_model.modes import natural_modes
+from flex_model.plots import finish_figure, plt
+from .modal_diagnosis import (ModalSetup, change_text, diagnose, fmt_value, link_totals,
+                              modal_frequencies, say_for, shift_pattern,
+                              standard_candidates, tolerance_text)
 
 LBF = 4.4482216152605          # N per lbf
 G0 = 9.80665                   # m/s^2 per g
 DATA_SET = "cantilever_beam_shaker_usc_chowdhury"
+#: ../shared beside the checkout
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
 #: modal frequencies reported by the source (impulse test, modal_analysis/README.md)
 REPORTED_MODES_HZ = (6.62, 41.4, 117.5)
 #: frequency bands searched for modes 1-3 (around the reported values)
@@ -271,8 +278,6 @@ def cantilever_study(arm, records=(), measured_hz=REPORTED_MODES_HZ, *, sigma: f
     ``records``: shaker records to identify the modes from (may be empty); ``sigma``:
     relative uncertainty of each measured frequency; ``progress(text)``: optional callback.
     """
-    from .modal_diagnosis import (ModalSetup, diagnose, link_totals, modal_frequencies,
-                                  shift_pattern, standard_candidates)
     say = progress or (lambda text: None)
     measured = np.asarray(measured_hz, float)
     n = len(measured)
@@ -294,3 +299,214 @@ def cantilever_study(arm, records=(), measured_hz=REPORTED_MODES_HZ, *, sigma: f
              if c.name in ("root compliance", "tip mass")}
     return CantileverStudy(arm, closed, model_hz, measured, frfs, identified, diag, sigs,
                            first)
+
+
+# ----------------------------------------------------------------------------- command
+def cmd_cantilever(args) -> int:
+    from flex_model.arm import load_arm
+    from flex_model.command import run_dir
+    say = say_for(args)
+    measured = np.asarray(args.measured_hz, float)
+    if not (np.all(measured > 0) and np.all(np.diff(measured) > 0)):
+        raise ValueError(f"--measured-hz: got {args.measured_hz}; expected increasing "
+                         "frequencies > 0 Hz (modes 1, 2, ...)")
+    if not args.sigma > 0:
+        raise ValueError(f"--sigma: got {args.sigma}; expected a relative uncertainty > 0")
+    arm = load_arm(args.arm, args.vars)
+    data = Path(args.data) if args.data else SHARED_DATA / DATA_SET
+    if args.data and not data.is_dir():
+        raise FileNotFoundError(f"--data: {data} is not a directory")
+    records = read_data_set(data) if data.is_dir() else []
+    if not records:
+        say(f"no shaker data at {data}: identification skipped")
+    study = cantilever_study(arm, records, measured, sigma=args.sigma, progress=say)
+    out = run_dir(args.out, "cantilever")
+    result = study.as_dict()
+    result["data"] = str(data) if records else None
+    plot_cantilever(study, out / "cantilever.png")
+    (out / "report.md").write_text(cantilever_report(study, data if records else None))
+    (out / "result.json").write_text(json.dumps(result, indent=1))
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print((out / "report.md").read_text())
+        print(f"written: {out}/report.md, cantilever.png, result.json")
+    return 0
+
+
+def cantilever_report(st, data) -> str:
+    d = st.diagnosis
+    n = len(st.measured_hz)
+    lines = [f"# Cantilever: Euler-Bernoulli model of `{st.arm.name}` against measured modes",
+             "", f"{st.arm.description}", "",
+             "| mode | closed form (Hz) | flex_model (Hz) | measured (Hz) | model / measured |",
+             "|---|---|---|---|---|"]
+    for k in range(n):
+        lines.append(f"| {k + 1} | {st.closed_form_hz[k]:.4f} | {st.model_hz[k]:.4f} | "
+                     f"{st.measured_hz[k]:.4g} | {st.ratio[k]:.4f} |")
+    lines += ["", "## Modes identified from the shaker records (H1 force -> acceleration)", ""]
+    if data is None:
+        lines.append("No shaker data found: identification skipped.")
+    for name, peaks in st.identified.items():
+        for k, p in enumerate(peaks):
+            txt = (f"{p.frequency_hz:.3f} Hz, zeta {p.damping_ratio:.4f}" if p.identified
+                   else f"not identified: {p.reason}")
+            lines.append(f"- {name}, mode {k + 1} ({p.band[0]:g}-{p.band[1]:g} Hz): {txt}")
+    if st.identified and not any(p.identified for v in st.identified.values() for p in v):
+        lines += ["", "No record holds a resolved, coherent resonance: the shaker drove sines "
+                  "at 100, 120 and 150 Hz (PROVENANCE.md), the broadband content is weak, and "
+                  "the coherent |H1| has no peak at the reported modes (it is also 10-100 "
+                  "times below the model's tip accelerance: the force does not enter as a "
+                  "tip force into a free cantilever, the shaker position is not documented). "
+                  "The diagnosis therefore uses the reported frequencies (impulse test)."]
+    lines += ["", "## Single-effect diagnosis (each effect fitted alone, bounded least squares)",
+              "", f"Relative uncertainty of each measured frequency: {d.sigma:.2%}; "
+              "chi^2 with 2 degrees of freedom; one-sigma intervals.", "",
+              "| rank | effect | class | fitted value | interval | change | within tolerance "
+              "| predicted (Hz) | rms residual | chi^2 |", "|---" * 10 + "|"]
+    for k, f in enumerate(d.fits):
+        c = f.candidates[0]
+        lines.append(f"| {k + 1} | {c.name} ({c.parameter}) | {d.class_of(k) + 1} | "
+                     f"{fmt_value(f.values[0], c.unit)} | {fmt_value(f.intervals[0, 0])} - "
+                     f"{fmt_value(f.intervals[0, 1])} | {change_text(f)} | {tolerance_text(f)} | "
+                     f"{', '.join(f'{x:.2f}' for x in f.predicted_hz[:n])} | "
+                     f"{100 * f.rms_relative:.2f} % | {f.chi2:.2f} |")
+    lines += ["", "Signatures: relative shift of modes 1-3 when the effect alone moves mode 1 to "
+              "the measured value (and, first order, when it lowers mode 1 by 1 %):", ""]
+    for name, f in st.signatures.items():
+        s = 100 * (f.predicted_hz / st.model_hz[:n] - 1)
+        first = st.first_order.get(name)
+        s1 = "" if first is None else " (first order: " + ", ".join(
+            f"{x:+.3f}" for x in 100 * (first.predicted_hz / st.model_hz[:n] - 1)) + " %)"
+        lines.append(f"- {name}: {', '.join(f'{x:+.2f}' for x in s)} %{s1}")
+    lines += ["", "## Verdict", ""] + verdict(st)
+    return "\n".join(lines) + "\n"
+
+
+def verdict(st) -> list:
+    d = st.diagnosis
+    best = d.fits[0]
+    cls = [d.fits[k] for k in d.classes[0]]
+    names = " and ".join(f.name for f in cls)
+    out = [f"- The model is {100 * (np.mean(st.ratio) - 1):.1f} % high on average "
+           f"({', '.join(f'{100 * (r - 1):+.1f}' for r in st.ratio)} % per mode)."]
+    if len(cls) > 1:
+        out.append(f"- Best explained by **{names}**: one equivalence class. They move every "
+                   "mode by the same factor (f ~ sqrt(EI / m)), so natural frequencies alone "
+                   "can never tell them apart; they fix only EI / m, here "
+                   f"{best.values[0] if 'stiffness' in best.name else 1 / best.values[0]:.4f} "
+                   "times nominal (a static stiffness test or a weighing separates them).")
+    else:
+        out.append(f"- Best explained by **{best.name}**.")
+    if len(cls) > 1:
+        ratio = best.values[0] if "stiffness" in best.name else 1 / best.values[0]
+        arm = st.arm
+        tol = float(np.hypot(arm.tolerance("E"), 3 * arm.tolerance("section")))
+        out.append(f"- The same factor, f ~ h sqrt(E / rho) / L^2 for a rectangular section, "
+                   f"is a thickness x{np.sqrt(ratio):.3f}, an E / rho x{ratio:.3f} or a free "
+                   f"length x{ratio ** -0.25:.3f}. EI / m {100 * (ratio - 1):+.1f} % is "
+                   f"{'outside' if abs(ratio - 1) > tol else 'within'} the manufacturing "
+                   f"tolerances (E ±{100 * arm.tolerance('E'):.0f} %, section "
+                   f"±{100 * arm.tolerance('section'):.0f} % so EI ±{100 * tol:.1f} %, rho "
+                   f"±{100 * arm.tolerance('rho'):.0f} %): the assumed steel data (E = 200 GPa, "
+                   "rho = 7850 kg/m^3 are not given by the source) or the dimensions are "
+                   "suspect, not a single small defect.")
+    rc = st.signatures.get("root compliance")
+    if rc is not None:
+        s = 100 * (rc.predicted_hz / st.model_hz[:len(rc.predicted_hz)] - 1)
+        s1 = 100 * (st.first_order["root compliance"].predicted_hz
+                    / st.model_hz[:len(rc.predicted_hz)] - 1)
+        out.append(f"- Root compliance sized to lower mode 1 to the measured value lowers the "
+                   f"modes by {', '.join(f'{x:.1f}' for x in s)} %: mode 1 more than modes "
+                   "2-3, but only at second order. To first order a root spring shifts all "
+                   "modes of a uniform cantilever alike (its share of the strain energy, "
+                   "4 EI / (kp L), is the same for every mode, as is a tip mass's share of "
+                   f"the kinetic energy): a 1 % drop of mode 1 gives "
+                   f"{', '.join(f'{x:.3f}' for x in s1)} %.")
+    tip = next((f for f in d.fits if f.name == "tip mass"), None)
+    if tip is not None:
+        beam = link_totals(st.arm)[1]
+        out.append(f"- A tip mass alone would need {1000 * tip.values[0]:.0f} g "
+                   f"({100 * tip.values[0] / beam:.1f} % of the {beam:.3f} kg beam); an "
+                   "accelerometer of a few grams (e.g. 6 g) lowers every mode by only about "
+                   f"{200 * 0.006 / beam:.1f} % (first order, -2 M / (m L)).")
+    if d.pair is not None and d.pair_p_value is not None:
+        verdict = "not justified" if d.pair_p_value > 0.05 else "justified"
+        out.append(f"- Parsimony: adding a second effect ({d.pair.name}) lowers chi^2 from "
+                   f"{best.chi2:.2f} to {d.pair.chi2:.2f}; F-test p = {d.pair_p_value:.2f}: "
+                   f"{verdict}.")
+    if len(d.classes) > 1:
+        f = d.fits[d.classes[1][0]]
+        k = int(np.argmax(np.abs(f.residual - best.residual)))
+        out.append(f"- Next class: {' and '.join(d.fits[j].name for j in d.classes[1])} "
+                   f"(rms residual {100 * f.rms_relative:.2f} % against "
+                   f"{100 * best.rms_relative:.2f} %). The classes differ most in mode "
+                   f"{k + 1} ({100 * np.expm1(f.residual[k]):+.2f} % against "
+                   f"{100 * np.expm1(best.residual[k]):+.2f} %): the ranking rests on "
+                   f"differences of about 1 % and on the assumed {d.sigma:.1%} uncertainty.")
+    return out
+
+
+def plot_cantilever(st, path) -> None:
+    fig, ax = plt.subplots(2, 1, figsize=(11, 9))
+    fmax = 1.3 * st.measured_hz[-1]
+    for name, frf in st.frfs.items():
+        m = (frf.frequency > 1.0) & (frf.frequency < fmax)
+        good = m & (frf.coherence >= 0.8)
+        ax[0].semilogy(frf.frequency[m], np.abs(frf.H[m]), lw=0.6, alpha=0.5,
+                       label=f"{name}: |H1| measured")
+        ax[0].semilogy(frf.frequency[good], np.abs(frf.H[good]), ".", ms=2)
+    f = np.linspace(1.0, fmax, 3000)
+    ax[0].semilogy(f, np.abs(tip_accelerance(st.arm, f)), "k", lw=1,
+                   label="model: tip force -> tip acceleration (zeta 1 %)")
+    best = st.diagnosis.fits[0]
+    for k, fm in enumerate(st.measured_hz):
+        ax[0].axvline(st.model_hz[k], color="C3", ls="--", label="model modes" if k == 0 else "")
+        ax[0].axvline(fm, color="C2", ls=":", label="measured (reported)" if k == 0 else "")
+        ax[0].axvline(best.predicted_hz[k], color="C4", ls="-.", lw=0.8,
+                      label=f"fitted: {best.name}" if k == 0 else "")
+    ax[0].set_xlabel("frequency (Hz)")
+    ax[0].set_ylabel("accelerance (m/s^2)/N")
+    ax[0].set_title("shaker records (dots: coherence >= 0.8) and the Euler-Bernoulli model")
+    n = len(st.measured_hz)
+    fits = st.diagnosis.fits
+    width = 0.8 / (len(fits) + 1)
+    x = np.arange(n)
+    ax[1].bar(x, st.ratio - 1, width, label="nominal model", color="0.5")
+    for j, fit in enumerate(fits):
+        ax[1].bar(x + (j + 1) * width, fit.predicted_hz[:n] / st.measured_hz - 1, width,
+                  label=f"{fit.name}: {fmt_value(fit.values[0], fit.candidates[0].unit)} "
+                        f"(rms {100 * fit.rms_relative:.2f} %)")
+    ax[1].set_xticks(x + 0.4 - width / 2, [f"mode {k + 1}" for k in range(n)])
+    ax[1].set_ylabel("model / measured - 1")
+    ax[1].set_title("single-effect fits: remaining relative error per mode")
+    finish_figure(fig, ax, path, f"{st.arm.name}: measured vs model")
+
+
+def build_parser():
+    """The parser of ``python -m studies.cantilever``."""
+    from .command import study_parser
+    sp = study_parser("cantilever", "shaker cantilever: measured modes vs the "
+                      "Euler-Bernoulli model, single-effect diagnosis (issue 9)")
+    sp.add_argument("--data", help="data set directory (default: ../shared/data/real/"
+                    "cantilever_beam_shaker_usc_chowdhury beside the checkout)")
+    sp.add_argument("--arm", default="usc_cantilever", help="arm preset or YAML")
+    sp.add_argument("--vars", type=int, default=None, help="deformation variables per link")
+    sp.add_argument("--measured-hz", type=float, nargs="+", default=list(REPORTED_MODES_HZ),
+                    help="measured modes 1..n (Hz; default: the reported 6.62 41.4 117.5)")
+    sp.add_argument("--sigma", type=float, default=0.005,
+                    help="relative uncertainty of each measured frequency (default 0.005)")
+    sp.add_argument("--out", help="output directory (default runs/<timestamp>-cantilever)")
+    sp.add_argument("--json", action="store_true", help="print the result as JSON")
+    sp.set_defaults(func=cmd_cantilever, command="cantilever")
+    return sp
+
+
+def main(argv=None) -> int:
+    """``python -m studies.cantilever [--data DIR] [--out DIR] [--json]``."""
+    from .command import run_study
+    return run_study(build_parser(), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

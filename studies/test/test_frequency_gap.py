@@ -1,17 +1,14 @@
 """One measured frequency (seed 000's real arm, VALIDATION.md G: 8.24 Hz measured, 8.46 Hz
 modelled): the size of each single effect that alone explains it (issue 9)."""
-import argparse
 import json
 
 import numpy as np
 import pytest
 
 from flex_model.arm import load_arm
-from flex_twin.cli import run_command
-from flex_twin.real_arms.modal_cli import add_modal_parsers
-from flex_twin.real_arms.modal_diagnosis import (ModalSetup, frequency_gap,
-                                                  modal_frequencies, reach_hz,
-                                                  standard_candidates)
+from studies.frequency_gap import main
+from studies.modal_diagnosis import (ModalSetup, frequency_gap, modal_frequencies, reach_hz,
+                                     standard_candidates)
 
 MEASURED = 8.24
 #: seed 000 Eq. (45) at the joint (link side): kp = n^2 K_pv K_pp, kd = n^2 K_pv
@@ -62,14 +59,8 @@ def test_every_reachable_effect_explains_the_one_frequency_exactly(gap):
     assert reach_hz(setup, hub) == pytest.approx((8.4597, 8.4597), abs=1e-3)
 
 
-def _run(argv):
-    p = argparse.ArgumentParser(prog="flex-twin")
-    add_modal_parsers(p.add_subparsers(dest="cmd", required=True))
-    return run_command(p.parse_args(argv))
-
-
 def test_frequency_gap_command_writes_report_and_rejects_bad_input(tmp_path, capsys):
-    assert _run(["frequency-gap", "--out", str(tmp_path), "--json", "--vars", "4",
+    assert main(["--out", str(tmp_path), "--json", "--vars", "4",
                  "--pd-kp", str(PD_KP), "--pd-kd", str(PD_KD)]) == 0
     out = json.loads(capsys.readouterr().out)
     by = {f["effects"][0]: f for f in out["fits"]}
@@ -77,6 +68,6 @@ def test_frequency_gap_command_writes_report_and_rejects_bad_input(tmp_path, cap
         (MEASURED / out["nominal_hz"][0]) ** 2, rel=1e-5)
     assert (tmp_path / "report.md").read_text().count("| tip mass |") == 1
     assert (tmp_path / "frequency_gap.png").stat().st_size > 10_000
-    assert _run(["frequency-gap", "--measured-hz", "-1"]) == 2
+    assert main(["--measured-hz", "-1"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("flex-twin: error: --measured-hz") and err.count("\n") == 1
