@@ -163,26 +163,21 @@ def summarize(rows) -> dict:
     if not held:
         return {}
 
-    def col(which, key):
-        return np.array([r[which][key] for r in held if r[which].get(key) is not None])
+    def col(which, key, among=held):
+        """``r[which][key]`` of the rows ``among`` (default the held-out ones) that have it."""
+        return np.array([r[which][key] for r in among if r[which].get(key) is not None])
+
+    def stat(reduce, values):
+        return float(reduce(values)) if len(values) else None
     hub_n, hub_c = col("nominal", "hub_rms_rad"), col("calibrated", "hub_rms_rad")
     tip_n, tip_c = col("nominal", "tip_rms_m"), col("calibrated", "tip_rms_m")
-    ring = [r["nominal"]["ring_freq_measured_hz"] for r in rows
-            if r["nominal"].get("ring_freq_measured_hz") is not None]
-    hold = [r["nominal"]["hold_freq_measured_hz"] for r in rows
-            if r["nominal"].get("hold_freq_measured_hz") is not None]
-    rep_hub = [r["repeatability"]["hub_rms_rad"] for r in held
-               if r["repeatability"].get("hub_rms_rad") is not None]
-    rep_tip = [r["repeatability"]["tip_rms_m"] for r in held
-               if r["repeatability"].get("tip_rms_m") is not None]
-    f_spread = [r["nominal"]["ring_freq_measured_spread_pct"] for r in held
-                if r["nominal"].get("ring_freq_measured_spread_pct") is not None]
-    z_spread = [r["nominal"]["ring_damping_measured_spread"] for r in held
-                if r["nominal"].get("ring_damping_measured_spread") is not None]
-    return {"repeat_runs": len(rep_hub),
-            "repeat_hub_median": float(np.median(rep_hub)) if rep_hub else None,
-            "repeat_hub_max": float(max(rep_hub)) if rep_hub else None,
-            "repeat_tip_max": float(max(rep_tip)) if rep_tip else None,
+    ring = col("nominal", "ring_freq_measured_hz", rows)
+    hold = col("nominal", "hold_freq_measured_hz", rows)
+    rep_hub, rep_tip = col("repeatability", "hub_rms_rad"), col("repeatability", "tip_rms_m")
+    f_spread = col("nominal", "ring_freq_measured_spread_pct")
+    z_spread = col("nominal", "ring_damping_measured_spread")
+    return {"repeat_runs": len(rep_hub), "repeat_hub_median": stat(np.median, rep_hub),
+            "repeat_hub_max": stat(np.max, rep_hub), "repeat_tip_max": stat(np.max, rep_tip),
             "held_out_runs": len(held), "hub_improved": int(np.sum(hub_c < hub_n)),
             "hub_median_nominal": float(np.median(hub_n)),
             "hub_median_calibrated": float(np.median(hub_c)),
@@ -192,12 +187,13 @@ def summarize(rows) -> dict:
             "tip_median_calibrated": float(np.median(tip_c)),
             "tip_aim_met": int(np.sum(tip_c < AIM_TIP_RMS)),
             "ring_measured_range_hz": [float(min(ring)), float(max(ring))],
-            "hold_measured_range_hz": [float(min(hold)), float(max(hold))] if hold else None,
+            "hold_measured_range_hz": [stat(np.min, hold), stat(np.max, hold)] if len(hold)
+            else None,
             "ring_spread_runs": len(f_spread),
-            "ring_freq_spread_median_pct": float(np.median(f_spread)) if f_spread else None,
-            "ring_freq_spread_max_pct": float(max(f_spread)) if f_spread else None,
-            "ring_damping_spread_median": float(np.median(z_spread)) if z_spread else None,
-            "ring_damping_spread_max": float(max(z_spread)) if z_spread else None}
+            "ring_freq_spread_median_pct": stat(np.median, f_spread),
+            "ring_freq_spread_max_pct": stat(np.max, f_spread),
+            "ring_damping_spread_median": stat(np.median, z_spread),
+            "ring_damping_spread_max": stat(np.max, z_spread)}
 
 
 def _findings(report: dict) -> list:
