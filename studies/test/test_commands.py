@@ -11,7 +11,7 @@ STUDIES = Path(__file__).resolve().parents[1]
 #: the studies with a command line (session_friction runs inside stick_slip_study)
 COMMANDS = ("stick_slip_study", "unit_calibration", "stuck_holds", "link_response",
             "run_floor", "servo_split", "stiction_evidence", "transfer", "two_mass_study",
-            "ucmerced_long")
+            "ucmerced_long", "cantilever", "frequency_gap")
 
 
 def test_every_study_with_a_main_is_listed():
