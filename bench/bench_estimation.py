@@ -3,7 +3,7 @@ coverage of the deflections estimated from the joint encoders alone on the Exudy
 adaptation of hidden friction and payload, NIS, and the cost per sample.
 
     OPENBLAS_NUM_THREADS=1 python bench/bench_estimation.py \
-        [--only planar,noise,change,two,spatial,cost]
+        [--only planar,noise,change,two,spatial,spatial-information,cost]
 
 Prints one line per figure (docs/estimation.md quotes them). Data: test/data/independent_suite,
 test/data/estimation_change, test/data/spatial_independent (Exudyn, bench/independent_suite,
@@ -150,28 +150,48 @@ def bench_two():
     report_deflections(f"{case} (adapting)", rec, r, us)
 
 
-def bench_spatial():
+SPATIAL_COLUMNS = ["link1_tip_deflection_y", "link1_tip_deflection_z", "link1_tip_twist",
+                   "link2_tip_deflection_y", "link2_tip_deflection_z"]
+
+
+def spatial_run(case, readings=True):
+    """The spatial L arm's filter on one Exudyn run (nominal twin, 4+4 variables per link,
+    200 Hz); readings=False: every reading but the first missing (the twin open loop under
+    the input from the first reading's pose, the band the process noise's alone). Prints
+    error % of peak (coverage, median std % of peak)."""
     from flex_model.spatial.dynamics import SpatialArmModel
     from flex_model.spatial.loader import load_spatial_arm
     model = SpatialArmModel(load_spatial_arm(SPATIAL / "arm.yaml"))
-    cols = ["link1_tip_deflection_y", "link1_tip_deflection_z", "link1_tip_twist",
-            "link2_tip_deflection_y", "link2_tip_deflection_z"]
+    rec = read(SPATIAL / case)
+    Y = np.column_stack([rec["q1"], rec["q2"]])
+    if not readings:
+        Y[1:] = np.nan
+    s = EstimatorSettings(sample_period=0.005, torque_noise=0.1, modal_noise=0.5,
+                          relinearize_every=20, initial_deflection_std=1e-3)
+    t0 = time.perf_counter()
+    r = estimate_recording(model, rec["t"], np.column_stack([rec["tau1"], rec["tau2"]]),
+                           Y, encoders(1e-5), s)
+    us = (time.perf_counter() - t0) / len(rec) * 1e6
+    parts = []
+    for k, c in enumerate(SPATIAL_COLUMNS):
+        rel, cov = score(r.tip_deflections[:, k], r.tip_deflections_std[:, k], rec[c])
+        sd = np.median(r.tip_deflections_std[:, k]) / np.abs(rec[c]).max()
+        parts.append(f"{c.replace('_tip_deflection', '').replace('_tip', '')} "
+                     f"{100 * rel:.1f} % ({100 * cov:.0f} %, std {100 * sd:.1f} %)")
+    print(f"spatial {case} ({'encoders' if readings else 'no readings'}): RMS error % of "
+          f"peak (coverage, median std % of peak): {', '.join(parts)}; NIS mean "
+          f"{r.summary['nis_mean']:.3g}; {us / 1e3:.1f} ms/sample")
+
+
+def bench_spatial():
     for case in sorted(p.name for p in SPATIAL.iterdir() if p.is_dir()):
-        rec = read(SPATIAL / case)
-        s = EstimatorSettings(sample_period=0.005, torque_noise=0.1, modal_noise=0.5,
-                              relinearize_every=20, initial_deflection_std=1e-3)
-        t0 = time.perf_counter()
-        r = estimate_recording(model, rec["t"], np.column_stack([rec["tau1"], rec["tau2"]]),
-                               np.column_stack([rec["q1"], rec["q2"]]), encoders(1e-5), s)
-        us = (time.perf_counter() - t0) / len(rec) * 1e6
-        parts = []
-        for k, c in enumerate(cols):
-            rel, cov = score(r.tip_deflections[:, k], r.tip_deflections_std[:, k], rec[c])
-            parts.append(f"{c.replace('_tip_deflection', '').replace('_tip', '')} "
-                         f"{100 * rel:.1f} % ({100 * cov:.0f} %)")
-        print(f"spatial {case} (nominal twin, 4+4 var/link): RMS error % of peak "
-              f"(coverage): {', '.join(parts)}; NIS mean {r.summary['nis_mean']:.2f}; "
-              f"{us / 1e3:.1f} ms/sample")
+        spatial_run(case)
+
+
+def bench_spatial_information():
+    """What the encoders tell of each component: the healthy run with and without them."""
+    spatial_run("healthy", readings=True)
+    spatial_run("healthy", readings=False)
 
 
 def cost(model, ms, s, n=2000):
@@ -205,7 +225,8 @@ def bench_cost():
 
 
 SECTIONS = {"planar": bench_planar, "noise": bench_noise, "change": bench_change, "two": bench_two,
-            "spatial": bench_spatial, "cost": bench_cost}
+            "spatial": bench_spatial, "spatial-information": bench_spatial_information,
+            "cost": bench_cost}
 
 
 def main():
