@@ -328,8 +328,9 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
             else sat_limits[int(e['target'][-1]) - 1]
     payload = hidden['payload']['parameters']['mass'] if 'payload' in hidden else 0.0
     change_at = float(case.get('change_at', 0.0))
-    if change_at > 0 and set(hidden) != {'joint_friction'}:
-        raise ValueError('%s: --change-at takes joint friction cases only' % case['id'])
+    if change_at > 0 and set(hidden) not in ({'joint_friction'}, {'payload'}):
+        raise ValueError('%s: --change-at takes joint friction or payload cases only'
+                         % case['id'])
     elastic = [None, None]
     if 'joint_elasticity' in hidden:
         e = hidden['joint_elasticity']
@@ -354,10 +355,19 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
     for a in absang:
         P.append(P[-1] + L_LINK * np.array([math.cos(a), math.sin(a)]))
 
+    picked = []   # a payload picked up mid-run (--change-at): (body, mass)
+
     def glue(pos, ang, element, local_x, mass=GLUE_MASS, inertia=GLUE_INERTIA):
         n = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[pos[0], pos[1], ang]))
-        mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=mass, inertia=inertia))
-        if mass > GLUE_MASS:
+        later = mass > GLUE_MASS and change_at > 0
+        body = mbs.AddObject(ObjectRigidBody2D(nodeNumber=n, mass=GLUE_MASS if later else mass,
+                                               inertia=inertia))
+        if later:   # its mass is set and its weight acts from change_at on (pre_step)
+            picked.append((body, mass))
+            mbs.AddLoad(Force(markerNumber=mbs.AddMarker(MarkerNodePosition(nodeNumber=n)),
+                              loadVector=[0, 0, 0], loadVectorUserFunction=lambda mbs_, t, f:
+                              [0, -GRAVITY * mass, 0] if t >= change_at else [0, 0, 0]))
+        elif mass > GLUE_MASS:
             mbs.AddLoad(Force(markerNumber=mbs.AddMarker(MarkerNodePosition(nodeNumber=n)),
                               loadVector=[0, -GRAVITY * mass, 0]))
         mC = mbs.AddMarker(MarkerBodyRigid(bodyNumber=element, localPosition=[local_x, 0, 0]))
@@ -501,6 +511,10 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
     def pre_step(mbs_, t):
         s = int(round(t / h)) - 1          # the step ending at t starts from state s h
         sample(s)
+        if picked and t >= change_at:      # the payload picked up (its mass from then on)
+            for body, mass in picked:
+                mbs.SetObjectParameter(body, 'physicsMass', mass)
+            picked.clear()
         return True
 
     mbs.Assemble()
@@ -525,6 +539,7 @@ def simulate(case, nel=NEL, h=H, duration=DURATION, noise_scale=1.0, sat_limits=
     ti.newton.useModifiedNewton = not bool(np.isfinite(limit).any())
     ti.newton.absoluteTolerance = 1e-5
     ti.adaptiveStep = False
+    ti.reuseConstantMassMatrix = not picked   # a mass set mid-run must enter the matrix
     mbs.SetPreStepUserFunction(pre_step)
     if sampled:
         sample(0)
@@ -872,15 +887,20 @@ def main():
     ap.add_argument('--change-at', type=float, default=0.0, metavar='T',
                     help='joint friction cases: the friction acts from T s on only (a change '
                     'hidden mid-run; the case id gets -at<T>)')
+    ap.add_argument('--seeds', metavar='S1,S2',
+                    help='set-point seeds of the effect cases (default 1,2; noise seed 100 + s)')
     ap.add_argument('--columns', help='comma-separated columns to store (default all)')
     ap.add_argument('--crop-from', type=float, default=0.0, metavar='T0',
                     help='store the rows from T0 s on only')
     a = ap.parse_args()
+    if a.seeds:
+        global SEEDS
+        SEEDS = tuple(int(x) for x in a.seeds.split(','))
     cases = all_cases()
     if a.change_at > 0:
         cases = [dict(c, id='%s-at%g' % (c['id'], a.change_at), change_at=a.change_at,
                       kind=c['kind'] + ' from %g s' % a.change_at)
-                 for c in cases if c['kind'] == 'joint_friction']
+                 for c in cases if c['kind'] in ('joint_friction', 'payload')]
     if a.list:
         for c in cases:
             print(c['id'])

@@ -278,3 +278,31 @@ def test_covariance_resetting_follows_a_friction_change():
     assert out[2.0][0] == pytest.approx(c, rel=0.10)
     assert out[0.0][0] < 0.7 * c
     assert out[2.0][1] and min(out[2.0][1]) > t1 and not out[0.0][1]
+
+
+def test_horizon_fit_follows_a_friction_change():
+    """The same change, the viscous friction fitted by least squares on the actuator row's
+    momentum balance over the last 0.5 s (blocks of 0.05 s) instead of a random walk: near
+    0 before the change once the filter has settled (0.59 in the first 0.1 s from its zero
+    start, then below 0.01), within 5 % of 0.5 N m s/rad 1 s after it (0.501 measured;
+    0.5 s of data after the change fill the window); the filter considers it (no gain
+    moves it: it changes only at blocks' ends) and its std is the fit's (0.0075)."""
+    c, t1 = 0.5, 1.5
+    t, taus, y = _friction_change_run(c, t1)
+    ms = [Measurement("q1", "joint_angle", 0, std=1e-4),
+          Measurement("w1", "tip_deflection", 0, std=1e-3)]
+    s = EstimatorSettings(sample_period=T, torque_noise=0.05, modal_noise=0.02,
+                          adapt=("viscous_friction:0",), adapt_horizon=0.5,
+                          adapt_block=0.05)
+    est = Estimator(_link(), ms, s)
+    est.reset(np.zeros(est.plant.nq))
+    out = [est.step([u], yy) for u, yy in zip(taus, y)]
+    fv = np.array([o.parameters["viscous_friction:0"] for o in out])
+    sd = np.array([o.parameter_std["viscous_friction:0"] for o in out])
+    settled = (t > 0.3) & (t < t1)
+    assert np.abs(fv[settled]).max() < 0.05 * c
+    assert fv[-1] == pytest.approx(c, rel=0.05)
+    assert np.count_nonzero(np.diff(fv)) <= len(t) // int(round(0.05 / T))
+    assert 0 < sd[-1] < 0.05 * c
+    with pytest.raises(ValueError, match="adapt_horizon"):
+        EstimatorSettings(adapt_horizon=1.0, adapt_reset_nis=2.0)

@@ -35,7 +35,9 @@ array) and ``summary`` (samples, nis_mean, nis_dof_mean, nis_95_fraction, final
 parameters and stds).
 
 Adapted parameters (``adapt``, random walks): ``coulomb_friction:<joint>``,
-``viscous_friction:<joint>``, ``payload_mass``, ``link_stiffness:<link>`` (scale on EI).
+``viscous_friction:<joint>``, ``payload_mass``, ``link_stiffness:<link>`` (scale on EI);
+with ``adapt_horizon`` (s) the joint frictions are instead fitted by least squares on the
+momentum balance over that window (``horizon.HorizonFit``) and considered by the filter.
 """
 from .filter import Estimator, EstimatorSettings, Sample
 from .measurements import KINDS, Measurement

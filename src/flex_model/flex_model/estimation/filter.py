@@ -53,7 +53,12 @@ class EstimatorSettings:
     sqrt(s)) by name; ``relinearize_every``: samples between Jacobians (0: only at reset);
     ``adapt_reset_nis`` (0: off): covariance resetting, a change detector: when the NIS mean
     per reading over the last ``adapt_reset_window`` s exceeds it, the parameters'
-    covariance goes back to their initial stds (their walk can then be small)."""
+    covariance goes back to their initial stds (their walk can then be small);
+    ``adapt_horizon`` (s, 0: off): instead of their random walks, the joint frictions are
+    fitted by least squares on the momentum balance of the last ``adapt_horizon`` s in
+    blocks of ``adapt_block`` s (flex_model.estimation.horizon), and the filter considers
+    them (Schmidt: their covariance is the fit's, no gain moves them); the payload and the
+    stiffness stay random walks."""
 
     sample_period: float = 1e-3
     adapt: tuple = ()
@@ -70,6 +75,8 @@ class EstimatorSettings:
     friction_smoothing: float = 0.02
     adapt_reset_nis: float = 0.0
     adapt_reset_window: float = 0.2
+    adapt_horizon: float = 0.0
+    adapt_block: float = 0.05
 
     def __post_init__(self):
         if not self.sample_period > 0:
@@ -84,6 +91,12 @@ class EstimatorSettings:
             raise ValueError(f"adapt_reset_nis: got {self.adapt_reset_nis}, "
                              f"adapt_reset_window: got {self.adapt_reset_window}; "
                              "expected >= 0 and > 0 s")
+        if self.adapt_horizon < 0 or not self.adapt_block > 0 or \
+                (self.adapt_horizon and self.adapt_reset_nis):
+            raise ValueError(f"adapt_horizon: got {self.adapt_horizon}, adapt_block: got "
+                             f"{self.adapt_block}, adapt_reset_nis: got "
+                             f"{self.adapt_reset_nis}; expected >= 0, > 0 s, and no "
+                             "covariance resetting with the horizon fit")
         object.__setattr__(self, "adapt", tuple(self.adapt))
 
 
@@ -218,6 +231,12 @@ class Estimator:
         self._past = deque(maxlen=int(self.delays.max(initial=0)) + 1)
         self._window = deque(maxlen=max(int(round(s.adapt_reset_window / s.sample_period)), 1))
         self.resets = []   # times of the parameters' covariance resets
+        self._fit = None
+        if s.adapt_horizon:
+            from .horizon import HorizonFit
+            fit = HorizonFit(self.plant, s.adapt_horizon, s.adapt_block, s.sample_period,
+                             p0, np.sqrt(np.diag(self.P)[2 * nq:]))
+            self._fit = fit if fit.index.size else None
 
     def _initial_cov(self) -> np.ndarray:
         s, nq = self.settings, self.plant.nq
@@ -272,8 +291,9 @@ class Estimator:
         self.F = np.eye(n) + self._ros2_increment(A, A)
         Gam = self._ros2_increment(A, B)
         Qd = (Gam * W) @ Gam.T
-        walk = [s.adapt_walk.get(nm, ADAPT_WALK[k]) for nm, k in
-                zip(plant.param_names, self._kinds)]
+        fitted = set() if self._fit is None else set(self._fit.index)
+        walk = [0.0 if k in fitted else s.adapt_walk.get(nm, ADAPT_WALK[kind])
+                for k, (nm, kind) in enumerate(zip(plant.param_names, self._kinds))]
         Qd[2 * nq:, 2 * nq:] += np.diag(np.square(walk) * T)
         self.Qd = 0.5 * (Qd + Qd.T)
         H = self._jacobian(lambda x: outputs(self.measurements, plant, x, u),
@@ -290,6 +310,8 @@ class Estimator:
         if self._since is None or (every and self._since >= every):
             self.relinearize(u)
         nu, Sk, used, nis = self._correct(u, np.asarray(y, float))
+        if self._fit is not None:
+            self._refit(u)
         sample = self._report(nu, Sk, used, nis)
         self._watch(nis, used.size)
         self._predict(u)
@@ -315,8 +337,14 @@ class Estimator:
         S = HP @ H.T + np.diag(self.R[used])
         sol = np.linalg.solve(S, np.column_stack([HP, v]))
         K = sol[:, :-1].T
-        self.x = self.x + K @ v
-        self.P = self.P - K @ HP       # = (I - K H) P, symmetrized after the prediction
+        if self._fit is None:
+            self.x = self.x + K @ v
+            self.P = self.P - K @ HP   # = (I - K H) P, symmetrized after the prediction
+        else:                          # Schmidt: the parameters considered, not corrected
+            K[2 * self.plant.nq + self._fit.index] = 0.0
+            IKH = np.eye(self.n) - K @ H
+            self.x = self.x + K @ v
+            self.P = IKH @ self.P @ IKH.T + (K * self.R[used]) @ K.T    # Joseph
         self._project()
         if used.size == m:
             nu, Sk = v, S
@@ -341,6 +369,17 @@ class Estimator:
             self.P[off:, off:] = self._initial_cov()[off:, off:]
             self._window.clear()
             self.resets.append(self.t)
+
+    def _refit(self, u) -> None:
+        """The horizon fit's new parameters and covariance at a block's end (cross terms
+        with the state zero)."""
+        fit = self._fit.add(self.x, u)
+        if fit is not None:
+            at = 2 * self.plant.nq + self._fit.index
+            self.x[at] = fit[0]
+            self.P[at, :] = 0.0
+            self.P[:, at] = 0.0
+            self.P[np.ix_(at, at)] = fit[1]
 
     def _remember(self) -> None:
         """The corrected estimate into the buffer of past ones (delayed readings)."""

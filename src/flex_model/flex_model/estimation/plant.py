@@ -140,6 +140,20 @@ class PlanarPlant:
                                   self._cached[2])
         return out
 
+    def momentum_terms(self, x, u) -> tuple[np.ndarray, np.ndarray]:
+        """(Ga B v, Ga (B a + B' v)) at x = [q; v; p]: the actuator rows of the generalized
+        momentum B(q) v and of its rate, a from Eq. 27 with the parameters of x (B' v by
+        central differences along v)."""
+        from ..kernels import mass_matrix
+        nq = self.nq
+        q, v = x[:nq], x[nq:2 * nq]
+        a = self.derivative(x, u)[nq:2 * nq]
+        P = self._cached[1]                     # the derivative's data for these parameters
+        h = 1e-6 / max(float(np.abs(v).max()), 1e-6)
+        dB = (mass_matrix(q + h * v, P) - mass_matrix(q - h * v, P)) / (2 * h)
+        Ga = self.model.Ga
+        return Ga @ (mass_matrix(q, P) @ v), Ga @ (mass_matrix(q, P) @ a + dB @ v)
+
     def inverse_mass(self, q, p) -> np.ndarray:
         """B(q)^-1 with the payload of p (the map of generalized force noise to a)."""
         P, _ = self._data(p)
