@@ -2,11 +2,16 @@
 
 Compiles into an empty temporary cache (NUMBA_CACHE_DIR) in one process and prints, per
 compiled function, the CPU seconds of its own compilation (exclusive) and with the functions
-it compiled on the way (inclusive), from numba's ``numba:compile`` events.
+it compiled on the way (inclusive), and how many times it was compiled (x2: two numba
+types), from numba's ``numba:compile`` events.
 
     python bench/bench_compile.py                  # the in-loop kernels (compile_ahead)
     python bench/bench_compile.py --opt 1          # the same at LLVM -O1 (make demo, tests)
     python bench/bench_compile.py --demo           # the whole twin demo (ROS; 15 s task)
+    python bench/bench_compile.py --opt 1 --entry fixed   # one entry point of the tests
+        # (fixed: a fixed-step simulate, full Newton; simplified: second order, simplified
+        # Newton; exact: exact kinematics; replay: the diagnosis replay loops; planner:
+        # the planner's loop; spatial: the spatial loop; several: --entry fixed,exact)
 """
 from __future__ import annotations
 
@@ -15,6 +20,7 @@ import os
 import sys
 import tempfile
 import time
+from collections import Counter
 
 ARM, PERIOD = "thesis_example1_motors", 1.0 / 500.0   # flex_twin.ros_twin_demo's
 
@@ -40,10 +46,65 @@ def _listen(rows: list) -> None:
     event.register("numba:compile", Timer())
 
 
-def _run(demo: bool) -> None:
+def _fixed(kinematics="small_deflection", newton="full") -> None:
+    """A fixed-step simulate of 10 steps (bench/one_loop_runs.py's section E arm)."""
+    import numpy as np
+    from flex_model.arm import load_arm
+    from flex_model.dynamics import FlexArmModel
+    from flex_model.simulate import JointPD, Pulse, simulate
+    model = FlexArmModel(load_arm("thesis_three_link", 4).with_kinematics(kinematics))
+    th0 = np.radians([-20.0, 20.0, -20.0])
+    simulate(model, model.q_from_joint_angles(th0), t_final=0.01, sample_period=0.005,
+             method="fixed", dt=1e-3, newton=newton,
+             pd=JointPD(np.full(3, 5e3), np.full(3, 250.0), th0),
+             pulses=[Pulse(0.001, 0.002, (1000.0, 0.0, 0.0))])
+
+
+def _replay() -> None:
+    """The diagnosis replay loops, as test/numba_warmup.py compiles them."""
+    import tempfile
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
+    import numba_warmup
+    with tempfile.TemporaryDirectory() as tmp:
+        numba_warmup.replay_loops(Path(tmp))
+
+
+def _planner() -> None:
+    """The planner's loop (flex_planner.nominal_input) on a held pose."""
+    from flex_model.arm import load_arm
+    from flex_model.dynamics import FlexArmModel
+    from flex_planner import SECTION_F_WAYPOINTS, plan
+    model = FlexArmModel(load_arm("thesis_example1"))
+    plan(model, [SECTION_F_WAYPOINTS[1]] * 2, [0.0, 0.1], sample_period=0.01)
+
+
+def _spatial() -> None:
+    import numpy as np
+    from flex_model.spatial.dynamics import SpatialArmModel
+    from flex_model.spatial.integrate import simulate_fixed_compiled
+    from flex_model.spatial.loader import load_spatial_arm
+    model = SpatialArmModel(load_spatial_arm("seed000_real_arm_3d"))
+    z = np.zeros(model.nq)
+    simulate_fixed_compiled(model, z, z, 1e-3, 2)
+
+
+def _compile_ahead() -> None:
+    from flex_model import control_loop
+    control_loop.compile_ahead(ARM, PERIOD)
+
+
+ENTRIES = {"compile_ahead": _compile_ahead, "fixed": _fixed,
+           "simplified": lambda: _fixed("second_order", "simplified"),
+           "exact": lambda: _fixed("exact"), "replay": _replay, "planner": _planner,
+           "spatial": _spatial}
+
+
+def _run(demo: bool, entries=("compile_ahead",)) -> None:
     from flex_model import control_loop
     if not demo:
-        control_loop.compile_ahead(ARM, PERIOD)
+        for name in entries:
+            ENTRIES[name]()
         return
 
     class Done:   # compile_ahead already ran, in this process (one process to time)
@@ -68,8 +129,14 @@ def main(argv=None) -> int:
     p.add_argument("--opt", type=int, choices=(0, 1, 2, 3), default=3,
                    help="NUMBA_OPT (LLVM optimization level; numba's default 3)")
     p.add_argument("--demo", action="store_true", help="the whole twin demo (needs ROS)")
+    p.add_argument("--entry", default="compile_ahead",
+                   help=f"entry points, comma-separated: {', '.join(ENTRIES)}")
     p.add_argument("--top", type=int, default=25, help="functions to list")
     args = p.parse_args(argv)
+    entries = args.entry.split(",")
+    for name in entries:
+        if name not in ENTRIES:
+            p.error(f"--entry: got {name!r}; expected one of {', '.join(ENTRIES)}")
     if "numba" in sys.modules:
         raise SystemExit("bench_compile: numba imported before its environment was set")
     with tempfile.TemporaryDirectory() as cache:
@@ -77,15 +144,17 @@ def main(argv=None) -> int:
         rows = []
         _listen(rows)
         c0 = time.process_time()
-        _run(args.demo)
+        _run(args.demo, entries)
         total = time.process_time() - c0
     own = [r for r in rows if not r[2].startswith("numba.")]
-    print(f"{'demo' if args.demo else 'compile_ahead'} at -O{args.opt}: {total:.1f} CPU-s, "
-          f"of which compiling {sum(r[0] for r in rows):.1f} ({len(own)} project functions, "
-          f"{len(rows) - len(own)} numba internals)")
+    times = Counter(r[2] for r in own)
+    print(f"{'demo' if args.demo else args.entry} at -O{args.opt}: {total:.1f} CPU-s, "
+          f"of which compiling {sum(r[0] for r in rows):.1f} ({len(own)} compilations of "
+          f"{len(times)} project functions, {len(rows) - len(own)} numba internals)")
     print(f"{'own CPU s':>10s} {'with callees':>12s}  function")
     for excl, incl, name in sorted(own, reverse=True)[:args.top]:
-        print(f"{excl:10.2f} {incl:12.2f}  {name}")
+        again = "" if times[name] == 1 else f" (x{times[name]})"
+        print(f"{excl:10.2f} {incl:12.2f}  {name}{again}")
     return 0
 
 
