@@ -149,11 +149,13 @@ def _guard_caches():
     from . import integrators, iteration_matrix, kernels
     from .effects import friction, stick_slip
     from .numba_cache import guard
+    from .solvers import galpha, loop, newton
     # this module's own dispatchers only: the imported integrators ones have their guard
+    # (run_periods holds the machine code of solvers.loop.fixed_step: its files too)
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
           [integrators.__file__, kernels.__file__, stick_slip.__file__, friction.__file__,
-           iteration_matrix.__file__])
+           iteration_matrix.__file__, galpha.__file__, newton.__file__, loop.__file__])
 
 
 _guard_caches()

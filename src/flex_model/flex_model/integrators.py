@@ -39,7 +39,7 @@ from .iteration_matrix import empty_factor, structured_factor
 from .solvers.galpha import finite_within, galpha_parameters, galpha_state, restart_choice
 from .solvers.loop import (fixed_step, id_residual, implements, iteration_factor, residual,
                            tangent)
-from .solvers.status import newton_settings
+from .solvers.status import Settings, newton_settings
 from .kernels import (band_matvec, cholesky, inverse_dynamics, link_origins, mass_matrix,
                       solve_spd, tip_jacobian)
 
@@ -558,7 +558,7 @@ for _hook, _fn in ((residual, _residual), (tangent, _tangent), (id_residual, _id
     implements(_hook, PlanarModel, _fn)
 
 
-@njit(cache=_CACHE)
+@njit(cache=_CACHE, inline="always")
 def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, P, E):
     """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form) on the planar
     arm: solvers.loop.fixed_step, full Newton (at most 50 iterations, backtracking).
@@ -575,14 +575,15 @@ def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
 
     Returns ``(X, status, t_end, x_end, a_end, abar_end, iterations)``; X holds every
     ``every``-th state, X[0] = x0. Status 1 = non-finite or diverging state, 2 = Newton did
-    not converge.
+    not converge. Inlined into compiled callers (the control and replay loops): they link
+    the one fixed_step instead of compiling it once more inside this wrapper.
     """
     _check_state(x0, E)
     return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
                       every, newton_settings(rho_inf, tol, limit), None)
 
 
-@njit(cache=_CACHE)
+@njit(cache=_CACHE, inline="always")
 def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
                                  P, E):
     """:func:`generalized_alpha` by simplified Newton: same arguments, same results to
@@ -595,6 +596,19 @@ def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, 
     _check_state(x0, E)
     return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
                       every, newton_settings(rho_inf, tol, limit), empty_factor())
+
+
+def fixed_step_full_newton(md, t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit):
+    """:func:`generalized_alpha` called from Python on the model data ``md``
+    (``PlanarModel(P, E)``, exact_kinematics.ExactModel): solvers.loop.fixed_step by full
+    Newton itself, with the same returns and the same machine code as the compiled callers
+    link. numba emits a compiled function's machine code with all that it calls linked in,
+    so a compiled wrapper around the loop compiles the loop once more (the compiled callers
+    inline the wrappers: inline="always"). The state's size is the caller's to get
+    right (simulate, stepper)."""
+    return fixed_step(md, md.E[0].shape[0], float(t0), x0, a0, abar0, float(h), int(n_steps),
+                      int(every), Settings(float(rho_inf), float(tol), limit=float(limit)),
+                      None)
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled

@@ -40,9 +40,9 @@ import numpy as np
 from .dynamics import FlexArmModel
 from .errors import SimulationDivergedError  # noqa: F401 (raised here; public here)
 from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: public here)
-from .integrators import (consistent_acceleration, dopri5, generalized_alpha,
-                          generalized_alpha_simplified, restart_acceleration,
-                          sampled_joint_torques)
+from .integrators import (PlanarModel, consistent_acceleration, dopri5,
+                          fixed_step_full_newton, generalized_alpha_simplified,
+                          restart_acceleration, sampled_joint_torques)
 from .result import SimulationResult
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
@@ -310,12 +310,12 @@ def _exact_jump_step(model, t, x, a, h, rho_inf, P, E):
     The step's position gets the rest in the modes the damping holds over the step,
     S^-1 gamma' (D + C_j) (h v1 - (q1 - q0)) (exact_kinematics.iteration_matrix).
     Returns (x, a, abar, Newton iterations)."""
-    from .exact_kinematics import generalized_alpha as exact_generalized_alpha
+    from .exact_kinematics import ExactModel
     from .exact_kinematics import iteration_matrix as exact_iteration_matrix
     from .exact_kinematics import restart_acceleration as exact_restart
     a, filtered = exact_restart(t, x, a, h, rho_inf, P, E)
-    _, status, t_stop, x1, a, abar, it = exact_generalized_alpha(
-        t, x, a, a.copy(), h, 1, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, P, E)
+    _, status, t_stop, x1, a, abar, it = fixed_step_full_newton(
+        ExactModel(P, E), t, x, a, a.copy(), h, 1, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT)
     if status == 1:
         raise diverged(model, t_stop, x1)
     if status == 2:
@@ -354,8 +354,8 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
     restarts |= set(pick)
     exact = model._exact  # kinematics: exact (flex_model.exact_kinematics)
     if exact is not None:
+        from .exact_kinematics import ExactModel
         from .exact_kinematics import derivative as exact_derivative
-        from .exact_kinematics import generalized_alpha as exact_generalized_alpha
     step = 0
     iters = 0
     while step < n_total:
@@ -388,10 +388,13 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
             abar = a.copy()
         elif step in restarts or policy is not None:
             a, abar, _, _ = restart_acceleration(t, x, a, abar, h, rho_inf, P, E)
-        stepper = generalized_alpha_simplified if newton == "simplified" else \
-            generalized_alpha if exact is None else exact_generalized_alpha
-        Xs, status, t_stop, x_stop, a, abar, it = stepper(
-            t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, P, E)
+        if newton == "simplified":
+            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha_simplified(
+                t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, P, E)
+        else:
+            Xs, status, t_stop, x_stop, a, abar, it = fixed_step_full_newton(
+                PlanarModel(P, E) if exact is None else ExactModel(P, E), t, x, a, abar, h,
+                m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT)
         iters += it
         if status == 1:
             raise diverged(model, t_stop, x_stop)
