@@ -1380,7 +1380,7 @@ def _spatial_model(Pm, inp, tau):
     return SpatialModel(Pm, inp, tau, work, has_k, nonlinear)
 
 
-@njit(cache=_CACHE)
+@njit(cache=_CACHE, inline="always")   # numba-inlined: md not passed once more
 def _joint_forces(md, k, q, v):
     """The work's u (row k of tau clipped to +-effort; 0 on motor joints: a voltage) and
     Qe: Q0 + the joint effects and the tip force of row k at (q, v), with their slopes
@@ -1420,11 +1420,9 @@ def _residual(md, a1, st, c, first):
         if first:
             w.Hc[:, :] = 0.0
         _coupling(md.Pm, q1, Kq, w.Hc, first)
-    r = np.empty(a1.shape[0])
-    for j in range(r.shape[0]):
-        r[j] = f1[j] + Kq[j] - Q[j] - w.Qe[j] + Dv[j]
-    _hold(np.zeros((0, 0)), r, inp.held)
-    return r, (M1, first, st.z)
+    for j in range(Kq.shape[0]):     # the residual, in Kq's place; 0 where held
+        Kq[j] = 0.0 if inp.held[j] else f1[j] + Kq[j] - Q[j] - w.Qe[j] + Dv[j]
+    return Kq, (M1, first, st.z)
 
 
 @njit(cache=_CACHE)
@@ -1461,7 +1459,7 @@ def _tangent(md, ctx, st, c):
         if w.pact[r_] > 0.0:
             a_ = int(pdc[r_, 1])
             S[a_, a_] -= cq * pdc[r_, 2] + cv * pdc[r_, 3]
-    _hold(S, np.zeros(0), inp.held)
+    _hold(S, w.u[:0], inp.held)
     Lc = cholesky(S)
     if Lc.shape[0] != nq:   # a Stribeck slope's negative damping: drop it
         for j in range(nq):
