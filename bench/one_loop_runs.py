@@ -11,7 +11,6 @@ CPU time.
     python bench/one_loop_runs.py out.npz [planar|spatial]   # on each version, then
                                                              # np.array_equal on every array
 """
-import copy
 import dataclasses
 import sys
 import time
@@ -75,11 +74,20 @@ def _save(out, key, run):
         out[f"{key}_acc"] = np.asarray(run.acceleration)
 
 
+def _test_module(name):
+    """A test module of flex_model by name (its arm builders)."""
+    import importlib.util
+    from flex_model.spatial.description import SPATIAL_PRESET_DIR
+    path = Path(SPATIAL_PRESET_DIR).parent.parent.parent / "test" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def spatial(out):
-    from flex_model.config import read_yaml
     from flex_model.errors import SimulationDivergedError
     from flex_model.scenario import load_scenario
-    from flex_model.spatial.description import SPATIAL_PRESET_DIR
     from flex_model.spatial.dynamics import SpatialArmModel
     from flex_model.spatial.integrate import simulate_fixed_compiled as run
     from flex_model.spatial.loader import spatial_arm_from_dict
@@ -87,19 +95,9 @@ def spatial(out):
         res = dataclasses.replace(load_scenario(name), duration=duration).run(advise=False)
         out[f"{name}_q"], out[f"{name}_v"] = res.q, res.v
         out[f"{name}_it"] = np.array([res.stats["newton_iterations"]])
-    test = Path(SPATIAL_PRESET_DIR).parent.parent.parent / "test"
-    data = read_yaml(test / "data_spatial_effects_arm.yaml")
-    data["effects"] += [
-        {"type": "backlash", "joint": "j2", "half_width": 0.1, "smoothing": 1e-4},
-        {"type": "backlash", "joint": "j3", "half_width": 0.1, "smoothing": 1e-4}]
-    motors = copy.deepcopy(data)
-    motors["effects"] += [
-        {"type": "dc_motor", "joint": "j1", "resistance": 1.5, "torque_constant": 0.04,
-         "back_emf_constant": 0.05, "voltage_limit": 6.0},
-        {"type": "dc_motor", "joint": "j2", "resistance": 0.8, "torque_constant": 0.03,
-         "back_emf_constant": 0.03, "current_limit": 1.0},
-        {"type": "structural_damping", "link": "link2", "internal_friction": 0.01,
-         "rayleigh_mass": 0.2, "rayleigh_stiffness": 1e-3}]
+    backlash, motor, contact = (_test_module(n) for n in (
+        "test_spatial_effects_backlash", "test_spatial_effects_motor", "test_spatial_contact"))
+    data, motors = backlash._backlash_arm(), motor._motor_arm()
     rng = np.random.default_rng(2)
     for key, d in (("effects", data), ("motors", motors)):
         m = SpatialArmModel(spatial_arm_from_dict(d))
@@ -119,17 +117,7 @@ def spatial(out):
                                                         joint_torques=tau[:50]))
             except SimulationDivergedError as exc:
                 out[f"{key}_fail{max_iter}_error"] = np.array([str(exc)])
-    seed = read_yaml(SPATIAL_PRESET_DIR / "seed003_like_arm.yaml")
-    plain = SpatialArmModel(spatial_arm_from_dict(seed, "seed003"))
-    q0 = np.zeros(plain.nq)
-    q0[plain.off] = [0.3, -0.4, 0.6]
-    q0[plain.motor_index[0]] = 0.3
-    n = np.array([1.0, -1.0, 2.0]) / np.sqrt(6.0)
-    p0 = plain.tip_position(q0) + 0.02 * n
-    seed["effects"] = list(seed["effects"]) + [
-        {"type": "contact_surface", "x": float(p0[0]), "y": float(p0[1]), "z": float(p0[2]),
-         "normal": (3 * n).tolist(), "stiffness": 5e3, "damping": 20.0}]
-    m = SpatialArmModel(spatial_arm_from_dict(seed, "seed003_contact"))
+    m, q0 = contact._seed003_with_contact()
     v0 = np.zeros(m.nq)
     v0[m.off] = [0.2, 0.3, -0.4]
     tipf = np.outer(np.sin(np.arange(100) * 0.05), [1.0, -2.0, 3.0])
