@@ -255,6 +255,17 @@ def test_one_generalized_alpha_implementation():
     assert sites == {key: {GALPHA_HOME} for key in GALPHA_FORMULAS}
 
 
+def test_one_newton():
+    """Issue 43: the compiled loops' Newton iterations are solvers.loop.newton (and its
+    simplified Newton): only it calls the planar backtracking and the spatial convergence
+    tests; spatial.integrate.simulate_fixed, the Python reference, the second."""
+    import re
+    calls = {name for name, path in module_files().items()
+             if re.search(r"(backtrack_done|spatial_converged)\(", path.read_text())}
+    assert calls == {"flex_model.solvers.loop", "flex_model.solvers.newton",
+                     "flex_model.spatial.integrate"}
+
+
 def test_a_second_copy_of_the_formulas_is_found(tmp_path):
     copy = tmp_path / "copy.py"
     copy.write_text("am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)\naf = rho_inf / (rho_inf + 1)\n"

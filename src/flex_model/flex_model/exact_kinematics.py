@@ -54,7 +54,7 @@ from .integrators import joint_passive_forces, joint_tangent, joint_torques
 from .solvers.galpha import galpha_coefficients, galpha_state, restart_choice
 from .solvers.loop import fixed_step, implements, residual, tangent
 from .solvers.status import newton_settings
-from .kernels import solve_spd
+from .kernels import cholesky, solve_spd
 from .sections import area_and_inertia
 
 _CACHE = True
@@ -587,9 +587,9 @@ class ExactModel(NamedTuple):
 
 
 @njit(cache=_CACHE)
-def _residual(md, a1, st, c):
+def _residual(md, a1, st, c, first):
     """Residual B(q1) a1 - (Q - c) of a generalized-alpha step (solvers.galpha.Step st,
-    coefficients c) with :func:`balance`, and (B, v1, no bristle states)."""
+    coefficients c; ``first`` unused) with :func:`balance`, and (B, v1, no bristle states)."""
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     B, rhs = balance(st.t, q1, v1, md.X, md.E)
     return B @ a1 - rhs, (B, v1, st.z)
@@ -597,10 +597,10 @@ def _residual(md, a1, st, c):
 
 @njit(cache=_CACHE)
 def _tangent(md, ctx, st, c):
-    """B(q1) + gamma' (D + C_joints) + beta' (K + K_joints)."""
+    """Cholesky factor of B(q1) + gamma' (D + C_joints) + beta' (K + K_joints)."""
     B, v1 = ctx[0], ctx[1]
     Kj, Cj = joint_tangent(v1, md.E)
-    return B + c.gp * (md.E[1] + Cj) + c.bp * (md.E[0] + Kj)
+    return cholesky(B + c.gp * (md.E[1] + Cj) + c.bp * (md.E[0] + Kj))
 
 
 implements(residual, ExactModel, _residual)

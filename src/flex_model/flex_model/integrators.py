@@ -496,10 +496,10 @@ class PlanarModel(NamedTuple):
 
 
 @njit(cache=_CACHE)
-def _residual(md, a1, st, c):
+def _residual(md, a1, st, c, first):
     """Residual B(q1) a1 - (Q - c) of a generalized-alpha step (solvers.galpha.Step st,
-    coefficients c) for the guess a1, with (B, v1, the bristle deflections z1 at the
-    step's end, their slopes g) (stick-slip joints)."""
+    coefficients c) for the guess a1 (``first`` unused), with (B, v1, the bristle
+    deflections z1 at the step's end, their slopes g) (stick-slip joints)."""
     P, E = md
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     z1 = st.z
@@ -514,15 +514,15 @@ def _residual(md, a1, st, c):
 
 @njit(cache=_CACHE)
 def _tangent(md, ctx, st, c):
-    """Newton iteration matrix B + gamma' (D + C_j) + beta' (K + K_j) of
-    :func:`_residual` (PD gains, joint springs, friction slope and back-EMF at v1;
+    """Cholesky factor of the Newton iteration matrix B + gamma' (D + C_j) + beta' (K +
+    K_j) of :func:`_residual` (PD gains, joint springs, friction slope and back-EMF at v1;
     the bristles' slope and damping)."""
     E = md.E
     B, v1, z1, g = ctx
     Kj, Cj = joint_tangent(v1, E)
     if st.z.shape[0] > 0:
         _stick_slip_tangent(Kj, Cj, v1, st.z, z1, g, c.h, E)
-    return B + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj)
+    return cholesky(B + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj))
 
 
 @njit(cache=_CACHE)

@@ -12,6 +12,7 @@ import pytest
 from numba import njit
 
 from flex_model.iteration_matrix import empty_factor
+from flex_model.kernels import cholesky
 from flex_model.solvers.galpha import galpha_coefficients, galpha_state, step_status
 from flex_model.solvers.loop import (fixed_step, id_residual, implements, iteration_factor,
                                      residual, tangent)
@@ -88,19 +89,19 @@ class Oscillator(NamedTuple):
 
 
 @njit(cache=True)
-def _osc_residual(md, a1, st, c):
+def _osc_residual(md, a1, st, c, first):
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     return a1 + md.w2 * q1, (np.eye(1) * (1.0 + md.w2 * c.bp), v1, st.z)
 
 
 @njit(cache=True)
 def _osc_tangent(md, ctx, st, c):
-    return ctx[0]
+    return cholesky(ctx[0])
 
 
 @njit(cache=True)
 def _osc_id_residual(md, a1, st, c):
-    r, ctx = _osc_residual(md, a1, st, c)
+    r, ctx = _osc_residual(md, a1, st, c, True)
     return r, galpha_state(st.q, st.v, st.a, st.abar, a1, c)[0], ctx[1]
 
 
@@ -115,16 +116,31 @@ for _hook, _fn in ((residual, _osc_residual), (tangent, _osc_tangent),
     implements(_hook, Oscillator, _fn)
 
 
-@pytest.mark.parametrize("simplified", [False, True])
-def test_the_one_loop_runs_any_model_it_is_given(simplified):
+@pytest.mark.parametrize("simplified, relative", [(False, False), (True, False),
+                                                  (False, True)])
+def test_the_one_loop_runs_any_model_it_is_given(simplified, relative):
     """solvers.loop.fixed_step on a model registered by its hooks (a linear oscillator,
-    h omega = 0.2, 50 steps): full and simplified Newton give the closed-form recurrence
-    of :func:`oscillator` to 1e-12, every state recorded, status FINISHED."""
+    h omega = 0.2, 50 steps): full Newton (the planar test and the spatial relative one)
+    and simplified Newton give the closed-form recurrence of :func:`oscillator` to 1e-12,
+    every state recorded, status FINISHED."""
     x0 = np.array([1.0, 0.0])
     X, status, t, x, a, abar, it = fixed_step(Oscillator(4.0), 1, 0.0, x0, -4.0 * x0[:1],
-                                              -4.0 * x0[:1], 0.1, 50, 1, Settings(tol=1e-14),
+                                              -4.0 * x0[:1], 0.1, 50, 1,
+                                              Settings(tol=1e-14, relative=relative),
                                               empty_factor() if simplified else None)
     ref = oscillator(0.1, 50, omega=2.0)[0]
     assert status == FINISHED and t == pytest.approx(5.0)
     np.testing.assert_allclose(X[:, 0], ref, rtol=0, atol=1e-12)
     assert it <= 2 * 50
+
+
+def test_the_spatial_newton_fails_a_step_on_an_indefinite_tangent():
+    """The relative (spatial) Newton stops at a tangent that is not positive definite (the
+    oscillator's 1 + w2 beta' < 0): status NO_CONVERGENCE at the first step, no iteration
+    counted, the state left finite (the planar test takes the NaN correction: DIVERGED)."""
+    x0 = np.array([1.0, 0.0])
+    for relative, expected, count in ((True, NO_CONVERGENCE, 0), (False, DIVERGED, 50)):
+        X, status, t, x, a, abar, it = fixed_step(Oscillator(-1e4), 1, 0.0, x0, x0[:1],
+                                                  x0[:1], 0.1, 50, 1,
+                                                  Settings(relative=relative), None)
+        assert (status, it) == (expected, count) and t == pytest.approx(0.1)

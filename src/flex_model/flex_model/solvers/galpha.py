@@ -54,14 +54,16 @@ class GAlpha(NamedTuple):
 
 class Step(NamedTuple):
     """The state a step starts from: q, v, the bristle deflections z (planar stick-slip
-    joints; empty otherwise), the method's accelerations a, abar and the residual's time
-    t (mid-step for the planar pulses)."""
+    joints; empty otherwise), the method's accelerations a, abar, the residual's time
+    t (mid-step for the planar pulses) and the step's index k in the run (0 first: the
+    row of the spatial arm's per-step inputs)."""
     q: np.ndarray
     v: np.ndarray
     z: np.ndarray
     a: np.ndarray
     abar: np.ndarray
     t: float
+    k: int
 
 
 @njit(cache=_CACHE)
@@ -84,17 +86,6 @@ def galpha_coefficients(rho_inf, h):
 
 
 @njit(cache=_CACHE)
-def galpha_update(q, v, a, abar, a1, c, q1, v1, ab1):
-    """q1, v1, abar1 (written into the given arrays) for the iterate a1 (module docstring;
-    explicit loops: no temporaries, and numba array expressions compile slowly)."""
-    for j in range(q.shape[0]):
-        b = ((1.0 - c.af) * a1[j] + c.af * a[j] - c.am * abar[j]) / (1.0 - c.am)
-        ab1[j] = b
-        q1[j] = q[j] + c.h * v[j] + c.h * c.h * ((0.5 - c.beta) * abar[j] + c.beta * b)
-        v1[j] = v[j] + c.h * ((1.0 - c.gam) * abar[j] + c.gam * b)
-
-
-@njit(cache=_CACHE)
 def galpha_abar(a1, a, abar, c):
     """abar1 for the iterate a1 (module docstring), as an array expression (the planner's
     prescribed-motion loops, flex_planner.nominal_input and spatial_nominal)."""
@@ -103,10 +94,15 @@ def galpha_abar(a1, a, abar, c):
 
 @njit(cache=_CACHE)
 def galpha_state(q, v, a, abar, a1, c):
-    """(q1, v1, abar1) of :func:`galpha_update` in new arrays."""
+    """(q1, v1, abar1) for the iterate a1 (module docstring; explicit loops: numba array
+    expressions compile slowly)."""
     n = q.shape[0]
     q1, v1, ab1 = np.empty(n), np.empty(n), np.empty(n)
-    galpha_update(q, v, a, abar, a1, c, q1, v1, ab1)
+    for j in range(n):
+        b = ((1.0 - c.af) * a1[j] + c.af * a[j] - c.am * abar[j]) / (1.0 - c.am)
+        ab1[j] = b
+        q1[j] = q[j] + c.h * v[j] + c.h * c.h * ((0.5 - c.beta) * abar[j] + c.beta * b)
+        v1[j] = v[j] + c.h * ((1.0 - c.gam) * abar[j] + c.gam * b)
     return q1, v1, ab1
 
 

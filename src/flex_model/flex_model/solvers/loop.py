@@ -2,16 +2,19 @@
 generic over the model.
 
 The model is the first argument ``md``, a NamedTuple of its compiled data (the planar arm's
-integrators.PlanarModel, the exact kinematics' exact_kinematics.ExactModel). The loop
-calls the model's equations through four hooks whose implementation numba picks at compile
-time by the TYPE of ``md`` (:func:`implements`, numba.extending.overload): one machine
-code per model, cached on disk like any njit function (a first-class residual function is
-not cached: solvers.newton). A model module registers its hooks when imported:
+integrators.PlanarModel, the exact kinematics' exact_kinematics.ExactModel, the spatial
+arm's spatial.compiled.SpatialModel). The loop calls the model's equations through four
+hooks whose implementation numba picks at compile time by the TYPE of ``md``
+(:func:`implements`, numba.extending.overload): one machine code per model, cached on disk
+like any njit function (a first-class residual function is not cached: solvers.newton). A
+model module registers its hooks when imported:
 
-- ``residual(md, a1, st, c)`` -> (r, ctx): the residual of a step (solvers.galpha.Step
-  st, coefficients c) at the acceleration iterate a1; ctx what ``tangent`` needs, ctx[2]
-  the bristle deflections at the step's end (st.z without bristles);
-- ``tangent(md, ctx, st, c)``: the iteration matrix B + gamma' (D + C_j) + beta' (K + K_j);
+- ``residual(md, a1, st, c, first)`` -> (r, ctx): the residual of a step (solvers.galpha.
+  Step st, coefficients c) at the acceleration iterate a1 (``first``: the step's first,
+  where the spatial arm takes M); ctx what ``tangent`` needs, ctx[2] the bristle
+  deflections at the step's end (st.z without bristles);
+- ``tangent(md, ctx, st, c)``: the Cholesky factor (kernels.cholesky) of the iteration
+  matrix B + gamma' (D + C_j) + beta' (K + K_j), empty when it is not positive definite;
 - ``id_residual(md, a1, st, c)`` -> (r, q1, v1): the residual of simplified Newton
   (no bristles);
 - ``iteration_factor(md, q1, v1, c)``: a factor of the iteration matrix at (q1, v1)
@@ -27,9 +30,9 @@ from numba import njit, types
 from numba.extending import overload
 
 from ..iteration_matrix import empty_factor, factor_solve
-from ..kernels import solve_spd
+from ..kernels import solve_chol
 from .galpha import Step, galpha_coefficients, galpha_state, step_status
-from .newton import backtrack_done, residual_norm
+from .newton import backtrack_done, max_abs, residual_norm, spatial_converged
 from .status import FINISHED
 
 _CACHE = True
@@ -43,12 +46,12 @@ THETA_REFRESH = 0.003
 THETA_REFRESH_STRUCTURED = 0.03
 
 
-def residual(md, a1, st, c):
+def residual(md, a1, st, c, first):
     """Hook: (r, ctx) of a step at the iterate a1 (module docstring)."""
 
 
 def tangent(md, ctx, st, c):
-    """Hook: the iteration matrix at ctx (module docstring)."""
+    """Hook: the factor of the iteration matrix at ctx (module docstring)."""
 
 
 def id_residual(md, a1, st, c):
@@ -71,26 +74,56 @@ def implements(hook, model_type, fn):
 
 
 @njit(cache=_CACHE)
-def newton(md, st, c, a1, tol, max_iter, halvings):
-    """Full Newton on the step's residual with backtracking on its norm
-    (solvers.newton.backtrack_done) until the position correction beta' |da| is within
-    ``tol`` (m or rad). Returns (a1, z1, iterations, converged)."""
-    res, ctx = residual(md, a1, st, c)
-    norm = residual_norm(res)
-    for it in range(max_iter):
-        da = solve_spd(tangent(md, ctx, st, c), -res)
-        lam = 1.0
-        for ls in range(halvings):
-            a_try = a1 + lam * da
-            r_try, c_try = residual(md, a_try, st, c)
-            n_try = residual_norm(r_try)
-            if backtrack_done(n_try, norm, lam, ls, halvings):
+def newton(md, st, c, a1, s):
+    """(a1, z1, iterations, converged) of full Newton on the step's residual from a1, at
+    most ``s.max_iter`` iterations (solvers.status.Settings s), by one of two tests and
+    line searches. Planar (not ``s.relative``): backtracking on the residual norm, up to
+    ``s.backtrack`` halvings (solvers.newton.backtrack_done), until beta' |da| <= ``s.tol``
+    (m or rad). Spatial: from iteration ``s.line_search_from`` on, a correction that raised
+    the largest residual is halved (half of it taken back: an iteration), up to
+    ``s.halvings`` times in a row, until |da| <= ``s.tol`` max(1, |a1|) or stagnates
+    (solvers.newton.spatial_converged); a tangent not positive definite fails the step."""
+    n = a1.shape[0]
+    res, ctx = residual(md, a1, st, c, True)
+    norm = max_abs(res) if s.relative else residual_norm(res)
+    prev, dprev, back, it = np.inf, np.inf, 0, 0
+    da = np.zeros(n)
+    while it < s.max_iter:
+        if s.relative and it >= s.line_search_from and norm > prev and back < s.halvings:
+            da *= 0.5
+            a1, back = a1 - da, back + 1
+        else:
+            prev, back = norm, 0
+            L = tangent(md, ctx, st, c)
+            if L.shape[0] < n and s.relative:
                 break
-            lam *= 0.5
-        a1, res, ctx, norm = a_try, r_try, c_try, n_try
-        if np.max(np.abs(da)) * lam * c.bp <= tol:
-            return a1, ctx[2], it + 1, True
-    return a1, ctx[2], max_iter, False
+            da = solve_chol(L, -res) if L.shape[0] == n else np.full(n, np.nan)
+            if not s.relative:
+                lam = 1.0
+                for ls in range(s.backtrack):
+                    a_try = a1 + lam * da
+                    r_try, c_try = residual(md, a_try, st, c, False)
+                    n_try = residual_norm(r_try)
+                    if backtrack_done(n_try, norm, lam, ls, s.backtrack):
+                        break
+                    lam *= 0.5
+                a1, res, ctx, norm = a_try, r_try, c_try, n_try
+                it += 1
+                if np.max(np.abs(da)) * lam * c.bp <= s.tol:
+                    return a1, ctx[2], it, True
+                continue
+            a1 = a1 + da
+            if not np.all(np.isfinite(a1)):
+                return a1, ctx[2], it + 1, False
+            dmax = max_abs(da)
+            if spatial_converged(it, dmax, max(1.0, max_abs(a1)), dprev, s.tol,
+                                 s.line_search_from, s.stagnation)[0]:
+                return a1, ctx[2], it + 1, True
+            dprev = dmax
+        it += 1
+        res, ctx = residual(md, a1, st, c, False)
+        norm = max_abs(res)
+    return a1, ctx[2], it, False
 
 
 @njit(cache=_CACHE)
@@ -180,7 +213,7 @@ def fixed_step(md, n, t0, x0, a0, abar0, h, n_steps, every, s, F0):
     F = empty_factor()
     for k in range(1, n_steps + 1):
         t1 = t0 + k * h
-        st = Step(q, v, z, a, abar, t1 - 0.5 * h)
+        st = Step(q, v, z, a, abar, t1 - 0.5 * h, k - 1)
         ok = False
         z1 = z
         if F0 is not None:
@@ -190,7 +223,7 @@ def fixed_step(md, n, t0, x0, a0, abar0, h, n_steps, every, s, F0):
         if not ok:  # full Newton for this step, a fresh factor for the next
             if F0 is not None:
                 F = empty_factor()
-            a1, z1, it, ok = newton(md, st, c, a.copy(), s.tol, s.max_iter, s.backtrack)
+            a1, z1, it, ok = newton(md, st, c, a.copy(), s)
             iters += it
         q, v, abar = galpha_state(q, v, a, abar, a1, c)
         a_old, a, z, t = a, a1, z1, t1
@@ -211,7 +244,7 @@ def _guard_caches():
     root = Path(__file__).resolve().parent.parent
     files = ["kernels.py", "iteration_matrix.py", "integrators.py", "exact_kinematics.py",
              "effects/friction.py", "effects/stick_slip.py", "solvers/galpha.py",
-             "solvers/newton.py"]
+             "solvers/newton.py", "spatial/compiled.py", "spatial/exact.py"]
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__], [root / f for f in files])
 

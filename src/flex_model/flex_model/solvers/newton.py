@@ -1,9 +1,9 @@
 """Newton's method for an implicit step (issue 43): the backtracking line search of the
 planar full Newton (integrators and exact_kinematics.generalized_alpha) and the
-convergence test of the spatial loop (a correction relative to the accelerations, the
-stagnation at their round-off floor).
+convergence test of the spatial one (a correction relative to the accelerations, the
+stagnation at their round-off floor; spatial.compiled.galpha_loop).
 
-solvers.loop holds the Newton loops, generic over the model through hooks chosen by the
+solvers.loop holds the one Newton loop, generic over the model through hooks chosen by the
 type of the model's data (numba.extending.overload): numba (0.68) does not cache a function
 that receives the residual as a first-class function and allocates or does array
 arithmetic (measured: "Cannot cache compiled function ... as it uses dynamic globals")."""
@@ -19,6 +19,15 @@ _CACHE = True
 def residual_norm(r):
     """Euclidean norm of a residual (the backtracking's merit)."""
     return np.sqrt(np.sum(r * r))
+
+
+@njit(cache=_CACHE)
+def max_abs(r):
+    """Largest |r_i| (0 if empty; a NaN passed over, as by Python's max): the spatial test's."""
+    m = 0.0
+    for i in range(r.shape[0]):
+        m = max(m, abs(r[i]))
+    return m
 
 
 @njit(cache=_CACHE)

@@ -24,16 +24,17 @@ class Settings(NamedTuple):
     """Settings of the fixed-step generalized-alpha solver. ``tol``: the Newton
     correction's bound (planar: position correction beta' |da|, m or rad; spatial:
     |da| relative to max(1, |a|)); ``max_iter`` Newton iterations a step; ``backtrack``:
-    halvings of the backtracking line search (planar full Newton); ``line_search_from``,
-    ``halvings``, ``stagnation``: the spatial loop's halving line search and
-    stagnation test (:func:`flex_model.solvers.newton.spatial_converged`); ``limit``: a
-    state component beyond it is a divergence; ``refinements``: a failed step is tried
-    again as that many times shorter steps, in turn (the model node's retry and, with its
-    first entry, the spatial loop's; :func:`refine`)."""
+    halvings of the backtracking line search (planar); ``relative``: the spatial Newton
+    (solvers.loop.newton), ``line_search_from``, ``halvings``, ``stagnation``: its line
+    search and stagnation test (newton.spatial_converged); ``limit``: a state component
+    beyond it is a divergence; ``refinements``: a failed step is tried again as that many
+    times shorter steps, in turn (the model node's retry and, with its first entry, the
+    spatial loop's; :func:`refine`)."""
     rho_inf: float = 0.9
     tol: float = 1e-10
     max_iter: int = 50
     backtrack: int = 30
+    relative: bool = False
     line_search_from: int = 20
     halvings: int = 8
     stagnation: float = 1e3
@@ -70,4 +71,4 @@ def message(status: int, t: float | None = None) -> str:
 def newton_settings(rho_inf, tol, limit):
     """:class:`Settings` with these three and the other defaults, in compiled code (numba
     builds a NamedTuple from positional arguments only)."""
-    return Settings(rho_inf, tol, 50, 30, 20, 8, 1e3, limit, REFINEMENTS)
+    return Settings(rho_inf, tol, 50, 30, False, 20, 8, 1e3, limit, REFINEMENTS)

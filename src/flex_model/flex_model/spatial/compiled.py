@@ -35,10 +35,10 @@ from .. import integrators, kernels
 from ..effects.friction import friction_law_compiled
 from ..integrators import dead_zone
 from ..kernels import cholesky, solve_chol
-from ..solvers import galpha, newton
-from ..solvers.galpha import galpha_coefficients, galpha_update, restart_choice
-from ..solvers.newton import spatial_converged
-from ..solvers.status import FINISHED, NO_CONVERGENCE
+from ..solvers import galpha, loop, newton, status
+from ..solvers.galpha import galpha_coefficients, galpha_state, restart_choice
+from ..solvers.loop import fixed_step, implements, residual, tangent
+from ..solvers.status import FINISHED, NO_CONVERGENCE, Settings
 from .dynamics import SpatialArmModel
 from .exact import curvature_energy, link_sums, point_row
 
@@ -1229,11 +1229,13 @@ def _contact(Pm, ct, q, v, Q, gc):
 
 @njit(cache=_CACHE)
 def _hold(S, r, held):
-    """Held coordinates: identity rows and columns of S (if given) and zero residual."""
-    n = r.shape[0]
+    """Held coordinates: identity rows and columns of S and zero entries of r (each if
+    not empty)."""
+    n = held.shape[0]
     for j in range(n):
         if held[j]:
-            r[j] = 0.0
+            if r.shape[0]:
+                r[j] = 0.0
             if S.shape[0]:
                 for b in range(n):
                     S[j, b] = 0.0
@@ -1244,8 +1246,8 @@ def _hold(S, r, held):
 class LoopInputs(NamedTuple):
     """The joint effects and inputs of :func:`galpha_loop` by name (integrate.
     simulate_fixed_compiled builds them): K, D (nq x nq), Q0 the constant generalized
-    force, fric, motors, blash, contact, stops, pdc, tipf (rows as in galpha_loop's
-    docstring), held (nq, 0/1), H (nq x n_joints), effort (n_joints)."""
+    force, fric, motors, blash, contact, stops, pdc, tipf (rows as in the functions
+    galpha_loop's docstring names), held (nq, 0/1), H (nq x n_joints), effort (n_joints)."""
     K: np.ndarray
     D: np.ndarray
     Q0: np.ndarray
@@ -1331,245 +1333,210 @@ def _coupling_add(CF, p, s0, n, du, h, g, Hc, want_h, T):
             Hc[s0 + j, s0 + m] += acc_
 
 
+class SpatialWork(NamedTuple):
+    """The hooks' work arrays in a run of :func:`galpha_loop`: the effects' force Qe, slope,
+    the clipped torques u, the backlash (kt, sl), stops (skt, sct), PD clip (pact), contact
+    (gc, fn) tangent terms; the coupling's tangent Hc, S0 (first iterate), S, its factor L."""
+    Qe: np.ndarray
+    slope: np.ndarray
+    u: np.ndarray
+    kt: np.ndarray
+    sl: np.ndarray
+    skt: np.ndarray
+    sct: np.ndarray
+    pact: np.ndarray
+    gc: np.ndarray
+    fn: np.ndarray
+    Hc: np.ndarray
+    S0: np.ndarray
+    S: np.ndarray
+    L: np.ndarray
+
+
+class SpatialModel(NamedTuple):
+    """The spatial arm for solvers.loop.fixed_step: Pm (:func:`pack`), inp
+    (:class:`LoopInputs`), tau (n_steps, n_joints; row k over step k), work
+    (:class:`SpatialWork`), has_k (curvature coupling), nonlinear (friction, motors,
+    backlash, contact, stops or a clipped PD: their tangents refreshed every iteration)."""
+    Pm: tuple
+    inp: LoopInputs
+    tau: np.ndarray
+    work: SpatialWork
+    has_k: bool
+    nonlinear: bool
+
+
+@njit(cache=_CACHE)
+def _spatial_model(Pm, inp, tau):
+    """:class:`SpatialModel` with its flags and zeroed work arrays."""
+    nq, nb, ns = inp.K.shape[0], inp.blash.shape[0], inp.stops.shape[0]
+    z = np.zeros
+    work = SpatialWork(z(nq), z(nq), z(tau.shape[1]), z(nb), z(nb), z(ns), z(ns),
+                       z(inp.pdc.shape[0]), z(nq), z(1), z((nq, nq)), z((nq, nq)),
+                       z((nq, nq)), z((nq, nq)))
+    nonlinear = (inp.fric.shape[0] > 0 or inp.motors.shape[0] > 0 or nb > 0 or ns > 0
+                 or inp.contact.shape[0] > 0 or inp.pdc.shape[0] > 0)
+    has_k = Pm[31].shape[0] > 0 and np.any(Pm[31] != 0.0)
+    return SpatialModel(Pm, inp, tau, work, has_k, nonlinear)
+
+
+@njit(cache=_CACHE, inline="always")   # numba-inlined: md not passed once more
+def _joint_forces(md, k, q, v):
+    """The work's u (row k of tau clipped to +-effort; 0 on motor joints: a voltage) and
+    Qe: Q0 + the joint effects and the tip force of row k at (q, v), with their slopes
+    and tangent terms (galpha_loop's docstring)."""
+    inp, w, Pm = md.inp, md.work, md.Pm
+    cmd = md.tau[k]
+    for j in range(cmd.shape[0]):
+        w.u[j] = min(max(cmd[j], -inp.effort[j]), inp.effort[j])
+    for r_ in range(inp.motors.shape[0]):
+        w.u[int(inp.motors[r_, 0])] = 0.0     # a voltage: through the motor model
+    _effects(inp.Q0, inp.fric, v, w.Qe, w.slope)
+    if inp.motors.shape[0] > 0:
+        _motor_torques(inp.motors, cmd, inp.effort, v, w.Qe, w.slope)
+    if inp.blash.shape[0] > 0:
+        _backlash(inp.blash, q, v, w.Qe, w.kt, w.sl)
+    if inp.contact.shape[0] > 0:
+        w.fn[0] = _contact(Pm, inp.contact, q, v, w.Qe, w.gc)
+    if inp.tipf.shape[0] > 0:
+        _tip_force(Pm, inp.tipf[k], q, w.Qe)
+    if inp.stops.shape[0] > 0:
+        _stops(inp.stops, q, v, w.Qe, w.skt, w.sct)
+    if inp.pdc.shape[0] > 0:
+        _pd_clip(inp.pdc, w.u, q, v, w.Qe, w.pact)
+
+
+@njit(cache=_CACHE)
+def _residual(md, a1, st, c, first):
+    """Residual M a1 + c + K q1 + D v1 - H u - Q_e of step st.k at the iterate a1 by the
+    inverse dynamics of spatial_eval (M, and the curvature coupling's tangent, at the
+    ``first`` iterate only), zero on held coordinates; ctx (M, first, no bristles)."""
+    inp, w = md.inp, md.work
+    q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
+    M1, f1 = spatial_eval(md.Pm, q1, v1, a1, first)
+    _joint_forces(md, st.k, q1, v1)
+    Q, Kq, Dv = _matvec(inp.H, w.u), _matvec(inp.K, q1), _matvec(inp.D, v1)
+    if md.has_k:      # its tangent at the first iterate (integrate.simulate_fixed)
+        if first:
+            w.Hc[:, :] = 0.0
+        _coupling(md.Pm, q1, Kq, w.Hc, first)
+    for j in range(Kq.shape[0]):     # the residual, in Kq's place; 0 where held
+        Kq[j] = 0.0 if inp.held[j] else f1[j] + Kq[j] - Q[j] - w.Qe[j] + Dv[j]
+    return Kq, (M1, first, st.z)
+
+
+@njit(cache=_CACHE)
+def _tangent(md, ctx, st, c):
+    """Factor of M + beta' (K + H_c) + gamma' D (S0: M, H_c of the step's first iterate)
+    with the nonlinear effects' tangents at the current iterate (else kept for the step);
+    without friction slopes > 0 (a Stribeck peak) if they make it indefinite."""
+    M1, first = ctx[0], ctx[1]
+    inp, w = md.inp, md.work
+    K, D, contact, stops, pdc = inp.K, inp.D, inp.contact, inp.stops, inp.pdc
+    cq, cv = c.bp, c.gp
+    nq = K.shape[0]
+    S0, S = w.S0, w.S
+    if first:
+        for j in range(nq):
+            for b_ in range(nq):
+                S0[j, b_] = M1[j, b_] + cq * (K[j, b_] + w.Hc[j, b_]) + cv * D[j, b_]
+    elif not md.nonlinear:
+        return w.L
+    S[:, :] = S0
+    for j in range(nq):
+        S[j, j] -= cv * w.slope[j]
+    if inp.blash.shape[0] > 0:
+        _backlash_tangent(inp.blash, w.kt, w.sl, cq, cv, S)
+    if contact.shape[0] > 0 and w.fn[0] > 0.0:   # k g g^T, c g g^T (contact_tangent)
+        gk = cq * contact[6] + cv * contact[7]
+        for j in range(nq):
+            for b_ in range(nq):
+                S[j, b_] += gk * w.gc[j] * w.gc[b_]
+    for r_ in range(stops.shape[0]):     # the stops' tangent (0: apart)
+        a_ = int(stops[r_, 0])
+        S[a_, a_] += cq * w.skt[r_] + cv * w.sct[r_]
+    for r_ in range(pdc.shape[0]):       # a clipped PD: no kp, kd
+        if w.pact[r_] > 0.0:
+            a_ = int(pdc[r_, 1])
+            S[a_, a_] -= cq * pdc[r_, 2] + cv * pdc[r_, 3]
+    _hold(S, w.u[:0], inp.held)
+    Lc = cholesky(S)
+    if Lc.shape[0] != nq:   # a Stribeck slope's negative damping: drop it
+        for j in range(nq):
+            if w.slope[j] > 0.0 and not inp.held[j]:
+                S[j, j] += cv * w.slope[j]
+        Lc = cholesky(S)
+    if Lc.shape[0] == nq:
+        w.L[:, :] = Lc
+    return Lc
+
+
+implements(residual, SpatialModel, _residual)
+implements(tangent, SpatialModel, _tangent)
+
+
+@njit(cache=_CACHE)
+def _start(md, q, v, h, acc, start, rho_inf):
+    """(a, abar, ok) the run starts from: acc's when ``start`` is 1, else the consistent
+    M^-1 (H u + Q_e - c - K q - D v) at (q, v), row 0's inputs (2: solvers.galpha.
+    restart_choice from it and acc[0]); ok False when M is not positive definite."""
+    if start == 1:
+        return acc[0].copy(), acc[1].copy(), True
+    inp, w = md.inp, md.work
+    nq = q.shape[0]
+    M, c = spatial_eval(md.Pm, q, v, np.zeros(nq), nq > 0)
+    _joint_forces(md, 0, q, v)
+    Hu, Kq, Dv = _matvec(inp.H, w.u), _matvec(inp.K, q), _matvec(inp.D, v)
+    if md.has_k:
+        _coupling(md.Pm, q, Kq, w.Hc, False)
+    r = np.empty(nq)
+    for j in range(nq):
+        r[j] = Hu[j] + w.Qe[j] - c[j] - Kq[j] - Dv[j]
+    _hold(M, r, inp.held)
+    Lc = cholesky(M)
+    if Lc.shape[0] != nq:   # not positive definite
+        return r, r, False
+    a = solve_chol(Lc, r)
+    if start == 2:
+        ga = galpha_coefficients(rho_inf, h)
+        S = M + ga.bp * inp.K + ga.gp * inp.D
+        _hold(S, r, inp.held)
+        a = restart_choice(acc[0].copy(), a, M, S, h, rho_inf)[0]
+    return a, a.copy(), True
+
+
 @njit(cache=_CACHE)
 def galpha_loop(Pm, inp, q0, v0, h, tau, st, acc, start):
-    """Generalized-alpha (Chung-Hulbert, Arnold-Bruels accelerations), the same scheme as
-    integrate.simulate_fixed: Newton on the accelerations with
-    M + beta' h^2 K + gamma' h (D - d Q_f/dv), M from the first iterate of a step (the
-    friction slope d Q_f/dv from the current iterate: the steep tanh needs it),
-    the residual by the O(n) inverse dynamics of spatial_eval. ``tau`` (n_steps, n_joints):
-    joint torques/forces held over step n (applied at t_{n+1}), clipped to +-``effort``;
-    generalized force H tau + Q0 + friction (``fric``, see _effects); on the joints of
-    ``motors`` (see _motor_torques) tau is a voltage through the DC motor model (its
-    back-EMF slope in the Newton matrix, refreshed every iteration); ``blash``: the
-    backlash corrections of gear springs (see _backlash; their tangent refreshed every
-    iteration); ``contact``: empty or the contact surface at the tip (see _contact; its
-    tangent refreshed every iteration); ``stops``: the end stops at the joint limits (see
-    _stops); ``pdc``: an in-loop PD's torque clipped to the effort limits (see _pd_clip;
-    those joints' ``effort`` entries are infinite); ``tipf``: empty or (n_steps, 3) forces
-    (N, base frame) at the tip (the origin of the last link's end frame), row n over step
-    n: J_tip^T F at the current iterate (its dJ/dq F tangent left out, as the contact's);
-    with any of these nonlinear effects a
-    Newton step that raises the largest residual is halved, up to ``st.halvings`` (8)
-    times in a row, from iteration ``st.line_search_from`` (20) of a step on (the steep
-    tanh of Coulomb friction otherwise makes the iteration cycle; steps that converge
-    earlier are untouched), and from then on a step whose correction stagnates is
-    accepted (solvers.newton.spatial_converged); ``held`` (nq, 0/1):
-    coordinates with zero acceleration. ``acc`` (2, nq): the accelerations (a, abar) of
-    the method, read as the start when ``start`` is 1 (a continued run), the step's
-    acceleration before an input jump when 2 (the restart of solvers.galpha.restart_choice,
-    as the planar fixed step's: the part of the jump the step follows where the rest
-    would kick modes it cannot follow), else unused (0: the consistent acceleration
-    restarts it); overwritten with the last step's. ``inp``: :class:`LoopInputs`, ``st``:
-    solvers.status.Settings (rho_inf, tol, max_iter, the line search). Returns (q, v) at
-    every step done (n + 1, nq), the Newton iteration count and the status
-    (solvers.status: FINISHED, or NO_CONVERGENCE at step n = len(q) - 1). A Newton matrix
-    made indefinite by a friction slope > 0 (a Stribeck peak's negative damping) is
-    rebuilt without those slopes."""
+    """Generalized-alpha (Chung-Hulbert, Arnold-Bruels), the scheme of integrate.
+    simulate_fixed: solvers.loop.fixed_step on :class:`SpatialModel` (``st``: Settings,
+    the relative Newton, its line search with nonlinear effects only). ``tau`` (n_steps,
+    n_joints): joint torques/forces over step n (at t_{n+1}), clipped to +-``effort``,
+    voltages on ``motors``' joints; ``inp``: :class:`LoopInputs`: H tau + Q0 + friction
+    (_effects), DC motors (_motor_torques), backlash (_backlash), a contact surface at the
+    tip (_contact), end stops (_stops), an in-loop PD's clipped torque (_pd_clip; infinite
+    ``effort`` there), ``tipf`` empty or (n_steps, 3) tip forces (N, base frame; J_tip^T F
+    at the iterate, no dJ/dq F tangent), ``held`` coordinates (zero acceleration).
+    ``acc`` (2, nq): (a, abar), the start when ``start`` is 1 (a continued run), the
+    acceleration before an input jump when 2 (solvers.galpha.restart_choice), else unused
+    (0: consistent); overwritten with the last step's. Returns (q, v) at every step done
+    (n + 1, nq), the Newton iterations and the status (solvers.status; not FINISHED: that
+    of step n + 1)."""
     nq = q0.shape[0]
-    n_steps = tau.shape[0]
-    nj = tau.shape[1]
-    K, D, Q0, fric, motors, blash, contact, stops, pdc, tipf, held, H, effort = inp
-    ga = galpha_coefficients(st.rho_inf, h)
-    cq, cv = ga.bp, ga.gp
-    has_d = False
-    for a_ in range(nq):
-        for b_ in range(nq):
-            if D[a_, b_] != 0.0:
-                has_d = True
-    has_f = fric.shape[0] > 0 or motors.shape[0] > 0 or blash.shape[0] > 0
-    has_m = motors.shape[0] > 0
-    has_b = blash.shape[0] > 0
-    has_c = contact.shape[0] > 0
-    has_t = tipf.shape[0] > 0
-    has_s = stops.shape[0] > 0
-    has_p = pdc.shape[0] > 0
-    has_k = Pm[31].shape[0] > 0 and np.any(Pm[31] != 0.0)   # curvature coupling
-    if has_c or has_s or has_p:
-        has_f = True
-    skt = np.zeros(stops.shape[0])
-    sct = np.zeros(stops.shape[0])
-    pact = np.zeros(pdc.shape[0])
-    gc = np.zeros(nq)
-    fn = 0.0
-    sl = np.zeros(blash.shape[0])
-    kt = np.zeros(blash.shape[0])
-    S0 = np.zeros((nq, nq))
-    S = np.zeros((nq, nq))
-    none = np.zeros((0, 0))
-    qs = np.empty((n_steps + 1, nq))
-    vs = np.empty((n_steps + 1, nq))
-    Qe = np.zeros(nq)
-    slope = np.zeros(nq)
-    u = np.zeros(nj)
-    q1 = np.zeros(nq)
-    v1 = np.zeros(nq)
-    ab1 = np.zeros(nq)
-    r = np.zeros(nq)
-    Dv = np.zeros(nq)
-    q = q0.copy()
-    v = v0.copy()
-    qs[0] = q
-    vs[0] = v
-    for j in range(nj):
-        u[j] = min(max(tau[0, j], -effort[j]), effort[j])
-    for r_ in range(motors.shape[0]):
-        u[int(motors[r_, 0])] = 0.0     # a voltage: through the motor model
-    M, c = spatial_eval(Pm, q, v, np.zeros(nq), nq > 0)
-    _effects(Q0, fric, v, Qe, slope)
-    if has_m:
-        _motor_torques(motors, tau[0], effort, v, Qe, slope)
-    if has_b:
-        _backlash(blash, q, v, Qe, kt, sl)
-    if has_c:
-        _contact(Pm, contact, q, v, Qe, gc)
-    if has_t:
-        _tip_force(Pm, tipf[0], q, Qe)
-    if has_s:
-        _stops(stops, q, v, Qe, skt, sct)
-    if has_p:
-        _pd_clip(pdc, u, q, v, Qe, pact)
-    Hu, Kq, Dv = _matvec(H, u), _matvec(K, q), _matvec(D, v)
-    Hc = np.zeros((nq, nq))
-    if has_k:
-        _coupling(Pm, q, Kq, Hc, False)
-    for j in range(nq):
-        r[j] = Hu[j] + Qe[j] - c[j] - Kq[j] - Dv[j]
-    _hold(M, r, held)
-    if start == 1:
-        a = acc[0].copy()
-        abar = acc[1].copy()
+    md = _spatial_model(Pm, inp, tau)
+    a, abar, ok = _start(md, q0, v0, h, acc, start, st.rho_inf)
+    if not ok:
+        return q0.copy().reshape((1, nq)), v0.copy().reshape((1, nq)), 0, NO_CONVERGENCE
+    s = Settings(st.rho_inf, st.tol, st.max_iter, st.backtrack, True, st.line_search_from,
+                 st.halvings if md.nonlinear else 0, st.stagnation, st.limit, st.refinements)
+    X, code, t, x, a, abar, iters = fixed_step(md, nq, 0.0, np.concatenate((q0, v0)), a,
+                                               abar, h, tau.shape[0], 1, s, None)
+    rows = X.shape[0]
+    if code == FINISHED:
+        acc[0] = a
+        acc[1] = abar
     else:
-        Lc = cholesky(M)
-        if Lc.shape[0] != nq:   # not positive definite
-            return qs[:1], vs[:1], 0, NO_CONVERGENCE
-        a = solve_chol(Lc, r)
-        if start == 2:
-            S = M + cq * K + cv * D
-            _hold(S, r, held)
-            a = restart_choice(acc[0].copy(), a, M, S, h, st.rho_inf)[0]
-        abar = a.copy()
-    a1 = a.copy()
-    da = np.zeros(nq)
-    iters = 0
-    for n in range(n_steps):
-        for j in range(nj):
-            u[j] = min(max(tau[n, j], -effort[j]), effort[j])
-        for r_ in range(motors.shape[0]):
-            u[int(motors[r_, 0])] = 0.0
-        Q = _matvec(H, u)
-        a1[:] = a
-        Lc = S0
-        ok = False
-        rprev = np.inf
-        back = 0
-        dprev = np.inf
-        for it in range(st.max_iter):
-            galpha_update(q, v, a, abar, a1, ga, q1, v1, ab1)
-            # residual M a + c + K q + D v - Q - Q_e by inverse dynamics; M once a step
-            M1, f1 = spatial_eval(Pm, q1, v1, a1, it == 0)
-            _effects(Q0, fric, v1, Qe, slope)
-            if has_m:
-                _motor_torques(motors, tau[n], effort, v1, Qe, slope)
-            if has_b:
-                _backlash(blash, q1, v1, Qe, kt, sl)
-            if has_c:
-                fn = _contact(Pm, contact, q1, v1, Qe, gc)
-            if has_t:
-                _tip_force(Pm, tipf[n], q1, Qe)
-            if has_s:
-                _stops(stops, q1, v1, Qe, skt, sct)
-            if has_p:
-                _pd_clip(pdc, u, q1, v1, Qe, pact)
-            Kq = _matvec(K, q1)
-            if has_k:      # its tangent at the first iterate (integrate.simulate_fixed)
-                if it == 0:
-                    Hc[:, :] = 0.0
-                _coupling(Pm, q1, Kq, Hc, it == 0)
-            if has_d:
-                Dv = _matvec(D, v1)
-            for j in range(nq):
-                r[j] = f1[j] + Kq[j] - Q[j] - Qe[j] + Dv[j]
-            if has_f:     # a step that raised the largest residual is halved (line search)
-                rn = 0.0
-                for j in range(nq):
-                    if not held[j]:
-                        rn = max(rn, abs(r[j]))
-                if it >= st.line_search_from and rn > rprev and back < st.halvings:
-                    for j in range(nq):
-                        da[j] *= 0.5
-                        a1[j] += da[j]
-                    back += 1
-                    iters += 1
-                    continue
-                rprev = rn
-                back = 0
-            if it == 0:
-                for j in range(nq):
-                    for b_ in range(nq):
-                        S0[j, b_] = M1[j, b_] + cq * (K[j, b_] + Hc[j, b_]) + cv * D[j, b_]
-            if it == 0 or has_f:      # friction: its slope refreshed every iteration
-                for j in range(nq):
-                    for b_ in range(nq):
-                        S[j, b_] = S0[j, b_]
-                    S[j, j] -= cv * slope[j]
-                if has_b:
-                    _backlash_tangent(blash, kt, sl, cq, cv, S)
-                if has_c and fn > 0.0:     # k g g^T, c g g^T (SpatialArmModel.contact_tangent)
-                    gk = cq * contact[6] + cv * contact[7]
-                    for j in range(nq):
-                        for b_ in range(nq):
-                            S[j, b_] += gk * gc[j] * gc[b_]
-                for r_ in range(stops.shape[0]):     # the stops' tangent (0: apart)
-                    a_ = int(stops[r_, 0])
-                    S[a_, a_] += cq * skt[r_] + cv * sct[r_]
-                for r_ in range(pdc.shape[0]):       # a clipped PD: no kp, kd
-                    if pact[r_] > 0.0:
-                        a_ = int(pdc[r_, 1])
-                        S[a_, a_] -= cq * pdc[r_, 2] + cv * pdc[r_, 3]
-                _hold(S, r, held)
-                Lc = cholesky(S)
-                if Lc.shape[0] != nq:   # a Stribeck slope's negative damping: drop it
-                    for j in range(nq):
-                        if slope[j] > 0.0 and not held[j]:
-                            S[j, j] += cv * slope[j]
-                    Lc = cholesky(S)
-                if Lc.shape[0] != nq:   # not positive definite: this step fails
-                    break
-            else:
-                _hold(none, r, held)
-            da = solve_chol(Lc, r)
-            dmax = 0.0
-            amax = 1.0
-            finite = True
-            for j in range(nq):
-                a1[j] -= da[j]
-                dmax = max(dmax, abs(da[j]))
-                amax = max(amax, abs(a1[j]))
-                if not np.isfinite(a1[j]):   # max() skips a NaN: not a convergence
-                    finite = False
-            iters += 1
-            if not finite:
-                break
-            ok, stagnated = spatial_converged(it, dmax, amax, dprev, st.tol,
-                                              st.line_search_from, st.stagnation)
-            if ok:
-                break
-            dprev = dmax
-        if not ok:
-            return qs[:n + 1], vs[:n + 1], iters, NO_CONVERGENCE
-        galpha_update(q, v, a, abar, a1, ga, q1, v1, ab1)
-        for j in range(nq):
-            q[j] = q1[j]
-            v[j] = v1[j]
-            a[j] = a1[j]
-            abar[j] = ab1[j]
-            qs[n + 1, j] = q1[j]
-            vs[n + 1, j] = v1[j]
-    for j in range(nq):
-        acc[0, j] = a[j]
-        acc[1, j] = abar[j]
-    return qs, vs, iters, FINISHED
+        rows = int(np.rint(t / h))     # the steps before the failed one
+    return X[:rows, :nq].copy(), X[:rows, nq:].copy(), iters, code
 
 
 class CompiledSpatialModel:
@@ -1600,7 +1567,7 @@ def _guard_caches():
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
           [kernels.__file__, integrators.__file__, galpha.__file__, newton.__file__,
-           friction.__file__])
+           loop.__file__, status.__file__, friction.__file__])
 
 
 _guard_caches()

@@ -6,12 +6,9 @@
   accelerations), fixed step, Newton on the accelerations with the iteration matrix
   M + beta' h^2 K frozen per step. rho_inf = 1 is the trapezoidal rule (no numerical
   dissipation), rho_inf < 1 damps the unresolved high modes like the planar ``fixed`` mode.
-  (The planar generalized-alpha kernel of integrators.py is compiled against the planar
-  model's parameter tuple, so it is not reused here.)
-
-- ``simulate_fixed_compiled``: the same generalized-alpha scheme compiled (numba,
-  compiled.galpha_loop; analytic velocity terms), joint torques as an array, clipped to
-  the URDF effort limits.
+- ``simulate_fixed_compiled``: the same scheme compiled (compiled.galpha_loop: the planar
+  arms' solvers.loop.fixed_step on compiled.SpatialModel; analytic velocity terms), joint
+  torques as an array, clipped to the URDF effort limits.
 
 ``force(t, q, v)`` returns the generalized applied force Q (nq), e.g. ``H tau`` with
 ``H = joint_input_matrix(model)``. ``joint_commands`` are joint torques/forces, or
@@ -100,14 +97,8 @@ def simulate_variable(model: SpatialArmModel, q0, v0, t_out, force=None, rtol: f
     return SpatialRun(sol.t, sol.y[:nq].T.copy(), sol.y[nq:].T.copy())
 
 
-#: Newton with the nonlinear joint effects (friction, motors, backlash, contact, stops): from
-#: iteration Settings.line_search_from (20) of a step on, a step that raises the largest
-#: residual is halved, up to Settings.halvings (8) times in a row (the steep tanh of Coulomb
-#: friction otherwise makes the iteration cycle; steps that converge earlier are
-#: untouched); from then on a correction that no longer halves and is within
-#: Settings.stagnation (1e3) x tol (relative) is accepted: the accelerations of light
-#: deformation variables have a round-off floor above tol = 1e-10 at a static start or
-#: once a stiff joint loop settles (seed 000's Eq. 45 arm, seed 002's springs 1e4 N m/rad)
+#: the Newton of both spatial loops: its line search with the nonlinear joint effects and
+#: the stagnation acceptance (solvers.loop.newton, solvers.newton.spatial_converged)
 SETTINGS = Settings()
 
 
@@ -288,7 +279,8 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     tipf = np.zeros((0, 3)) if tip_force is None else np.array(np.broadcast_to(
         np.asarray(tip_force, float), (n_steps, 3)), order="C")
 
-    settings = Settings(rho_inf=float(rho_inf), tol=float(tol), max_iter=int(max_iter))
+    settings = Settings(rho_inf=float(rho_inf), tol=float(tol), max_iter=int(max_iter),
+                        limit=np.inf)     # no bound (motor angles wind up): only non-finite
 
     def loop(q, v, hh, rows, acc, warm, forces):
         inputs = LoopInputs(K, np.ascontiguousarray(D), model.Q_const.copy(), fric, motors,
