@@ -284,12 +284,12 @@ class ExactKinematics:
 
     # ------------------------------------------------------------------ interface
     @property
-    def data(self) -> tuple:
+    def data(self) -> ExactData:
         """The arrays of the compiled sweep :func:`terms` (end masses as set now)."""
         m = self.model
-        return (m.off, m.nf, self._npt, self._nin, self._C, self._Wd, self._mw,
-                self.m_minus, self.j_minus, self.m_plus, self.j_plus, m.B_const,
-                m.axial_off, self._na, self._Ua, self._cols, self._ncols)
+        return ExactData(m.off, m.nf, self._npt, self._nin, self._C, self._Wd, self._mw,
+                         self.m_minus, self.j_minus, self.m_plus, self.j_plus, m.B_const,
+                         m.axial_off, self._na, self._Ua, self._cols, self._ncols)
 
     def mass_and_bias(self, q, v, gx, gy):
         """(B(q), c(q, v)) with gravity (gx, gy) entering c; B includes B_const
@@ -364,16 +364,168 @@ class ExactKinematics:
         return out
 
 
+class ExactData(NamedTuple):
+    """The arrays of the compiled sweep :func:`terms` (:meth:`ExactKinematics.data`), per
+    link i (padded): its offset and bending variables in q, its mass points and inner
+    nodes, the quadrature r_k = sum_j C[i, k, j] t_j of r = int t ds, W' at the nodes
+    (Wd), the points' masses (mw), the end masses and inertias, the constant inertia Bc,
+    its first axial variable (axo) and count (na), the axial shapes at the nodes (Ua) and
+    the columns of q its points depend on (cols[i, :ncols[i]])."""
+    off: np.ndarray
+    nf: np.ndarray
+    npt: np.ndarray
+    nin: np.ndarray
+    C: np.ndarray
+    Wd: np.ndarray
+    mw: np.ndarray
+    m_minus: np.ndarray
+    j_minus: np.ndarray
+    m_plus: np.ndarray
+    j_plus: np.ndarray
+    Bc: np.ndarray
+    axo: np.ndarray
+    na: np.ndarray
+    Ua: np.ndarray
+    cols: np.ndarray
+    ncols: np.ndarray
+
+
+@njit(cache=_CACHE)
+def _node_values(i, q, v, X, cp, sp, pd, st, sd):
+    """At link i's inner nodes j: cos and sin of the tangent angle phi = W' q_f, its rate,
+    the stretch 1 + eps (eps = U_a u, the axial shapes) and its rate, into cp, sp, pd, st,
+    sd (the tangent t = (1 + eps)(cos phi, sin phi) integrated by ExactKinematics._sweep)."""
+    o, n, u0, nu = X.off[i], X.nf[i], X.axo[i], X.na[i]
+    Wd, Ua = X.Wd, X.Ua
+    for j in range(X.nin[i]):
+        ph = 0.0
+        pv = 0.0
+        for l in range(n):
+            ph += Wd[i, j, l] * q[o + 1 + l]
+            pv += Wd[i, j, l] * v[o + 1 + l]
+        e = 0.0
+        ed = 0.0
+        for l in range(nu):
+            e += Ua[i, j, l] * q[u0 + l]
+            ed += Ua[i, j, l] * v[u0 + l]
+        cp[j] = np.cos(ph)
+        sp[j] = np.sin(ph)
+        pd[j] = pv
+        st[j] = 1.0 + e
+        sd[j] = ed
+
+
+@njit(cache=_CACHE)
+def _point_in_link(i, k, X, cp, sp, pd, st, sd, jlx, jly, jux, juy):
+    """Mass point k of link i in the link frame: r = sum_j C_kj t_j (the quadrature of
+    r = int t ds), the curvature part (kx, ky) of its acceleration and its Jacobians
+    (jlx, jly) on the bending and (jux, juy) on the axial variables. Returns rx, ry, kx,
+    ky."""
+    n, nu = X.nf[i], X.na[i]
+    C, Wd, Ua = X.C, X.Wd, X.Ua
+    rx = 0.0
+    ry = 0.0
+    kx = 0.0
+    ky = 0.0
+    for l in range(n):
+        jlx[l] = 0.0
+        jly[l] = 0.0
+    for l in range(nu):
+        jux[l] = 0.0
+        juy[l] = 0.0
+    for j in range(X.nin[i]):
+        w = C[i, k, j]
+        if w == 0.0:
+            continue
+        wc = w * cp[j]
+        ws = w * sp[j]
+        tc = st[j] * wc
+        ts = st[j] * ws
+        rx += tc
+        ry += ts
+        p2 = pd[j] * pd[j]
+        kx -= tc * p2 + 2.0 * sd[j] * ws * pd[j]
+        ky -= ts * p2 - 2.0 * sd[j] * wc * pd[j]
+        for l in range(n):
+            jlx[l] -= ts * Wd[i, j, l]
+            jly[l] += tc * Wd[i, j, l]
+        for l in range(nu):
+            jux[l] += wc * Ua[i, j, l]
+            juy[l] += ws * Ua[i, j, l]
+    return rx, ry, kx, ky
+
+
+@njit(cache=_CACHE)
+def _point_jacobian(i, v, X, rx, ry, ca, sa, jlx, jly, jux, juy, Jox, Joy, Jx, Jy):
+    """The point's base-frame Jacobian J = J_o + the link's rotation of (r, jl, ju) into
+    (Jx, Jy) (link i's columns) and its velocity in the link frame (rdx, rdy)."""
+    o, n, u0, nu = X.off[i], X.nf[i], X.axo[i], X.na[i]
+    ci = X.cols[i]
+    rdx = 0.0
+    rdy = 0.0
+    for l in range(n):
+        rdx += jlx[l] * v[o + 1 + l]
+        rdy += jly[l] * v[o + 1 + l]
+    for l in range(nu):
+        rdx += jux[l] * v[u0 + l]
+        rdy += juy[l] * v[u0 + l]
+    for ia in range(X.ncols[i]):
+        a = ci[ia]
+        Jx[a] = Jox[a]
+        Jy[a] = Joy[a]
+    Jx[o] += -rx * sa - ry * ca
+    Jy[o] += rx * ca - ry * sa
+    for l in range(n):
+        Jx[o + 1 + l] += jlx[l] * ca - jly[l] * sa
+        Jy[o + 1 + l] += jlx[l] * sa + jly[l] * ca
+    for l in range(nu):
+        Jx[u0 + l] += jux[l] * ca - juy[l] * sa
+        Jy[u0 + l] += jux[l] * sa + juy[l] * ca
+    return rdx, rdy
+
+
+@njit(cache=_CACHE)
+def _link_root(i, gx, gy, X, B, c, Jox, Joy, xox, xoy):
+    """Link i's root: the end mass M- at its origin (Jacobian Jo, acceleration xo) into B
+    and c, and the joint inertias J-, J+ (thesis Eq. 8) into B."""
+    o, g = X.off[i], X.off[i] + X.nf[i]
+    ci = X.cols[i]
+    mm = X.m_minus[i]
+    if mm != 0.0:
+        for ia in range(X.ncols[i]):
+            a = ci[ia]
+            c[a] += mm * (Jox[a] * (xox - gx) + Joy[a] * (xoy - gy))
+            for ib in range(X.ncols[i]):
+                b = ci[ib]
+                B[a, b] += mm * (Jox[a] * Jox[b] + Joy[a] * Joy[b])
+    B[o, o] += X.j_minus[i] + X.j_plus[i]
+    B[o, g] += X.j_plus[i]
+    B[g, o] += X.j_plus[i]
+    B[g, g] += X.j_plus[i]
+
+
+@njit(cache=_CACHE)
+def _add_point_mass(m, fx, fy, ci, nc, Jx, Jy, B, c):
+    """c += J^T f and B += m J^T J of a point mass m with inertial force (fx, fy) =
+    m (p'' - g) on the columns ci[:nc]."""
+    for ia in range(nc):
+        a = ci[ia]
+        c[a] += Jx[a] * fx + Jy[a] * fy
+        ma = m * Jx[a]
+        mb = m * Jy[a]
+        for ib in range(nc):
+            b = ci[ib]
+            B[a, b] += ma * Jx[b] + mb * Jy[b]
+
+
 @njit(cache=_CACHE)
 def terms(q, v, gx, gy, X):
     """(B(q), c(q, v), J_tip) of the exact kinematics, compiled: the sweep of
     ExactKinematics._sweep over the links' mass points, X = ExactKinematics.data; J_tip
-    (2 x nq) is the Jacobian of the arm's end."""
-    (off, nf, npt, nin, C, Wd, mw, m_minus, j_minus, m_plus, j_plus, Bc,
-     axo, na, Ua, cols, ncols) = X
+    (2 x nq) is the Jacobian of the arm's end. A point's acceleration is the origin's
+    plus the link's rotation of l = -om^2 r - 2 om k x r' + (kx, ky)."""
     nq = q.shape[0]
-    nl = off.shape[0]
-    B = Bc.copy()
+    B = X.Bc.copy()
     c = np.zeros(nq)
     Jox = np.zeros(nq)
     Joy = np.zeros(nq)
@@ -381,125 +533,38 @@ def terms(q, v, gx, gy, X):
     xoy = 0.0
     Jx = np.zeros(nq)
     Jy = np.zeros(nq)
-    nfm = Wd.shape[2]
-    jlx = np.zeros(nfm)
-    jly = np.zeros(nfm)
-    jux = np.zeros(Ua.shape[2])
-    juy = np.zeros(Ua.shape[2])
-    cp = np.zeros(Wd.shape[1])
-    sp = np.zeros(Wd.shape[1])
-    pd = np.zeros(Wd.shape[1])
-    st = np.zeros(Wd.shape[1])
-    sd = np.zeros(Wd.shape[1])
-    for i in range(nl):
-        o = off[i]
-        n = nf[i]
-        u0 = axo[i]
-        nu = na[i]
-        nc = ncols[i]
-        ci = cols[i]
+    jlx = np.zeros(X.Wd.shape[2])
+    jly = np.zeros(X.Wd.shape[2])
+    jux = np.zeros(X.Ua.shape[2])
+    juy = np.zeros(X.Ua.shape[2])
+    cp = np.zeros(X.Wd.shape[1])
+    sp = np.zeros(X.Wd.shape[1])
+    pd = np.zeros(X.Wd.shape[1])
+    st = np.zeros(X.Wd.shape[1])
+    sd = np.zeros(X.Wd.shape[1])
+    for i in range(X.off.shape[0]):
+        o = X.off[i]
         ca = np.cos(q[o])
         sa = np.sin(q[o])
         om = v[o]
-        for j in range(nin[i]):
-            ph = 0.0
-            pv = 0.0
-            for l in range(n):
-                ph += Wd[i, j, l] * q[o + 1 + l]
-                pv += Wd[i, j, l] * v[o + 1 + l]
-            e = 0.0
-            ed = 0.0
-            for l in range(nu):
-                e += Ua[i, j, l] * q[u0 + l]
-                ed += Ua[i, j, l] * v[u0 + l]
-            cp[j] = np.cos(ph)
-            sp[j] = np.sin(ph)
-            pd[j] = pv
-            st[j] = 1.0 + e
-            sd[j] = ed
-        mm = m_minus[i]
-        if mm != 0.0:
-            for ia in range(nc):
-                a = ci[ia]
-                c[a] += mm * (Jox[a] * (xox - gx) + Joy[a] * (xoy - gy))
-                for ib in range(nc):
-                    b = ci[ib]
-                    B[a, b] += mm * (Jox[a] * Jox[b] + Joy[a] * Joy[b])
-        g = o + n
-        B[o, o] += j_minus[i] + j_plus[i]
-        B[o, g] += j_plus[i]
-        B[g, o] += j_plus[i]
-        B[g, g] += j_plus[i]
-        for k in range(npt[i]):
-            rx = 0.0
-            ry = 0.0
-            kx = 0.0
-            ky = 0.0
-            for l in range(n):
-                jlx[l] = 0.0
-                jly[l] = 0.0
-            for l in range(nu):
-                jux[l] = 0.0
-                juy[l] = 0.0
-            for j in range(nin[i]):
-                w = C[i, k, j]
-                if w == 0.0:
-                    continue
-                wc = w * cp[j]
-                ws = w * sp[j]
-                tc = st[j] * wc
-                ts = st[j] * ws
-                rx += tc
-                ry += ts
-                p2 = pd[j] * pd[j]
-                kx -= tc * p2 + 2.0 * sd[j] * ws * pd[j]
-                ky -= ts * p2 - 2.0 * sd[j] * wc * pd[j]
-                for l in range(n):
-                    jlx[l] -= ts * Wd[i, j, l]
-                    jly[l] += tc * Wd[i, j, l]
-                for l in range(nu):
-                    jux[l] += wc * Ua[i, j, l]
-                    juy[l] += ws * Ua[i, j, l]
-            rdx = 0.0
-            rdy = 0.0
-            for l in range(n):
-                rdx += jlx[l] * v[o + 1 + l]
-                rdy += jly[l] * v[o + 1 + l]
-            for l in range(nu):
-                rdx += jux[l] * v[u0 + l]
-                rdy += juy[l] * v[u0 + l]
-            for ia in range(nc):
-                a = ci[ia]
-                Jx[a] = Jox[a]
-                Jy[a] = Joy[a]
-            Jx[o] += -rx * sa - ry * ca
-            Jy[o] += rx * ca - ry * sa
-            for l in range(n):
-                Jx[o + 1 + l] += jlx[l] * ca - jly[l] * sa
-                Jy[o + 1 + l] += jlx[l] * sa + jly[l] * ca
-            for l in range(nu):
-                Jx[u0 + l] += jux[l] * ca - juy[l] * sa
-                Jy[u0 + l] += jux[l] * sa + juy[l] * ca
+        _node_values(i, q, v, X, cp, sp, pd, st, sd)
+        _link_root(i, gx, gy, X, B, c, Jox, Joy, xox, xoy)
+        for k in range(X.npt[i]):
+            rx, ry, kx, ky = _point_in_link(i, k, X, cp, sp, pd, st, sd, jlx, jly, jux, juy)
+            rdx, rdy = _point_jacobian(i, v, X, rx, ry, ca, sa, jlx, jly, jux, juy, Jox,
+                                       Joy, Jx, Jy)
             lx = -om * om * rx - 2.0 * om * rdy + kx
             ly = -om * om * ry + 2.0 * om * rdx + ky
             xix = xox + lx * ca - ly * sa
             xiy = xoy + lx * sa + ly * ca
-            tip = k == npt[i] - 1
-            m = mw[i, k] + (m_plus[i] if tip else 0.0)
+            tip = k == X.npt[i] - 1
+            m = X.mw[i, k] + (X.m_plus[i] if tip else 0.0)
             if m != 0.0:
-                fx = m * (xix - gx)
-                fy = m * (xiy - gy)
-                for ia in range(nc):
-                    a = ci[ia]
-                    c[a] += Jx[a] * fx + Jy[a] * fy
-                    ma = m * Jx[a]
-                    mb = m * Jy[a]
-                    for ib in range(nc):
-                        b = ci[ib]
-                        B[a, b] += ma * Jx[b] + mb * Jy[b]
+                _add_point_mass(m, m * (xix - gx), m * (xiy - gy), X.cols[i], X.ncols[i], Jx,
+                                Jy, B, c)
             if tip:
-                for ia in range(nc):
-                    a = ci[ia]
+                for ia in range(X.ncols[i]):
+                    a = X.cols[i][ia]
                     Jox[a] = Jx[a]
                     Joy[a] = Jy[a]
                 xox = xix
@@ -529,7 +594,7 @@ def balance(t, q, v, X, E):
     if fx != 0.0 or fy != 0.0:
         Q += Jt[0] * fx + Jt[1] * fy
     if cm != 0.0:
-        off, nf = X[0], X[1]
+        off, nf = X.off, X.nf
         last = off.shape[0] - 1
         Q[off[last]] += cm
         Q[off[last] + nf[last]] += cm
@@ -582,7 +647,7 @@ def restart_acceleration(t, x, a, h, rho_inf, X, E):
 class ExactModel(NamedTuple):
     """The exact kinematics' compiled data for solvers.loop: X (:meth:`ExactKinematics.data`)
     and E (inputs.input_data)."""
-    X: tuple
+    X: ExactData
     E: tuple
 
 

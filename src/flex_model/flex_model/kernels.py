@@ -23,7 +23,8 @@ variables for the bias and quadratic (the interconnection coupling) for B.
 
 The model data ``P`` is the tuple built by :class:`flex_model.dynamics.FlexArmModel`:
 ``(mode, off, nf, L, mtot, ntot, jrot, jplus, Bp, ht, kt, zq, mu, Wq, Sq, jrig, Bc, na, lo,
-wn, dS, Wl, (bw, on), V, lam)``,
+wn, dS, Wl, (bw, on), V, lam)``, its fields indexed by name (``P[P_OFF]``, the P_ constants
+below),
 Bc a constant inertia added to B (rotor inertias of geared joints, seed 000 Eq. 35). For the
 thesis model (mode 0), per link i, with the end masses M-, M+ and inertias J-, J+
 included (thesis Eq. 8 and the tilde quantities of Eq. 18): mtot = M, ntot = N,
@@ -39,10 +40,10 @@ quadrature at points zq (per link, padded) with mass weights mu (kg; the end mas
 points at z = 0 and z = L), shape values Wq and matrices Sq = S(zq); jrig = J- + J+;
 na (per link and point): W and S vanish past the first na variables (the wavelets' local
 support), so the mass matrix's loops stop there. The inverse dynamics (the residual of
-the fixed step) costs linear in the variables: lo, wn, dS, Wl (P[18:22]) give, per
+the fixed step) costs linear in the variables: lo, wn, dS, Wl give, per
 point, the window of variables where the increment dS_k = S(z_k) - S(z_{k-1}) and W_k do
 not vanish (at most 6 for the wavelets), and S(z) q_f is accumulated point by point.
-P[22:25] = (bw, on), V, lam: the band structure of the iteration matrix
+(bw, on), V, lam: the band structure of the iteration matrix
 (flex_model.iteration_matrix; :func:`band_matvec` for K q, D v, Bc a when on).
 The equations stay those of an exact Lagrangian (energy is conserved).
 """
@@ -52,6 +53,10 @@ import numpy as np
 from numba import njit
 
 _CACHE = True
+
+#: the fields of the model data P (module docstring), by name: P[P_OFF] is off, ...
+(P_MODE, P_OFF, P_NF, P_L, P_MTOT, P_NTOT, P_JROT, P_JPLUS, P_BP, P_HT, P_KT, P_ZQ, P_MU,
+ P_WQ, P_SQ, P_JRIG, P_BC, P_NA, P_LO, P_WN, P_DS, P_WL, P_BAND, P_V, P_LAM) = range(25)
 
 
 @njit(cache=_CACHE)
@@ -66,13 +71,13 @@ def inverse_dynamics(q, v, a, gx, gy, P):
 
     Elastic and damping forces are not included (they are K q and D v).
     """
-    if P[0] == 1:
+    if P[P_MODE] == 1:
         f = _inverse_dynamics_2(q, v, a, gx, gy, P)
-        if P[22][1] == 1:  # banded model (dynamics._band_structure): Bc a linear in nq
-            f += band_matvec(P[16], a, P[22][0], P[23], P[24][0])
+        if P[P_BAND][1] == 1:  # banded model (dynamics._band_structure): Bc a linear in nq
+            f += band_matvec(P[P_BC], a, P[P_BAND][0], P[P_V], P[P_LAM][0])
             return f
-        return _add_matvec(f, P[16], a)
-    return _add_matvec(_inverse_dynamics_1(q, v, a, gx, gy, P), P[16], a)
+        return _add_matvec(f, P[P_BC], a)
+    return _add_matvec(_inverse_dynamics_1(q, v, a, gx, gy, P), P[P_BC], a)
 
 
 @njit(cache=_CACHE)
@@ -464,21 +469,138 @@ def _point_kinematics(q, v, o, n, W, S, z, c, s, wd, sv, Jfx, Jfy):
 
 
 @njit(cache=_CACHE)
+def _window_sums(q, v, a, Wl, dS, i, k, b, w, u, ud, vSv, qSa):
+    """Mode 1, point k of link i (its variables' window [b, b + w)): the deflection
+    d = W q_f with its rate and acceleration (thesis Eq. 1), and the shortening sums
+    u = 1/2 q_f^T S q_f, u' = v^T S q_f, v^T S v and q_f^T S a carried on from the points
+    before (S(z_k) = S(z_{k-1}) + dS_k, module docstring)."""
+    d = 0.0
+    dd = 0.0
+    da = 0.0
+    for j in range(w):
+        Wj = Wl[i, k, j]
+        qj = q[b + j]
+        vj = v[b + j]
+        d += Wj * qj
+        dd += Wj * vj
+        da += Wj * a[b + j]
+        sq = 0.0
+        sv = 0.0
+        sa = 0.0
+        for l in range(w):
+            m = dS[i, k, j, l]
+            sq += m * q[b + l]
+            sv += m * v[b + l]
+            sa += m * a[b + l]
+        u += 0.5 * qj * sq
+        ud += vj * sq
+        vSv += vj * sv
+        qSa += qj * sa
+    return d, dd, da, u, ud, vSv, qSa
+
+
+@njit(cache=_CACHE)
+def _link_forces_2(i, q, v, a, aox, aoy, P, f, cpt, tja):
+    """Mode 1, the forward sweep over link i's points (d'Alembert, thesis Eq. 27): the
+    point accelerations p'' = a_o + J_alpha alpha'' - t1 e1 - t2 e2 from the origin's
+    (aox, aoy), the deformation forces W^T mu e2 . p'' into f, c_k = mu_k e1 . p'' into
+    cpt, the tip's alpha column into tja; returns the link's resultant (Fx, Fy), its
+    alpha force Fa and the tip's acceleration (the next origin's)."""
+    off, zq, mu = P[P_OFF], P[P_ZQ], P[P_MU]
+    lo, wn, Wl = P[P_LO], P[P_WN], P[P_WL]
+    npt = mu.shape[1]
+    o = off[i] + 1  # first deformation variable
+    c = np.cos(q[o - 1])
+    s = np.sin(q[o - 1])
+    e1x, e1y, e2x, e2y = c, s, -s, c
+    wd = v[o - 1]
+    ad = a[o - 1]
+    Fx = 0.0
+    Fy = 0.0
+    Fa = 0.0
+    u = 0.0
+    ud = 0.0
+    vSv = 0.0
+    qSa = 0.0
+    for k in range(npt):
+        b = o + lo[i, k]
+        w = wn[i, k]
+        d, dd, da, u, ud, vSv, qSa = _window_sums(q, v, a, Wl, P[P_DS], i, k, b, w,
+                                                  u, ud, vSv, qSa)
+        m = mu[i, k]
+        tip = k == npt - 1
+        if m == 0.0 and not tip:
+            continue
+        r = zq[i, k] - u
+        Jax = r * e2x - d * e1x
+        Jay = r * e2y - d * e1y
+        t1 = vSv + r * wd * wd + 2.0 * dd * wd + qSa
+        t2 = 2.0 * ud * wd + d * wd * wd - da
+        px = aox + Jax * ad - t1 * e1x - t2 * e2x
+        py = aoy + Jay * ad - t1 * e1y - t2 * e2y
+        if tip:  # the next origin's acceleration and the tip's alpha column
+            tja[i, 0] = Jax
+            tja[i, 1] = Jay
+        if m == 0.0:
+            if tip:
+                aox = px
+                aoy = py
+            continue
+        Fx += m * px
+        Fy += m * py
+        Fa += m * (Jax * px + Jay * py)
+        e2p = m * (e2x * px + e2y * py)
+        for j in range(w):
+            f[b + j] += Wl[i, k, j] * e2p
+        cpt[i, k] = m * (e1x * px + e1y * py)
+        if tip:
+            aox = px
+            aoy = py
+    return Fx, Fy, Fa, aox, aoy
+
+
+@njit(cache=_CACHE)
+def _outboard_forces_2(i, q, rx, ry, P, f, cpt, tja):
+    """Mode 1, link i in the backward sweep: the outboard links' resultant (rx, ry)
+    through the tip (alpha column, W(L) e2 - S(L) q_f e1; thesis Eqs. 20-22) and the
+    shortening's generalized force -sum_k dS_k q_f (suffix sum of c_k) into f."""
+    off, lo, wn, dS, Wl = P[P_OFF], P[P_LO], P[P_WN], P[P_DS], P[P_WL]
+    npt = P[P_MU].shape[1]
+    o = off[i] + 1
+    c = np.cos(q[o - 1])
+    s = np.sin(q[o - 1])
+    f[o - 1] += tja[i, 0] * rx + tja[i, 1] * ry
+    k = npt - 1
+    e2r = -s * rx + c * ry
+    for j in range(wn[i, k]):
+        f[o + lo[i, k] + j] += Wl[i, k, j] * e2r
+    cpt[i, k] += c * rx + s * ry
+    acc = 0.0
+    for k in range(npt - 1, -1, -1):
+        acc += cpt[i, k]
+        b = o + lo[i, k]
+        w = wn[i, k]
+        for j in range(w):
+            sq = 0.0
+            for l in range(w):
+                sq += dS[i, k, j, l] * q[b + l]
+            f[b + j] -= acc * sq
+
+
+@njit(cache=_CACHE)
 def _inverse_dynamics_2(q, v, a, gx, gy, P):
     """Mode 1 of :func:`inverse_dynamics`: d'Alembert over quadrature points, with cost
     linear in the variables. Along a link the shortening matrix is accumulated interval by
-    interval, S(z_k) = S(z_{k-1}) + dS_k (dS_k local: P[20] on the window P[18], P[19]), so
-    u = 1/2 q_f^T S q_f, its rates and q_f^T S a are running sums; the generalized force
-    of the shortening, -sum_k c_k S(z_k) q_f with c_k = mu_k e1 . p''_k (and the outboard
-    resultant at the tip), is sum_k dS_k q_f times the suffix sums of c_k."""
-    off, nf, L = P[1], P[2], P[3]
-    jplus = P[7]
-    zq, mu, jrig = P[11], P[12], P[15]
-    lo, wn, dS, Wl = P[18], P[19], P[20], P[21]
+    interval, S(z_k) = S(z_{k-1}) + dS_k (dS_k local: P[P_DS] on the window P[P_LO],
+    P[P_WN]), so u = 1/2 q_f^T S q_f, its rates and q_f^T S a are running sums; the
+    generalized force of the shortening, -sum_k c_k S(z_k) q_f with c_k = mu_k e1 . p''_k
+    (and the outboard resultant at the tip), is sum_k dS_k q_f times the suffix sums of
+    c_k."""
+    off, nf, L = P[P_OFF], P[P_NF], P[P_L]
+    jplus, jrig = P[P_JPLUS], P[P_JRIG]
     nl = L.shape[0]
-    nq = q.shape[0]
-    npt = mu.shape[1]
-    f = np.zeros(nq)
+    npt = P[P_MU].shape[1]
+    f = np.zeros(q.shape[0])
     aox = -gx
     aoy = -gy
     fox = np.zeros(nl)
@@ -486,73 +608,9 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
     cpt = np.zeros((nl, npt))  # c_k = mu_k e1 . p''_k
     tja = np.zeros((nl, 2))    # tip alpha column
     for i in range(nl):
-        o = off[i] + 1  # first deformation variable
-        c = np.cos(q[o - 1])
-        s = np.sin(q[o - 1])
-        e1x, e1y, e2x, e2y = c, s, -s, c
-        wd = v[o - 1]
+        o = off[i] + 1
         ad = a[o - 1]
-        Fx = 0.0
-        Fy = 0.0
-        Fa = 0.0
-        u = 0.0
-        ud = 0.0
-        vSv = 0.0
-        qSa = 0.0
-        for k in range(npt):
-            b = o + lo[i, k]
-            w = wn[i, k]
-            d = 0.0
-            dd = 0.0
-            da = 0.0
-            for j in range(w):
-                Wj = Wl[i, k, j]
-                qj = q[b + j]
-                vj = v[b + j]
-                d += Wj * qj
-                dd += Wj * vj
-                da += Wj * a[b + j]
-                sq = 0.0
-                sv = 0.0
-                sa = 0.0
-                for l in range(w):
-                    m = dS[i, k, j, l]
-                    sq += m * q[b + l]
-                    sv += m * v[b + l]
-                    sa += m * a[b + l]
-                u += 0.5 * qj * sq
-                ud += vj * sq
-                vSv += vj * sv
-                qSa += qj * sa
-            m = mu[i, k]
-            tip = k == npt - 1
-            if m == 0.0 and not tip:
-                continue
-            r = zq[i, k] - u
-            Jax = r * e2x - d * e1x
-            Jay = r * e2y - d * e1y
-            t1 = vSv + r * wd * wd + 2.0 * dd * wd + qSa
-            t2 = 2.0 * ud * wd + d * wd * wd - da
-            px = aox + Jax * ad - t1 * e1x - t2 * e2x
-            py = aoy + Jay * ad - t1 * e1y - t2 * e2y
-            if tip:  # the next origin's acceleration and the tip's alpha column
-                tja[i, 0] = Jax
-                tja[i, 1] = Jay
-            if m == 0.0:
-                if tip:
-                    aox = px
-                    aoy = py
-                continue
-            Fx += m * px
-            Fy += m * py
-            Fa += m * (Jax * px + Jay * py)
-            e2p = m * (e2x * px + e2y * py)
-            for j in range(w):
-                f[b + j] += Wl[i, k, j] * e2p
-            cpt[i, k] = m * (e1x * px + e1y * py)
-            if tip:
-                aox = px
-                aoy = py
+        Fx, Fy, Fa, aox, aoy = _link_forces_2(i, q, v, a, aox, aoy, P, f, cpt, tja)
         g = o - 1 + nf[i]
         f[o - 1] += Fa + jrig[i] * ad + jplus[i] * a[g]
         f[g] += jplus[i] * (ad + a[g])
@@ -561,26 +619,7 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
     rx = 0.0
     ry = 0.0
     for i in range(nl - 1, -1, -1):
-        o = off[i] + 1
-        c = np.cos(q[o - 1])
-        s = np.sin(q[o - 1])
-        # outboard resultant through the tip: alpha column, W(L) e2 - S(L) q_f e1
-        f[o - 1] += tja[i, 0] * rx + tja[i, 1] * ry
-        k = npt - 1
-        e2r = -s * rx + c * ry
-        for j in range(wn[i, k]):
-            f[o + lo[i, k] + j] += Wl[i, k, j] * e2r
-        cpt[i, k] += c * rx + s * ry
-        acc = 0.0
-        for k in range(npt - 1, -1, -1):
-            acc += cpt[i, k]
-            b = o + lo[i, k]
-            w = wn[i, k]
-            for j in range(w):
-                sq = 0.0
-                for l in range(w):
-                    sq += dS[i, k, j, l] * q[b + l]
-                f[b + j] -= acc * sq
+        _outboard_forces_2(i, q, rx, ry, P, f, cpt, tja)
         rx += fox[i]
         ry += foy[i]
     return f

@@ -333,29 +333,51 @@ def cmd_presets(args) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="flex-twin", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True)
+def _kinematics_arg(sp) -> None:
+    """--kinematics: the arm's kinematics override."""
+    sp.add_argument("--kinematics", choices=["small_deflection", "second_order", "exact"],
+                    default=None, help="override the arm's kinematics (second_order: "
+                    "with the axial shortening of bent links, i.e. geometric stiffening; "
+                    "exact: geometrically exact, simulate only)")
 
-    def arm_args(sp):
-        sp.add_argument("arm", help="arm preset name or YAML path (planar, or spatial: a DH "
-                        "table or a URDF side file)")
-        sp.add_argument("--vars-per-link", type=int, default=None, metavar="N",
-                        help="deformation variables of every link (even, >= 2)")
-        sp.add_argument("--joint-angles-deg", type=float, nargs="+", default=None,
-                        help="joint (relative) angles of the configuration, deg (a spatial "
-                        "arm's prismatic joints: m)")
-        sp.add_argument("--json", action="store_true", help="machine-readable output")
-        kinematics_arg(sp)
 
-    def kinematics_arg(sp):
-        sp.add_argument("--kinematics", choices=["small_deflection", "second_order", "exact"],
-                        default=None, help="override the arm's kinematics (second_order: "
-                        "with the axial shortening of bent links, i.e. geometric stiffening; "
-                        "exact: geometrically exact, simulate only)")
+def _arm_args(sp) -> None:
+    """The arm and its configuration (modes, static)."""
+    sp.add_argument("arm", help="arm preset name or YAML path (planar, or spatial: a DH "
+                    "table or a URDF side file)")
+    sp.add_argument("--vars-per-link", type=int, default=None, metavar="N",
+                    help="deformation variables of every link (even, >= 2)")
+    sp.add_argument("--joint-angles-deg", type=float, nargs="+", default=None,
+                    help="joint (relative) angles of the configuration, deg (a spatial "
+                    "arm's prismatic joints: m)")
+    sp.add_argument("--json", action="store_true", help="machine-readable output")
+    _kinematics_arg(sp)
 
+
+def _sim_args(sp) -> None:
+    """The run options of a simulation (simulate, demo)."""
+    sp.add_argument("--vars-per-link", type=int, default=None, metavar="N")
+    sp.add_argument("--duration", type=float, default=None, help="override, s")
+    sp.add_argument("--method", choices=["variable", "fixed"], default=None)
+    sp.add_argument("--step", type=float, default=None, metavar="S",
+                    help="fixed step (s; implies --method fixed)")
+    sp.add_argument("--rho-inf", type=float, default=None, metavar="R",
+                    help="fixed step: numerical damping of the unresolved high modes, "
+                    "0 (most) .. 1 (none); default: the scenario's, else 0.9")
+    sp.add_argument("--out", default=None, help="output directory (default runs/...)")
+    sp.add_argument("--no-plot", action="store_true")
+    sp.add_argument("--json", action="store_true")
+    sp.add_argument("--no-advice", action="store_true",
+                    help="fixed step: skip the step and variables check (it runs the "
+                    "first 0.5 s at the step, a quarter of it and with twice the "
+                    "variables)")
+    _kinematics_arg(sp)
+
+
+def _add_modes_parser(sub) -> None:
+    """flex-twin modes."""
     sp = sub.add_parser("modes", help="natural frequencies and mode shapes")
-    arm_args(sp)
+    _arm_args(sp)
     sp.add_argument("--joints", choices=["clamped", "hinged", "pd"], default="clamped")
     sp.add_argument("--kp", type=float, nargs="+", help="PD stiffness, N m/rad (--joints pd)")
     sp.add_argument("--kd", type=float, nargs="+", help="PD damping, N m s/rad")
@@ -368,8 +390,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "and output names) to this file")
     sp.set_defaults(func=cmd_modes)
 
+
+def _add_static_parser(sub) -> None:
+    """flex-twin static."""
     sp = sub.add_parser("static", help="static equilibrium: tip rotation and displacement")
-    arm_args(sp)
+    _arm_args(sp)
     sp.add_argument("--joints", choices=["clamped", "pd"], default="clamped")
     sp.add_argument("--kp", type=float, nargs="+", help="PD stiffness, N m/rad (--joints pd)")
     sp.add_argument("--tip-torque", type=float, default=0.0, help="tip torque C, N m (CCW +)")
@@ -381,34 +406,19 @@ def build_parser() -> argparse.ArgumentParser:
                     help="full equilibrium of the model (default: linear static response)")
     sp.set_defaults(func=cmd_static)
 
-    def sim_args(sp):
-        sp.add_argument("--vars-per-link", type=int, default=None, metavar="N")
-        sp.add_argument("--duration", type=float, default=None, help="override, s")
-        sp.add_argument("--method", choices=["variable", "fixed"], default=None)
-        sp.add_argument("--step", type=float, default=None, metavar="S",
-                        help="fixed step (s; implies --method fixed)")
-        sp.add_argument("--rho-inf", type=float, default=None, metavar="R",
-                        help="fixed step: numerical damping of the unresolved high modes, "
-                        "0 (most) .. 1 (none); default: the scenario's, else 0.9")
-        sp.add_argument("--out", default=None, help="output directory (default runs/...)")
-        sp.add_argument("--no-plot", action="store_true")
-        sp.add_argument("--json", action="store_true")
-        sp.add_argument("--no-advice", action="store_true",
-                        help="fixed step: skip the step and variables check (it runs the "
-                        "first 0.5 s at the step, a quarter of it and with twice the "
-                        "variables)")
-        kinematics_arg(sp)
 
+def _add_run_parsers(sub) -> None:
+    """flex-twin simulate, demo and twin-demo."""
     sp = sub.add_parser("simulate", help="simulate a scenario file; writes CSV and PNG")
     sp.add_argument("scenario", help="scenario preset name or YAML path (planar, or spatial: "
                     "its arm a spatial arm)")
-    sim_args(sp)
+    _sim_args(sp)
     sp.add_argument("--bag", action="store_true", help="spatial scenarios: also write a "
                     "rosbag2 (MCAP) of the run to <out>/bag")
     sp.set_defaults(func=cmd_simulate)
 
     sp = sub.add_parser("demo", help="the model demo (section E scenario)")
-    sim_args(sp)
+    _sim_args(sp)
     sp.set_defaults(func=cmd_demo)
 
     sp = sub.add_parser("twin-demo", help="the thesis Ch. V task over ROS (planner, "
@@ -421,6 +431,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_twin_demo)
 
+
+def _add_listing_parsers(sub) -> None:
+    """flex-twin effects and presets."""
     sp = sub.add_parser("effects", help="the library of model effects and their parameters")
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_effects)
@@ -428,6 +441,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("presets", help="list arm and scenario presets")
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_presets)
+
+
+def _add_module_parsers(sub) -> None:
+    """The commands written next to their code (bags, ROS suite, control, planning,
+    comparison, diagnosis, estimation, real arms, sweeps, viewer)."""
     from .bag_cli import add_bag_parsers  # record, play, bag info (rclpy imported lazily)
     add_bag_parsers(sub)
     from .ros_suite import add_observe_parser, add_up_parser  # (rclpy imported lazily)
@@ -448,6 +466,17 @@ def build_parser() -> argparse.ArgumentParser:
                 add_modal_parsers, add_sweep_parser, add_plan_parser, add_control_parser,
                 add_view_parser):
         add(sub)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The flex-twin command line: its own commands, then those of the modules."""
+    p = argparse.ArgumentParser(prog="flex-twin", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+    _add_modes_parser(sub)
+    _add_static_parser(sub)
+    _add_run_parsers(sub)
+    _add_listing_parsers(sub)
+    _add_module_parsers(sub)
     return p
 
 

@@ -19,7 +19,7 @@ at zero q-ddot, i.e. dJ/dt v) of its origin, a_o, and its rotation, alpha:
   alpha_rel = e_x phi' x a_w dw' + (e_x phi' + a_w dw') x a_v dv';
   w += R_b w_rel;  alpha += w x R_b w_rel + R_b alpha_rel.
 
-The model data is a tuple of arrays built once by :func:`pack` (per link: joint type and
+The model data is a :class:`SpatialData` built once by :func:`pack` (per link: joint type and
 axis, the fixed transforms before and after the joint and the beam, bodies; per beam
 Gauss point: mass weights, the section inertia weights rhoJ ds, rho I_y ds, rho I_z ds
 (the last two zero without rotary inertia) and the sampled bases, padded).
@@ -40,9 +40,52 @@ from ..solvers.galpha import galpha_coefficients, galpha_state, restart_choice
 from ..solvers.loop import fixed_step, implements, residual, tangent
 from ..solvers.status import FINISHED, NO_CONVERGENCE, Settings
 from .dynamics import SpatialArmModel
-from .exact import curvature_energy, link_sums, point_row
+from .exact import curvature_energy, link_sums, point_row, shape_sums
 
 _CACHE = True
+
+
+class SpatialData(NamedTuple):
+    """The model data of the compiled kernels (:func:`pack`; module docstring): per link
+    i, and per beam Gauss point p (the points of link i: pstart[i] <= p < pstart[i + 1],
+    arrays padded to the longest beam)."""
+    jtype: np.ndarray      # joint type: 0 revolute, 1 prismatic
+    koff: np.ndarray       # the joint's coordinate in q
+    axis: np.ndarray       # (3,) joint axis in the frame before the joint
+    T: np.ndarray          # (4, 3, 4) [R | t]: origin, pre, before-beam, after-beam
+    P: np.ndarray          # (3, 3) beam axes in the link frame
+    flex: np.ndarray       # 1: a flexible link (a beam)
+    nv: np.ndarray         # bending variables per plane
+    nt: np.ndarray         # torsion variables
+    fstart: np.ndarray     # the beam's first coordinate in q
+    length: np.ndarray     # beam length, m
+    bm: np.ndarray         # (2,) root and end body mass, kg
+    bc: np.ndarray         # (2, 3) their centres' offsets
+    bI: np.ndarray         # (2, 3, 3) their inertias about the centres
+    pstart: np.ndarray     # (n + 1) the links' first Gauss points
+    zs: np.ndarray         # per point: abscissa, m
+    mw: np.ndarray         # mass weight rhoA ds, kg
+    pw: np.ndarray         # (3) section inertia weights rhoJ ds, rho I_y ds, rho I_z ds
+    Wv: np.ndarray         # bending shapes, v plane, and their slopes (dWv); w plane
+    dWv: np.ndarray
+    Ww: np.ndarray
+    dWw: np.ndarray
+    Pt: np.ndarray         # torsion shapes
+    g: np.ndarray          # gravity, m/s^2
+    nq: int
+    rot: np.ndarray        # (3) per joint: rotor J_r, gear ratio n, spin coordinate or -1
+    mdiag: np.ndarray      # constant motor inertias (diagonal of M)
+    Sv: np.ndarray         # second_order: S(z) per plane at the points, and at the tip
+    Sw: np.ndarray
+    SL: np.ndarray
+    so: int                # 1: second_order kinematics
+    CF: np.ndarray         # curvature coupling (BeamData._coupling)
+    CW: np.ndarray
+    ex: int                # 1: exact kinematics (exact.py): node slopes, weights and the
+    XD: np.ndarray         # points' rows, the links' first node and node count
+    XW: np.ndarray
+    XR: np.ndarray
+    xstart: np.ndarray
 
 
 def _combine(A, B):
@@ -50,22 +93,93 @@ def _combine(A, B):
     return A[0] @ B[0], A[0] @ B[1] + A[1]
 
 
-def pack(model: SpatialArmModel) -> tuple:
-    """The model data tuple of the compiled kernels (see the module docstring)."""
+def _link_transforms(model: SpatialArmModel, i: int, b) -> np.ndarray:
+    """Link i's four constant transforms [R | t] (4, 3, 4): origin, pre (before the
+    joint), before the beam and after it (the beam axes P and the DH or end transform)."""
+    (Rpre, tpre), (Rdh, tdh), _ = model._consts[i]
+    origin, _, end = model._extra[i]
+    eye = (np.eye(3), np.zeros(3))
+    stages = [origin or eye, (Rpre, tpre), eye, eye]
+    if b is not None:
+        after = (b.P.T, np.zeros(3))
+        if b.beam.placement == "aux_z":
+            stages[2] = (Rdh, tdh)
+        elif b.beam.placement == "dh_x":
+            after = _combine(after, (Rdh, np.zeros(3)))
+        stages[3] = after
+    else:
+        stages[3] = (Rdh, tdh)
+    if end is not None:
+        stages[3] = _combine(stages[3], end)
+    T = np.zeros((4, 3, 4))
+    for s, (R, t) in enumerate(stages):
+        T[s, :, :3] = R
+        T[s, :, 3] = t
+    return T
+
+
+#: SpatialData's per-point fields, and per-node (exact) fields
+_POINT_FIELDS = ("zs", "mw", "pw", "Wv", "dWv", "Ww", "dWw", "Pt", "Sv", "Sw", "CF", "CW",
+                 "XD", "XW", "XR")
+
+
+def _beam_point_arrays(b, maxnv: int, maxnt: int, maxn: int, so: bool, ex: bool) -> dict:
+    """One beam's per-point (and exact: per-node) arrays of :class:`SpatialData`, padded
+    to maxnv bending, maxnt torsion and maxn coupling columns."""
+    npt = len(b.z)
+    out = {"zs": b.z, "mw": b.mass_w}
+    cf = np.zeros((npt, 5, maxn))   # curvature coupling (BeamData._coupling)
+    cw = np.zeros((npt, 3))
+    if b.coupling is not None:
+        cf[:, :, :b.n] = b.coupling[0].transpose(1, 0, 2)
+        cw[:] = np.column_stack(b.coupling[1:])
+    out["CF"], out["CW"] = cf, cw
+    pwk = np.zeros((npt, 3))      # rhoJ ds, rho I_y ds, rho I_z ds
+    pwk[:, 0] = b.polar_w
+    if b.rotary is not None:
+        pwk[:, 1:] = b.rotary
+    out["pw"] = pwk
+    for name, src in (("Wv", b.Wv), ("dWv", b.dWv), ("Ww", b.Ww), ("dWw", b.dWw)):
+        a = np.zeros((npt, maxnv))
+        a[:, :src.shape[1]] = src
+        out[name] = a
+    a = np.zeros((npt, maxnt))
+    a[:, :b.Pt.shape[1]] = b.Pt
+    out["Pt"] = a
+    if so:
+        for name, src in (("Sv", b.Sv), ("Sw", b.Sw)):
+            a = np.zeros((npt, maxnv, maxnv))
+            a[:, :b.nv, :b.nv] = src
+            out[name] = a
+    if ex:
+        nodes, wts, nfull, rows = b.rule
+        a = np.zeros((len(nodes), 2, maxnv))
+        a[:, 0, :b.nv], a[:, 1, :b.nv] = b.ndv, b.ndw
+        out["XD"], out["XW"] = a, wts
+        out["XR"] = rows[:-1]         # the mass points (the last row: the tip)
+    return out
+
+
+def _cat(parts, width=None):
+    """The parts concatenated (C-contiguous); empty (0, *width) without parts."""
+    if parts:
+        return np.ascontiguousarray(np.concatenate(parts))
+    if width is None:
+        return np.zeros((0,))
+    return np.zeros((0,) + (tuple(width) if isinstance(width, tuple) else (width,)))
+
+
+def pack(model: SpatialArmModel) -> SpatialData:
+    """The model data of the compiled kernels (:class:`SpatialData`)."""
     arm = model.arm
     so = getattr(arm, "kinematics", "small_deflection") == "second_order"
     ex = getattr(arm, "kinematics", "small_deflection") == "exact"
     n = model.n_links
-    eye = (np.eye(3), np.zeros(3))
     jtype = np.zeros(n, np.int64)
-    koff = np.asarray(model.off, np.int64)
     axis = np.zeros((n, 3))
     T = np.zeros((n, 4, 3, 4))      # origin, pre, before-beam, after-beam: [R | t]
     P = np.zeros((n, 3, 3))
-    flex = np.zeros(n, np.int64)
-    nv = np.zeros(n, np.int64)
-    nt = np.zeros(n, np.int64)
-    fstart = np.zeros(n, np.int64)
+    flex, nv, nt, fstart = (np.zeros(n, np.int64) for _ in range(4))
     length = np.zeros(n)
     bm = np.zeros((n, 2))            # root, end body mass
     bc = np.zeros((n, 2, 3))
@@ -74,20 +188,15 @@ def pack(model: SpatialArmModel) -> tuple:
     beams = [b for b in model.beams if b is not None]
     maxnv = max([b.nv for b in beams] + [1])
     maxnt = max([b.nt for b in beams] + [1])
-    zs, mw, pw, Wv, dWv, Ww, dWw, Pt = [], [], [], [], [], [], [], []
-    Sv, Sw = [], []                  # second_order: S(z) per plane at the mass points
-    CF, CW = [], []
     maxn = max([b.n for b in beams] + [1])
-    SL = np.zeros((n, 2, maxnv, maxnv))   # and at the tip
-    XD, XW, XR = [], [], []          # exact: node slopes, weights, point rows (exact.py)
-    xstart = np.zeros((n + 1, 2), np.int64)   # node start and nfull per link
+    parts = {name: [] for name in _POINT_FIELDS}
+    SL = np.zeros((n, 2, maxnv, maxnv))   # second_order: S at the tip per plane
+    xstart = np.zeros((n + 1, 2), np.int64)   # exact: node start and nfull per link
     count = 0
     for i, (lk, b) in enumerate(zip(arm.links, model.beams)):
-        (Rpre, tpre), (Rdh, tdh), bodies = model._consts[i]
-        origin, ax, end = model._extra[i]
         jtype[i] = 1 if lk.joint.type == "prismatic" else 0
         axis[i] = np.asarray(lk.joint.axis, float)
-        stages = [origin or eye, (Rpre, tpre), eye, eye]
+        T[i] = _link_transforms(model, i, b)
         P[i] = np.eye(3)
         xstart[i + 1, 0] = xstart[i, 0]
         if b is not None:
@@ -96,82 +205,37 @@ def pack(model: SpatialArmModel) -> tuple:
             fstart[i] = model.flex_slice(i).start
             length[i] = b.length
             P[i] = b.P
-            after = (b.P.T, np.zeros(3))
-            if b.beam.placement == "aux_z":
-                stages[2] = (Rdh, tdh)
-            elif b.beam.placement == "dh_x":
-                after = _combine(after, (Rdh, np.zeros(3)))
-            stages[3] = after
-            npt = len(b.z)
-            zs.append(b.z)
-            mw.append(b.mass_w)
-            cf = np.zeros((npt, 5, maxn))   # curvature coupling (BeamData._coupling)
-            cw = np.zeros((npt, 3))
-            if b.coupling is not None:
-                cf[:, :, :b.n] = b.coupling[0].transpose(1, 0, 2)
-                cw[:] = np.column_stack(b.coupling[1:])
-            CF.append(cf)
-            CW.append(cw)
-            pwk = np.zeros((npt, 3))      # rhoJ ds, rho I_y ds, rho I_z ds
-            pwk[:, 0] = b.polar_w
-            if b.rotary is not None:
-                pwk[:, 1:] = b.rotary
-            pw.append(pwk)
-            for dst, src in ((Wv, b.Wv), (dWv, b.dWv), (Ww, b.Ww), (dWw, b.dWw)):
-                a = np.zeros((npt, maxnv))
-                a[:, :src.shape[1]] = src
-                dst.append(a)
-            a = np.zeros((npt, maxnt))
-            a[:, :b.Pt.shape[1]] = b.Pt
-            Pt.append(a)
+            for name, a in _beam_point_arrays(b, maxnv, maxnt, maxn, so, ex).items():
+                parts[name].append(a)
             if so:
-                for dst, src in ((Sv, b.Sv), (Sw, b.Sw)):
-                    a = np.zeros((npt, maxnv, maxnv))
-                    a[:, :b.nv, :b.nv] = src
-                    dst.append(a)
                 SL[i, 0, :b.nv, :b.nv] = b.SvL
                 SL[i, 1, :b.nv, :b.nv] = b.SwL
             if ex:
-                nodes, wts, nfull, rows = b.rule
-                a = np.zeros((len(nodes), 2, maxnv))
-                a[:, 0, :b.nv], a[:, 1, :b.nv] = b.ndv, b.ndw
-                XD.append(a)
-                XW.append(wts)
-                XR.append(rows[:-1])         # the mass points (the last row: the tip)
-                xstart[i + 1] = xstart[i, 0] + len(nodes), nfull
-            count += npt
-        else:
-            stages[3] = (Rdh, tdh)
-        if end is not None:
-            stages[3] = _combine(stages[3], end)
-        for s, (R, t) in enumerate(stages):
-            T[i, s, :, :3] = R
-            T[i, s, :, 3] = t
-        for j, body in enumerate(bodies):
+                xstart[i + 1] = xstart[i, 0] + len(b.rule[0]), b.rule[2]
+            count += len(b.z)
+        for j, body in enumerate(model._consts[i][2]):
             if body is not None:
                 bm[i, j], bc[i, j], bI[i, j] = body
         pstart[i + 1] = count
-
-    def cat(parts, width=None):
-        if parts:
-            return np.ascontiguousarray(np.concatenate(parts))
-        if width is None:
-            return np.zeros((0,))
-        return np.zeros((0,) + (tuple(width) if isinstance(width, tuple) else (width,)))
-
     # joint effects: rotor (J_r, n, spin coordinate or -1) per joint, constant motor inertias
     rot = np.array([[jr, ratio, spin] for jr, ratio, spin in model.rotors], float)
     # a writable copy: np.diag gives a read-only view, another numba signature (recompiles)
     mdiag = np.diag(model.M_const).copy()
-    return (jtype, koff, axis, T, P, flex, nv, nt, fstart, length, bm, bc, bI, pstart,
-            cat(zs), cat(mw), cat(pw, 3), cat(Wv, maxnv), cat(dWv, maxnv), cat(Ww, maxnv),
-            cat(dWw, maxnv), cat(Pt, maxnt), np.asarray(model.gravity, float),
-            int(model.nq), rot.reshape(n, 3), mdiag,
-            np.ascontiguousarray(np.concatenate(Sv)) if Sv else np.zeros((0, maxnv, maxnv)),
-            np.ascontiguousarray(np.concatenate(Sw)) if Sw else np.zeros((0, maxnv, maxnv)),
-            SL, int(so), cat(CF, (5, maxn)), cat(CW, 3),
-            int(ex), cat(XD, (2, maxnv)), cat(XW),
-            np.concatenate(XR) if XR else np.zeros((0, 3), np.int64), xstart)
+    S0 = np.zeros((0, maxnv, maxnv))
+    return SpatialData(
+        jtype=jtype, koff=np.asarray(model.off, np.int64), axis=axis, T=T, P=P, flex=flex,
+        nv=nv, nt=nt, fstart=fstart, length=length, bm=bm, bc=bc, bI=bI, pstart=pstart,
+        zs=_cat(parts["zs"]), mw=_cat(parts["mw"]), pw=_cat(parts["pw"], 3),
+        Wv=_cat(parts["Wv"], maxnv), dWv=_cat(parts["dWv"], maxnv),
+        Ww=_cat(parts["Ww"], maxnv), dWw=_cat(parts["dWw"], maxnv),
+        Pt=_cat(parts["Pt"], maxnt), g=np.asarray(model.gravity, float), nq=int(model.nq),
+        rot=rot.reshape(n, 3), mdiag=mdiag,
+        Sv=np.ascontiguousarray(np.concatenate(parts["Sv"])) if parts["Sv"] else S0,
+        Sw=np.ascontiguousarray(np.concatenate(parts["Sw"])) if parts["Sw"] else S0.copy(),
+        SL=SL, so=int(so), CF=_cat(parts["CF"], (5, maxn)), CW=_cat(parts["CW"], 3),
+        ex=int(ex), XD=_cat(parts["XD"], (2, maxnv)), XW=_cat(parts["XW"]),
+        XR=np.concatenate(parts["XR"]) if parts["XR"] else np.zeros((0, 3), np.int64),
+        xstart=xstart)
 
 
 # ------------------------------------------------------------------ small vector helpers
@@ -533,14 +597,498 @@ def spatial_terms(Pm, q, v):
 
 
 @njit(cache=_CACHE)
+def _joint(i, Pm, q, v, qdd, R, o, Jo, Jw, w, ao, al, e, rv, xv, t1, t2, t3, W, M, c, a6,
+           want_m):
+    """Link i up to its beam: the origin transform, the joint's rotor (:func:`_rotor`),
+    the joint's motion (module docstring; revolute: alpha += w x e qd + e qdd,
+    w += e qd; prismatic, r = e q: a_o += alpha x r + w x (w x r) + 2 w x e qd + e qdd)
+    and the constant transforms before the beam."""
+    k = Pm.koff[i]
+    ncols = k + 1
+    _fixed(R, o, Jo, Jw, w, ao, al, Pm.T[i, 0], ncols, W)
+    u = Pm.axis[i]
+    for a in range(3):
+        e[a] = R[a, 0] * u[0] + R[a, 1] * u[1] + R[a, 2] * u[2]
+    rot = Pm.rot
+    if rot[i, 0] != 0.0:
+        _rotor(rot[i, 0], rot[i, 1], int(rot[i, 2]), e, w, al, Jw, ncols, v, qdd, M, c,
+               a6, want_m)
+    qd = v[k]
+    if Pm.jtype[i] == 0:
+        e0, e1, e2 = e[0] * qd, e[1] * qd, e[2] * qd
+        for a in range(3):
+            Jw[a, k] += e[a]
+        al[0] += w[1] * e2 - w[2] * e1 + e[0] * qdd[k]
+        al[1] += w[2] * e0 - w[0] * e2 + e[1] * qdd[k]
+        al[2] += w[0] * e1 - w[1] * e0 + e[2] * qdd[k]
+        w[0] += e0
+        w[1] += e1
+        w[2] += e2
+        _rotate_axis(R, u, q[k], W)
+    else:
+        for a in range(3):
+            rv[a] = e[a] * q[k]
+            xv[a] = e[a] * qd
+        for j in range(ncols):
+            Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
+            Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
+            Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
+        for a in range(3):
+            Jo[a, k] += e[a]
+        _cross(al, rv, t1)
+        _cross(w, rv, t2)
+        _cross(w, t2, t3)
+        _cross(w, xv, t2)
+        for a in range(3):
+            ao[a] += t1[a] + t3[a] + 2.0 * t2[a] + e[a] * qdd[k]
+            o[a] += rv[a]
+    _fixed(R, o, Jo, Jw, w, ao, al, Pm.T[i, 1], ncols, W)
+    if Pm.flex[i]:
+        _fixed(R, o, Jo, Jw, w, ao, al, Pm.T[i, 2], ncols, W)
+
+
+@njit(cache=_CACHE)
+def _rigid_end(i, Pm, G, R, o, Jo, Jw, w, ao, al, rv, acc, W, o_root, ao_root, Jo_root, C6,
+               M, c, X6, want_m):
+    """Rigid link i past its joint: the end body joins the root group G (the same
+    Jacobians up to the offset r from the root frame), then the end transform."""
+    bm, bI, T = Pm.bm, Pm.bI, Pm.T
+    ncols = Pm.koff[i] + 1
+    zero = Pm.koff[0] * 0          # an int64, not a literal: one _flush signature
+    if _nonzero(G) or bm[i, 1] != 0.0 or _nonzero(bI[i, 1].ravel()):
+        for a in range(3):
+            o_root[a] = o[a]
+            ao_root[a] = ao[a]
+            for j in range(ncols):
+                Jo_root[a, j] = Jo[a, j]
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
+        _body_into(G, R, o[0] - o_root[0], o[1] - o_root[1], o[2] - o_root[2],
+                   ao_root, al, w, bm[i, 1], Pm.bc[i, 1], bI[i, 1], Pm.g, rv, acc, W)
+        _flush(G, C6, zero, zero, Jo_root, Jw, ncols, M, c, X6, want_m)
+    else:
+        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
+
+
+@njit(cache=_CACHE)
+def _point_shapes(p, Pm, nv, fv, fw, gv, gw, hv, hw):
+    """At Gauss point p: the deflections v, w (shapes W q_f) and their slopes v', w', their
+    rates and their accelerations."""
+    yv, sv, av_ = shape_sums(Pm.Wv, p, nv, fv, gv, hv)
+    yw, sw, aw_ = shape_sums(Pm.Ww, p, nv, fw, gw, hw)
+    ydv, sdv, adv = shape_sums(Pm.dWv, p, nv, fv, gv, hv)
+    ydw, sdw, adw = shape_sums(Pm.dWw, p, nv, fw, gw, hw)
+    return yv, yw, ydv, ydw, sv, sw, sdv, sdw, av_, aw_, adv, adw
+
+
+@njit(cache=_CACHE)
+def _point_offset(p, Pm, nv, y, fv, fw, gv, gw, hv, hw, Rb, bx, by, bz, Xn, Pre, xrow, xdir,
+                  sva, swa):
+    """Gauss point p from the beam frame's origin (base axes), its rate and its
+    acceleration relative to the beam frame: (z, v, w) with small deflections (thesis
+    Eq. 1), (z - u, v, w) with second_order (u the shortening) or r = int t ds
+    exact (exact.py, its own columns into xdir); y = _point_shapes(...)."""
+    yv, yw, ydv, ydw, sv, sw, sdv, sdw, av_, aw_, adv, adw = y
+    zp = Pm.zs[p]
+    ush = 0.0           # second_order: shortening u, its rate and acceleration
+    dsh = 0.0
+    ash = 0.0
+    if Pm.so:
+        ush, dsh, ash = _shortening(Pm.Sv[p], Pm.Sw[p], fv, fw, gv, gw, hv, hw, sva, swa)
+        zp = zp - ush
+    r0 = zp * bx[0] + yv * by[0] + yw * bz[0]
+    r1 = zp * bx[1] + yv * by[1] + yw * bz[1]
+    r2 = zp * bx[2] + yv * by[2] + yw * bz[2]
+    d0 = sv * by[0] + sw * bz[0] - dsh * bx[0]
+    d1 = sv * by[1] + sw * bz[1] - dsh * bx[1]
+    d2 = sv * by[2] + sw * bz[2] - dsh * bx[2]
+    ex0 = av_ * by[0] + aw_ * bz[0] - ash * bx[0]
+    ex1 = av_ * by[1] + aw_ * bz[1] - ash * bx[1]
+    ex2 = av_ * by[2] + aw_ * bz[2] - ash * bx[2]
+    if Pm.ex:      # r = int t ds, its rate and acceleration, own columns (exact.py)
+        XR = Pm.XR
+        point_row(Xn, Pre, XR[p, 0], XR[p, 1], XR[p, 2], xrow)
+        r0, r1, r2 = _beam_vector(Rb, xrow, 0)
+        d0, d1, d2 = _beam_vector(Rb, xrow, 3)
+        ex0, ex1, ex2 = _beam_vector(Rb, xrow, 6)
+        for j in range(2 * nv):
+            xdir[j, 0], xdir[j, 1], xdir[j, 2] = _beam_vector(Rb, xrow, 9 + 3 * j)
+    return r0, r1, r2, d0, d1, d2, ex0, ex1, ex2
+
+
+@njit(cache=_CACHE)
+def _point_acceleration(w, ao, al, g, x, acc):
+    """acc = a_p - g of a beam point at r from the frame origin moving at rd and
+    accelerating at rdd relative to the beam frame (x = (r, rd, rdd)):
+    a_p = a_o + alpha x r + w x (w x r) + 2 w x rd + rdd (module docstring)."""
+    r0, r1, r2, d0, d1, d2, ex0, ex1, ex2 = x
+    u0 = w[1] * r2 - w[2] * r1
+    u1 = w[2] * r0 - w[0] * r2
+    u2 = w[0] * r1 - w[1] * r0
+    acc[0] = ao[0] + (al[1] * r2 - al[2] * r1) + (w[1] * u2 - w[2] * u1) \
+        + 2.0 * (w[1] * d2 - w[2] * d1) - g[0] + ex0
+    acc[1] = ao[1] + (al[2] * r0 - al[0] * r2) + (w[2] * u0 - w[0] * u2) \
+        + 2.0 * (w[2] * d0 - w[0] * d2) - g[1] + ex1
+    acc[2] = ao[2] + (al[0] * r1 - al[1] * r0) + (w[0] * u1 - w[1] * u0) \
+        + 2.0 * (w[0] * d1 - w[1] * d0) - g[2] + ex2
+
+
+@njit(cache=_CACHE)
+def _shortening_columns(s0, nv, mp, rv, bx, acc, sva, swa, C6, M, c, want_m):
+    """second_order: the axial parts -b_x (Sv f_v)_j, -b_x (Sw f_w)_j of a point mass's own
+    columns (c, their force and moment columns into C6, the own block of M)."""
+    r0, r1, r2 = rv[0], rv[1], rv[2]
+    ax = bx[0] * acc[0] + bx[1] * acc[1] + bx[2] * acc[2]
+    cx0 = r1 * bx[2] - r2 * bx[1]
+    cx1 = r2 * bx[0] - r0 * bx[2]
+    cx2 = r0 * bx[1] - r1 * bx[0]
+    for j in range(nv):
+        c[s0 + j] -= mp * sva[j] * ax
+        c[s0 + nv + j] -= mp * swa[j] * ax
+        if not want_m:
+            continue
+        jv = s0 + j
+        jw = s0 + nv + j
+        mv = mp * sva[j]
+        mwj = mp * swa[j]
+        _add_column(C6, jv, -mv, bx, cx0, cx1, cx2)
+        _add_column(C6, jw, -mwj, bx, cx0, cx1, cx2)
+        for jj in range(j, nv):
+            M[jv, s0 + jj] += mv * sva[jj]
+            M[jw, s0 + nv + jj] += mwj * swa[jj]
+        for jj in range(nv):
+            M[jv, s0 + nv + jj] += mv * swa[jj]
+
+
+@njit(cache=_CACHE)
+def _bending_columns(p, Pm, s0, nv, mp, rv, by, bz, acc, C6, M, c, want_m):
+    """The point mass's own bending columns b_y Wv_j (v) and b_z Ww_j (w): c, their
+    force and moment columns into C6 and the own block of M (upper triangle)."""
+    Wv, Ww = Pm.Wv, Pm.Ww
+    r0, r1, r2 = rv[0], rv[1], rv[2]
+    ay = by[0] * acc[0] + by[1] * acc[1] + by[2] * acc[2]
+    az = bz[0] * acc[0] + bz[1] * acc[1] + bz[2] * acc[2]
+    cy0 = r1 * by[2] - r2 * by[1]
+    cy1 = r2 * by[0] - r0 * by[2]
+    cy2 = r0 * by[1] - r1 * by[0]
+    cz0 = r1 * bz[2] - r2 * bz[1]
+    cz1 = r2 * bz[0] - r0 * bz[2]
+    cz2 = r0 * bz[1] - r1 * bz[0]
+    for j in range(nv):
+        c[s0 + j] += mp * Wv[p, j] * ay
+        c[s0 + nv + j] += mp * Ww[p, j] * az
+        if not want_m:
+            continue
+        wv = mp * Wv[p, j]
+        ww = mp * Ww[p, j]
+        jv = s0 + j
+        jw = s0 + nv + j
+        _add_column(C6, jv, wv, by, cy0, cy1, cy2)
+        _add_column(C6, jw, ww, bz, cz0, cz1, cz2)
+        for jj in range(j, nv):
+            M[jv, s0 + jj] += wv * Wv[p, jj]
+            M[jw, s0 + nv + jj] += ww * Ww[p, jj]
+
+
+@njit(cache=_CACHE)
+def _section_axes(p, Pm, nt, ft, gt, ht, y, Rb, ek, S):
+    """The section rotation Rs = Ry(-w') Rz(v') Rx(phi) at Gauss point p (seed 000
+    Eq. 19; y = _point_shapes(...)): its axes in base axes into the rows of ek (x = a_t,
+    the tangent; y, z) and, in base axes, into the rows of S: the relative angular
+    velocity w_rel = a_t phi' + a_w dw' + a_v dv', its bias acceleration plus the second
+    derivatives' terms, and the axes a_v, a_w, a_t."""
+    ydv, ydw, sdv, sdw, adv, adw = y[2], y[3], y[6], y[7], y[10], y[11]
+    Pt = Pm.Pt
+    phi = 0.0
+    sphi = 0.0
+    for j in range(nt):
+        phi += Pt[p, j] * ft[j]
+        sphi += Pt[p, j] * gt[j]
+    aphi = 0.0
+    for j in range(nt):
+        aphi += Pt[p, j] * ht[j]
+    cf, sf = np.cos(phi), np.sin(phi)
+    cp, sp = np.cos(ydw), -np.sin(ydw)          # Ry(-w')
+    ct, st = np.cos(ydv), np.sin(ydv)
+    # Rs = Ry(-w') Rz(v') Rx(phi), beam-frame axes: a_w = -e_y, a_v = Ry e_z,
+    # a_t = Ry Rz e_x (the tangent: the section's x axis), c1 = Ry Rz e_y
+    aw0, aw1, aw2 = 0.0, -1.0, 0.0
+    av0, av1, av2 = sp, 0.0, cp
+    at0, at1, at2 = cp * ct, st, -sp * ct
+    c10, c11, c12 = -cp * st, ct, sp * st
+    # relative angular velocity and bias acceleration (beam frame)
+    e0, e1, e2 = aw0 * sdw, aw1 * sdw, aw2 * sdw         # a_w dw'
+    f0, f1, f2 = av0 * sdv, av1 * sdv, av2 * sdv         # a_v dv'
+    h0, h1, h2 = at0 * sphi, at1 * sphi, at2 * sphi      # a_t phi'
+    wr0, wr1, wr2 = e0 + f0 + h0, e1 + f1 + h1, e2 + f2 + h2
+    # e x f + (e + f) x h
+    ar0 = (e1 * f2 - e2 * f1) + ((e1 + f1) * h2 - (e2 + f2) * h1)
+    ar1 = (e2 * f0 - e0 * f2) + ((e2 + f2) * h0 - (e0 + f0) * h2)
+    ar2 = (e0 * f1 - e1 * f0) + ((e0 + f0) * h1 - (e1 + f1) * h0)
+    # plus the second derivatives: a_t phi'' + a_w dw'' + a_v dv''
+    ar0 += at0 * aphi + aw0 * adw + av0 * adv
+    ar1 += at1 * aphi + aw1 * adw + av1 * adv
+    ar2 += at2 * aphi + aw2 * adw + av2 * adv
+    # to base axes
+    for a in range(3):
+        S[0, a] = Rb[a, 0] * wr0 + Rb[a, 1] * wr1 + Rb[a, 2] * wr2
+        S[1, a] = Rb[a, 0] * ar0 + Rb[a, 1] * ar1 + Rb[a, 2] * ar2
+        S[2, a] = Rb[a, 0] * av0 + Rb[a, 1] * av1 + Rb[a, 2] * av2
+        S[3, a] = Rb[a, 1] * aw1
+        S[4, a] = Rb[a, 0] * at0 + Rb[a, 1] * at1 + Rb[a, 2] * at2
+    # section axes (base): x = a_t, y = cf c1 + sf a_v, z = -sf c1 + cf a_v
+    ys0, ys1, ys2 = cf * c10 + sf * av0, cf * c11 + sf * av1, cf * c12 + sf * av2
+    zs0, zs1, zs2 = -sf * c10 + cf * av0, -sf * c11 + cf * av1, \
+        -sf * c12 + cf * av2
+    for a in range(3):
+        ek[0, a] = Rb[a, 0] * at0 + Rb[a, 1] * at1 + Rb[a, 2] * at2
+        ek[1, a] = Rb[a, 0] * ys0 + Rb[a, 1] * ys1 + Rb[a, 2] * ys2
+        ek[2, a] = Rb[a, 0] * zs0 + Rb[a, 1] * zs1 + Rb[a, 2] * zs2
+
+
+@njit(cache=_CACHE)
+def _section_inertia(p, Pm, s0, nv, nt, nk, w, al, ek, S, tau, G, C6, M, c, sown, want_m):
+    """The section's rotary inertia at Gauss point p, pw[p, k] e_k e_k^T (rhoJ about x;
+    with rotary inertia rho I_y, rho I_z about y, z; ek, S of :func:`_section_axes`),
+    turning at w_p = w + w_rel, alpha_p = alpha + w x w_rel + (bias): its torque
+    tau = sum_k pw_k (e_k (e_k . alpha_p) + (e_k . w_p) w_p x e_k) into G and, along the
+    own rotation columns a_v dWv_j, a_w dWw_j, a_t Pt_j, into c, C6 and M."""
+    pw, dWv, dWw, Pt = Pm.pw, Pm.dWv, Pm.dWw, Pm.Pt
+    wb0, wb1, wb2 = S[0, 0], S[0, 1], S[0, 2]
+    ab0, ab1, ab2 = S[1, 0], S[1, 1], S[1, 2]
+    avb0, avb1, avb2 = S[2, 0], S[2, 1], S[2, 2]
+    awb0, awb1, awb2 = S[3, 0], S[3, 1], S[3, 2]
+    atb0, atb1, atb2 = S[4, 0], S[4, 1], S[4, 2]
+    wp0, wp1, wp2 = w[0] + wb0, w[1] + wb1, w[2] + wb2
+    lp0 = al[0] + (w[1] * wb2 - w[2] * wb1) + ab0
+    lp1 = al[1] + (w[2] * wb0 - w[0] * wb2) + ab1
+    lp2 = al[2] + (w[0] * wb1 - w[1] * wb0) + ab2
+    tau[0] = 0.0
+    tau[1] = 0.0
+    tau[2] = 0.0
+    n2 = 2 * nv
+    nown = n2 + nt
+    for k in range(nk):
+        pj = pw[p, k]
+        x0, x1, x2 = ek[k, 0], ek[k, 1], ek[k, 2]
+        xw = x0 * wp0 + x1 * wp1 + x2 * wp2
+        xl = x0 * lp0 + x1 * lp1 + x2 * lp2
+        # tau += pj (x (x . alpha) + (x . w) w x x)
+        tau[0] += pj * (x0 * xl + xw * (wp1 * x2 - wp2 * x1))
+        tau[1] += pj * (x1 * xl + xw * (wp2 * x0 - wp0 * x2))
+        tau[2] += pj * (x2 * xl + xw * (wp0 * x1 - wp1 * x0))
+        for a in range(3):
+            for b in range(3):
+                G[4 + 3 * a + b] += pj * ek[k, a] * ek[k, b]
+        if not want_m:
+            continue
+        Av = x0 * avb0 + x1 * avb1 + x2 * avb2
+        Aw = x0 * awb0 + x1 * awb1 + x2 * awb2
+        Ax = x0 * atb0 + x1 * atb1 + x2 * atb2
+        for j in range(nv):
+            sown[j] = Av * dWv[p, j]
+            sown[nv + j] = Aw * dWw[p, j]
+        for j in range(nt):
+            sown[n2 + j] = Ax * Pt[p, j]
+        for j in range(nown):
+            sj = pj * sown[j]
+            C6[3, s0 + j] += sj * x0
+            C6[4, s0 + j] += sj * x1
+            C6[5, s0 + j] += sj * x2
+            for jj in range(j, nown):
+                M[s0 + j, s0 + jj] += sj * sown[jj]
+    for a in range(3):
+        G[16 + a] += tau[a]
+    Tv = avb0 * tau[0] + avb1 * tau[1] + avb2 * tau[2]
+    Tw = awb0 * tau[0] + awb1 * tau[1] + awb2 * tau[2]
+    Tx = atb0 * tau[0] + atb1 * tau[1] + atb2 * tau[2]
+    for j in range(nv):
+        c[s0 + j] += Tv * dWv[p, j]
+        c[s0 + nv + j] += Tw * dWw[p, j]
+    for j in range(nt):
+        c[s0 + n2 + j] += Tx * Pt[p, j]
+
+
+@njit(cache=_CACHE)
+def _beam_point(p, Pm, s0, nv, nt, nk, f, Rb, bx, by, bz, w, ao, al, G, C6, M, c, Xn, Pre,
+                xrow, xdir, sva, swa, sown, rv, acc, ek, S, tau, want_m):
+    """Gauss point p of a beam (f = the beam's q, v, qdd slices fv, fw, ft, gv, ..., ht):
+    its mass into the group G, its own columns (bending, shortening or exact) and its
+    section's rotary inertia (torsion or rotary inertia: nt > 0 or nk == 3)."""
+    fv, fw, ft, gv, gw, gt, hv, hw, ht = f
+    y = _point_shapes(p, Pm, nv, fv, fw, gv, gw, hv, hw)
+    mp = Pm.mw[p]
+    x = _point_offset(p, Pm, nv, y, fv, fw, gv, gw, hv, hw, Rb, bx, by, bz, Xn, Pre, xrow,
+                      xdir, sva, swa)
+    _point_acceleration(w, ao, al, Pm.g, x, acc)
+    rv[0] = x[0]
+    rv[1] = x[1]
+    rv[2] = x[2]
+    _group_point(G, mp, rv, acc)
+    if Pm.ex:
+        _own_columns(xdir, s0, mp, rv, acc, C6, M, c, want_m)
+    if Pm.so:      # own columns b_y Wv_j - b_x (Sv f_v)_j, b_z Ww_j - b_x (Sw f_w)_j
+        _shortening_columns(s0, nv, mp, rv, bx, acc, sva, swa, C6, M, c, want_m)
+    if not Pm.ex:
+        _bending_columns(p, Pm, s0, nv, mp, rv, by, bz, acc, C6, M, c, want_m)
+    if nt or nk == 3:
+        _section_axes(p, Pm, nt, ft, gt, ht, y, Rb, ek, S)
+        _section_inertia(p, Pm, s0, nv, nt, nk, w, al, ek, S, tau, G, C6, M, c, sown,
+                         want_m)
+
+
+@njit(cache=_CACHE)
+def _tip_translation(i, Pm, s0, nv, f, Rb, bx, by, bz, o, Jo, Jw, w, ao, al, Xn, Pre,
+                     xrow, sva, swa, rv, xv, tmp, t1, t2, t3, t4):
+    """The beam's tip offset r (small deflections: (L, v, w); second_order: (L - u(L), v,
+    w); exact: r(L)) moves the frame: o += r, a_o += alpha x r + w x (w x r) + 2 w x rd
+    + rdd, Jo += Jw x r (the columns before the beam)."""
+    fv, fw, ft, gv, gw, gt, hv, hw, ht = f
+    L = Pm.length[i]
+    ncols = Pm.koff[i] + 1
+    tv, tw = fv[nv - 2], fw[nv - 2]
+    sv, sw = gv[nv - 2], gw[nv - 2]
+    av_, aw_ = hv[nv - 2], hw[nv - 2]
+    ush = 0.0
+    dsh = 0.0
+    ash = 0.0
+    if Pm.so:          # second_order: the tip at (L - u(L), v, w)
+        ush, dsh, ash = _shortening(Pm.SL[i, 0], Pm.SL[i, 1], fv, fw, gv, gw, hv, hw, sva,
+                                    swa)
+    for a in range(3):
+        rv[a] = (L - ush) * bx[a] + tv * by[a] + tw * bz[a]
+        xv[a] = by[a] * sv + bz[a] * sw - dsh * bx[a]
+    if Pm.ex:          # exact: the tip at r(L) (exact.py)
+        point_row(Xn, Pre, Pm.xstart[i + 1, 1], 0, 0, xrow)
+        rv[0], rv[1], rv[2] = _beam_vector(Rb, xrow, 0)
+        xv[0], xv[1], xv[2] = _beam_vector(Rb, xrow, 3)
+        tmp[0], tmp[1], tmp[2] = _beam_vector(Rb, xrow, 6)
+    _cross(al, rv, t1)
+    _cross(w, rv, t2)
+    _cross(w, t2, t3)
+    _cross(w, xv, t4)
+    for a in range(3):
+        if Pm.ex:
+            ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + tmp[a]
+        else:
+            ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a] - ash * bx[a]
+        o[a] += rv[a]
+    for j in range(ncols):
+        Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
+        Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
+        Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
+
+
+@njit(cache=_CACHE)
+def _tip_rotation(Pm, s0, nv, nt, f, Rb, bx, by, bz, R, Jo, Jw, w, al, xrow, xdir, sva, swa,
+                  tmp):
+    """The tip frame R = R_b Rs (seed 000 Eq. 19, :func:`_section` at the tip's slopes
+    and twist) with the own columns of its offset and rotation in Jo, Jw and its
+    angular velocity and acceleration: w += R_b w_rel, alpha += w x R_b w_rel +
+    R_b alpha_rel."""
+    fv, fw, ft, gv, gw, gt, hv, hw, ht = f
+    tdv, tdw = fv[nv - 1], fw[nv - 1]
+    sdv, sdw = gv[nv - 1], gw[nv - 1]
+    adv, adw = hv[nv - 1], hw[nv - 1]
+    phi = ft[nt - 2] if nt else 0.0
+    sphi = gt[nt - 2] if nt else 0.0
+    aphi = ht[nt - 2] if nt else 0.0
+    ex = Pm.ex
+    Rs, aw, av, at, wrel, arel = _section(phi, tdv, tdw, sphi, sdv, sdw)
+    awb = _mv(Rb, aw)
+    avb = _mv(Rb, av)
+    atb = _mv(Rb, at)
+    for j in range(2 * nv if ex else 0):
+        xdir[j, 0], xdir[j, 1], xdir[j, 2] = _beam_vector(Rb, xrow, 9 + 3 * j)
+        for a in range(3):
+            Jo[a, s0 + j] += xdir[j, a]
+    for a in range(3):
+        if not ex:
+            Jo[a, s0 + nv - 2] += by[a]
+            Jo[a, s0 + 2 * nv - 2] += bz[a]
+        Jw[a, s0 + nv - 1] += avb[a]
+        Jw[a, s0 + 2 * nv - 1] += awb[a]
+        if nt:
+            Jw[a, s0 + 2 * nv + nt - 2] += atb[a]
+        if Pm.so:
+            for j in range(nv):
+                Jo[a, s0 + j] -= sva[j] * bx[a]
+                Jo[a, s0 + nv + j] -= swa[j] * bx[a]
+    wb = _mv(Rb, wrel)
+    _cross(w, wb, tmp)
+    for a in range(3):
+        arel[a] += at[a] * aphi + aw[a] * adw + av[a] * adv
+    ab = _mv(Rb, arel)
+    for a in range(3):
+        al[a] += tmp[a] + ab[a]
+        w[a] += wb[a]
+    R[:, :] = _mm(Rb, Rs)
+
+
+@njit(cache=_CACHE)
+def _beam(i, Pm, q, v, qdd, R, o, Jo, Jw, w, ao, al, G, C6, X6, M, c, Rb, ek, S, W, V3,
+          want_m):
+    """Flexible link i from the frame before its beam: the Gauss points lumped into the
+    root group G (flushed at the beam frame), then the tip frame, the end transform and
+    the end body. V3 (8, 3): work vectors."""
+    nv, nt, s0 = Pm.nv[i], Pm.nt[i], Pm.fstart[i]
+    s1 = s0 + 2 * nv + nt
+    P, pw, pstart = Pm.P, Pm.pw, Pm.pstart
+    C6[:, s0:s1] = 0.0
+    for a in range(3):
+        for b in range(3):
+            Rb[a, b] = R[a, 0] * P[i, 0, b] + R[a, 1] * P[i, 1, b] + R[a, 2] * P[i, 2, b]
+    f = (q[s0:s0 + nv], q[s0 + nv:s0 + 2 * nv], q[s0 + 2 * nv:s1],
+         v[s0:s0 + nv], v[s0 + nv:s0 + 2 * nv], v[s0 + 2 * nv:s1],
+         qdd[s0:s0 + nv], qdd[s0 + nv:s0 + 2 * nv], qdd[s0 + 2 * nv:s1])
+    fv, fw, ft, gv, gw, gt, hv, hw, ht = f
+    by = np.ascontiguousarray(Rb[:, 1])
+    bz = np.ascontiguousarray(Rb[:, 2])
+    bx = np.ascontiguousarray(Rb[:, 0])
+    # per point, in scalars (no temporaries): the own columns of a point are
+    # x_j = b_y Wv_j (v) and b_z Ww_j (w), orthonormal directions, and those of a
+    # section's rotation are a_v dWv_j, a_w dWw_j, b_x Pt_j with the rank-one section
+    # inertia rhoJ ds a a^T (a the section's x axis; with rotary inertia also
+    # rho I_y ds and rho I_z ds about the section's y and z axes)
+    sown = np.zeros(2 * nv + nt)
+    # section inertia axes per point: 1 (rhoJ about x) or 3 (rotary inertia too)
+    nk = 1
+    if pstart[i + 1] > pstart[i] and (pw[pstart[i], 1] != 0.0 or pw[pstart[i], 2] != 0.0):
+        nk = 3
+    sva = np.zeros(nv)
+    swa = np.zeros(nv)
+    Xn = np.zeros((0, 9 + 6 * nv))
+    Pre = np.zeros((1, 9 + 6 * nv))
+    if Pm.ex:      # exact: per node the tangent terms and their prefix sums (exact.py)
+        xs, xe, XD = Pm.xstart[i, 0], Pm.xstart[i + 1, 0], Pm.XD
+        Xn, Pre = link_sums(XD[xs:xe, 0], XD[xs:xe, 1], Pm.XW[xs:xe], Pm.xstart[i + 1, 1],
+                            nv, fv, fw, gv, gw, hv, hw)
+    xrow = np.zeros(9 + 6 * nv)
+    xdir = np.zeros((2 * nv, 3))
+    rv, xv, acc, tmp, tau = V3[0], V3[1], V3[2], V3[3], V3[4]
+    for p in range(pstart[i], pstart[i + 1]):
+        _beam_point(p, Pm, s0, nv, nt, nk, f, Rb, bx, by, bz, w, ao, al, G, C6, M, c, Xn,
+                    Pre, xrow, xdir, sva, swa, sown, rv, acc, ek, S, tau, want_m)
+    _flush(G, C6, s0, s1, Jo, Jw, Pm.koff[i] + 1, M, c, X6, want_m)
+    _tip_translation(i, Pm, s0, nv, f, Rb, bx, by, bz, o, Jo, Jw, w, ao, al, Xn, Pre, xrow,
+                     sva, swa, rv, xv, tmp, V3[5], V3[6], V3[7], tau)
+    _tip_rotation(Pm, s0, nv, nt, f, Rb, bx, by, bz, R, Jo, Jw, w, al, xrow, xdir, sva, swa,
+                  tmp)
+    _fixed(R, o, Jo, Jw, w, ao, al, Pm.T[i, 3], s1, W)
+    G[:] = 0.0
+    _body_into(G, R, 0.0, 0.0, 0.0, ao, al, w, Pm.bm[i, 1], Pm.bc[i, 1], Pm.bI[i, 1], Pm.g,
+               rv, acc, W)
+    if _nonzero(G):
+        zero = Pm.koff[0] * 0
+        _flush(G, C6, zero, zero, Jo, Jw, s1, M, c, X6, want_m)
+
+
+@njit(cache=_CACHE)
 def spatial_eval(Pm, q, v, qdd, want_m):
     """(M(q) or zeros, M(q) qdd + c(q, v)): the recursive Newton-Euler pass with the
     accelerations qdd included (inverse dynamics, O(n) without M when not ``want_m``). The mass
     points and rotors of a link are lumped per frame into a spatial inertia (mass, first
     and second moments) so that M costs one J6^T I6 J6 product per frame group."""
-    (jtype, koff, axis, T, P, flex, nvs, nts, fstart, length, bm, bc, bI, pstart,
-     zs, mw, pw, Wv, dWv, Ww, dWw, Pt, g, nq, rot, mdiag, Sv, Sw, SL, so, CF, CW,
-     ex, XD, XW, XR, xstart) = Pm
+    nq = Pm.nq
     M = np.zeros((nq, nq))
     c = np.zeros(nq)
     R = np.eye(3)
@@ -550,410 +1098,35 @@ def spatial_eval(Pm, q, v, qdd, want_m):
     w = np.zeros(3)
     ao = np.zeros(3)
     al = np.zeros(3)
-    tmp = np.zeros(3)
     G = np.zeros(19)
     C6 = np.zeros((6, nq))
-    acc = np.zeros(3)
-    rv = np.zeros(3)
-    xv = np.zeros(3)
-    ek = np.zeros((3, 3))
-    tau = np.zeros(3)
-    t1 = np.zeros(3)
-    t2 = np.zeros(3)
-    t3 = np.zeros(3)
-    t4 = np.zeros(3)
-    W = np.zeros((3, 3))
     X6 = np.zeros((6, nq))
+    V3 = np.zeros((8, 3))      # work vectors
+    e = np.zeros(3)
+    ek = np.zeros((3, 3))
+    S = np.zeros((5, 3))
+    W = np.zeros((3, 3))
     Rb = np.zeros((3, 3))
     o_root = np.zeros(3)
     ao_root = np.zeros(3)
     Jo_root = np.zeros((3, nq))
-    e = np.zeros(3)
-    n_links = jtype.shape[0]
-    zero = koff[0] * 0          # an int64, not a literal: one _flush signature
-    for i in range(n_links):
-        k = koff[i]
-        ncols = k + 1
-        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 0], ncols, W)
-        u = axis[i]
-        for a in range(3):
-            e[a] = R[a, 0] * u[0] + R[a, 1] * u[1] + R[a, 2] * u[2]
-        if rot[i, 0] != 0.0:
-            _rotor(rot[i, 0], rot[i, 1], int(rot[i, 2]), e, w, al, Jw, ncols, v, qdd, M, c,
-                   X6[0], want_m)
-        qd = v[k]
-        if jtype[i] == 0:
-            e0, e1, e2 = e[0] * qd, e[1] * qd, e[2] * qd
-            for a in range(3):
-                Jw[a, k] += e[a]
-            al[0] += w[1] * e2 - w[2] * e1 + e[0] * qdd[k]
-            al[1] += w[2] * e0 - w[0] * e2 + e[1] * qdd[k]
-            al[2] += w[0] * e1 - w[1] * e0 + e[2] * qdd[k]
-            w[0] += e0
-            w[1] += e1
-            w[2] += e2
-            _rotate_axis(R, u, q[k], W)
+    rv, xv, acc = V3[0], V3[1], V3[2]
+    for i in range(Pm.jtype.shape[0]):
+        _joint(i, Pm, q, v, qdd, R, o, Jo, Jw, w, ao, al, e, rv, xv, V3[5], V3[6], V3[7],
+               W, M, c, X6[0], want_m)
+        G[:] = 0.0
+        _body_into(G, R, 0.0, 0.0, 0.0, ao, al, w, Pm.bm[i, 0], Pm.bc[i, 0], Pm.bI[i, 0],
+                   Pm.g, rv, acc, W)
+        if Pm.flex[i]:
+            _beam(i, Pm, q, v, qdd, R, o, Jo, Jw, w, ao, al, G, C6, X6, M, c, Rb, ek, S, W,
+                  V3, want_m)
         else:
-            for a in range(3):
-                rv[a] = e[a] * q[k]
-                xv[a] = e[a] * qd
-            for j in range(ncols):
-                Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
-                Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
-                Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
-            for a in range(3):
-                Jo[a, k] += e[a]
-            _cross(al, rv, t1)
-            _cross(w, rv, t2)
-            _cross(w, t2, t3)
-            _cross(w, xv, t2)
-            for a in range(3):
-                ao[a] += t1[a] + t3[a] + 2.0 * t2[a] + e[a] * qdd[k]
-                o[a] += rv[a]
-        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 1], ncols, W)
-        if flex[i]:
-            _fixed(R, o, Jo, Jw, w, ao, al, T[i, 2], ncols, W)
-        G[:] = 0.0
-        _body_into(G, R, 0.0, 0.0, 0.0, ao, al, w, bm[i, 0], bc[i, 0], bI[i, 0], g, rv,
-                   acc, W)
-        if not flex[i]:
-            # rigid link: the end body joins the root group (same Jacobians up to r)
-            if _nonzero(G) or bm[i, 1] != 0.0 or _nonzero(bI[i, 1].ravel()):
-                for a in range(3):
-                    o_root[a] = o[a]
-                    ao_root[a] = ao[a]
-                    for j in range(ncols):
-                        Jo_root[a, j] = Jo[a, j]
-                _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
-                _body_into(G, R, o[0] - o_root[0], o[1] - o_root[1], o[2] - o_root[2],
-                           ao_root, al, w, bm[i, 1], bc[i, 1], bI[i, 1], g, rv, acc, W)
-                _flush(G, C6, zero, zero, Jo_root, Jw, ncols, M, c, X6, want_m)
-            else:
-                _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
-            continue
-        # ---------------------------------------------------------------- flexible beam
-        nv, nt, s0 = nvs[i], nts[i], fstart[i]
-        s1 = s0 + 2 * nv + nt
-        C6[:, s0:s1] = 0.0
-        for a in range(3):
-            for b in range(3):
-                Rb[a, b] = R[a, 0] * P[i, 0, b] + R[a, 1] * P[i, 1, b] + R[a, 2] * P[i, 2, b]
-        fv, fw, ft = q[s0:s0 + nv], q[s0 + nv:s0 + 2 * nv], q[s0 + 2 * nv:s1]
-        gv, gw, gt = v[s0:s0 + nv], v[s0 + nv:s0 + 2 * nv], v[s0 + 2 * nv:s1]
-        hv, hw, ht = qdd[s0:s0 + nv], qdd[s0 + nv:s0 + 2 * nv], qdd[s0 + 2 * nv:s1]
-        by = np.ascontiguousarray(Rb[:, 1])
-        bz = np.ascontiguousarray(Rb[:, 2])
-        bx = np.ascontiguousarray(Rb[:, 0])
-        # per point, in scalars (no temporaries): the own columns of a point are
-        # x_j = b_y Wv_j (v) and b_z Ww_j (w), orthonormal directions, and those of a
-        # section's rotation are a_v dWv_j, a_w dWw_j, b_x Pt_j with the rank-one section
-        # inertia rhoJ ds a a^T (a the section's x axis; with rotary inertia also
-        # rho I_y ds and rho I_z ds about the section's y and z axes)
-        n2 = 2 * nv
-        sown = np.zeros(n2 + nt)
-        # section inertia axes per point: 1 (rhoJ about x) or 3 (rotary inertia too)
-        nk = 1
-        if pstart[i + 1] > pstart[i] and (pw[pstart[i], 1] != 0.0 or pw[pstart[i], 2] != 0.0):
-            nk = 3
-        sva = np.zeros(nv)
-        swa = np.zeros(nv)
-        Xn = np.zeros((0, 9 + 6 * nv))
-        Pre = np.zeros((1, 9 + 6 * nv))
-        if ex:      # exact: per node the tangent terms and their prefix sums (exact.py)
-            xs, xe = xstart[i, 0], xstart[i + 1, 0]
-            Xn, Pre = link_sums(XD[xs:xe, 0], XD[xs:xe, 1], XW[xs:xe], xstart[i + 1, 1],
-                                nv, fv, fw, gv, gw, hv, hw)
-        xrow = np.zeros(9 + 6 * nv)
-        xdir = np.zeros((n2, 3))
-        for p in range(pstart[i], pstart[i + 1]):
-            yv = 0.0
-            yw = 0.0
-            ydv = 0.0
-            ydw = 0.0
-            sv = 0.0
-            sw = 0.0
-            sdv = 0.0
-            sdw = 0.0
-            for j in range(nv):
-                yv += Wv[p, j] * fv[j]
-                yw += Ww[p, j] * fw[j]
-                ydv += dWv[p, j] * fv[j]
-                ydw += dWw[p, j] * fw[j]
-                sv += Wv[p, j] * gv[j]
-                sw += Ww[p, j] * gw[j]
-                sdv += dWv[p, j] * gv[j]
-                sdw += dWw[p, j] * gw[j]
-            av_ = 0.0
-            aw_ = 0.0
-            adv = 0.0
-            adw = 0.0
-            for j in range(nv):
-                av_ += Wv[p, j] * hv[j]
-                aw_ += Ww[p, j] * hw[j]
-                adv += dWv[p, j] * hv[j]
-                adw += dWw[p, j] * hw[j]
-            mp = mw[p]
-            zp = zs[p]
-            ush = 0.0           # second_order: shortening u, its rate and acceleration
-            dsh = 0.0
-            ash = 0.0
-            if so:
-                ush, dsh, ash = _shortening(Sv[p], Sw[p], fv, fw, gv, gw, hv, hw, sva, swa)
-                zp = zp - ush
-            r0 = zp * bx[0] + yv * by[0] + yw * bz[0]
-            r1 = zp * bx[1] + yv * by[1] + yw * bz[1]
-            r2 = zp * bx[2] + yv * by[2] + yw * bz[2]
-            d0 = sv * by[0] + sw * bz[0] - dsh * bx[0]
-            d1 = sv * by[1] + sw * bz[1] - dsh * bx[1]
-            d2 = sv * by[2] + sw * bz[2] - dsh * bx[2]
-            ex0 = av_ * by[0] + aw_ * bz[0] - ash * bx[0]
-            ex1 = av_ * by[1] + aw_ * bz[1] - ash * bx[1]
-            ex2 = av_ * by[2] + aw_ * bz[2] - ash * bx[2]
-            if ex:      # r = int t ds, its rate and acceleration, own columns (exact.py)
-                point_row(Xn, Pre, XR[p, 0], XR[p, 1], XR[p, 2], xrow)
-                r0, r1, r2 = _beam_vector(Rb, xrow, 0)
-                d0, d1, d2 = _beam_vector(Rb, xrow, 3)
-                ex0, ex1, ex2 = _beam_vector(Rb, xrow, 6)
-                for j in range(n2):
-                    xdir[j, 0], xdir[j, 1], xdir[j, 2] = _beam_vector(Rb, xrow, 9 + 3 * j)
-            # w x r, w x (w x r), al x r, w x rd
-            u0 = w[1] * r2 - w[2] * r1
-            u1 = w[2] * r0 - w[0] * r2
-            u2 = w[0] * r1 - w[1] * r0
-            acc[0] = ao[0] + (al[1] * r2 - al[2] * r1) + (w[1] * u2 - w[2] * u1) \
-                + 2.0 * (w[1] * d2 - w[2] * d1) - g[0] + ex0
-            acc[1] = ao[1] + (al[2] * r0 - al[0] * r2) + (w[2] * u0 - w[0] * u2) \
-                + 2.0 * (w[2] * d0 - w[0] * d2) - g[1] + ex1
-            acc[2] = ao[2] + (al[0] * r1 - al[1] * r0) + (w[0] * u1 - w[1] * u0) \
-                + 2.0 * (w[0] * d1 - w[1] * d0) - g[2] + ex2
-            rv[0] = r0
-            rv[1] = r1
-            rv[2] = r2
-            _group_point(G, mp, rv, acc)
-            ay = by[0] * acc[0] + by[1] * acc[1] + by[2] * acc[2]
-            az = bz[0] * acc[0] + bz[1] * acc[1] + bz[2] * acc[2]
-            cy0 = r1 * by[2] - r2 * by[1]
-            cy1 = r2 * by[0] - r0 * by[2]
-            cy2 = r0 * by[1] - r1 * by[0]
-            cz0 = r1 * bz[2] - r2 * bz[1]
-            cz1 = r2 * bz[0] - r0 * bz[2]
-            cz2 = r0 * bz[1] - r1 * bz[0]
-            if ex:
-                _own_columns(xdir, s0, mp, rv, acc, C6, M, c, want_m)
-            if so:      # own columns b_y Wv_j - b_x (Sv f_v)_j, b_z Ww_j - b_x (Sw f_w)_j
-                ax = bx[0] * acc[0] + bx[1] * acc[1] + bx[2] * acc[2]
-                cx0 = r1 * bx[2] - r2 * bx[1]
-                cx1 = r2 * bx[0] - r0 * bx[2]
-                cx2 = r0 * bx[1] - r1 * bx[0]
-                for j in range(nv):
-                    c[s0 + j] -= mp * sva[j] * ax
-                    c[s0 + nv + j] -= mp * swa[j] * ax
-                    if not want_m:
-                        continue
-                    jv = s0 + j
-                    jw = s0 + nv + j
-                    mv = mp * sva[j]
-                    mwj = mp * swa[j]
-                    _add_column(C6, jv, -mv, bx, cx0, cx1, cx2)
-                    _add_column(C6, jw, -mwj, bx, cx0, cx1, cx2)
-                    for jj in range(j, nv):
-                        M[jv, s0 + jj] += mv * sva[jj]
-                        M[jw, s0 + nv + jj] += mwj * swa[jj]
-                    for jj in range(nv):
-                        M[jv, s0 + nv + jj] += mv * swa[jj]
-            for j in range(0 if ex else nv):
-                c[s0 + j] += mp * Wv[p, j] * ay
-                c[s0 + nv + j] += mp * Ww[p, j] * az
-                if not want_m:
-                    continue
-                wv = mp * Wv[p, j]
-                ww = mp * Ww[p, j]
-                jv = s0 + j
-                jw = s0 + nv + j
-                _add_column(C6, jv, wv, by, cy0, cy1, cy2)
-                _add_column(C6, jw, ww, bz, cz0, cz1, cz2)
-                for jj in range(j, nv):
-                    M[jv, s0 + jj] += wv * Wv[p, jj]
-                    M[jw, s0 + nv + jj] += ww * Ww[p, jj]
-            if nt or nk == 3:
-                phi = 0.0
-                sphi = 0.0
-                for j in range(nt):
-                    phi += Pt[p, j] * ft[j]
-                    sphi += Pt[p, j] * gt[j]
-                aphi = 0.0
-                for j in range(nt):
-                    aphi += Pt[p, j] * ht[j]
-                cf, sf = np.cos(phi), np.sin(phi)
-                cp, sp = np.cos(ydw), -np.sin(ydw)          # Ry(-w')
-                ct, st = np.cos(ydv), np.sin(ydv)
-                # Rs = Ry(-w') Rz(v') Rx(phi), beam-frame axes: a_w = -e_y, a_v = Ry e_z,
-                # a_t = Ry Rz e_x (the tangent: the section's x axis), c1 = Ry Rz e_y
-                aw0, aw1, aw2 = 0.0, -1.0, 0.0
-                av0, av1, av2 = sp, 0.0, cp
-                at0, at1, at2 = cp * ct, st, -sp * ct
-                c10, c11, c12 = -cp * st, ct, sp * st
-                # relative angular velocity and bias acceleration (beam frame)
-                e0, e1, e2 = aw0 * sdw, aw1 * sdw, aw2 * sdw         # a_w dw'
-                f0, f1, f2 = av0 * sdv, av1 * sdv, av2 * sdv         # a_v dv'
-                h0, h1, h2 = at0 * sphi, at1 * sphi, at2 * sphi      # a_t phi'
-                wr0, wr1, wr2 = e0 + f0 + h0, e1 + f1 + h1, e2 + f2 + h2
-                # e x f + (e + f) x h
-                ar0 = (e1 * f2 - e2 * f1) + ((e1 + f1) * h2 - (e2 + f2) * h1)
-                ar1 = (e2 * f0 - e0 * f2) + ((e2 + f2) * h0 - (e0 + f0) * h2)
-                ar2 = (e0 * f1 - e1 * f0) + ((e0 + f0) * h1 - (e1 + f1) * h0)
-                # plus the second derivatives: a_t phi'' + a_w dw'' + a_v dv''
-                ar0 += at0 * aphi + aw0 * adw + av0 * adv
-                ar1 += at1 * aphi + aw1 * adw + av1 * adv
-                ar2 += at2 * aphi + aw2 * adw + av2 * adv
-                # to base axes
-                awb0 = Rb[0, 1] * aw1
-                awb1 = Rb[1, 1] * aw1
-                awb2 = Rb[2, 1] * aw1
-                avb0 = Rb[0, 0] * av0 + Rb[0, 1] * av1 + Rb[0, 2] * av2
-                avb1 = Rb[1, 0] * av0 + Rb[1, 1] * av1 + Rb[1, 2] * av2
-                avb2 = Rb[2, 0] * av0 + Rb[2, 1] * av1 + Rb[2, 2] * av2
-                atb0 = Rb[0, 0] * at0 + Rb[0, 1] * at1 + Rb[0, 2] * at2
-                atb1 = Rb[1, 0] * at0 + Rb[1, 1] * at1 + Rb[1, 2] * at2
-                atb2 = Rb[2, 0] * at0 + Rb[2, 1] * at1 + Rb[2, 2] * at2
-                wb0 = Rb[0, 0] * wr0 + Rb[0, 1] * wr1 + Rb[0, 2] * wr2
-                wb1 = Rb[1, 0] * wr0 + Rb[1, 1] * wr1 + Rb[1, 2] * wr2
-                wb2 = Rb[2, 0] * wr0 + Rb[2, 1] * wr1 + Rb[2, 2] * wr2
-                ab0 = Rb[0, 0] * ar0 + Rb[0, 1] * ar1 + Rb[0, 2] * ar2
-                ab1 = Rb[1, 0] * ar0 + Rb[1, 1] * ar1 + Rb[1, 2] * ar2
-                ab2 = Rb[2, 0] * ar0 + Rb[2, 1] * ar1 + Rb[2, 2] * ar2
-                # section axes (base): x = a_t, y = cf c1 + sf a_v, z = -sf c1 + cf a_v;
-                # inertia pw[p, k] e_k e_k^T (rhoJ about x; with rotary inertia rho I_y
-                # about y, rho I_z about z)
-                ys0, ys1, ys2 = cf * c10 + sf * av0, cf * c11 + sf * av1, cf * c12 + sf * av2
-                zs0, zs1, zs2 = -sf * c10 + cf * av0, -sf * c11 + cf * av1, \
-                    -sf * c12 + cf * av2
-                for a in range(3):
-                    ek[0, a] = Rb[a, 0] * at0 + Rb[a, 1] * at1 + Rb[a, 2] * at2
-                    ek[1, a] = Rb[a, 0] * ys0 + Rb[a, 1] * ys1 + Rb[a, 2] * ys2
-                    ek[2, a] = Rb[a, 0] * zs0 + Rb[a, 1] * zs1 + Rb[a, 2] * zs2
-                wp0, wp1, wp2 = w[0] + wb0, w[1] + wb1, w[2] + wb2
-                lp0 = al[0] + (w[1] * wb2 - w[2] * wb1) + ab0
-                lp1 = al[1] + (w[2] * wb0 - w[0] * wb2) + ab1
-                lp2 = al[2] + (w[0] * wb1 - w[1] * wb0) + ab2
-                tau[0] = 0.0
-                tau[1] = 0.0
-                tau[2] = 0.0
-                nown = n2 + nt
-                for k in range(nk):
-                    pj = pw[p, k]
-                    x0, x1, x2 = ek[k, 0], ek[k, 1], ek[k, 2]
-                    xw = x0 * wp0 + x1 * wp1 + x2 * wp2
-                    xl = x0 * lp0 + x1 * lp1 + x2 * lp2
-                    # tau += pj (x (x . alpha) + (x . w) w x x)
-                    tau[0] += pj * (x0 * xl + xw * (wp1 * x2 - wp2 * x1))
-                    tau[1] += pj * (x1 * xl + xw * (wp2 * x0 - wp0 * x2))
-                    tau[2] += pj * (x2 * xl + xw * (wp0 * x1 - wp1 * x0))
-                    for a in range(3):
-                        for b in range(3):
-                            G[4 + 3 * a + b] += pj * ek[k, a] * ek[k, b]
-                    if not want_m:
-                        continue
-                    Av = x0 * avb0 + x1 * avb1 + x2 * avb2
-                    Aw = x0 * awb0 + x1 * awb1 + x2 * awb2
-                    Ax = x0 * atb0 + x1 * atb1 + x2 * atb2
-                    for j in range(nv):
-                        sown[j] = Av * dWv[p, j]
-                        sown[nv + j] = Aw * dWw[p, j]
-                    for j in range(nt):
-                        sown[n2 + j] = Ax * Pt[p, j]
-                    for j in range(nown):
-                        sj = pj * sown[j]
-                        C6[3, s0 + j] += sj * x0
-                        C6[4, s0 + j] += sj * x1
-                        C6[5, s0 + j] += sj * x2
-                        for jj in range(j, nown):
-                            M[s0 + j, s0 + jj] += sj * sown[jj]
-                for a in range(3):
-                    G[16 + a] += tau[a]
-                Tv = avb0 * tau[0] + avb1 * tau[1] + avb2 * tau[2]
-                Tw = awb0 * tau[0] + awb1 * tau[1] + awb2 * tau[2]
-                Tx = atb0 * tau[0] + atb1 * tau[1] + atb2 * tau[2]
-                for j in range(nv):
-                    c[s0 + j] += Tv * dWv[p, j]
-                    c[s0 + nv + j] += Tw * dWw[p, j]
-                for j in range(nt):
-                    c[s0 + n2 + j] += Tx * Pt[p, j]
-        _flush(G, C6, s0, s1, Jo, Jw, ncols, M, c, X6, want_m)
-        # tip frame (seed 000 Eq. 19)
-        L = length[i]
-        tv, tw, tdv, tdw = fv[nv - 2], fw[nv - 2], fv[nv - 1], fw[nv - 1]
-        sv, sw, sdv, sdw = gv[nv - 2], gw[nv - 2], gv[nv - 1], gw[nv - 1]
-        av_, aw_, adv, adw = hv[nv - 2], hw[nv - 2], hv[nv - 1], hw[nv - 1]
-        phi = ft[nt - 2] if nt else 0.0
-        sphi = gt[nt - 2] if nt else 0.0
-        aphi = ht[nt - 2] if nt else 0.0
-        ush = 0.0
-        dsh = 0.0
-        ash = 0.0
-        if so:          # second_order: the tip at (L - u(L), v, w)
-            ush, dsh, ash = _shortening(SL[i, 0], SL[i, 1], fv, fw, gv, gw, hv, hw, sva, swa)
-        for a in range(3):
-            rv[a] = (L - ush) * bx[a] + tv * by[a] + tw * bz[a]
-            xv[a] = by[a] * sv + bz[a] * sw - dsh * bx[a]
-        if ex:          # exact: the tip at r(L) (exact.py)
-            point_row(Xn, Pre, xstart[i + 1, 1], 0, 0, xrow)
-            rv[0], rv[1], rv[2] = _beam_vector(Rb, xrow, 0)
-            xv[0], xv[1], xv[2] = _beam_vector(Rb, xrow, 3)
-            tmp[0], tmp[1], tmp[2] = _beam_vector(Rb, xrow, 6)
-        _cross(al, rv, t1)
-        _cross(w, rv, t2)
-        _cross(w, t2, t3)
-        _cross(w, xv, t4)
-        for a in range(3):
-            if ex:
-                ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + tmp[a]
-            else:
-                ao[a] += t1[a] + t3[a] + 2.0 * t4[a] + av_ * by[a] + aw_ * bz[a] - ash * bx[a]
-            o[a] += rv[a]
-        for j in range(ncols):
-            Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
-            Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
-            Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
-        Rs, aw, av, at, wrel, arel = _section(phi, tdv, tdw, sphi, sdv, sdw)
-        awb = _mv(Rb, aw)
-        avb = _mv(Rb, av)
-        atb = _mv(Rb, at)
-        for j in range(n2 if ex else 0):
-            xdir[j, 0], xdir[j, 1], xdir[j, 2] = _beam_vector(Rb, xrow, 9 + 3 * j)
-            for a in range(3):
-                Jo[a, s0 + j] += xdir[j, a]
-        for a in range(3):
-            if not ex:
-                Jo[a, s0 + nv - 2] += by[a]
-                Jo[a, s0 + 2 * nv - 2] += bz[a]
-            Jw[a, s0 + nv - 1] += avb[a]
-            Jw[a, s0 + 2 * nv - 1] += awb[a]
-            if nt:
-                Jw[a, s0 + 2 * nv + nt - 2] += atb[a]
-            if so:
-                for j in range(nv):
-                    Jo[a, s0 + j] -= sva[j] * bx[a]
-                    Jo[a, s0 + nv + j] -= swa[j] * bx[a]
-        wb = _mv(Rb, wrel)
-        _cross(w, wb, tmp)
-        for a in range(3):
-            arel[a] += at[a] * aphi + aw[a] * adw + av[a] * adv
-        ab = _mv(Rb, arel)
-        for a in range(3):
-            al[a] += tmp[a] + ab[a]
-            w[a] += wb[a]
-        R[:, :] = _mm(Rb, Rs)
-        _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], s1, W)
-        G[:] = 0.0
-        _body_into(G, R, 0.0, 0.0, 0.0, ao, al, w, bm[i, 1], bc[i, 1], bI[i, 1], g, rv,
-                   acc, W)
-        if _nonzero(G):
-            _flush(G, C6, zero, zero, Jo, Jw, s1, M, c, X6, want_m)
+            _rigid_end(i, Pm, G, R, o, Jo, Jw, w, ao, al, rv, acc, W, o_root, ao_root,
+                       Jo_root, C6, M, c, X6, want_m)
     for a in range(nq):
-        if mdiag[a] != 0.0:      # motor inertias of elastic gears (constant)
-            M[a, a] += mdiag[a]
-            c[a] += mdiag[a] * qdd[a]
+        if Pm.mdiag[a] != 0.0:      # motor inertias of elastic gears (constant)
+            M[a, a] += Pm.mdiag[a]
+            c[a] += Pm.mdiag[a] * qdd[a]
     for a in range(nq):
         for b in range(a + 1, nq):
             M[b, a] = M[a, b]

@@ -82,6 +82,20 @@ def tangents(a, b):
 
 
 @njit(cache=_CACHE)
+def shape_sums(W, k, nv, f, g, h):
+    """(W[k] f, W[k] g, W[k] h): a shape's value, rate and acceleration at row k (point or
+    node) from the beam's coordinates f, their rates g and accelerations h."""
+    x = 0.0
+    xd = 0.0
+    xdd = 0.0
+    for j in range(nv):
+        x += W[k, j] * f[j]
+        xd += W[k, j] * g[j]
+        xdd += W[k, j] * h[j]
+    return x, xd, xdd
+
+
+@njit(cache=_CACHE)
 def link_sums(dWv, dWw, wts, nfull, nv, fv, fw, gv, gw, hv, hw):
     """Per node k (weighted by its quadrature weight) the row [t, t', t'', dt/df_v (3 nv),
     dt/df_w (3 nv)] (t' = dt/dt at the rates g, t'' at the accelerations h: the bias and
@@ -92,19 +106,8 @@ def link_sums(dWv, dWw, wts, nfull, nv, fv, fw, gv, gw, hv, hw):
     width = 9 + 6 * nv
     X = np.zeros((nn, width))
     for k in range(nn):
-        a = 0.0
-        b = 0.0
-        ad = 0.0
-        bd = 0.0
-        add = 0.0
-        bdd = 0.0
-        for j in range(nv):
-            b += dWv[k, j] * fv[j]
-            a += dWw[k, j] * fw[j]
-            bd += dWv[k, j] * gv[j]
-            ad += dWw[k, j] * gw[j]
-            bdd += dWv[k, j] * hv[j]
-            add += dWw[k, j] * hw[j]
+        b, bd, bdd = shape_sums(dWv, k, nv, fv, gv, hv)
+        a, ad, add = shape_sums(dWw, k, nv, fw, gw, hw)
         ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
         wk = wts[k]
         t = (ca * cb, sb, sa * cb)
