@@ -68,6 +68,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from . import spatial_loop
 from .baseline import at_bounds, baseline_parameters
 from .controller import check_integrable
 from .evaluation import Context, channel_sigma, cost, default_executor, evaluate, twin_arm
@@ -98,6 +99,9 @@ SCREEN_MARGIN = 0.5
 REFINEMENTS = {"joint_elasticity": "backlash"}
 #: two models of one mechanism: never two effects of one joint together
 ALTERNATIVES = ({"joint_friction", "stick_slip_friction"},)
+#: a joint's compliances: with a link's stiffness, told apart by the link's gauge
+#: (:func:`_gauge_between`)
+JOINT_COMPLIANCES = ("joint_elasticity", "backlash")
 #: the equivalence classes within which a target holds one effect at most (a pair, or a
 #: later addition next to a named one): the refinements and the alternatives
 SAME_CLASS = tuple({k, v} for k, v in REFINEMENTS.items()) + ALTERNATIVES
@@ -591,19 +595,20 @@ def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share,
 
 def _tie_break(executor, state, new, pick, cands, fits, min_share, on_fit, need):
     """A pick whose share the screening fit puts within :data:`TIE` of another acceptable
-    candidate with as many parameters (a pair of the same shape, a single of the same
-    size) is not decided there: each of those (at most :data:`TIE_RIVALS`) is fine-fitted
-    as the pick was (:func:`_accept`); not one that names the same effects' classes (a
+    candidate of its shape (pair or single) with at least as many parameters is not
+    decided there: each of those (at most :data:`TIE_RIVALS`) is fine-fitted as the pick
+    was (:func:`_accept`), and so is every acceptable candidate that a link's gauge tells
+    from the pick (:func:`_gauge_between`: a link's stiffness for its root joint's
+    compliance, whatever its share); not one that names the same effects' classes (a
     stick-slip for the joint's friction) (independent suite,
     A-cont-two-sensor_bias+stiffness-s1: an encoder bias at joint 1 with the stiffness
     shared 0.986, at joint 2 0.984; after their fine fits J_ho 0.68 and 0.54, the truth
-    being at joint 2). A rival replaces the pick only when its held-out residuals are
-    better by a difference the data resolve (:func:`.fitting.resolved_lower`, 95 %);
-    a rival that neither is nor is beaten so is an alternative the data do not tell
-    from the pick (``Candidate.alternatives``, reported beside it): B-cont-sensor_bias-m0-s1,
-    an encoder bias 5 mrad at joint 2 or 2.6 mrad at joint 1, held out 0.2766 / 0.2771
-    (the tip moves alike), and the lower of the two decided the joint by noise.
-    Returns (new, pick)."""
+    being at joint 2). They are decided by :func:`_decide` (parsimony unless the data
+    resolve the difference); a rival that neither beats the named one nor is beaten by it
+    is an alternative the data do not tell from it (``Candidate.alternatives``, reported
+    beside it): B-cont-sensor_bias-m0-s1, an encoder bias 5 mrad at joint 2 or 2.6 mrad
+    at joint 1, held out 0.2766 / 0.2771 (the tip moves alike), and the lower of the two
+    decided the joint by noise. Returns (new, pick)."""
     def parts(label):   # (kind, target) of the effects a candidate names
         h = fits[label][0].effects[-1][0]
         return [(p.kind, p.target) for p in ((h.first, h.second)
@@ -612,12 +617,15 @@ def _tie_break(executor, state, new, pick, cands, fits, min_share, on_fit, need)
     if pick.label not in fits:
         return new, pick
     mine = parts(pick.label)
-    rivals = [c for c in cands if c.label != pick.label and c.label in fits
-              and c.n_params == pick.n_params and c.share >= pick.share - TIE
-              and len(parts(c.label)) == len(mine)
-              and not all(any(_same_class(*a, *b) for b in mine) for a in parts(c.label))
-              and _pick([c], min_share, on_fit, need) is not None]
-    rivals = sorted(rivals, key=lambda c: -c.share)[:TIE_RIVALS]
+    nominal = state.ctx.nominal
+    ok = [c for c in cands if c.label != pick.label and c.label in fits
+          and len(parts(c.label)) == len(mine)
+          and not all(any(_same_class(*a, *b) for b in mine) for a in parts(c.label))
+          and _pick([c], min_share, on_fit, need) is not None]
+    near = [c for c in ok if c.n_params >= pick.n_params and c.share >= pick.share - TIE]
+    rivals = sorted(near, key=lambda c: -c.share)[:TIE_RIVALS]
+    rivals += [c for c in ok if c not in rivals
+               and _gauge_between(nominal, mine, parts(c.label)) is not None]
     if not rivals:
         return new, pick
     tried = [(pick, new, _holdout_residuals(state, new))]
@@ -626,16 +634,80 @@ def _tie_break(executor, state, new, pick, cands, fits, min_share, on_fit, need)
         tried.append((c, alt, _holdout_residuals(state, alt)))
         _progress(f"  tie: {pick.label} J_ho {new[1]:.4g} after its fine fit, {c.label} "
                   f"{alt[1]:.4g}", state.progress, state.t_start)
-    best = tried[0]
-    for t in tried[1:]:
-        if t[1][1] < best[1][1] and _lower(state, t[2], best[2]):
-            best = t
-    alternatives = tuple(c.label for c, _, r in tried if c is not best[0]
-                         and not _lower(state, best[2], r))
+    gauge = {c.label: parts(c.label) for c, _, _ in tried}
+    best, alternatives = _decide(state, tried, lambda a, b: _gauge_between(
+        nominal, gauge[a[0].label], gauge[b[0].label]))
     if alternatives:
         _progress(f"  not resolved from {best[0].label} by the held-out data: "
                   f"{', '.join(alternatives)}", state.progress, state.t_start)
     return best[1], dataclasses.replace(best[0], alternatives=alternatives)
+
+
+def _decide(state, tried, gauge_of):
+    """The candidate named among fine-fitted rivals ``tried`` [(candidate, twin as
+    :func:`_accept` returns it, held-out residuals)], and the labels of those the data
+    do not tell from it. Parsimony first: the fewest parameters (the pick first among
+    equals); another replaces it when it beats it (:func:`_beats`); ``gauge_of(a, b)``:
+    the gauge channel that tells two of them apart, or None."""
+    best = min(tried, key=lambda t: t[0].n_params)
+    for t in tried:
+        if t is not best and _beats(state, t, best, gauge_of(t, best)):
+            best = t
+    alternatives = tuple(t[0].label for t in tried if t is not best
+                         and not _beats(state, best, t, gauge_of(best, t)))
+    return best, alternatives
+
+
+def _beats(state, a, b, gauge=None) -> bool:
+    """Tried rival ``a`` beats ``b`` (see :func:`_decide`): when a link's gauge tells them
+    apart (``gauge``, :func:`_gauge_between`) and resolves one's held-out residual on that
+    channel lower than the other's, that one; else ``a`` has the lower held-out cost by a
+    difference the data resolve (:func:`_lower`)."""
+    if gauge is not None:
+        r_a, r_b = (_channel(state.ctx_ho.rec, t[2], gauge) for t in (a, b))
+        if r_a is not None and r_b is not None:
+            block = int(round(CI_BLOCK / state.ctx_ho.rec.dt))
+            if resolved_lower(r_a, r_b, 1, block):
+                return True
+            if resolved_lower(r_b, r_a, 1, block):
+                return False
+    return a[1][1] < b[1][1] and _lower(state, a[2], b[2])
+
+
+def _channel(rec, r, name):
+    """One channel's part of weighted residuals ``r`` (channels concatenated in
+    ``rec.residual_channels`` order), or None (no such channel, or no residuals)."""
+    names = list(rec.residual_channels)
+    if r is None or name not in names:
+        return None
+    n = len(r) // len(names)
+    k = names.index(name)
+    return np.asarray(r[k * n:(k + 1) * n], float)
+
+
+def _gauge_between(nominal, parts_a, parts_b):
+    """The gauge channel that tells two candidates apart physically, or None: they name
+    the same effects ((kind, target) lists) but for one, a link's stiffness in one where
+    the other names a compliance (:data:`JOINT_COMPLIANCES`) of the joint that carries
+    that link. Both let the link's tip lag its motor; only a change of the link's
+    bending stiffness changes the link's bending for a given load, which its gauge
+    ``w<i>`` measures (the tip's deflection from the tangent at the link's root, which a
+    joint spring turns with the link). Independent suite, arm B (geared): a stiffer
+    link 1 with a joint-2 bias was named as joint 1's elasticity (held-out share 0.665
+    against 0.605) in B-cont-two-sensor_bias+stiffness-s1 and -s2."""
+    if nominal is None or spatial_loop.is_spatial(nominal):   # planar links' gauges
+        return None
+    only_a = [p for p in parts_a if p not in parts_b]
+    only_b = [p for p in parts_b if p not in parts_a]
+    if len(only_a) != 1 or len(only_b) != 1:
+        return None
+    links = [lk.name for lk in nominal.links]
+    joints = list(nominal.joint_names)
+    for (k1, t1), (k2, t2) in ((only_a[0], only_b[0]), (only_b[0], only_a[0])):
+        if k1 == "stiffness" and k2 in JOINT_COMPLIANCES and t1 in links and t2 in joints \
+                and links.index(t1) == joints.index(t2):
+            return f"w{links.index(t1) + 1}"
+    return None
 
 
 def _holdout_residuals(state, new):
