@@ -632,8 +632,13 @@ def _tie_break(executor, state, new, pick, cands, fits, min_share, on_fit, need)
     for c in rivals:
         alt = _accept(executor, state.ctx, state.ctx_ho, fits[c.label])
         tried.append((c, alt, _holdout_residuals(state, alt)))
+        g = _gauge_between(nominal, mine, parts(c.label))
+        on_g = "" if g is None else ", gauge {} (held out, fit) {} / {}".format(g, *(
+            [_channel_cost(rec, r, g)
+             for rec, r in ((state.ctx_ho.rec, t[2]), (state.ctx.rec, t[1][0].r))]
+            for t in (tried[0], tried[-1])))
         _progress(f"  tie: {pick.label} J_ho {new[1]:.4g} after its fine fit, {c.label} "
-                  f"{alt[1]:.4g}", state.progress, state.t_start)
+                  f"{alt[1]:.4g}{on_g}", state.progress, state.t_start)
     gauge = {c.label: parts(c.label) for c, _, _ in tried}
     best, alternatives = _decide(state, tried, lambda a, b: _gauge_between(
         nominal, gauge[a[0].label], gauge[b[0].label]))
@@ -660,32 +665,40 @@ def _decide(state, tried, gauge_of):
 
 def _beats(state, a, b, gauge=None) -> bool:
     """Tried rival ``a`` beats ``b`` (see :func:`_decide`): when a link's gauge tells them
-    apart (``gauge``, :func:`_gauge_between`) and resolves one's held-out residual on that
-    channel lower than the other's, that one; else ``a`` has the lower held-out cost by a
-    difference the data resolve (:func:`_lower`; with as many parameters on the blocks of
-    both recordings, :func:`.fitting.resolved_lower_on`)."""
-    if gauge is not None:
-        r_a, r_b = (_channel(state.ctx_ho.rec, t[2], gauge) for t in (a, b))
-        if r_a is not None and r_b is not None:
-            block = int(round(CI_BLOCK / state.ctx_ho.rec.dt))
-            if resolved_lower(r_a, r_b, 1, block):
-                return True
-            if resolved_lower(r_b, r_a, 1, block):
-                return False
-    if a[1][1] >= b[1][1]:
-        return False
-    fit_a, fit_b = (getattr(t[1][0], "r", None) for t in (a, b))
-    if a[0].n_params != b[0].n_params or fit_a is None or fit_b is None:
-        return _lower(state, a[2], b[2])
-    # as many parameters: neither fits more of the fit recording's noise, whose blocks
-    # count too (A-cont-two-sensor_bias+stiffness-s1: the bias at joint 2 with link 1's
-    # stiffness, J_ho 0.54, against joint 1's, 0.68, was not resolved on the held-out
-    # blocks alone)
+    apart (``gauge``, :func:`_gauge_between`) and resolves one's residual on that channel
+    lower than the other's, that one; else ``a`` has the lower held-out cost by a
+    difference the data resolve (:func:`.fitting.resolved_lower_on`). The blocks of the
+    held-out recording count, and those of the fit recording when the one resolved lower
+    has no more parameters than the other (the fit recording favours the richer one: with
+    as many, or fewer, neither fits more of its noise; A-cont-two-sensor_bias+stiffness-s1:
+    the bias at joint 2 with link 1's stiffness, J_ho 0.54, against joint 1's, 0.68, was
+    not resolved on the 8 held-out blocks alone)."""
     if a[2] is None or b[2] is None:
         return b[2] is None and a[2] is not None
-    recs = [(fit_a, fit_b, state.ctx.rec), (a[2], b[2], state.ctx_ho.rec)]
-    return resolved_lower_on([(r_a, r_b, len(rec.residual_channels),
-                               int(round(CI_BLOCK / rec.dt))) for r_a, r_b, rec in recs])
+    if gauge is not None:
+        if _resolved(state, a, b, gauge):
+            return True
+        if _resolved(state, b, a, gauge):
+            return False
+    return a[1][1] < b[1][1] and _resolved(state, a, b)
+
+
+def _resolved(state, a, b, channel=None) -> bool:
+    """Tried rival ``a``'s residuals (all channels, or ``channel`` alone) resolved lower
+    than ``b``'s on the recordings :func:`_beats` counts."""
+    recs = [(a[2], b[2], state.ctx_ho.rec)]
+    fit_a, fit_b = (getattr(t[1][0], "r", None) for t in (a, b))
+    if a[0].n_params <= b[0].n_params and fit_a is not None and fit_b is not None:
+        recs.append((fit_a, fit_b, state.ctx.rec))
+    blocks = []
+    for r_a, r_b, rec in recs:
+        if channel is not None:
+            r_a, r_b = _channel(rec, r_a, channel), _channel(rec, r_b, channel)
+            if r_a is None or r_b is None:
+                return False
+        n_ch = 1 if channel is not None else len(rec.residual_channels)
+        blocks.append((r_a, r_b, n_ch, int(round(CI_BLOCK / rec.dt))))
+    return resolved_lower_on(blocks)
 
 
 def _channel(rec, r, name):
@@ -697,6 +710,12 @@ def _channel(rec, r, name):
     n = len(r) // len(names)
     k = names.index(name)
     return np.asarray(r[k * n:(k + 1) * n], float)
+
+
+def _channel_cost(rec, r, name):
+    """Mean square of one channel's weighted residuals (None without them)."""
+    r = _channel(rec, r, name)
+    return None if r is None else round(float(np.mean(r ** 2)), 4)
 
 
 def _gauge_between(nominal, parts_a, parts_b):
