@@ -68,13 +68,14 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from . import spatial_loop
 from .baseline import at_bounds, baseline_parameters
 from .controller import check_integrable
 from .evaluation import Context, channel_sigma, cost, default_executor, evaluate, twin_arm
 from .floor import measure_floor, model_form_with
 from .fitting import (BaselineProjection, FitResult, Linearization, baseline_jacobian,
                       confidence_intervals, fit_baseline, fit_candidate, fit_task, linearize,
-                      resolved_lower)
+                      resolved_lower, resolved_lower_on)
 from .hypotheses import HypothesisPair, library_hypotheses, parts_of
 from .localise import effective_samples, localise
 
@@ -98,6 +99,9 @@ SCREEN_MARGIN = 0.5
 REFINEMENTS = {"joint_elasticity": "backlash"}
 #: two models of one mechanism: never two effects of one joint together
 ALTERNATIVES = ({"joint_friction", "stick_slip_friction"},)
+#: a joint's compliances: with a link's stiffness, told apart by the link's gauge
+#: (:func:`_gauge_between`)
+JOINT_COMPLIANCES = ("joint_elasticity", "backlash")
 #: the equivalence classes within which a target holds one effect at most (a pair, or a
 #: later addition next to a named one): the refinements and the alternatives
 SAME_CLASS = tuple({k, v} for k, v in REFINEMENTS.items()) + ALTERNATIVES
@@ -591,19 +595,20 @@ def _pair_round(executor, state, ranked, starts, scores, cands, fits, min_share,
 
 def _tie_break(executor, state, new, pick, cands, fits, min_share, on_fit, need):
     """A pick whose share the screening fit puts within :data:`TIE` of another acceptable
-    candidate with as many parameters (a pair of the same shape, a single of the same
-    size) is not decided there: each of those (at most :data:`TIE_RIVALS`) is fine-fitted
-    as the pick was (:func:`_accept`); not one that names the same effects' classes (a
+    candidate of its shape (pair or single) with at least as many parameters is not
+    decided there: each of those (at most :data:`TIE_RIVALS`) is fine-fitted as the pick
+    was (:func:`_accept`), and so is every acceptable candidate that a link's gauge tells
+    from the pick (:func:`_gauge_between`: a link's stiffness for its root joint's
+    compliance, whatever its share); not one that names the same effects' classes (a
     stick-slip for the joint's friction) (independent suite,
     A-cont-two-sensor_bias+stiffness-s1: an encoder bias at joint 1 with the stiffness
     shared 0.986, at joint 2 0.984; after their fine fits J_ho 0.68 and 0.54, the truth
-    being at joint 2). A rival replaces the pick only when its held-out residuals are
-    better by a difference the data resolve (:func:`.fitting.resolved_lower`, 95 %);
-    a rival that neither is nor is beaten so is an alternative the data do not tell
-    from the pick (``Candidate.alternatives``, reported beside it): B-cont-sensor_bias-m0-s1,
-    an encoder bias 5 mrad at joint 2 or 2.6 mrad at joint 1, held out 0.2766 / 0.2771
-    (the tip moves alike), and the lower of the two decided the joint by noise.
-    Returns (new, pick)."""
+    being at joint 2). They are decided by :func:`_decide` (parsimony unless the data
+    resolve the difference); a rival that neither beats the named one nor is beaten by it
+    is an alternative the data do not tell from it (``Candidate.alternatives``, reported
+    beside it): B-cont-sensor_bias-m0-s1, an encoder bias 5 mrad at joint 2 or 2.6 mrad
+    at joint 1, held out 0.2766 / 0.2771 (the tip moves alike), and the lower of the two
+    decided the joint by noise. Returns (new, pick)."""
     def parts(label):   # (kind, target) of the effects a candidate names
         h = fits[label][0].effects[-1][0]
         return [(p.kind, p.target) for p in ((h.first, h.second)
@@ -612,30 +617,130 @@ def _tie_break(executor, state, new, pick, cands, fits, min_share, on_fit, need)
     if pick.label not in fits:
         return new, pick
     mine = parts(pick.label)
-    rivals = [c for c in cands if c.label != pick.label and c.label in fits
-              and c.n_params == pick.n_params and c.share >= pick.share - TIE
-              and len(parts(c.label)) == len(mine)
-              and not all(any(_same_class(*a, *b) for b in mine) for a in parts(c.label))
-              and _pick([c], min_share, on_fit, need) is not None]
-    rivals = sorted(rivals, key=lambda c: -c.share)[:TIE_RIVALS]
+    nominal = state.ctx.nominal
+    ok = [c for c in cands if c.label != pick.label and c.label in fits
+          and len(parts(c.label)) == len(mine)
+          and not all(any(_same_class(*a, *b) for b in mine) for a in parts(c.label))
+          and _pick([c], min_share, on_fit, need) is not None]
+    near = [c for c in ok if c.n_params >= pick.n_params and c.share >= pick.share - TIE]
+    rivals = sorted(near, key=lambda c: -c.share)[:TIE_RIVALS]
+    rivals += [c for c in ok if c not in rivals
+               and _gauge_between(nominal, mine, parts(c.label)) is not None]
     if not rivals:
         return new, pick
     tried = [(pick, new, _holdout_residuals(state, new))]
     for c in rivals:
         alt = _accept(executor, state.ctx, state.ctx_ho, fits[c.label])
         tried.append((c, alt, _holdout_residuals(state, alt)))
+        g = _gauge_between(nominal, mine, parts(c.label))
+        on_g = "" if g is None else ", gauge {} (held out, fit) {} / {}".format(g, *(
+            [_channel_cost(rec, r, g)
+             for rec, r in ((state.ctx_ho.rec, t[2]), (state.ctx.rec, t[1][0].r))]
+            for t in (tried[0], tried[-1])))
         _progress(f"  tie: {pick.label} J_ho {new[1]:.4g} after its fine fit, {c.label} "
-                  f"{alt[1]:.4g}", state.progress, state.t_start)
-    best = tried[0]
-    for t in tried[1:]:
-        if t[1][1] < best[1][1] and _lower(state, t[2], best[2]):
-            best = t
-    alternatives = tuple(c.label for c, _, r in tried if c is not best[0]
-                         and not _lower(state, best[2], r))
+                  f"{alt[1]:.4g}{on_g}", state.progress, state.t_start)
+    gauge = {c.label: parts(c.label) for c, _, _ in tried}
+    best, alternatives = _decide(state, tried, lambda a, b: _gauge_between(
+        nominal, gauge[a[0].label], gauge[b[0].label]))
     if alternatives:
         _progress(f"  not resolved from {best[0].label} by the held-out data: "
                   f"{', '.join(alternatives)}", state.progress, state.t_start)
     return best[1], dataclasses.replace(best[0], alternatives=alternatives)
+
+
+def _decide(state, tried, gauge_of):
+    """The candidate named among fine-fitted rivals ``tried`` [(candidate, twin as
+    :func:`_accept` returns it, held-out residuals)], and the labels of those the data
+    do not tell from it. Parsimony first: the fewest parameters (the pick first among
+    equals); another replaces it when it beats it (:func:`_beats`); ``gauge_of(a, b)``:
+    the gauge channel that tells two of them apart, or None."""
+    best = min(tried, key=lambda t: t[0].n_params)
+    for t in tried:
+        if t is not best and _beats(state, t, best, gauge_of(t, best)):
+            best = t
+    alternatives = tuple(t[0].label for t in tried if t is not best
+                         and not _beats(state, best, t, gauge_of(best, t)))
+    return best, alternatives
+
+
+def _beats(state, a, b, gauge=None) -> bool:
+    """Tried rival ``a`` beats ``b`` (see :func:`_decide`): when a link's gauge tells them
+    apart (``gauge``, :func:`_gauge_between`) and resolves one's residual on that channel
+    lower than the other's, that one; else ``a`` has the lower held-out cost by a
+    difference the data resolve (:func:`.fitting.resolved_lower_on`). The blocks of the
+    held-out recording count, and those of the fit recording when the one resolved lower
+    has no more parameters than the other (the fit recording favours the richer one: with
+    as many, or fewer, neither fits more of its noise; A-cont-two-sensor_bias+stiffness-s1:
+    the bias at joint 2 with link 1's stiffness, J_ho 0.54, against joint 1's, 0.68, was
+    not resolved on the 8 held-out blocks alone)."""
+    if a[2] is None or b[2] is None:
+        return b[2] is None and a[2] is not None
+    if gauge is not None:
+        if _resolved(state, a, b, gauge):
+            return True
+        if _resolved(state, b, a, gauge):
+            return False
+    return a[1][1] < b[1][1] and _resolved(state, a, b)
+
+
+def _resolved(state, a, b, channel=None) -> bool:
+    """Tried rival ``a``'s residuals (all channels, or ``channel`` alone) resolved lower
+    than ``b``'s on the recordings :func:`_beats` counts."""
+    recs = [(a[2], b[2], state.ctx_ho.rec)]
+    fit_a, fit_b = (getattr(t[1][0], "r", None) for t in (a, b))
+    if a[0].n_params <= b[0].n_params and fit_a is not None and fit_b is not None:
+        recs.append((fit_a, fit_b, state.ctx.rec))
+    blocks = []
+    for r_a, r_b, rec in recs:
+        if channel is not None:
+            r_a, r_b = _channel(rec, r_a, channel), _channel(rec, r_b, channel)
+            if r_a is None or r_b is None:
+                return False
+        n_ch = 1 if channel is not None else len(rec.residual_channels)
+        blocks.append((r_a, r_b, n_ch, int(round(CI_BLOCK / rec.dt))))
+    return resolved_lower_on(blocks)
+
+
+def _channel(rec, r, name):
+    """One channel's part of weighted residuals ``r`` (channels concatenated in
+    ``rec.residual_channels`` order), or None (no such channel, or no residuals)."""
+    names = list(rec.residual_channels)
+    if r is None or name not in names:
+        return None
+    n = len(r) // len(names)
+    k = names.index(name)
+    return np.asarray(r[k * n:(k + 1) * n], float)
+
+
+def _channel_cost(rec, r, name):
+    """Mean square of one channel's weighted residuals (None without them)."""
+    r = _channel(rec, r, name)
+    return None if r is None else round(float(np.mean(r ** 2)), 4)
+
+
+def _gauge_between(nominal, parts_a, parts_b):
+    """The gauge channel that tells two candidates apart physically, or None: they name
+    the same effects ((kind, target) lists) but for one, a link's stiffness in one where
+    the other names a compliance (:data:`JOINT_COMPLIANCES`) of the joint that carries
+    that link. Both let the link's tip lag its motor; only a change of the link's
+    bending stiffness changes the link's bending for a given load, which its gauge
+    ``w<i>`` measures (the tip's deflection from the tangent at the link's root, which a
+    joint spring turns with the link). Independent suite, arm B (geared): a stiffer
+    link 1 with a joint-2 bias was named as joint 1's elasticity (held-out share 0.665
+    against 0.605) in B-cont-two-sensor_bias+stiffness-s1 and -s2."""
+    if nominal is None or spatial_loop.is_spatial(nominal):   # planar links' gauges
+        return None
+    only_a = [p for p in parts_a if p not in parts_b]
+    only_b = [p for p in parts_b if p not in parts_a]
+    if len(only_a) != 1 or len(only_b) != 1:
+        return None
+    links = [lk.name for lk in nominal.links]
+    joints = list(nominal.joint_names)
+    for (k1, t1), (k2, t2) in ((only_a[0], only_b[0]), (only_b[0], only_a[0])):
+        if k1 == "stiffness" and k2 in JOINT_COMPLIANCES and t1 in links and t2 in joints \
+                and links.index(t1) == joints.index(t2):
+            return f"w{links.index(t1) + 1}"
+    return None
 
 
 def _holdout_residuals(state, new):
@@ -820,11 +925,12 @@ def _prune(executor, ctx, ctx_ho, current, cur_ho, lin, accepted, gate, min_shar
     named effect, the first named first, is dropped when the baseline and the others
     re-fitted without it (:func:`_refit_named`) leave a held-out excess under the gate or
     it explains less than ``min_share`` of the held-out excess that remains without it
-    (the rule that named it, read backwards). Returns (fit, held-out J, linearization,
-    accepted)."""
+    (the rule that named it, read backwards) or the held-out data do not resolve what it
+    gains (:func:`_gain_resolved`). Returns (fit, held-out J, linearization, accepted)."""
     if len(current.effects) < 2 or len(accepted) != len(current.effects):
         return current, cur_ho, lin, accepted
     i = 0
+    r_with = evaluate((ctx_ho, current.scales, current.effects))
     while len(current.effects) >= 2 and i < len(current.effects):
         effects = current.effects[:i] + current.effects[i + 1:]
         r = evaluate((ctx, current.scales, effects))
@@ -838,12 +944,17 @@ def _prune(executor, ctx, ctx_ho, current, cur_ho, lin, accepted, gate, min_shar
         refit = _refit_named(executor, ctx, ctx_ho, trial, J_ho, lin_t)
         if refit is not None:
             trial, J_ho, lin_t = refit
+            r_ho = evaluate((ctx_ho, trial.scales, trial.effects))
         share = (J_ho - cur_ho) / max(J_ho - 1.0, 1e-12)
         label = accepted[i].label
-        if J_ho - 1.0 <= gate or share < min_share:
+        resolved = _gain_resolved(ctx_ho, r_with, r_ho)
+        if J_ho - 1.0 <= gate or share < min_share or not resolved:
             _progress(f"pruned {label}: without it J = {trial.J:.4g} (fit), {J_ho:.4g} "
-                      f"(held out), it explains {share:.3f} of that", progress, t_start)
+                      f"(held out), it explains {share:.3f} of that"
+                      + ("" if resolved else ", not resolved by the held-out data"),
+                      progress, t_start)
             current, cur_ho, lin = trial, J_ho, lin_t
+            r_with = r_ho
             accepted = accepted[:i] + accepted[i + 1:]
             _restate(accepted, current.effects, twin_arm(ctx, current.scales,
                                                          current.effects))
@@ -852,6 +963,19 @@ def _prune(executor, ctx, ctx_ho, current, cur_ho, lin, accepted, gate, min_shar
                       f"{share:.3f} of that", progress, t_start)
             i += 1
     return current, cur_ho, lin, accepted
+
+
+def _gain_resolved(ctx_ho, r_with, r_without) -> bool:
+    """The twin with a named effect has held-out residuals ``r_with`` resolved lower than
+    ``r_without`` (:func:`.fitting.resolved_lower`, blocks of :data:`CI_BLOCK`): what
+    keeps a named effect in :func:`_prune` besides its share, as it decides near-ties
+    (:func:`_decide`). Independent suite, B-samp500-stiffness-m1-s1: a structural damping
+    of link 2 was named after link 1's stiffness, the truth."""
+    if r_without is None or r_with is None:
+        return r_without is None and r_with is not None
+    rec = ctx_ho.rec
+    return resolved_lower(r_with, r_without, len(rec.residual_channels),
+                          int(round(CI_BLOCK / rec.dt)))
 
 
 def _restate(accepted, effects, twin):

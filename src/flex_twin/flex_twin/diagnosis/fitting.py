@@ -421,18 +421,31 @@ def resolved_lower(r_a, r_b, n_channels: int, block: int, level: float = 0.95) -
     the residuals, as for the block sandwich of :func:`confidence_intervals`), its mean
     over the G blocks against Student's t with G - 1 degrees of freedom; resolved when the
     two-sided ``level`` interval of that mean lies below zero."""
+    return resolved_lower_on([(r_a, r_b, n_channels, block)], level)
+
+
+def resolved_lower_on(recordings, level: float = 0.95) -> bool:
+    """:func:`resolved_lower` over the blocks of several recordings together
+    (``recordings``: [(r_a, r_b, n_channels, block), ...], one pair of twins)."""
+    g = np.concatenate([_block_differences(*rec) for rec in recordings])
+    G = len(g)
+    if G < 3:
+        return False
+    sd = float(np.std(g, ddof=1))
+    if sd == 0.0:
+        return bool(np.mean(g) < 0.0)
+    return bool(np.mean(g) + student_t.ppf(0.5 + level / 2, G - 1) * sd / np.sqrt(G) < 0.0)
+
+
+def _block_differences(r_a, r_b, n_channels: int, block: int):
+    """The loss differential r_a^2 - r_b^2 of one recording summed over its channels and
+    over its whole time blocks of ``block`` samples."""
     r_a, r_b = np.asarray(r_a, float), np.asarray(r_b, float)
     n_t = len(r_a) // max(n_channels, 1)
     d = (r_a[:n_channels * n_t] ** 2 - r_b[:n_channels * n_t] ** 2)
     d = d.reshape(n_channels, n_t).sum(axis=0)
     G = n_t // max(block, 1)
-    if G < 3:
-        return False
-    g = d[:G * block].reshape(G, block).sum(axis=1)
-    sd = float(np.std(g, ddof=1))
-    if sd == 0.0:
-        return bool(np.mean(g) < 0.0)
-    return bool(np.mean(g) + student_t.ppf(0.5 + level / 2, G - 1) * sd / np.sqrt(G) < 0.0)
+    return d[:G * block].reshape(G, block).sum(axis=1)
 
 
 def fit_task(task):
