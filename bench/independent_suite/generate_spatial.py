@@ -125,9 +125,18 @@ SPECS = (
      [_elastic(0), _bending(2, 'y', 0.8)], 1),
     ('joint_friction-joint2', 'cont', [_friction(1, 1)], 1),
     ('payload', 'samp500', [_payload(0.2)], 2),
+    # two-effect runs added for issue 44's both-named figure (one of each pairing)
+    ('two-bending-link1-y+payload', 'samp500', [_bending(1, 'y', 0.8), _payload(0.2)], 1),
+    ('two-torsion-link1+joint_friction1', 'cont', [_torsion(1, 0.7), _friction(0, 1)], 1),
+    ('two-joint_elasticity2+joint_friction1', 'cont', [_elastic(1), _friction(0, 1)], 2),
+    ('two-bending-link1-z+payload', 'cont', [_bending(1, 'z', 0.8), _payload(0.1)], 2),
+    ('two-joint_friction2+payload', 'samp500', [_friction(1, 1), _payload(0.2)], 1),
+    ('two-torsion-link1+bending-link2-z', 'samp500',
+     [_torsion(1, 0.75), _bending(2, 'z', 0.8)], 2),
 )
 #: stored in test/data (the tests' cases)
-CI_SUBSET = ('S-cont-healthy-s1', 'S-cont-bending-link1-y-0.8-s1', 'S-samp500-healthy-s1')
+CI_SUBSET = ('S-cont-healthy-s1', 'S-cont-bending-link1-y-0.8-s1', 'S-samp500-healthy-s1',
+             'S-cont-joint_friction-joint2-s1')
 
 
 def all_cases():
