@@ -1440,8 +1440,8 @@ class LoopInputs(NamedTuple):
 def _coupling(Pm, q, g, Hc, want_h):
     """g += dU/dq and (want_h) Hc += d^2U/dq^2 of the second-order curvature energy of
     the twisting links (dynamics.BeamData.curvature_coupling; CF, CW of pack)."""
-    flex, nvs, nts, fstart, pstart = Pm[5], Pm[6], Pm[7], Pm[8], Pm[13]
-    CF, CW, ex = Pm[30], Pm[31], Pm[32]
+    flex, nvs, nts, fstart, pstart = Pm.flex, Pm.nv, Pm.nt, Pm.fstart, Pm.pstart
+    CF, CW, ex = Pm.CF, Pm.CW, Pm.ex
     x = np.zeros(5)
     du = np.zeros(5)
     h = np.zeros((5, 5))
@@ -1549,7 +1549,7 @@ def _spatial_model(Pm, inp, tau):
                        z((nq, nq)), z((nq, nq)))
     nonlinear = (inp.fric.shape[0] > 0 or inp.motors.shape[0] > 0 or nb > 0 or ns > 0
                  or inp.contact.shape[0] > 0 or inp.pdc.shape[0] > 0)
-    has_k = Pm[31].shape[0] > 0 and np.any(Pm[31] != 0.0)
+    has_k = Pm.CW.shape[0] > 0 and np.any(Pm.CW != 0.0)
     return SpatialModel(Pm, inp, tau, work, has_k, nonlinear)
 
 
@@ -1737,10 +1737,11 @@ class CompiledSpatialModel:
 def _guard_caches():
     from ..effects import friction
     from ..numba_cache import guard
+    from . import exact
     guard([obj for obj in globals().values() if hasattr(obj, "py_func")
            and obj.py_func.__module__ == __name__],
           [kernels.__file__, integrators.__file__, galpha.__file__, newton.__file__,
-           loop.__file__, status.__file__, friction.__file__])
+           loop.__file__, status.__file__, friction.__file__, exact.__file__])
 
 
 _guard_caches()

@@ -450,9 +450,11 @@ def residuals(rec, pred: Prediction) -> dict:
 def _guard_caches():
     from flex_model import integrators, iteration_matrix, kernels, numba_cache
     from flex_model.effects import friction, stick_slip
+    from flex_model.solvers import galpha, loop, newton, status
     numba_cache.guard([_closed_loop, _continuous_loop, _tips],
                       [integrators.__file__, kernels.__file__, stick_slip.__file__,
-                       friction.__file__, iteration_matrix.__file__])
+                       friction.__file__, iteration_matrix.__file__, galpha.__file__,
+                       loop.__file__, newton.__file__, status.__file__])
 
 
 _guard_caches()
