@@ -144,7 +144,7 @@ class Hypothesis:
         """(names, values, half-widths) as the updated arm states them: friction's
         break-away torque ``static`` (coulomb + excess), a link's Young's modulus ``E``."""
         v, w = list(values), list(halfwidths)
-        plane = spatial_loop.physical(self, v, w, twin)
+        plane = spatial_loop.physical(self, v, w, twin, FRICTION_EPS)
         if plane is not None:
             return plane
         if self.names == ("coulomb", "static_excess"):   # sticking only: viscous 0

@@ -190,14 +190,14 @@ def apply(hyp, arm, v, friction):
     raise ValueError(f"hypothesis {k} is not defined for spatial arms")
 
 
-def physical(hyp, v, w, twin):
+def physical(hyp, v, w, twin, friction_eps):
     """(names, values, half-widths) of a plane hypothesis: the section value it states
     (EI_y, EI_z or GJ at the link's root); of the friction with its width: viscous,
-    coulomb, static (coulomb + excess) and the regularization (rad/s); else None."""
+    coulomb, static (coulomb + excess) and the regularization (rad/s: ``friction_eps``,
+    the least width, plus the fitted excess); else None."""
     if hyp.kind == "joint_friction" and len(hyp.names) == 4:
-        from .hypotheses import FRICTION_EPS
         return ("viscous", "coulomb", "static", "regularization"), \
-            [v[0], v[1], v[1] + v[2], FRICTION_EPS + v[3]], \
+            [v[0], v[1], v[1] + v[2], friction_eps + v[3]], \
             [w[0], w[1], float(np.hypot(w[1], w[2])), w[3]]
     if hyp.kind not in PLANE_KINDS:
         return None
