@@ -241,6 +241,20 @@ def pack(model: SpatialArmModel) -> SpatialData:
 # ------------------------------------------------------------------ small vector helpers
 
 @njit(cache=_CACHE)
+def _slide(Jo, Jw, e, qk, k, ncols, rv):
+    """A prismatic joint's displacement r = e q_k (into ``rv``) in the point's Jacobian:
+    J_o += J_w x r over the first ``ncols`` columns, and column k += e."""
+    for a in range(3):
+        rv[a] = e[a] * qk
+    for j in range(ncols):
+        Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
+        Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
+        Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
+    for a in range(3):
+        Jo[a, k] += e[a]
+
+
+@njit(cache=_CACHE)
 def _cross(a, b, out):
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
@@ -626,15 +640,9 @@ def _joint(i, Pm, q, v, qdd, R, o, Jo, Jw, w, ao, al, e, rv, xv, t1, t2, t3, W, 
         w[2] += e2
         _rotate_axis(R, u, q[k], W)
     else:
+        _slide(Jo, Jw, e, q[k], k, ncols, rv)
         for a in range(3):
-            rv[a] = e[a] * q[k]
             xv[a] = e[a] * qd
-        for j in range(ncols):
-            Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
-            Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
-            Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
-        for a in range(3):
-            Jo[a, k] += e[a]
         _cross(al, rv, t1)
         _cross(w, rv, t2)
         _cross(w, t2, t3)
@@ -1301,14 +1309,8 @@ def tip_point(Pm, q):
                 Jw[a, k] += e[a]
             _rotate_axis(R, u, q[k], W)
         else:
+            _slide(Jo, Jw, e, q[k], k, ncols, rv)
             for a in range(3):
-                rv[a] = e[a] * q[k]
-            for j in range(ncols):
-                Jo[0, j] += Jw[1, j] * rv[2] - Jw[2, j] * rv[1]
-                Jo[1, j] += Jw[2, j] * rv[0] - Jw[0, j] * rv[2]
-                Jo[2, j] += Jw[0, j] * rv[1] - Jw[1, j] * rv[0]
-            for a in range(3):
-                Jo[a, k] += e[a]
                 o[a] += rv[a]
         _fixed(R, o, Jo, Jw, w, ao, al, T[i, 1], ncols, W)
         if not flex[i]:
