@@ -3,10 +3,14 @@ joint_states (joint angles, the torque as effort) sample by sample into the Obse
 which publishes the estimate; the estimated deflections are checked against the
 simulation's, and bad messages are dropped with a logged reason while the node runs on."""
 
+import re
+
 import numpy as np
 import pytest
+import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
@@ -14,6 +18,7 @@ from sensor_msgs.msg import JointState
 from flex_model.arm import load_arm
 from flex_model.ros.cdr_messages import read_joint_state, read_joint_state_names
 from flex_model.dynamics import FlexArmModel
+from flex_model.ros.main import ParameterError
 from flex_model.ros.model_node import _arm_argument
 from flex_model.ros.observer_node import ObserverNode, measurements_named
 from flex_model.stepper import Stepper
@@ -183,6 +188,47 @@ def test_bad_messages_are_dropped_with_a_reason_and_the_node_runs_on(observer, t
     assert level == "warn" and "5 input(s) dropped" in message
 
 
+def test_the_horizon_fit_is_a_node_parameter(observer_graph, truth):
+    """adapt_horizon and adapt_block are EstimatorSettings' (the fit of flex-twin estimate
+    --adapt-horizon): joint 1's viscous friction fitted over the last 0.2 s in blocks of
+    0.05 s on the simulated arm (which has none: truth 0); /diagnostics reports its current
+    value and std (param/, param_std/)."""
+    g = observer_graph(adapt="viscous_friction:joint1", adapt_horizon=0.2, adapt_block=0.05)
+    est = g.node.estimator
+    assert (est.settings.adapt_horizon, est.settings.adapt_block) == (0.2, 0.05)
+    assert est._fit is not None and est._fit.block_n == 50
+    t, u, angles, _, _ = truth
+    n = 400
+    for k in range(n):
+        g.send(t[k], angles[k], effort=u[k])
+        if k % 100 == 99:
+            g.spin_until(lambda: len(g.got["js"]) >= k - 50, "the estimates")
+    g.spin_until(lambda: len(g.got["js"]) == n, "every estimate")
+    _, _, values = g.node.health()
+    fitted = float(values["param/viscous_friction:joint1"])
+    std = float(values["param_std/viscous_friction:joint1"])
+    assert 0.0 <= fitted < 0.05 and 0.0 < std < 0.5, values
+
+
+def test_bad_horizon_fit_parameters_are_refused_naming_them():
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    try:
+        for params, text in (
+                ({"adapt_horizon": -1.0}, "parameter adapt_horizon: got -1; expected a "
+                 "number >= 0 s (0: off)"),
+                ({"adapt": "viscous_friction:0", "adapt_horizon": 0.5, "adapt_block": 1.0},
+                 "parameter adapt_block: got 1.0; expected > 0 s and at most adapt_horizon "
+                 "(0.5 s)"),
+                ({"adapt_horizon": 0.5}, "parameter adapt_horizon: got 0.5 with adapt []; "
+                 "expected a coulomb_friction:<joint> or viscous_friction:<joint> in adapt")):
+            with pytest.raises(ParameterError, match=re.escape(text)):
+                ObserverNode(context=ctx, parameter_overrides=[
+                    Parameter(k, value=v) for k, v in {"arm": ARM, **params}.items()])
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
 def test_the_filter_starts_and_restarts_at_the_samples_joint_angles(observer):
     """The first sample (stamp 100 s, joints at 0.5 and -0.3 rad) starts the filter there
     (not at initial_joint_angles_deg, 0), a gap beyond max_gap (0.1 s) restarts it at the
@@ -247,8 +293,8 @@ def test_flex_twin_observe_and_up_start_the_observer():
                                       "q1,w1", "--namespace", "/arm1"])
     argv = observer_arguments(args)
     assert argv[:4] == ["flex-twin-observe", "--ros-args", "-r", "__ns:=/arm1"]
-    assert {"mode:=observer", "arm:=thesis_example1", "measure:=q1,w1", "adapt:=''"} <= \
-        set(argv)
+    assert {"mode:=observer", "arm:=thesis_example1", "measure:=q1,w1", "adapt:=''",
+            "adapt_horizon:=0.0", "adapt_block:=0.05"} <= set(argv)
     assert node_class("flex_model", {"mode": "observer"}) == ("flex_model.ros.observer_node",
                                                               "ObserverNode")
     assert node_class("flex_model", {"mode": "lockstep"})[1] == "ModelNode"

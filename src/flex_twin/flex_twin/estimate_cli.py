@@ -30,7 +30,8 @@ def cmd_estimate(args) -> int:
     measure = [m.strip() for m in args.measure.split(",") if m.strip()]
     settings = EstimatorSettings(sample_period=rec.dt, torque_noise=args.torque_noise,
                                  modal_noise=args.modal_noise, adapt=tuple(args.adapt or ()),
-                                 relinearize_every=args.relinearize_every)
+                                 relinearize_every=args.relinearize_every,
+                                 adapt_horizon=args.adapt_horizon, adapt_block=args.adapt_block)
     est = estimate_file(rec, FlexArmModel(arm), measure, stds=parse_stds(args.std),
                         settings=settings, duration=args.duration)
     out = Path(args.out)
@@ -75,6 +76,12 @@ def add_estimate_parser(sub) -> None:
                     "the generalized force on each deformation variable (default 0)")
     sp.add_argument("--adapt", nargs="*", default=None, metavar="PARAM", help="adapted "
                     "parameters, e.g. coulomb_friction:0 payload_mass link_stiffness:0")
+    sp.add_argument("--adapt-horizon", type=float, default=0.0, metavar="SECONDS",
+                    help="fit the adapted joint frictions by least squares on the momentum "
+                    "balance of the last SECONDS (the horizon fit, docs/estimation.md; "
+                    "default 0: random walks)")
+    sp.add_argument("--adapt-block", type=float, default=0.05, metavar="SECONDS",
+                    help="the horizon fit's block: one fit per block (default 0.05 s)")
     sp.add_argument("--relinearize-every", type=int, default=10, help="samples between "
                     "Jacobians (default 10)")
     sp.add_argument("--duration", type=float, default=None, help="only the first seconds")

@@ -276,7 +276,8 @@ def observer_arguments(args) -> list[str]:
     """The ROS arguments of ``flex-twin observe``: the model node's observer mode with
     the options as parameters."""
     params = {"mode": "observer", "arm": args.arm, "measure": args.measure,
-              "input": args.input, "adapt": args.adapt, "sample_period": args.sample_period,
+              "input": args.input, "adapt": args.adapt, "adapt_horizon": args.adapt_horizon,
+              "adapt_block": args.adapt_block, "sample_period": args.sample_period,
               "input_topic": args.input_topic}
     out = ["flex-twin-observe", "--ros-args"]
     if args.namespace:
@@ -306,6 +307,11 @@ def add_observe_parser(sub) -> None:
                     "effort_controller/commands")
     sp.add_argument("--adapt", default="", help="parameters adapted online, comma-separated "
                     "(coulomb_friction:0, viscous_friction:0, payload_mass, link_stiffness:0)")
+    sp.add_argument("--adapt-horizon", type=float, default=0.0, metavar="SECONDS",
+                    help="fit the adapted joint frictions over the last SECONDS (the "
+                    "horizon fit; default 0: random walks)")
+    sp.add_argument("--adapt-block", type=float, default=0.05, metavar="SECONDS",
+                    help="the horizon fit's block (default 0.05 s)")
     sp.add_argument("--sample-period", type=float, default=1e-3, help="s (the arm's)")
     sp.add_argument("--input-topic", default="joint_states")
     sp.add_argument("--namespace", default="", help="ROS namespace of the node")

@@ -91,13 +91,26 @@ class EstimatorSettings:
             raise ValueError(f"adapt_reset_nis: got {self.adapt_reset_nis}, "
                              f"adapt_reset_window: got {self.adapt_reset_window}; "
                              "expected >= 0 and > 0 s")
-        if self.adapt_horizon < 0 or not self.adapt_block > 0 or \
-                (self.adapt_horizon and self.adapt_reset_nis):
-            raise ValueError(f"adapt_horizon: got {self.adapt_horizon}, adapt_block: got "
-                             f"{self.adapt_block}, adapt_reset_nis: got "
-                             f"{self.adapt_reset_nis}; expected >= 0, > 0 s, and no "
-                             "covariance resetting with the horizon fit")
         object.__setattr__(self, "adapt", tuple(self.adapt))
+        self._check_horizon()
+
+    def _check_horizon(self):
+        """The horizon fit's settings, one-line errors naming the field."""
+        h, b = self.adapt_horizon, self.adapt_block
+        if not (h >= 0 and np.isfinite(h)):
+            raise ValueError(f"adapt_horizon: got {h}; expected >= 0 s (0: off)")
+        if not (b > 0 and np.isfinite(b) and (h == 0 or b <= h)):
+            raise ValueError(f"adapt_block: got {b}; expected > 0 s and at most "
+                             f"adapt_horizon ({h} s)")
+        if h and self.adapt_reset_nis:
+            raise ValueError(f"adapt_horizon: got {h} with adapt_reset_nis "
+                             f"{self.adapt_reset_nis}; expected no covariance resetting "
+                             "with the horizon fit (adapt_reset_nis 0)")
+        if h and not any(a.split(":")[0] in ("coulomb_friction", "viscous_friction")
+                         for a in self.adapt):
+            raise ValueError(f"adapt_horizon: got {h} with adapt {list(self.adapt)}; "
+                             "expected a coulomb_friction:<joint> or viscous_friction:"
+                             "<joint> in adapt (the frictions are what it fits)")
 
 
 #: the fields of a Sample (and, stacked over time, of an EstimationResult)

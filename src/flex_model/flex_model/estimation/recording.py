@@ -64,6 +64,9 @@ def estimate_recording(model, times, inputs, measurements_array, measurements,
     samples = [est.step(u, y) for u, y in zip(inputs, Y)]
     result = _stack(samples, est.plant.param_names)
     result.summary["parameter_resets"] = [round(t, 6) for t in est.resets]
+    if settings.adapt_horizon:   # the frictions' values above are the last block's fit
+        result.summary.update(adapt_horizon=settings.adapt_horizon,
+                              adapt_block=settings.adapt_block)
     return result
 
 

@@ -42,7 +42,8 @@ Publications (stamps: the joint_states sample's):
     /diagnostics        diagnostic_msgs/DiagnosticArray  every second (wall time): the
                         filter's health over the last ``nis_window`` samples (NIS mean,
                         fraction inside the chi-square 95 % bound, samples, dropped, late,
-                        predicted-over gaps, adapted parameters); OK when consistent, WARN
+                        predicted-over gaps, the adapted parameters' current values and
+                        stds: param/<name>, param_std/<name>); OK when consistent, WARN
                         when the NIS mean leaves its 99 % band or fewer than 90 % lie inside
                         the 95 % bound, or when inputs were dropped since the last report
 
@@ -57,7 +58,8 @@ first sample after configure or activate does (at rest, the links in static bala
 Parameters (:data:`PARAMETERS`): arm, vars_per_link, kinematics (as the model node), mode
 (observer), measure (comma-separated names, as ``flex-twin estimate --measure``), measure_std
 (per measurement, or one for all; 0: the estimator's default), input (effort | command),
-adapt (comma-separated parameters adapted online), sample_period (s: the arm's sample period,
+adapt (comma-separated parameters adapted online), adapt_horizon and adapt_block (the
+horizon fit of the joint frictions, EstimatorSettings), sample_period (s: the arm's sample period,
 the filter's step), initial_joint_angles_deg, input_topic, gauge_topic, queue_depth,
 max_gap, nis_window, frame_id, frame_prefix, parameter_services, qos_event_warnings.
 The plumbing is the model node's (main.ModelPlumbing: lifecycle, the shared parameters,
@@ -118,6 +120,13 @@ PARAMETERS = (
           check=lambda v: None if v in ("effort", "command") else "effort or command"),
     Param("adapt", "", "parameters adapted online, comma-separated (e.g. "
           "coulomb_friction:0,payload_mass; empty: none)"),
+    Param("adapt_horizon", 0.0, "s: fit the adapted joint frictions by least squares on "
+          "the momentum balance of the last adapt_horizon s (0: random walks; "
+          "EstimatorSettings.adapt_horizon)",
+          check=lambda v: None if v >= 0 else "a number >= 0 s (0: off)"),
+    Param("adapt_block", 0.05, "s: the horizon fit's block, one fit per block "
+          "(EstimatorSettings.adapt_block)", check=lambda v: None if v > 0 else
+          "a number > 0 s, at most adapt_horizon"),
     Param("sample_period", 1e-3, "the real arm's sample period (s): one filter step per "
           "joint_states sample", check=lambda v: None if 0 < v <= 0.1 else "in (0, 0.1] s"),
     Param("initial_joint_angles_deg", [0.0], "the filter's initial joint angles (deg), "
@@ -144,7 +153,8 @@ DRAIN_SLICE = 0.02
 
 RANGES = {"vars_per_link": (0, INT_MAX, 2), "sample_period": (0.0, 0.1),
           "queue_depth": (1, INT_MAX), "max_gap": (0.0, FLOAT_MAX),
-          "nis_window": (10, INT_MAX)}
+          "nis_window": (10, INT_MAX), "adapt_horizon": (0.0, FLOAT_MAX),
+          "adapt_block": (0.0, FLOAT_MAX)}
 
 
 #: measurement names (the recording channels of flex-twin estimate --measure: q<i>, v<i>,
@@ -265,8 +275,9 @@ class ObserverNode(ModelPlumbing, LifecycleNode):
         self.names = list(self.model.arm.joint_names)
         self.measurements, self.sources = self._measurements(p)
         self.n_gauges = sum(1 for s in self.sources if s[0] == "gauge")
+        settings = self._settings(p)
         try:
-            self.estimator = Estimator(self.model, self.measurements, self._settings(p))
+            self.estimator = Estimator(self.model, self.measurements, settings)
         except ValueError as exc:
             raise ParameterError(f"parameter measure/adapt: {exc}") from None
         angles = p["initial_joint_angles_deg"]
@@ -311,7 +322,8 @@ class ObserverNode(ModelPlumbing, LifecycleNode):
             f"observer of arm {self.model.arm.name} ({self.model.nq} coordinates), measuring "
             f"{', '.join(m.name for m in self.measurements)} every "
             f"{p['sample_period'] * 1e3:g} ms from {self.resolve_topic_name(p['input_topic'])}"
-            f", input {p['input']}" + (f", adapting {p['adapt']}" if p["adapt"] else ""))
+            f", input {p['input']}" + (f", adapting {p['adapt']}" if p["adapt"] else "") +
+            (f" (horizon fit {p['adapt_horizon']:g} s)" if p["adapt_horizon"] else ""))
 
     @staticmethod
     def _model(p):
@@ -348,10 +360,18 @@ class ObserverNode(ModelPlumbing, LifecycleNode):
                 k += 1
         return found, sources
 
-    def _settings(self, p):
+    @staticmethod
+    def _settings(p):
+        """EstimatorSettings of the parameters (its checks: ParameterError naming the
+        field, e.g. ``parameter adapt_block: got 5; expected ...``)."""
         from ..estimation import EstimatorSettings
         adapt = tuple(s.strip() for s in p["adapt"].split(",") if s.strip())
-        return EstimatorSettings(sample_period=p["sample_period"], adapt=adapt)
+        try:
+            return EstimatorSettings(sample_period=p["sample_period"], adapt=adapt,
+                                     adapt_horizon=p["adapt_horizon"],
+                                     adapt_block=p["adapt_block"])
+        except ValueError as exc:
+            raise ParameterError(f"parameter {exc}") from None
 
     def _reset_filter(self, theta) -> None:
         """The filter at rest at the joint angles ``theta`` (rad), links straight."""
@@ -570,6 +590,8 @@ class ObserverNode(ModelPlumbing, LifecycleNode):
             level = "warn"
         params = getattr(self._last_sample, "parameters", None) or {}
         values.update({f"param/{k}": f"{v:.6g}" for k, v in params.items()})
+        stds = getattr(self._last_sample, "parameter_std", None) or {}
+        values.update({f"param_std/{k}": f"{v:.3g}" for k, v in stds.items()})
         state = "observing" if self.active else "inactive"
         return level, (f"{state}: " + "; ".join(why) if why else
                        f"{state}: filter consistent"), values
