@@ -121,14 +121,33 @@ def report_change(label, case, rec, r, us):
         print(f"{case.name} ({label}) {n} (truth 0 -> {after:g}): {line} +- "
               f"{at(rec, s, 15.0):.2f}{err}, 16 s: {at(rec, p, 16.0):.2f}")
     report_deflections(f"  {case.name} ({label}, 6-16 s)", rec, r, us)
+    report_windows(f"  {case.name} ({label})", rec, r)
+
+
+#: the windows of the change runs: before the change, the 5 s after it, the last second
+WINDOWS = ((6.0, 10.0), (10.0, 15.0), (15.0, 16.0))
+
+
+def report_windows(label, rec, r):
+    """The deflections' coverage in each of WINDOWS (the band while the fit catches up)."""
+    parts = []
+    for lo, hi in WINDOWS:
+        m = (rec["t"] >= lo - 1e-9) & ((rec["t"] < hi - 1e-9) | (hi == WINDOWS[-1][1]))
+        cov = [score(r.tip_deflections[m, i], r.tip_deflections_std[m, i],
+                     rec[f"w{i + 1}"][m])[1] for i in range(2)]
+        parts.append(f"{lo:g}-{hi:g} s {100 * cov[0]:.1f} / {100 * cov[1]:.1f} %")
+    print(f"{label} w1 / w2 coverage: {', '.join(parts)}")
 
 
 def bench_change():
     """Hidden changes at 10 s, the value 5 s after: the frictions of both joints by the
-    horizon fit (and by random walks of 1 per sqrt(s), the earlier way), the payload by the
-    filter's random walk (default 0.02 kg per sqrt(s))."""
+    horizon fit (its moves as torque noise, the default; without them, adapt_spread 0; and
+    by random walks of 1 per sqrt(s), the earlier way), the payload by the filter's random
+    walk (default 0.02 kg per sqrt(s)); the deflections' coverage per window."""
     for case in FRICTION_CHANGES:
         for label, kw in ((f"horizon fit {HORIZON:g} s", {"adapt_horizon": HORIZON}),
+                          (f"horizon fit {HORIZON:g} s, its moves not in the band",
+                           {"adapt_horizon": HORIZON, "adapt_spread": 0.0}),
                           ("random walks 1", {"adapt_walk": {n: 1.0 for n in BOTH_FRICTIONS}})):
             rec, r, us = planar(case, 2, adapt=BOTH_FRICTIONS, **kw)
             report_change(label, case, rec, r, us)

@@ -58,7 +58,9 @@ class EstimatorSettings:
     fitted by least squares on the momentum balance of the last ``adapt_horizon`` s in
     blocks of ``adapt_block`` s (flex_model.estimation.horizon), and the filter considers
     them (Schmidt: their covariance is the fit's, no gain moves them); the payload and the
-    stiffness stay random walks."""
+    stiffness stay random walks; ``adapt_spread`` (default 1, 0: off) scales the std of the
+    process noise that carries the fit's moves over the window into the filter (the
+    parameters' errors as torque noise: horizon.HorizonFit.spread)."""
 
     sample_period: float = 1e-3
     adapt: tuple = ()
@@ -77,6 +79,7 @@ class EstimatorSettings:
     adapt_reset_window: float = 0.2
     adapt_horizon: float = 0.0
     adapt_block: float = 0.05
+    adapt_spread: float = 1.0
 
     def __post_init__(self):
         if not self.sample_period > 0:
@@ -102,6 +105,8 @@ class EstimatorSettings:
         if not (b > 0 and np.isfinite(b) and (h == 0 or b <= h)):
             raise ValueError(f"adapt_block: got {b}; expected > 0 s and at most "
                              f"adapt_horizon ({h} s)")
+        if not (self.adapt_spread >= 0 and np.isfinite(self.adapt_spread)):
+            raise ValueError(f"adapt_spread: got {self.adapt_spread}; expected >= 0")
         if h and self.adapt_reset_nis:
             raise ValueError(f"adapt_horizon: got {h} with adapt_reset_nis "
                              f"{self.adapt_reset_nis}; expected no covariance resetting "
@@ -308,6 +313,9 @@ class Estimator:
         walk = [0.0 if k in fitted else s.adapt_walk.get(nm, ADAPT_WALK[kind])
                 for k, (nm, kind) in enumerate(zip(plant.param_names, self._kinds))]
         Qd[2 * nq:, 2 * nq:] += np.diag(np.square(walk) * T)
+        if self._fit is not None and s.adapt_spread:   # the fit's moves as torque noise
+            Gp = self._ros2_increment(A, A[:, 2 * nq + self._fit.index])
+            Qd += (Gp * (s.adapt_spread ** 2 * self._fit.spread())) @ Gp.T
         self.Qd = 0.5 * (Qd + Qd.T)
         H = self._jacobian(lambda x: outputs(self.measurements, plant, x, u),
                            self.x, len(self.measurements))

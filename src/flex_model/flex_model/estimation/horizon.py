@@ -19,6 +19,14 @@ filter is given (its bias: Ljung 1979) does not enter it. The payload is left to
 filter's random walk: the balance is affine in its mass too, but the base row's residual
 then follows the filter's own payload (held at 0 on the payload-change run the fit says
 0.02 kg, held at the true 0.3 it says 0.28: docs/estimation.md).
+
+While the fit catches up after a change it moves block by block; the filter, which takes
+the fitted values as exact between fits, is then overconfident. ``spread``: the fit's
+moves over the window, which the filter adds as process noise on the momentum rows the
+parameters act on (each parameter error held over a sample through the model's own
+Jacobian column df/dp, Estimator.relinearize): the bands widen while the fit moves and
+narrow once the window holds no moves (docs/estimation.md, "Coverage while the fit
+catches up").
 """
 from __future__ import annotations
 
@@ -50,6 +58,8 @@ class HorizonFit:
         self.floor = np.array([PARAMETER_FLOOR[plant.params[k][0]] for k in self.index])
         self.sigma2 = None
         self._start, self._sum, self._count = None, None, 0
+        self.last = self.prior_mean.copy()
+        self.moves = deque(maxlen=self.blocks.maxlen)   # the fit's moves over the window
 
     def _terms(self, x, u):
         """(momentum, its rate) on the actuator rows for each parameter variant."""
@@ -89,7 +99,17 @@ class HorizonFit:
         cov = np.linalg.inv(info)
         p = np.maximum(cov @ rhs, self.floor)
         self.sigma2 = self._row_variance(e0 + R @ p, R.shape[2])
+        self.moves.append(p - self.last)
+        self.last = p
         return p, cov
+
+    def spread(self) -> np.ndarray:
+        """Per parameter, the variance the filter gives its error while the fit moves:
+        the squared moves between consecutive fits over the window, summed, times
+        block_n (a parameter error held over a block moves the momentum as block_n^2
+        samples of it, white noise of the same variance as block_n: the variance as
+        white torque noise per sample is block_n times the move's square)."""
+        return self.block_n * np.sum(np.square(self.moves), axis=0)
 
     @staticmethod
     def _row_variance(residual, npar):
