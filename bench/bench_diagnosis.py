@@ -22,8 +22,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from flex_twin.diagnosis.synthetic import CASE_KINDS, parse_kind
-from flex_twin.diagnosis.synthetic_scoring import (DEFAULT_TWO, add_part_visibility, report,
-                                                    run_one, summarise)
+from diagnosis_scoring import DEFAULT_TWO, add_part_visibility, report, run_one, summarise
 
 
 def _g(x):

@@ -263,10 +263,10 @@ def _diagnose_serially(kind, seed, out, options):
     equations at the replay's discretization, so their floor is zero by construction (it
     measured 0 on all of them and doubled the fixture's time); test_diagnosis_floor.py and
     the independent suite's test exercise the floor."""
-    from flex_twin.diagnosis import synthetic_scoring as bench
+    from bench import diagnosis_scoring
     from flex_twin.diagnosis.evaluation import SerialExecutor
-    return bench.run_one(kind, seed, out, "nominal", False, executor=SerialExecutor(),
-                         **{"floor": False, **options})
+    return diagnosis_scoring.run_one(kind, seed, out, "nominal", False,
+                                     executor=SerialExecutor(), **{"floor": False, **options})
 
 
 @pytest.fixture(scope="module")
@@ -299,10 +299,10 @@ def test_acceptance_subset(acceptance):
     encoder bias named with their parameters within 20 % and the held-out error reduced
     >= 70 % (contact: seed 1005 below; more healthy runs: the engine's and the independent
     suite's tests; every kind and seed: bench/bench_diagnosis.py)."""
-    from flex_twin.diagnosis import synthetic_scoring as bench
+    from bench.diagnosis_scoring import OK_OUT_OF_LIBRARY
     runs = [acceptance[key] for key in SUBSET]
     assert runs[0]["verdict"] == "no material discrepancy"
-    assert runs[1]["verdict"] in bench.OK_OUT_OF_LIBRARY
+    assert runs[1]["verdict"] in OK_OUT_OF_LIBRARY
     for r in runs[2:]:
         assert r["right"] == [True] and all(r["in_class"]), r
         assert max(r["param_errors"]) < 0.2

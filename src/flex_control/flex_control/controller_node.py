@@ -67,49 +67,16 @@ def stand_in_joints(values: dict) -> tuple:
 
 
 class ControllerNode(Managed, LifecycleNode):
-    """Joint torque controller; a lifecycle node (flex_model.ros.main.Managed): configure
-    builds the controller, activate starts its timer, deactivate stops it and commands
-    zero torques once, cleanup releases the controller.
+    """Joint torque controller; a lifecycle node (flex_model.ros.main.Managed).
 
-    Subscriptions: ``joint_states`` (sensor_msgs/JointState; without velocities the rates
-    are differentiated positions), ``flex_planner/trajectory`` (trajectory_msgs/
-    JointTrajectory; its start is ``header.stamp``, or the arrival time if zero),
-    ``flex/deflections`` (sensor_msgs/JointState as the model node publishes it: the
-    positions named ``link<i>/tip_deflection``, m; only with ``use_deflections``).
-    Publication: ``effort_controller/commands`` (std_msgs/Float64MultiArray, torques in
-    N m in ``joint_names`` order). Names are relative, so a namespace moves them all.
-
-    Parameters: the fields of :class:`flex_control.params.ControllerParams` (law, gains or
-    schedule file, torque limits, rate, timeout, stale action); the node's default gains
-    are h = 5, a = 5 (:data:`NODE_DEFAULTS`: stable with the default model node in
-    realtime, up to 15 ms of loop latency; set h: [25.0] for the thesis's design, as
-    ros2_ws/params/suite.yaml does in lockstep). ``joint_names`` defaults to
-    empty: the controller then takes the joints, and their order (the model's command
-    order), from the first joint_states message, so one controller serves an arm of any
-    number of joints; until then it publishes nothing. Given explicitly, they are checked
-    against every new set of names in joint_states: a set missing some is one error line
-    (those messages are then dropped), extra joints one warning. Gains and limits may be
-    set at run time (``ros2 param set``: lists arrive as arrays; before the joints are
-    known they are checked against as many stand-in joints as the longest list) and are
-    validated before they are swapped in; the structural ones (joint_names, law, rate_hz,
-    use_deflections, hold_joint_angles_deg) are refused with a reason. A float
-    parameter takes an integer (``rate_hz:=500``); a bad value at start is one line naming
-    the parameter, the value and what is allowed. Node parameters ``parameter_services``
-    and ``qos_event_warnings`` (default true): false leaves out rclpy's parameter services
-    (no run-time changes then), resp. its QoS-event handlers, for a faster lockstep loop
-    (flex_model.ros.main). With ``use_sim_time: true`` the timer, the state-age checks and
-    the trajectory time run on the simulation clock of ``clock_topic`` (default /clock; a
-    relative ``clock`` is the namespace's: one clock per lockstep twin,
-    flex_model.ros.main.follow_clock).
-
-    Safety: until a trajectory arrives the controller holds ``hold_joint_angles_deg`` (one
-    per joint or one for all; e.g. the model's initial_joint_angles_deg, so that restarts
-    do not creep) or, if empty (the default), the first measured pose; joint
-    states older than ``state_timeout`` (by arrival time) give zero torques (or the last
-    command, ``stale_action: hold``), logged once per episode; malformed or non-finite
-    inputs and trajectories with other joint names are logged (at most once a second per
-    reason) and dropped; every command is clamped to ``torque_limits``; :func:`main`
-    publishes zeros on SIGINT/SIGTERM.
+    Reads ``joint_states``, ``flex_planner/trajectory`` and (``use_deflections``)
+    ``flex/deflections``; publishes ``effort_controller/commands`` (N m, ``joint_names``
+    order; empty names: taken from the first joint_states). Parameters: the fields of
+    :class:`flex_control.params.ControllerParams`, defaults :data:`NODE_DEFAULTS`; gains and
+    limits may change at run time (validated before they are swapped in), the structural
+    ones (joint_names, law, rate_hz, use_deflections, hold_joint_angles_deg) are refused
+    with a reason. Holding, stale states, clamping, lean nodes, simulation time:
+    docs/ros.md ("Nodes", "Lean nodes", "Simulation time").
     """
 
     def __init__(self, **kwargs):

@@ -60,33 +60,14 @@ def samples_needed(times, sample_period: float) -> int:
 
 class PlannerNode(Managed, LifecycleNode):
     """Plans a tip path (thesis Ch. IV-V.1) for every request; a lifecycle node
-    (flex_model.ros.main.Managed): configure loads the arm and makes the topics, only an
-    active node plans (inactive: a request is refused with one line), cleanup releases.
+    (flex_model.ros.main.Managed): only an active node plans.
 
-    Subscription: ``flex_planner/waypoints`` (nav_msgs/Path; each pose's stamp is its time
-    from the start, positions in ``frame_id``; the tip orientation is the pose's yaw for
-    arms with three or more links). Publications (once per valid request):
-    ``flex_planner/trajectory`` (trajectory_msgs/JointTrajectory: positions, velocities,
-    accelerations and ``effort`` = the admissible nominal torque every ``sample_period``),
-    ``flex_planner/nominal_path`` (nav_msgs/Path, the nominal tip path) and
-    ``flex_planner/nominal_deflections`` (trajectory_msgs/JointTrajectory whose "joints"
-    are the model's deformation variables, m and rad): :data:`TOPICS`, relative names,
-    ``/flex_planner/...`` (``<ns>/flex_planner/...`` in a namespace) whatever the node's
-    name. Parameters: the fields of
-    :class:`flex_planner.config.PlannerConfig` (``arm``, ``vars_per_link`` read-only at run
-    time; ``sample_period``, ``elbow``, ``frame_id`` validated when set; a float takes an
-    integer), ``max_waypoints`` (default 1000: a request with more poses is refused from
-    its serialized size, before rclpy builds its poses) and ``max_samples`` (default
-    200000: a request whose first and last stamps span a plan of more samples, e.g. a
-    waypoint at t = 1e5 s, ~1e8 samples, is refused before any planning); each refusal is
-    one line, and the node stays responsive (Ctrl-C, later requests). A bad request
-    (unreachable point, times not increasing, empty path, wrong frame, too long) is logged
-    as an error naming the point, nothing is published for it, and the node keeps serving.
-    A bad parameter at start is one line naming it, its value and what is allowed. Node
-    parameters ``parameter_services`` and ``qos_event_warnings`` (default true, read-only
-    at run time): flex_model.ros.main.lean_node. With ``use_sim_time: true`` its stamps
-    are the simulation time of ``clock_topic`` (default /clock; ``clock``: the
-    namespace's).
+    Takes ``flex_planner/waypoints`` (nav_msgs/Path; each pose's stamp is its time from the
+    start, positions in ``frame_id``, the tip orientation its yaw on arms of three or more
+    links); publishes :data:`TOPICS` once per valid request. Parameters: the fields of
+    :class:`flex_planner.config.PlannerConfig`, ``max_waypoints`` and ``max_samples``
+    (larger requests are refused before any planning, in one line); a bad request is
+    logged naming the point and nothing is published. docs/ros.md ("Nodes").
     """
 
     def __init__(self, **kwargs):

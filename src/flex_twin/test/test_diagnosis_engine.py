@@ -163,7 +163,7 @@ def test_pair_screening_finds_effects_that_mask_each_other():
     part of opposite sign, so each alone explains little of what the two do together; the
     linearized pair fit explains all of it and starts the pair fit at the true steps
     (two-effect seed 1005 of the benchmark: pair 4.71 against the best single 1.7)."""
-    from flex_twin.diagnosis.engine import _screen_pairs, _screened_pair
+    from flex_twin.diagnosis.engine import _screen_pairs, _screened_pairs
     from flex_twin.diagnosis.fitting import Linearization
     rec = _run(NOMINAL, 1.0)
     hyps = library_hypotheses(NOMINAL, rec, CTL)
@@ -192,10 +192,10 @@ def test_pair_screening_finds_effects_that_mask_each_other():
     assert alone < 0.15 * score
     scores = {bias.label: alone, je.label: alone, load.label: 0.0}
     screened = _screen_pairs([bias, je, load], cols, r, lin, lin0)
-    picked = _screened_pair([load, je], scores, screened)
+    picked = _screened_pairs([load, je], scores, screened, 1)[0]
     assert picked[0].label == f"{bias.label}+{je.label}" and picked[1] == score
     # two screened singles are fitted as a pair anyway: no extra pair
-    assert _screened_pair([je, bias], scores, screened) is None
+    assert _screened_pairs([je, bias], scores, screened, 1) == []
 
 
 def test_a_gear_hypothesis_is_off_at_the_nominal_rotor_and_probed_on_both_sides():

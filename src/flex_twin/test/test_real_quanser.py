@@ -120,14 +120,37 @@ def test_the_lab_repeats_itself_below_both_aims(cuboulder_root):
     assert len(tips) == 4 and max(tips) < 0.85e-3
 
 
+def _read_imported(path) -> dict:
+    """Arrays back from an imported bag: t, theta, theta_rate, effort, voltage, deflection,
+    deflection_rate (twin's sign), reference_t, reference."""
+    from flex_twin.bags import read_bag
+    cols = {k: [] for k in ("t", "theta", "theta_rate", "effort", "voltage", "deflection",
+                            "deflection_rate", "reference_t", "reference")}
+    for topic, _, t_ns, msg in read_bag(path, None):
+        if topic == "/joint_states":
+            cols["t"].append(t_ns * 1e-9)
+            cols["theta"].append(msg.position[0])
+            cols["theta_rate"].append(msg.velocity[0])
+            cols["effort"].append(msg.effort[0])
+        elif topic == "/flex/deflections":
+            cols["deflection"].append(msg.position[0])
+            cols["deflection_rate"].append(msg.velocity[0])
+        elif topic == "/effort_controller/commands":
+            cols["voltage"].append(msg.data[0])
+        elif topic == "/flex_planner/trajectory":
+            cols["reference_t"].append(t_ns * 1e-9)
+            cols["reference"].append(msg.points[0].positions[0])
+    return {k: np.array(v) for k, v in cols.items()}
+
+
 def test_import_round_trip_is_exact(cuboulder_root, tmp_path):
     """The bag gives back the logged hub angle, rate, voltage and reference exactly."""
-    from flex_twin.real_arms.ros_quanser_import import import_run, read_imported
+    from flex_twin.real_arms.ros_quanser_import import import_run
     run = _run(cuboulder_root, "flexibleArm_test_3").head(1.0)
     model = FlexArmModel(load_arm("quanser_cuboulder_flexible"))
     counts = import_run(run, model, tmp_path / "bag")
     assert counts["/joint_states"] == len(run.t) == 1001
-    back = read_imported(tmp_path / "bag")
+    back = _read_imported(tmp_path / "bag")
     for key in ("theta", "theta_rate", "voltage"):
         assert np.array_equal(back[key], getattr(run, key))
     assert np.array_equal(back["deflection"],

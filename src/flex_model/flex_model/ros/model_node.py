@@ -1,90 +1,14 @@
 """ModelNode: any flexible arm as a ROS 2 node (issue 43, "one model node").
 
-One node class hosts a planar arm (an arm preset or YAML: :class:`PlanarArm`, a thin
-adapter around flex_model.stepper.Stepper) and a spatial one (a DH/modified-DH YAML or a
-URDF, or a planar arm embedded with ``from_planar``: flex_model.ros.spatial_node.SpatialArm,
-around the compiled generalized-alpha loop of spatial/integrate.py). The arm kind is read
-from ``arm`` at configure; the parameters, topics, services, lifecycle, lockstep and
-realtime loops, command timeout, plausibility limits, divergence handling and the message
-templates are this class's, the same for both (the arm adapter only steps and measures).
-``flex-spatial-model-node`` (and ``flex-model-node -p arm:=<spatial>``) is this node with
-the spatial defaults (:data:`SPATIAL_DEFAULTS`: seed003_like_arm, 250 Hz, publications
-every period up to 1 kHz, no hold until the first command).
-
-Topic names are relative, so a namespace (``--ros-args -r __ns:=/robot1``) moves the whole
-model-controller loop; /diagnostics, /tf and /tf_static stay global (frame_prefix keeps
-two TF trees apart); the clock is ``clock_topic`` (default /clock; ``clock``: the
-namespace's).
-
-Publications (simulation time in every header; REP 103 z up):
-    joint_states        sensor_msgs/JointState   joint values (encoder; rad or m), rates,
-                        applied torques (spatial: clipped to the URDF effort limits; with
-                        the continuous PD kp (s - theta_a) - kd theta_a' + command)
-    flex/deflections    sensor_msgs/JointState   planar: link<i>/tip_deflection (m),
-                        tip_rotation (rad); spatial: per flexible link <link>/
-                        tip_deflection_y|z (m), tip_twist (rad); rates as velocities
-    flex/tip_pose       geometry_msgs/PoseStamped  the tip (spatial: the last link's end
-                        frame) in ``frame_id``
-    flex/shape          visualization_msgs/MarkerArray  deflected centre lines and chords
-                        in ``frame_id`` (while subscribed)
-    flex/tip_imu        sensor_msgs/Imu          planar arm with a tip_accelerometer sensor
-    robot_description   std_msgs/String          the URDF (transient local, depth 1)
-    /tf, /tf_static     tf2_msgs/TFMessage       joints, link roots, deflected tips (/tf
-                        while someone subscribes; where tf2_msgs imports)
-    /clock              rosgraph_msgs/Clock      lockstep (or publish_clock), on clock_topic
-    /diagnostics        diagnostic_msgs/DiagnosticArray  OK (running, paused or inactive,
-                        mode, simulation time) every second of wall time; ERROR after a
-                        divergence (every second until ~/reset), OK after it
-Subscriptions:
-    effort_controller/commands  std_msgs/Float64MultiArray  joint torques (N m; N for a
-                                prismatic joint; V for a dc_motor joint), joint order
-    flex/payload                std_msgs/Float64MultiArray  planar [mass kg, inertia kg m^2];
-                                spatial (spatial/payload.py) [m] | [m, J_z] | [m, Ixx, Iyy,
-                                Izz] | [m, Ixx, Iyy, Izz, Ixy, Ixz, Iyz] in the end frame
-    flex/setpoints              std_msgs/Float64MultiArray  (spatial arm with the continuous
-                                PD) set-points, rad or m
-    flex_planner/trajectory     trajectory_msgs/JointTrajectory  (in-loop controller)
-Services: ~/reset (std_srvs/Trigger: initial state and payload, zero command, t = 0; an
-in-loop controller's trajectory is dropped; after a divergence it restarts the loop),
-~/pause (std_srvs/SetBool). Action (with an in-loop controller, where control_msgs
-imports): joint_trajectory_controller/follow_joint_trajectory (flex_model.
-ros_trajectory_action).
-
-Parameters: :data:`PARAMETERS` (defaults, descriptions, checks; :data:`RANGES` in the
-descriptors). A float parameter takes an integer (``rate:=500``); a bad value at start is
-one line naming the parameter, the value and what is allowed (exit status 2); a parameter
-that means nothing for the arm kind (``kp`` on a planar arm, ``vars_per_link`` on a
-spatial one) is refused in one line naming what to use instead. At run time
-publish_rate, shape_rate, command_timeout, timeout_action, lockstep_timeout and the
-plausibility limits may be set (checked); the others are read_only. max_step and step
-name one parameter (the integration step); initial_joint_angles_deg and
-initial_joint_values the initial joint values (deg, or rad / m).
-
-In-loop control: ``controller`` names a plugin (flex_model.controller_interface: eq95,
-eq45, state_feedback, module:factory; controller_params.<name>) run every 1/
-controller_rate inside the model's loop (flex_model.control_loop) - planar arms; on a
-spatial arm ``controller`` eq95 or eq45 is the continuous PD inside the compiled loop
-(kp, kd or kpp, kpv; set-points on flex/setpoints), a plugin is refused with the reason.
-
-Lifecycle (issue 46, flex_model.ros.main.Managed): ``autostart`` (default true)
-configures and activates at start; false: unconfigured for a lifecycle manager. configure
-loads the arm, activate runs the loop, deactivate holds the state (time stands still,
-inputs refused), cleanup releases the arm.
-
-Bad inputs are dropped with a reason logged at most once a second per reason and counted
-(``dropped``). A failed step under external commands is done again in steps 4, then 16 x
-shorter (planar: Stepper.advance_refining). If that fails too, the model diverged: one
-error names the command applied then, the largest before (of the last COMMAND_MEMORY) and
-the payload, publishes the ERROR diagnostic, sets the command to zero and stops stepping;
-the node stays up and ~/reset restarts it.
-
-realtime: a timer at ``rate`` integrates the wall time elapsed since the last tick in
-whole steps (:meth:`ModelNode.realtime_period`); with realtime_priority (SCHED_FIFO) and
-the node alone in its executor one callback runs the periods of up to REALTIME_SLICE s on
-a wait set of its own. lockstep: each command advances the model by 1/rate and publishes
-joint_states (and /clock) at once, the other topics at their rates; without a command for
-``lockstep_timeout`` (wall) the model steps with the held one. The state messages are
-serialized once (CDR templates, flex_model.ros.cdr_messages) and published as bytes.
+One node class hosts a planar arm (:class:`PlanarArm`, around flex_model.stepper.Stepper)
+and a spatial one (flex_model.ros.spatial_node.SpatialArm, around the compiled loop of
+spatial/integrate.py); the arm kind is read from ``arm`` at configure. Parameters, topics,
+services, lifecycle, lockstep and realtime loops, command timeout, plausibility limits and
+divergence handling are this class's, the same for both (the adapter only steps and
+measures). ``flex-spatial-model-node`` is this node with :data:`SPATIAL_DEFAULTS`.
+Parameters: :data:`PARAMETERS` (:data:`RANGES` in the descriptors). Topics, services,
+parameters that may change at run time, lifecycle, bad inputs, divergence and the loops:
+docs/ros.md ("Nodes", "Spatial arms", "Lifecycle").
 """
 from __future__ import annotations
 

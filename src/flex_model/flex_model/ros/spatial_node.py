@@ -1,27 +1,12 @@
 """A spatial arm (issue 25) in the one model node (:class:`flex_model.ros.model_node.ModelNode`):
-:class:`SpatialArm` steps the compiled generalized-alpha loop (spatial/integrate.
-simulate_fixed_compiled) and measures what the node publishes, in the message layout of
-flex_model.ros.spatial (the same as ``flex-twin simulate --bag``).
-``flex-spatial-model-node`` (model_node.SpatialModelNode) is the model node with the
-spatial defaults (model_node.SPATIAL_DEFAULTS); the topics, services, parameters and
-lifecycle are the model node's (its docstring).
-
-What is spatial here: ``rate`` is the period, 1/rate split into ceil((1/rate)/step) equal
-steps; every period is one call of the compiled loop, continued from the previous one
-(its accelerations carried over: periods under one held input equal one run); a new
-command, set-point or payload restarts the method (consistent acceleration) as the planar
-Stepper does (``restart_on_change``: false continues through command and set-point
-changes too; a payload change always restarts). A failed period is done again in 4, then
-16 x more steps before the node reports the divergence. ``controller`` eq95 (thesis
-Eq. 95, constant gains) or eq45 (seed 000's cascade with kpp, kpv: the same PD with
-kp = n^2 kpv kpp, kd = n^2 kpv, n the joint's gear ratio) is the continuous PD tau =
-kp (s - theta_a) - kd theta_a' + command inside the compiled loop (-kp, -kd as stiffness
-and damping on the actuator coordinate, as spatial/scenario.py runs it); set-points on
-flex/setpoints. A payload on flex/payload is lumped into the last end body
-(spatial/payload.py). Limits of a URDF arm (spatial/limits.py): the commands (with the PD
-the whole actuator torque) are clipped to the ``<limit effort>``; position and velocity
-limits are checked after every period and a violation is logged (at most once a second
-per joint); the arm file's ``joint_stops`` make the position limits end stops.
+:class:`SpatialArm` steps the compiled loop (spatial/integrate.simulate_fixed_compiled)
+period by period, continued from the previous one (periods under one held input equal one
+run); a new command, set-point or payload restarts the method with a consistent
+acceleration (``restart_on_change``: false continues through command and set-point
+changes; a payload change always restarts). ``controller`` eq95 or eq45 (kp = n^2 kpv kpp,
+kd = n^2 kpv, n the gear ratio) is the continuous PD tau = kp (s - theta_a) - kd theta_a'
++ command inside the compiled loop. Topics, limits and payloads: docs/ros.md ("Spatial
+arms: one model node for every arm").
 """
 from __future__ import annotations
 

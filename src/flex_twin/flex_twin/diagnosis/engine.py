@@ -508,15 +508,6 @@ def _as_elasticity(state, fitted, cand, elastic):
     return (e_fit, J_ho), e_cand
 
 
-def _screened_pair(ranked, scores, pair_scores):
-    """The pair that the linearized pair screening (:func:`_screen_pairs`) puts first,
-    when it predicts more than every screened single and is not a pair of two of them
-    (effects that mask each other one at a time need not be screened alone): (pair, its
-    score, its linearized start) or None."""
-    extra = _screened_pairs(ranked, scores, pair_scores, 1)
-    return extra[0] if extra else None
-
-
 def _screened_pairs(ranked, scores, pair_scores, n=None) -> list:
     """Of the ``n`` (default :data:`SCREENED_PAIRS`) pairs that the linearized pair
     screening puts first, those predicting more than every screened single and not pairs
@@ -747,16 +738,6 @@ def _holdout_residuals(state, new):
     """The held-out residuals of a twin as :func:`_accept` returns it (None if it
     diverges)."""
     return evaluate((state.ctx_ho, new[0].scales, new[0].effects))
-
-
-def _lower(state, r_a, r_b) -> bool:
-    """Held-out residuals ``r_a`` resolved better than ``r_b``
-    (:func:`.fitting.resolved_lower`, blocks of :data:`CI_BLOCK`)."""
-    if r_a is None or r_b is None:
-        return r_b is None and r_a is not None
-    rec = state.ctx_ho.rec
-    return resolved_lower(r_a, r_b, len(rec.residual_channels),
-                          int(round(CI_BLOCK / rec.dt)))
 
 
 def _pair_gains(c, pr, singles, state) -> bool:

@@ -1,34 +1,8 @@
 """A measured experiment: uniformly sampled channels read from a CSV file (or a bag, see
-:mod:`flex_twin.diagnosis.ros_recording`), validated before any computation.
-
-CSV columns (header row, SI units, radians, joints and links numbered from 1):
-
-=============  =====================================================  ==========
-``t``          time (s), increasing, uniform sampling                  required
-``q<i>``       joint angle measured by the encoder of joint i (rad)    required
-``v<i>``       its rate (rad/s)                                        required
-``tau<i>``     actuator command of joint i (N m, or V for dc_motor)    required
-``qset<i>``    reference (set-point) of joint i (rad)                  required
-``w<i>``       tip deflection of link i normal to its root tangent (m) optional
-``wz<i>``,     spatial arms: the tip's out-of-plane deflection (m, along  optional
-``phi<i>``     the beam's z, EI_y) and twist (rad, GJ) of link i in its
-               root frame (``w<i>``: in-plane, along y; spatial_loop.py)
-``tip_x``,     position of the arm's end in the base frame (m)         optional
-``tip_y``
-``tau_ff<i>``  recorded feed-forward (``feedforward: recorded``)       optional
-``ql<i>``,     link-side encoder of an elastic joint i: angle (rad)    optional
-``vl<i>``      and rate (rad/s), both or neither; the replay's        (a pair)
-               (re)starts put the link side there and the motor side
-               at q<i>, v<i> (the twist as measured)
-=============  =====================================================  ==========
-
-A comment line ``# start_window: <s>`` (in a bag: ``start_window`` in the
-``custom_data`` of its metadata.yaml) sets the window of the quadratic fit that gives
-each replay (re)start its state (:func:`flex_twin.diagnosis.replay.measured_start`,
-default 0.05 s); a window of 2 samples or less starts from the first sample itself.
-
-Missing required channels are named in the refusal; a truncated or corrupt file raises
-:class:`RecordingError` (a ``ValueError``: the CLI exits 2 with one line).
+:mod:`flex_twin.diagnosis.ros_recording`), validated before any computation: the columns
+``t, q<i>, v<i>, tau<i>, qset<i>`` (required) and ``w<i>, wz<i>, phi<i>, tip_x, tip_y,
+tau_ff<i>, ql<i>, vl<i>`` (optional), the ``# start_window`` comment line and the refusals
+(:class:`RecordingError`, a ``ValueError``): docs/diagnosis.md ("The workflow").
 """
 from __future__ import annotations
 

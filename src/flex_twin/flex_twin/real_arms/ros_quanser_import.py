@@ -83,26 +83,3 @@ def import_run(run: LabRun, model: FlexArmModel, out) -> dict:
             bag.write("/flex_planner/trajectory", msg, t_ns[k])
         counts = dict(bag.counts)
     return counts
-
-
-def read_imported(path) -> dict:
-    """Arrays back from an imported bag: t, theta, theta_rate, effort, voltage, deflection,
-    deflection_rate (twin's sign), reference_t, reference."""
-    from ..bags import read_bag
-    cols = {k: [] for k in ("t", "theta", "theta_rate", "effort", "voltage", "deflection",
-                            "deflection_rate", "reference_t", "reference")}
-    for topic, _, t_ns, msg in read_bag(path, None):
-        if topic == "/joint_states":
-            cols["t"].append(t_ns * 1e-9)
-            cols["theta"].append(msg.position[0])
-            cols["theta_rate"].append(msg.velocity[0])
-            cols["effort"].append(msg.effort[0])
-        elif topic == "/flex/deflections":
-            cols["deflection"].append(msg.position[0])
-            cols["deflection_rate"].append(msg.velocity[0])
-        elif topic == "/effort_controller/commands":
-            cols["voltage"].append(msg.data[0])
-        elif topic == "/flex_planner/trajectory":
-            cols["reference_t"].append(t_ns * 1e-9)
-            cols["reference"].append(msg.points[0].positions[0])
-    return {k: np.array(v) for k, v in cols.items()}

@@ -1,12 +1,14 @@
-"""Scoring of the diagnosis on synthetic cases against their truth (issue 8 targets).
+"""Scoring of the diagnosis on synthetic cases against their truth (issue 8 targets): the
+benchmark's (bench/bench_diagnosis.py, test/test_diagnosis_hidden_effects.py), no part of
+the package (issue 43).
 
-:func:`run_one` generates a case (:mod:`.synthetic`), runs the engine on what a user would
-hand it (fit.csv, holdout.csv, nominal_arm.yaml, controller.yaml; never truth.json) and
-scores the verdict: named decisions in the hidden effect's declared class, the right
-effect (kind and target) named, verdicts of healthy and out-of-library runs, held-out
-error reduction (the engine's held-out excess cost J - 1, nominal twin vs final twin) and
-relative parameter errors of accepted effects. :func:`summarise` gives every target
-figure and the confusion matrix (hidden kind x named verdict).
+:func:`run_one` generates a case (:mod:`flex_twin.diagnosis.synthetic`), runs the engine
+on what a user would hand it (fit.csv, holdout.csv, nominal_arm.yaml, controller.yaml;
+never truth.json) and scores the verdict: named decisions in the hidden effect's declared
+class, the right effect (kind and target) named, verdicts of healthy and out-of-library
+runs, held-out error reduction (the engine's held-out excess cost J - 1, nominal twin vs
+final twin) and relative parameter errors of accepted effects. :func:`summarise` gives
+every target figure and the confusion matrix (hidden kind x named verdict).
 
 Materiality: the healthy case of the same seed has the same scatter, excitation and noise,
 so ``materiality`` (mean over the measured channels of (rms change / channel noise)^2 on
@@ -28,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .engine import DEFAULT_GATE as GATE
-from .engine import diagnose
-from .synthetic import (CASE_KINDS, CONTROLLER, NOMINAL_E, NOMINAL_PAYLOAD, generate_case,
-                        parse_kind)
+from flex_twin.diagnosis.engine import DEFAULT_GATE as GATE
+from flex_twin.diagnosis.engine import diagnose
+from flex_twin.diagnosis.synthetic import (CASE_KINDS, CONTROLLER, NOMINAL_E, NOMINAL_PAYLOAD,
+                                           generate_case, parse_kind)
 
 DEFAULT_TWO = ("two:payload+joint_friction", "two:sensor_bias+joint_elasticity",
                "two:gear+torque_saturation", "two:stiffness+actuator_delay")
@@ -100,8 +102,8 @@ def _twin_sigma(case) -> dict:
     """The diagnosis's noise levels of a case's fit recording
     (:func:`.evaluation.noise_levels`)."""
     from flex_model.arm import load_arm
-    from .evaluation import noise_levels
-    from .sources import load_recording
+    from flex_twin.diagnosis.evaluation import noise_levels
+    from flex_twin.diagnosis.sources import load_recording
     return noise_levels(load_recording(case.fit_csv, load_arm(case.nominal_arm).n_links))
 
 
@@ -185,8 +187,8 @@ def run_one(kind: str, seed: int, out: str, noise, materiality_on: bool,
     """Generate, diagnose and score one run (in a worker process); ``options`` go to
     :func:`.engine.diagnose`."""
     from flex_model.arm import load_arm
-    from .controller import load_controller
-    from .sources import load_recording
+    from flex_twin.diagnosis.controller import load_controller
+    from flex_twin.diagnosis.sources import load_recording
     d = Path(out) / f"{kind.replace(':', '_').replace('+', '_')}-{seed}"
     t0, c0 = time.perf_counter(), time.process_time()
     res = {"kind": kind, "seed": seed, "dir": str(d), "materiality": None}
@@ -309,5 +311,3 @@ def report(summary: dict) -> str:
                       f"{k} seed {s} ({' / '.join('-' if m is None else f'{m:.2f}' for m in ms)})"
                       for k, s, ms in summary["invisible_parts"])]
     return "\n".join(lines)
-
-
