@@ -110,13 +110,24 @@ class ControlLoop:
 
 def compile_ahead(arm: str, period: float, law: str = "eq95") -> None:
     """Compile the in-loop kernels for ``arm`` (a preset or file) and ``law`` into numba's
-    on-disk cache: two periods of a held arm, nothing computed that is kept."""
+    on-disk cache: two periods of a held arm, nothing computed that is kept. One at a time
+    per cache (a lock file beside it): a second one waits and then loads what the first
+    compiled (make demo starts one during the bootstrap, the demo another)."""
+    import fcntl
+    import os
+    import tempfile
+    from pathlib import Path
+
     from .arm import load_arm
     from .controller_interface import load_controller
     from .dynamics import FlexArmModel
-    model = FlexArmModel(load_arm(arm))
-    ctl = load_controller(law, list(model.arm.joint_names), {})
-    ControlLoop(Stepper(model), ctl, period).advance(2)
+    cache = Path(os.environ.get("NUMBA_CACHE_DIR") or tempfile.gettempdir())
+    cache.mkdir(parents=True, exist_ok=True)
+    with open(cache / "flex_model-compile-ahead.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)   # released when the file closes
+        model = FlexArmModel(load_arm(arm))
+        ctl = load_controller(law, list(model.arm.joint_names), {})
+        ControlLoop(Stepper(model), ctl, period).advance(2)
 
 
 def compile_ahead_in_background(arm: str, period: float, law: str = "eq95"):

@@ -27,8 +27,9 @@ import numpy as np
 from flex_model.ros import ros_environment
 from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS
 
+from .twin_demo_ahead import ARM, LAW, RATE
+
 WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
-ARM = "thesis_example1_motors"
 RECORDED = {"/joint_states": "sensor_msgs/msg/JointState",
             "/flex/deflections": "sensor_msgs/msg/JointState",
             "/flex/tip_pose": "geometry_msgs/msg/PoseStamped",
@@ -49,7 +50,7 @@ SPIN_PERIOD, QUIET = 0.05, 0.01
 PLAN_TIMEOUT = 1800.0
 
 
-def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0,
+def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = RATE,
         progress=None, in_loop: bool = True, publish_rate: float = 50.0) -> dict:
     """Run the demo; returns the summary (also written as summary.json). ``in_loop``: the
     controller in the model's loop (default), else the controller node over topics."""
@@ -70,8 +71,9 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     wall0 = time.perf_counter()
     phases = _Phases()
     # the model's in-loop kernels compile on the second core while the planner compiles its
-    # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo)
-    ahead = compile_ahead_in_background(ARM, 1.0 / rate) if in_loop else None
+    # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo); under
+    # make demo this process waits for the one the bootstrap started (twin_demo_ahead)
+    ahead = compile_ahead_in_background(ARM, 1.0 / rate, LAW) if in_loop else None
     demo = _Demo(ctx, rate, in_loop)
     try:
         demo.start()
