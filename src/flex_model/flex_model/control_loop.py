@@ -111,8 +111,8 @@ class ControlLoop:
 def compile_ahead(arm: str, period: float, law: str = "eq95") -> None:
     """Compile the in-loop kernels for ``arm`` (a preset or file) and ``law`` into numba's
     on-disk cache: two periods of a held arm, nothing computed that is kept. One at a time
-    per cache (a lock file beside it): a second one waits and then loads what the first
-    compiled (make demo starts one during the bootstrap, the demo another)."""
+    per cache (a lock file beside it): one that finds another compiling waits for it and
+    returns (make demo starts one during the bootstrap, the demo another)."""
     import fcntl
     import os
     import tempfile
@@ -124,7 +124,11 @@ def compile_ahead(arm: str, period: float, law: str = "eq95") -> None:
     cache = Path(os.environ.get("NUMBA_CACHE_DIR") or tempfile.gettempdir())
     cache.mkdir(parents=True, exist_ok=True)
     with open(cache / "flex_model-compile-ahead.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)   # released when the file closes
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)   # released when it closes
+        except BlockingIOError:
+            fcntl.flock(lock, fcntl.LOCK_EX)   # the other one's kernels are in the cache
+            return
         model = FlexArmModel(load_arm(arm))
         ctl = load_controller(law, list(model.arm.joint_names), {})
         ControlLoop(Stepper(model), ctl, period).advance(2)

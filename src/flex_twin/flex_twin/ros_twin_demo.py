@@ -80,6 +80,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = RATE,
         plan = demo.plan()
         phases.mark("plan")
         if ahead is not None:
+            import flex_model.plots  # noqa: F401  (matplotlib, for the summary: meanwhile)
             ahead.wait()
             phases.mark("wait for compile_ahead")
         model = demo.start_model(plan, publish_rate)
