@@ -59,7 +59,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = RATE,
     import rclpy
     from rclpy.serialization import deserialize_message
 
-    from flex_model.control_loop import compile_ahead_in_background
+    from flex_model.control_loop import compile_ahead_in_background, wait_for_shared_kernels
     from flex_model.urdf import plane_rotation
     from .bags.message_types import get_message
 
@@ -77,6 +77,9 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = RATE,
     demo = _Demo(ctx, rate, in_loop)
     try:
         demo.start()
+        if ahead is not None:   # the planner then loads the kernels it shares with the model
+            wait_for_shared_kernels(ahead)
+            phases.mark("wait for the shared kernels")
         plan = demo.plan()
         phases.mark("plan")
         if ahead is not None:
@@ -93,6 +96,8 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = RATE,
         if ahead is not None and ahead.poll() is None:   # the demo failed before the model
             ahead.kill()
             ahead.wait()
+        if ahead is not None:
+            ahead.stdout.close()
         demo.close()
         rclpy.try_shutdown(context=ctx)
     plane = plane_rotation(model.model.gravity)  # flex/tip_pose is in the base frame
