@@ -183,16 +183,18 @@ step_start
 #    editable installs and the one sdist).
 fast_install pip setuptools wheel
 # 2) pinned runtime deps. --no-build-isolation: the one sdist (empy) builds with the pinned
-#    setuptools above instead of whatever an isolated build env would download.
-fast_install --no-build-isolation "${REQUIREMENTS[@]}"
-step_done "1-2) pinned wheels"
+#    setuptools above instead of whatever an isolated build env would download. --demo:
+#    first what the demo's compile needs, which then starts (not holding the lock, fd 9;
+#    its output in .venv/twin-demo-ahead.log), beside the rest
 if [ "$DEMO" = 1 ]; then
-  # not holding the lock (fd 9); its output in .venv/twin-demo-ahead.log
+  fast_install numpy scipy numba pyyaml
   PYTHONPATH="$ROOT/src/flex_model:$ROOT/src/flex_control:$ROOT/src/flex_twin" \
     "$VENV/bin/python" -m flex_twin.twin_demo_ahead </dev/null \
     >"$VENV/twin-demo-ahead.log" 2>&1 9>&- &
   log "the twin demo's kernels compile from here on (pid $!)"
 fi
+fast_install --no-build-isolation "${REQUIREMENTS[@]}"
+step_done "1-2) pinned wheels"
 # 5) from here on, beside steps 3-4 (it needs only step 2's wheels); in the background
 #    mode it also writes the stamp when it is done, holding the lock (fd 9) until then
 if [ "$BACKGROUND" = 1 ]; then
