@@ -141,12 +141,18 @@ def compile_ahead(arm: str, period: float, law: str = "eq95", announce=None) -> 
 
 
 def _lock_paths():
-    """compile_ahead's lock files (whole, shared kernels), in numba's cache directory."""
+    """compile_ahead's lock files (whole, shared kernels), in numba's cache directory
+    (without NUMBA_CACHE_DIR: this package's __pycache__, else the temporary directory)."""
     import os
     import tempfile
     from pathlib import Path
-    cache = Path(os.environ.get("NUMBA_CACHE_DIR") or tempfile.gettempdir())
-    cache.mkdir(parents=True, exist_ok=True)
+    cache = Path(os.environ.get("NUMBA_CACHE_DIR") or Path(__file__).parent / "__pycache__")
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        cache = Path(tempfile.gettempdir())
+    if not os.access(cache, os.W_OK):
+        cache = Path(tempfile.gettempdir())
     return (cache / "flex_model-compile-ahead.lock",
             cache / "flex_model-compile-ahead.shared.lock")
 
