@@ -33,14 +33,15 @@ test: venv
 # NUMBA_OPT unset: the demo compiles its kernels at LLVM -O1 into the tests' cache, as
 # conftest.py does (a third less compile time on a fresh clone, the same numbers; the demo's
 # loop is bound by its recorder, not the kernel: docs/development.md, fast feedback).
-# The demo needs neither tf2_msgs nor control_msgs: their build (bootstrap step 5) runs
-# behind the demo at the lowest priority (nice 19: the demo's planner and compile-ahead
-# process keep both cores, the build takes what they leave); the last bootstrap.sh waits
-# for it (and fails if it failed).
+# bootstrap.sh --demo: the demo's in-loop kernels start compiling (into that cache, hence
+# the exports first) as soon as the wheels are in, beside the rest of the bootstrap; the
+# demo needs neither tf2_msgs nor control_msgs: their build (bootstrap step 5) runs behind
+# the demo at the lowest priority (nice 19); the last bootstrap.sh waits for it (and fails
+# if it failed).
 demo:
-	nice -n 19 bash $(ROOT)/scripts/bootstrap.sh --interfaces-in-background
-	cd $(ROOT) && $(ENV) && if [ -z "$${NUMBA_OPT:-}" ]; then export NUMBA_OPT=1 \
+	cd $(ROOT) && if [ -z "$${NUMBA_OPT:-}" ]; then export NUMBA_OPT=1 \
 	    NUMBA_CACHE_DIR="$${NUMBA_CACHE_DIR:-$(ROOT)/.numba_test_cache}"; fi \
+	    && bash $(ROOT)/scripts/bootstrap.sh --demo && $(ENV) \
 	    && status=0 && { flex-twin twin-demo $(DEMO_ARGS) || status=$$?; } \
 	    && bash $(ROOT)/scripts/bootstrap.sh && exit $$status
 

@@ -108,6 +108,8 @@ def _run(demo: bool, entries=("compile_ahead",)) -> None:
         return
 
     class Done:   # compile_ahead already ran, in this process (one process to time)
+        stdout = None
+
         def wait(self):
             return 0
 

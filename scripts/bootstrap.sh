@@ -13,7 +13,11 @@
 # Step 5 needs only step 2's generator wheels: it runs beside steps 3-4 (one core each). With
 # --interfaces-in-background (make demo: the demo needs neither package) the script returns
 # after step 4 and step 5 finishes behind it, holding the lock (.venv.lock) and writing the
-# stamp when done; a later bootstrap.sh waits for it. Each step logs its wall and CPU seconds.
+# stamp when done; a later bootstrap.sh waits for it. --demo (make demo) does the same, at
+# the lowest priority (nice 19) for step 5, and also starts compiling the twin demo's
+# in-loop kernels once step 2's wheels are in (python -m flex_twin.twin_demo_ahead from src/,
+# at normal priority: the critical path of a first make demo; the demo waits for it).
+# Each step logs its wall and CPU seconds.
 #
 # Env: PYTHON=/path/to/python3.11 to choose the interpreter; FORCE=1 to rebuild regardless.
 set -euo pipefail
@@ -50,12 +54,16 @@ find_python() {
   return 1
 }
 
-BACKGROUND=0
+BACKGROUND=0; DEMO=0
 case "${1:-}" in
   --interfaces-in-background) BACKGROUND=1 ;;
+  --demo) BACKGROUND=1; DEMO=1 ;;
   "") ;;
-  *) log "error: unknown option $1 (only --interfaces-in-background)"; exit 2 ;;
+  *) log "error: unknown option $1 (only --interfaces-in-background or --demo)"; exit 2 ;;
 esac
+# step 5 beside the demo takes what the demo leaves of the cores
+NICE=(env)
+if [ "$DEMO" = 1 ]; then NICE=(nice -n 19); fi
 
 # CPU seconds (user+sys) of this script's finished children so far (/proc/<pid>/stat
 # fields 16-17, in clock ticks)
@@ -114,7 +122,7 @@ need_compilers() {
 }
 interfaces() {  # returns non-zero on failure also where set -e does not apply (a && b)
   step_start
-  "$VENV/bin/python" "$ROOT/scripts/gen_interfaces.py" --venv "$VENV" \
+  "${NICE[@]}" "$VENV/bin/python" "$ROOT/scripts/gen_interfaces.py" --venv "$VENV" \
     || { log "error: step 5 (interfaces) failed; bootstrap.sh tries it again"; return 1; }
   step_done "5) interfaces (tf2_msgs, control_msgs)"
 }
@@ -175,7 +183,16 @@ step_start
 #    editable installs and the one sdist).
 fast_install pip setuptools wheel
 # 2) pinned runtime deps. --no-build-isolation: the one sdist (empy) builds with the pinned
-#    setuptools above instead of whatever an isolated build env would download.
+#    setuptools above instead of whatever an isolated build env would download. --demo:
+#    first what the demo's compile needs, which then starts (not holding the lock, fd 9;
+#    its output in .venv/twin-demo-ahead.log), beside the rest
+if [ "$DEMO" = 1 ]; then
+  fast_install numpy scipy numba pyyaml
+  PYTHONPATH="$ROOT/src/flex_model:$ROOT/src/flex_control:$ROOT/src/flex_twin" \
+    "$VENV/bin/python" -m flex_twin.twin_demo_ahead </dev/null \
+    >"$VENV/twin-demo-ahead.log" 2>&1 9>&- &
+  log "the twin demo's kernels compile from here on (pid $!)"
+fi
 fast_install --no-build-isolation "${REQUIREMENTS[@]}"
 step_done "1-2) pinned wheels"
 # 5) from here on, beside steps 3-4 (it needs only step 2's wheels); in the background

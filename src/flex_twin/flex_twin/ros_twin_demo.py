@@ -27,8 +27,9 @@ import numpy as np
 from flex_model.ros import ros_environment
 from flex_planner.planning import SECTION_F_TIMES, SECTION_F_WAYPOINTS
 
+from .twin_demo_ahead import ARM, LAW, RATE
+
 WAYPOINTS, TIMES = SECTION_F_WAYPOINTS, SECTION_F_TIMES   # thesis Ch. V task
-ARM = "thesis_example1_motors"
 RECORDED = {"/joint_states": "sensor_msgs/msg/JointState",
             "/flex/deflections": "sensor_msgs/msg/JointState",
             "/flex/tip_pose": "geometry_msgs/msg/PoseStamped",
@@ -49,7 +50,7 @@ SPIN_PERIOD, QUIET = 0.05, 0.01
 PLAN_TIMEOUT = 1800.0
 
 
-def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0,
+def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = RATE,
         progress=None, in_loop: bool = True, publish_rate: float = 50.0) -> dict:
     """Run the demo; returns the summary (also written as summary.json). ``in_loop``: the
     controller in the model's loop (default), else the controller node over topics."""
@@ -58,7 +59,7 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     import rclpy
     from rclpy.serialization import deserialize_message
 
-    from flex_model.control_loop import compile_ahead_in_background
+    from flex_model.control_loop import compile_ahead_in_background, wait_for_shared_kernels
     from flex_model.urdf import plane_rotation
     from .bags.message_types import get_message
 
@@ -70,14 +71,19 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
     wall0 = time.perf_counter()
     phases = _Phases()
     # the model's in-loop kernels compile on the second core while the planner compiles its
-    # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo)
-    ahead = compile_ahead_in_background(ARM, 1.0 / rate) if in_loop else None
+    # own (a fresh clone: about half the demo's first run; docs/ros.md, the twin demo); under
+    # make demo this process waits for the one the bootstrap started (twin_demo_ahead)
+    ahead = compile_ahead_in_background(ARM, 1.0 / rate, LAW) if in_loop else None
     demo = _Demo(ctx, rate, in_loop)
     try:
         demo.start()
+        if ahead is not None:   # the planner then loads the kernels it shares with the model
+            wait_for_shared_kernels(ahead)
+            phases.mark("wait for the shared kernels")
         plan = demo.plan()
         phases.mark("plan")
         if ahead is not None:
+            import flex_model.plots  # noqa: F401  (matplotlib, for the summary: meanwhile)
             ahead.wait()
             phases.mark("wait for compile_ahead")
         model = demo.start_model(plan, publish_rate)
@@ -90,6 +96,8 @@ def run(out_dir: Path | None = None, duration: float = 15.0, rate: float = 500.0
         if ahead is not None and ahead.poll() is None:   # the demo failed before the model
             ahead.kill()
             ahead.wait()
+        if ahead is not None:
+            ahead.stdout.close()
         demo.close()
         rclpy.try_shutdown(context=ctx)
     plane = plane_rotation(model.model.gravity)  # flex/tip_pose is in the base frame
