@@ -30,8 +30,9 @@ interval ends (``inner`` points per piece, default 8: exact to degree 15); the m
 the Lagrangian of these discrete positions, so it conserves energy exactly. Cost per
 evaluation: one compiled sweep (:func:`terms`, ~20 us for 8 variables), linear in the
 mass points and quadratic in the variables; flex_model.simulate integrates it in both
-modes (:func:`derivative`, :func:`generalized_alpha`); the kernels of kernels.py and
-integrators.py, and so the Stepper, the control loop and the replays, do not take it.
+modes (:func:`derivative`; solvers.loop.fixed_step on :class:`ExactModel`, full Newton,
+no bristle states); the kernels of kernels.py and integrators.py, and so the Stepper, the
+control loop and the replays, do not take it.
 
 Axial extensibility (``axial_vars: m``, m variables per link after the arm's and the
 motors' coordinates): the axial strain eps(s) = sum_k u_k P_k(2 s / L - 1) (Legendre
@@ -52,8 +53,7 @@ from numba import njit
 
 from .integrators import joint_passive_forces, joint_tangent, joint_torques
 from .solvers.galpha import galpha_coefficients, galpha_state, restart_choice
-from .solvers.loop import fixed_step, implements, residual, tangent
-from .solvers.status import newton_settings
+from .solvers.loop import implements, residual, tangent
 from .kernels import cholesky, solve_spd
 from .sections import area_and_inertia
 
@@ -670,15 +670,6 @@ def _tangent(md, ctx, st, c):
 
 implements(residual, ExactModel, _residual)
 implements(tangent, ExactModel, _tangent)
-
-
-@njit(cache=_CACHE)
-def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, X, E):
-    """Fixed-step generalized-alpha with exact kinematics: solvers.loop.fixed_step (the
-    planar arm's loop: full Newton, pulses at mid-step) on :func:`balance`; no bristle
-    states. The returns of integrators.generalized_alpha."""
-    return fixed_step(ExactModel(X, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit), None)
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled

@@ -22,9 +22,13 @@ Schemes
 -------
 - ``dopri5``: Dormand-Prince 5(4), error per step controlled in the weighted RMS norm
   ``|err_i| / (atol_i + rtol |x_i|)``; lands exactly on the output times.
-- ``generalized_alpha``: fixed step, implicit, second order, unconditionally stable for
+- generalized-alpha: fixed step, implicit, second order, unconditionally stable for
   the linear part; it steps over the stiff flexible modes (damping the unresolved ones)
-  at a cost of a few equation evaluations per step: the real-time mode.
+  at a cost of a few equation evaluations per step: the real-time mode. The loop is
+  solvers.loop.fixed_step on :class:`PlanarModel` (its hooks below), called as
+  ``fixed_step(PlanarModel(P, E), n, t0, x0, a0, abar0, h, n_steps, every,
+  newton_settings(rho_inf, tol, limit), F0)``: F0 None for full Newton (backtracking),
+  ``empty_factor()`` for simplified Newton (solvers.loop.simplified_newton).
 """
 from __future__ import annotations
 
@@ -35,11 +39,9 @@ from numba import njit
 
 from .effects.friction import friction_law_compiled
 from .effects.stick_slip import bristle_rate, bristle_step
-from .iteration_matrix import empty_factor, structured_factor
+from .iteration_matrix import structured_factor
 from .solvers.galpha import finite_within, galpha_parameters, galpha_state, restart_choice
-from .solvers.loop import (fixed_step, id_residual, implements, iteration_factor, residual,
-                           tangent)
-from .solvers.status import Settings, newton_settings
+from .solvers.loop import id_residual, implements, iteration_factor, residual, tangent
 from .kernels import (band_matvec, cholesky, inverse_dynamics, link_origins, mass_matrix,
                       solve_spd, tip_jacobian)
 
@@ -556,59 +558,6 @@ def _iteration_factor(md, q1, v1, c):
 for _hook, _fn in ((residual, _residual), (tangent, _tangent), (id_residual, _id_residual),
                    (iteration_factor, _iteration_factor)):
     implements(_hook, PlanarModel, _fn)
-
-
-@njit(cache=_CACHE, inline="always")
-def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, P, E):
-    """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form) on the planar
-    arm: solvers.loop.fixed_step, full Newton (at most 50 iterations, backtracking).
-
-    Second-order accurate, unconditionally stable for linear systems, with numerical
-    damping of the unresolved high modes set by the spectral radius ``rho_inf`` at
-    infinite frequency (1 = none). Each step solves B(q1) a1 = Q - c by Newton's method on
-    the iteration matrix B + gamma' (D + C_joints) + beta' (K + K_joints) (PD gains, joint
-    springs, friction slope and back-EMF at the current speed) until the position
-    correction is below ``tol`` (m or rad). Pulses are evaluated at mid-step. The bristle
-    deflections z of stick-slip joints (x = [q; v; z]) are advanced by backward Euler
-    inside every residual (L-stable; flex_model.effects.stick_slip), their slope and
-    damping enter the iteration matrix.
-
-    Returns ``(X, status, t_end, x_end, a_end, abar_end, iterations)``; X holds every
-    ``every``-th state, X[0] = x0. Status 1 = non-finite or diverging state, 2 = Newton did
-    not converge. Inlined into compiled callers (the control and replay loops): they link
-    the one fixed_step instead of compiling it once more inside this wrapper.
-    """
-    _check_state(x0, E)
-    return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit), None)
-
-
-@njit(cache=_CACHE, inline="always")
-def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
-                                 P, E):
-    """:func:`generalized_alpha` by simplified Newton: same arguments, same results to
-    ``tol``. The factor of the iteration matrix is kept across steps and refreshed when
-    the iterations contract slowly (solvers.loop.simplified_newton), the residual is one
-    inverse-dynamics pass without the mass matrix and the acceleration is extrapolated
-    as the predictor (section E, second order, 1 ms: tip within 0.003 um of fully
-    converged Newton over 10 s, 2.2 iterations per step, about a third of the cost). A
-    step it cannot solve, and arms with bristle states, take full Newton."""
-    _check_state(x0, E)
-    return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit), empty_factor())
-
-
-def fixed_step_full_newton(md, t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit):
-    """:func:`generalized_alpha` called from Python on the model data ``md``
-    (``PlanarModel(P, E)``, exact_kinematics.ExactModel): solvers.loop.fixed_step by full
-    Newton itself, with the same returns and the same machine code as the compiled callers
-    link. numba emits a compiled function's machine code with all that it calls linked in,
-    so a compiled wrapper around the loop compiles the loop once more (the compiled callers
-    inline the wrappers: inline="always"). The state's size is the caller's to get
-    right (simulate, stepper)."""
-    return fixed_step(md, md.E[0].shape[0], float(t0), x0, a0, abar0, float(h), int(n_steps),
-                      int(every), Settings(float(rho_inf), float(tol), limit=float(limit)),
-                      None)
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled

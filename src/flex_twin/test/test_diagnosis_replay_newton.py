@@ -25,14 +25,14 @@ GARBAGE = 1e9
 
 
 class FailingOnce:
-    """generalized_alpha's signature: the first call returns status 2 (Newton failed)
+    """solvers.loop.fixed_step's signature: the first call returns status 2 (Newton failed)
     with a garbage acceleration; every call is recorded and, after the first, steps
     nothing (the state held: enough for the loops' bookkeeping)."""
 
     def __init__(self):
         self.calls = []
 
-    def __call__(self, t, x, a, abar, h, n_steps, every, rho_inf, tol, limit, P, E):
+    def __call__(self, md, n, t, x, a, abar, h, n_steps, every, s, F0):
         self.calls.append((t, x.copy(), a.copy(), abar.copy(), h))
         X = np.tile(x, (n_steps // int(every) + 1, 1))
         bad = np.full_like(a, GARBAGE)
@@ -51,7 +51,7 @@ def arm():
 def test_sampled_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
     m, x0 = arm
     fake = FailingOnce()
-    monkeypatch.setattr(replay, "generalized_alpha", fake)
+    monkeypatch.setattr(replay, "fixed_step", fake)
     E = input_data(m, None, (), np.zeros(2))
     nc = 2
     C = np.zeros((nc, len(x0) // 2))
@@ -71,7 +71,7 @@ def test_sampled_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
 def test_continuous_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
     m, x0 = arm
     fake = FailingOnce()
-    monkeypatch.setattr(replay, "generalized_alpha", fake)
+    monkeypatch.setattr(replay, "fixed_step", fake)
     monkeypatch.setattr(replay, "_continuous_periods", replay._continuous_periods.py_func)
     E = input_data(m, JointPD(np.full(2, 625.0), np.full(2, 176.8), np.zeros(2)), (),
                    np.zeros(2))
@@ -121,9 +121,10 @@ def test_a_stretch_simplified_newton_does_not_finish_is_replayed_by_full_newton(
     m, E, x0, U = second_order
     X_full, _, _ = replay._continuous_loop(x0, m.P, E, 1e-3, 2, len(U), 0.9, U, 2, False)
 
-    def stalls(t, x, a, abar, h, n_steps, every, rho_inf, tol, limit, P, E):
+    def stalls(md, n, t, x, a, abar, h, n_steps, every, s, F0):
+        assert F0 is not None   # simplified Newton: its full Newton is _continuous_periods'
         return np.full((n_steps + 1, x.shape[0]), np.nan), 2, t + h, x, a, abar, 0
-    monkeypatch.setattr(replay, "generalized_alpha_simplified", stalls)
+    monkeypatch.setattr(replay, "fixed_step", stalls)
     X, status, _ = replay._continuous_loop.py_func(x0, m.P, E, 1e-3, 2, len(U), 0.9, U, 2,
                                                    True)
     assert status == 0

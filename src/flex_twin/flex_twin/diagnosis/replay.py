@@ -7,11 +7,12 @@ twin's measured channels, its output (the recorded command ``tau<i>``) is held
 ``actuator_delay`` effect on joint j, applied d_j = ceil(delay_j / period) periods later
 (0 before the first command is old enough), exactly as :func:`flex_model.simulate.simulate`
 with a ``policy`` and ``method='fixed'`` does. The whole loop is compiled (numba), calling
-the generalized-alpha integrator of :mod:`flex_model.integrators` between control
-instants, so a 20 s run costs a fraction of a second. A control period whose Newton
-iterations stall (the rounded corners of a backlash or of friction crossed within one
-step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of
-measured torques through the rigid-body modes drifts and is not offered. Joints with
+the generalized-alpha loop (flex_model.solvers.loop.fixed_step on
+flex_model.integrators.PlanarModel) between control instants, so a 20 s run costs a
+fraction of a second. A control period whose Newton iterations stall (the rounded
+corners of a backlash or of friction crossed within one step) is integrated again with
+:data:`SUBSTEPS` steps per step. Open-loop replay of measured torques through the
+rigid-body modes drifts and is not offered. Joints with
 ``stick_slip_friction`` carry their bristle deflections z in the state, x = [q; v; z]
 (the integrator advances them, flex_model.effects.stick_slip); a replay starts with them
 unloaded.
@@ -32,12 +33,13 @@ import numpy as np
 from numba import njit
 
 from flex_model.dynamics import FlexArmModel
-from flex_model.integrators import (consistent_acceleration, generalized_alpha,
-                                    generalized_alpha_simplified)
+from flex_model.integrators import PlanarModel, consistent_acceleration
+from flex_model.iteration_matrix import empty_factor
 from flex_model.kernels import link_origins
 from flex_model.inputs import JointPD, input_data
 from flex_model.simulate import SimulationDivergedError
-from flex_model.solvers.status import REFINEMENTS
+from flex_model.solvers.loop import fixed_step
+from flex_model.solvers.status import REFINEMENTS, newton_settings
 from flex_model.statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
 
@@ -46,8 +48,8 @@ DEFAULT_STEP = 1e-3
 SUBSTEPS = REFINEMENTS[0]
 #: replays on second-order kinematics by simplified Newton (_closed_loop, _continuous_loop)
 SIMPLIFIED = True
-# (the compiled loops pass their integer constants to the integrator as np.int64: a bare
-# literal is its own numba type, and each one compiled generalized_alpha once more)
+# (the compiled loops pass their integer constants to the loop as np.int64: a bare
+# literal is its own numba type, and each one compiled fixed_step once more)
 
 
 @njit(cache=True)
@@ -57,10 +59,11 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
     out_stride steps, the commands at the n_periods + 1 instants (the last one at the
     final state) and a status (0 ok, 1 diverged, 2 Newton failed). ``simplified``
     (second-order kinematics): each period's first attempt by simplified Newton
-    (:func:`flex_model.integrators.generalized_alpha_simplified`, the same results to the
-    Newton tolerance), the retry of a stalled period by full Newton."""
+    (flex_model.solvers.loop.simplified_newton, the same results to the Newton tolerance),
+    the retry of a stalled period by full Newton."""
     nx = x0.shape[0]
     n = E[0].shape[0]   # x = [q; v; z]: z the bristle deflections of stick-slip joints
+    md, opts = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6)
     nj = Kp.shape[0]
     nc = C.shape[0]
     n_steps = n_periods * per_period
@@ -90,18 +93,18 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
         t = k * per_period * h
         a0 = consistent_acceleration(t, x, P, E)
         if simplified:
-            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha_simplified(
-                t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a, abar, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h, per_period, np.int64(1), opts, empty_factor())
         else:
-            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-                t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a, abar, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h, per_period, np.int64(1), opts, None)
         if status == 2:   # Newton stalled (a sharp corner: backlash, friction): the period
             # again in SUBSTEPS steps per step from the last accepted state x and its
             # consistent acceleration a0, not the failed attempt's (bit-identical runs
             # where it converges)
-            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
-                rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a, abar, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS,
+                np.int64(SUBSTEPS), opts, None)
         if status != 0:
             return X, cmd, status, t_stop
         for s in range(1, per_period + 1):
@@ -119,6 +122,7 @@ def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_s
     SUBSTEPS steps per step, from the last accepted state and its consistent acceleration).
     Writes the states into X; returns (status, time reached, x, a, abar)."""
     u = E[8]
+    md, opts, n = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6), E[0].shape[0]
     for kk in range(k, k + m):
         t = kk * per_period * h
         restart = kk == 0
@@ -129,13 +133,13 @@ def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_s
         if restart:
             a = consistent_acceleration(t, x, P, E)
             abar = a.copy()
-        Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
-            t, x, a, abar, h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+        Xs, status, t_stop, x_stop, a1, abar1, it = fixed_step(
+            md, n, t, x, a, abar, h, per_period, np.int64(1), opts, None)
         if status == 2:   # Newton stalled on a sharp corner: the period in substeps
             a0 = consistent_acceleration(t, x, P, E)
-            Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
-                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
-                rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a1, abar1, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS,
+                np.int64(SUBSTEPS), opts, None)
         if status != 0:
             return status, t_stop, x, a, abar
         a = a1
@@ -158,7 +162,7 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
     acceleration where the held input changes (a set-point step).
 
     ``simplified`` (second-order kinematics): each stretch of periods with one held input
-    is one call of simplified Newton (:func:`flex_model.integrators.generalized_alpha_simplified`:
+    is one call of simplified Newton (flex_model.solvers.loop.simplified_newton:
     its iteration matrix kept across the stretch, the same results to the Newton
     tolerance, a fraction of the cost); a stretch it does not finish is integrated again
     period by period by full Newton (:func:`_continuous_periods`), as without it."""
@@ -176,6 +180,7 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
             x, a, abar, 0, n_periods, P, E, h, per_period, rho_inf, U, out_stride, X)
         return X, status, t_stop
     k = 0
+    md, opts, n = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6), a.shape[0]
     while k < n_periods:
         m = 1   # the stretch of periods with the held input of period k
         while k + m < n_periods and np.all(U[k + m] == U[k]):
@@ -184,8 +189,8 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
         u[:] = U[k]
         a = consistent_acceleration(t, x, P, E)
         abar = a.copy()
-        Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha_simplified(
-            t, x, a, abar, h, m * per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+        Xs, status, t_stop, x_stop, a1, abar1, it = fixed_step(
+            md, n, t, x, a, abar, h, m * per_period, np.int64(1), opts, empty_factor())
         if status == 0:
             for s in range(1, m * per_period + 1):
                 g = k * per_period + s
@@ -451,7 +456,7 @@ def _guard_caches():
     from flex_model import integrators, iteration_matrix, kernels, numba_cache
     from flex_model.effects import friction, stick_slip
     from flex_model.solvers import galpha, loop, newton, status
-    numba_cache.guard([_closed_loop, _continuous_loop, _tips],
+    numba_cache.guard([_closed_loop, _continuous_periods, _continuous_loop, _tips],
                       [integrators.__file__, kernels.__file__, stick_slip.__file__,
                        friction.__file__, iteration_matrix.__file__, galpha.__file__,
                        loop.__file__, newton.__file__, status.__file__])
