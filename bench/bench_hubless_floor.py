@@ -116,7 +116,7 @@ def consistent_forced():
     from flex_model.kernels import solve_spd
 
     def forced(t, x, a, h, rho_inf, X, E):
-        n = E[0].shape[0]
+        n = E.K.shape[0]
         B, rhs = ek.balance(t, x[:n], x[n:2 * n], X, E)
         return solve_spd(B, rhs), False
 

@@ -110,14 +110,14 @@ def law_command(law, interp, T, R, gains, ff, lim, t, th, dth, d, dd):
 @njit(cache=_CACHE)
 def run_periods(t, x, a, abar, n_periods, period, max_step, rho_inf, t_ref0, G, defl,
                 law, interp, T, R, gains, ff, lim, tol, limit, P, E):
-    """``n_periods`` control periods from (t, x, a, abar): sense, command (held in E[8],
+    """``n_periods`` control periods from (t, x, a, abar): sense, command (held in E.u,
     the stepper's command array), restart if it changed, integrate the period.
 
     Returns ``(status, periods_done, t, x, a, abar, t_fail, x_fail)``: status 0 ok, 1
     diverged, 2 Newton failed, 3 non-finite command; on failure (t, x, a, abar) is the
     state at the start of the failing period and (t_fail, x_fail) where it failed.
     """
-    u = E[8]
+    u = E.u
     n = G.shape[1]
     ns = max(1, int(np.ceil(period / max_step - 1e-9)))
     h = period / ns

@@ -46,6 +46,7 @@ from .iteration_matrix import empty_factor
 from .solvers import loop
 from .solvers.status import newton_settings
 from .result import SimulationResult
+from .kernels import P_MODE
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
@@ -109,7 +110,7 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
                              "exact; use 'full' or None")
         newton = "full"
     if newton is None:
-        newton = "simplified" if model.P[0] == 1 else "full"
+        newton = "simplified" if model.P[P_MODE] == 1 else "full"
     if not (t_final > 0 and sample_period > 0):
         raise ValueError(f"t_final and sample_period must be > 0 (got {t_final}, "
                          f"{sample_period})")
@@ -317,7 +318,7 @@ def _exact_jump_step(model, t, x, a, h, rho_inf, P, E):
     from .exact_kinematics import restart_acceleration as exact_restart
     a, filtered = exact_restart(t, x, a, h, rho_inf, P, E)
     _, status, t_stop, x1, a, abar, it = loop.fixed_step(
-        ExactModel(P, E), E[0].shape[0], float(t), x, a, a.copy(), float(h), 1, 1,
+        ExactModel(P, E), E.K.shape[0], float(t), x, a, a.copy(), float(h), 1, 1,
         newton_settings(float(rho_inf), 1e-10, DIVERGENCE_LIMIT), None)
     if status == 1:
         raise diverged(model, t_stop, x1)
@@ -393,7 +394,7 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
             a, abar, _, _ = restart_acceleration(t, x, a, abar, h, rho_inf, P, E)
         md = PlanarModel(P, E) if exact is None else ExactModel(P, E)
         Xs, status, t_stop, x_stop, a, abar, it = loop.fixed_step(
-            md, E[0].shape[0], float(t), x, a, abar, float(h), m, 1,
+            md, E.K.shape[0], float(t), x, a, abar, float(h), m, 1,
             newton_settings(float(rho_inf), 1e-10, DIVERGENCE_LIMIT),
             empty_factor() if newton == "simplified" else None)
         iters += it

@@ -79,7 +79,7 @@ class Stepper:
         n = max(1, int(np.ceil(duration / self.max_step - 1e-9)))
         h = duration / n
         X, status, t_end, x_end, a, abar, _ = fixed_step(
-            PlanarModel(self.model.P, self.E), self.E[0].shape[0], float(self.t), self.x,
+            PlanarModel(self.model.P, self.E), self.E.K.shape[0], float(self.t), self.x,
             self.a, self.abar, float(h), n, n,
             newton_settings(float(self.rho_inf), 1e-10, DIVERGENCE_LIMIT), None)
         if status == 1:

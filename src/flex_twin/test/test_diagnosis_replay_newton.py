@@ -20,6 +20,7 @@ from flex_model.dynamics import FlexArmModel
 from flex_model.inputs import JointPD, input_data
 from flex_model.integrators import consistent_acceleration
 from flex_twin.diagnosis import replay
+from flex_model.kernels import P_MODE
 
 GARBAGE = 1e9
 
@@ -80,7 +81,7 @@ def test_continuous_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
                                                    False)
     assert status == 0
     t, x, a, abar, h = fake.calls[1]
-    E[8][:] = U[0]
+    E.u[:] = U[0]
     a0 = consistent_acceleration(0.0, x0, m.P, E)
     assert h == pytest.approx(1e-3 / replay.SUBSTEPS)
     np.testing.assert_array_equal(x, x0)
@@ -94,7 +95,7 @@ def second_order():
     PD, a set-point step at 0.3 s: what the replay of a hub-less run takes after its floor."""
     m = FlexArmModel(dataclasses.replace(load_arm("thesis_example1"),
                                          kinematics="second_order"))
-    assert m.P[0] == 1
+    assert m.P[P_MODE] == 1
     E = input_data(m, JointPD(np.full(2, 625.0), np.full(2, 176.8), np.zeros(2)), (),
                    np.zeros(2))
     x0 = replay.initial_state(m, np.array([-1.2, 0.3]))

@@ -18,10 +18,10 @@ rigid-body modes drifts and is not offered. Joints with
 unloaded.
 
 A continuous law (``timing: continuous``, :mod:`.controller`) is the compiled joint PD of
-:mod:`flex_model.integrators` (E[5], E[6]: its stiffness and damping are in the
+:mod:`flex_model.integrators` (E.kp, E.kd: its stiffness and damping are in the
 generalized-alpha Newton matrix, so a D term on an arm without hub inertia is implicit and
 stable at the replay's step); the part of the law that depends on time only,
-ff + kp (qset - encoder bias), is the held input E[8], updated at the recording's samples
+ff + kp (qset - encoder bias), is the held input E.u, updated at the recording's samples
 (:func:`_continuous_loop`; the integrator restarts with a consistent acceleration only
 where that input changes). Its recorded command is the law at the sampled state.
 """
@@ -42,6 +42,7 @@ from flex_model.solvers.loop import fixed_step
 from flex_model.solvers.status import REFINEMENTS, newton_settings
 from flex_model.statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
+from flex_model.kernels import P_MODE
 
 DEFAULT_STEP = 1e-3
 #: steps per step of a control period retried after a Newton failure (the first refinement)
@@ -62,7 +63,7 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
     (flex_model.solvers.loop.simplified_newton, the same results to the Newton tolerance),
     the retry of a stalled period by full Newton."""
     nx = x0.shape[0]
-    n = E[0].shape[0]   # x = [q; v; z]: z the bristle deflections of stick-slip joints
+    n = E.K.shape[0]   # x = [q; v; z]: z the bristle deflections of stick-slip joints
     md, opts = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6)
     nj = Kp.shape[0]
     nc = C.shape[0]
@@ -72,7 +73,7 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
     cmd = np.zeros((n_periods + 1, nj))
     Y = np.zeros((n_periods + 1, nc))
     YD = np.zeros((n_periods + 1, nc))
-    u = E[8]
+    u = E.u
     x = x0.copy()
     X[0] = x
     for k in range(n_periods + 1):
@@ -118,11 +119,11 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
 @njit(cache=True)
 def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_stride, X):
     """Periods k .. k + m - 1 of :func:`_continuous_loop` one by one by full Newton (the
-    held input E[8] = U[k] on period k; a period whose Newton iterations stall again in
+    held input E.u = U[k] on period k; a period whose Newton iterations stall again in
     SUBSTEPS steps per step, from the last accepted state and its consistent acceleration).
     Writes the states into X; returns (status, time reached, x, a, abar)."""
-    u = E[8]
-    md, opts, n = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6), E[0].shape[0]
+    u = E.u
+    md, opts, n = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6), E.K.shape[0]
     for kk in range(k, k + m):
         t = kk * per_period * h
         restart = kk == 0
@@ -156,7 +157,7 @@ def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_s
 def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
                      simplified):
     """Run n_periods sample periods of per_period steps under the compiled joint PD of E
-    with the held input E[8] = U[k] on period k; return the states every out_stride steps,
+    with the held input E.u = U[k] on period k; return the states every out_stride steps,
     a status (0 ok, 1 diverged, 2 Newton failed) and the time reached. The method runs on
     through the periods (bit-identical to one call) and restarts with a consistent
     acceleration where the held input changes (a set-point step).
@@ -170,10 +171,10 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
     n_steps = n_periods * per_period
     n_out = n_steps // out_stride + 1
     X = np.full((n_out, nx), np.nan)
-    u = E[8]
+    u = E.u
     x = x0.copy()
     X[0] = x
-    a = np.zeros(E[0].shape[0])
+    a = np.zeros(E.K.shape[0])
     abar = a.copy()
     if not simplified:
         status, t_stop, x, a, abar = _continuous_periods(
@@ -197,7 +198,7 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
                 if g % out_stride == 0:
                     X[g // out_stride] = Xs[s]
             x = x_stop
-        else:   # period by period, by full Newton (E[8] as before this stretch)
+        else:   # period by period, by full Newton (E.u as before this stretch)
             if k > 0:
                 u[:] = U[k - 1]
             status, t_stop, x, a1, abar1 = _continuous_periods(
@@ -348,7 +349,7 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
         np.ascontiguousarray(controller.gains), np.ascontiguousarray(controller.rate_gains),
         np.ascontiguousarray(ref), np.ascontiguousarray(ff_at_instants[:n_periods + 1]),
         bias, _delay_periods(model, period), sdelay, stride,
-        bool(SIMPLIFIED and model.P[0] == 1))
+        bool(SIMPLIFIED and model.P[P_MODE] == 1))
     if status != 0:
         raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
                                       f"(status {status}: diverged or Newton failed)")
@@ -379,7 +380,7 @@ def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
     U = np.ascontiguousarray(ff + (ref - bias) @ controller.gains.T)
     X, status, t_stop = _continuous_loop(np.asarray(x0, float), model.P, E, h, per_period,
                                          n_periods, rho_inf, U, per_period,
-                                         bool(SIMPLIFIED and model.P[0] == 1))
+                                         bool(SIMPLIFIED and model.P[P_MODE] == 1))
     if status != 0:
         raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
                                       f"(status {status}: diverged or Newton failed)")
