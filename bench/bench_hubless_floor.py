@@ -83,12 +83,15 @@ def consistent_restart():
     import contextlib
 
     import flex_model.simulate as sim
-    from flex_model.exact_kinematics import derivative, generalized_alpha
+    from flex_model.exact_kinematics import ExactModel, derivative
+    from flex_model.solvers.loop import fixed_step
+    from flex_model.solvers.status import newton_settings
 
     def old(model, t, x, a, h, rho_inf, P, E):
         a = derivative(t, x, P, E)[model.nq:]
-        _, status, t_stop, x1, a, abar, it = generalized_alpha(
-            t, x, a, a.copy(), h, 1, 1, rho_inf, 1e-10, sim.DIVERGENCE_LIMIT, P, E)
+        _, status, t_stop, x1, a, abar, it = fixed_step(
+            ExactModel(P, E), model.nq, float(t), x, a, a.copy(), float(h), 1, 1,
+            newton_settings(float(rho_inf), 1e-10, sim.DIVERGENCE_LIMIT), None)
         if status:
             raise sim.newton_failed(t_stop, h, "reduce the step")
         return x1, a, abar, it
@@ -113,7 +116,7 @@ def consistent_forced():
     from flex_model.kernels import solve_spd
 
     def forced(t, x, a, h, rho_inf, X, E):
-        n = E[0].shape[0]
+        n = E.K.shape[0]
         B, rhs = ek.balance(t, x[:n], x[n:2 * n], X, E)
         return solve_spd(B, rhs), False
 

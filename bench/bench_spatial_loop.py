@@ -1,8 +1,8 @@
-"""Benchmark: CPU time per step of the spatial arm's compiled loop (issue 43: galpha_loop on
-solvers.loop.fixed_step). seed003_like_arm from rest under constant joint torques, 2000
-steps of 1 ms in one call (the best of 5 runs: the loop without the Python call overhead),
-then 4-step calls continued with ``acceleration=`` (the spatial node's period). Prints
-figures; run it on main and on a branch to compare.
+"""Benchmark: CPU time per step of the spatial arm's compiled loop (issue 43:
+solvers.loop.fixed_step on compiled.SpatialModel). seed003_like_arm from rest under
+constant joint torques, 2000 steps of 1 ms in one call (the best of 5 runs: the loop
+without the Python call overhead), then 4-step calls continued with ``acceleration=``
+(the spatial node's period). Prints figures; run it on main and on a branch to compare.
 
     python bench/bench_spatial_loop.py
 """

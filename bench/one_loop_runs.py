@@ -1,7 +1,7 @@
 """Fixed-step runs saved for a bit-for-bit comparison of two versions (issue 43, the one
 loop): section E arm (4 variables per link, 1 ms, 0.4 s, 1 kN m pulse) with small-deflection,
 second-order (full and simplified Newton) and exact kinematics, 300 direct steps of
-integrators.generalized_alpha, a stick-slip joint over 1 s; and the spatial arm's compiled
+solvers.loop.fixed_step, a stick-slip joint over 1 s; and the spatial arm's compiled
 loop (issue 43, spatial.integrate.simulate_fixed_compiled): the two preset scenarios, the
 seed 003 joint-type arm with friction, backlash, a held and a locked joint, DC motors, a
 contact surface with a tip force, end stops, exact kinematics (curvature coupling), a
@@ -22,7 +22,9 @@ from flex_model.dynamics import FlexArmModel
 from flex_model.simulate import JointPD, Pulse, simulate
 from flex_model.effects import StickSlipFriction, StructuralDamping
 from flex_model.inputs import input_data
-from flex_model.integrators import consistent_acceleration, generalized_alpha
+from flex_model.integrators import PlanarModel, consistent_acceleration
+from flex_model.solvers.loop import fixed_step
+from flex_model.solvers.status import newton_settings
 TH0 = np.radians([-20.0, 20.0, -20.0])
 
 
@@ -51,8 +53,9 @@ def planar(out):
     x = np.concatenate([m.q_from_joint_angles(TH0), np.zeros(m.nq)])
     E = input_data(m, None, (), np.zeros(3))
     a = consistent_acceleration(0.0, x, m.P, E)
-    X, st, t, xe, a1, ab1, it = generalized_alpha(0.0, x, a, a.copy(), 1e-3, 300, 1, 0.9,
-                                                  1e-10, 1e6, m.P, E)
+    X, st, t, xe, a1, ab1, it = fixed_step(PlanarModel(m.P, E), m.nq, 0.0, x, a, a.copy(),
+                                           1e-3, 300, 1, newton_settings(0.9, 1e-10, 1e6),
+                                           None)
     out["direct_X"], out["direct_it"] = X, np.array([it, st])
     rot = arm_from_dict({"name": "rotor", "gravity": [0.0, 0.0], "links": [{
         "length": 1.0, "section": {"shape": "explicit", "EI": 1e3, "m": 0.01},

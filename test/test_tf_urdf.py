@@ -26,6 +26,7 @@ from visualization_msgs.msg import MarkerArray
 from flex_model import urdf
 from flex_model.arm import load_arm, resolve_preset
 from flex_model.dynamics import FlexArmModel
+from flex_model.kernels import P_JROT, P_MTOT, P_NTOT
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +71,7 @@ def test_urdf_joints_and_masses_equal_the_model(three_link):
             return 0.0, 0.0, 0.0
         x = float(el.find("origin").get("xyz").split()[0])
         return float(el.find("mass").get("value")), x, float(el.find("inertia").get("izz"))
-    mtot, ntot, jrot = model.P[4], model.P[5], model.P[6]
+    mtot, ntot, jrot = model.P[P_MTOT], model.P[P_NTOT], model.P[P_JROT]
     total = 0.0
     for i, lk in enumerate(model.arm.links):
         m, x, izz = inertial(lk.name)

@@ -16,7 +16,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .integrators import generalized_alpha, restart_acceleration
+from .integrators import PlanarModel, restart_acceleration
+from .solvers.loop import fixed_step
+from .solvers.status import newton_settings
 
 _CACHE = True
 
@@ -108,17 +110,18 @@ def law_command(law, interp, T, R, gains, ff, lim, t, th, dth, d, dd):
 @njit(cache=_CACHE)
 def run_periods(t, x, a, abar, n_periods, period, max_step, rho_inf, t_ref0, G, defl,
                 law, interp, T, R, gains, ff, lim, tol, limit, P, E):
-    """``n_periods`` control periods from (t, x, a, abar): sense, command (held in E[8],
+    """``n_periods`` control periods from (t, x, a, abar): sense, command (held in E.u,
     the stepper's command array), restart if it changed, integrate the period.
 
     Returns ``(status, periods_done, t, x, a, abar, t_fail, x_fail)``: status 0 ok, 1
     diverged, 2 Newton failed, 3 non-finite command; on failure (t, x, a, abar) is the
     state at the start of the failing period and (t_fail, x_fail) where it failed.
     """
-    u = E[8]
+    u = E.u
     n = G.shape[1]
     ns = max(1, int(np.ceil(period / max_step - 1e-9)))
     h = period / ns
+    md, s = PlanarModel(P, E), newton_settings(rho_inf, tol, limit)   # full Newton
     for k in range(n_periods):
         q = x[:n]
         v = x[n:2 * n]
@@ -137,8 +140,8 @@ def run_periods(t, x, a, abar, n_periods, period, max_step, rho_inf, t_ref0, G, 
         if changed:
             u[:] = un
             a, abar, _, _ = restart_acceleration(t, x, a, abar, h, rho_inf, P, E)
-        _, status, t_end, x_end, a1, abar1, _ = generalized_alpha(
-            t, x, a, abar, h, ns, ns, rho_inf, tol, limit, P, E)
+        _, status, t_end, x_end, a1, abar1, _ = fixed_step(
+            md, n, t, x, a, abar, h, ns, ns, s, None)
         if status != 0:
             return status, k, t, x, a, abar, t_end, x_end
         t, x, a, abar = t + period, x_end, a1, abar1

@@ -21,6 +21,9 @@ import numpy as np
 from . import kernels
 from .arm import PAIRED, ArmDescription
 from .basis import link_basis
+from .effects.contact import CT_C, CT_K, CT_NX, CT_NY, CT_ON, CT_X, CT_Y
+from .inputs import (JD_BACKLASH, JD_COG_A, JD_COG_N, JD_COG_PHASE, JD_K, JD_RATIO,
+                     JD_SMOOTHING, JD_SS, JOINT_DATA)
 
 
 #: memo of the Euler-Bernoulli wavelet bases, (repr of the link's segments, intervals) ->
@@ -161,13 +164,8 @@ class FlexArmModel:
                           shear_stiffness=None if np.isnan(ga) else ga,
                           rho_over_e=rho_over_e)
 
-    #: columns of joint_data: spring (k, b, backlash, smoothing), friction (F_v, F_c, F_s,
-    #: w_s, eps), DC motor (on, R, K_t, K_e, i_max, V_max), gear ratio n, cogging (A, N, phase),
-    #: stick-slip friction (on, sigma_2, F_c, F_s, w_s, sigma_0, sigma_1, elastic fraction;
-    #: flex_model.effects.stick_slip, from column integrators.SS on)
-    JOINT_DATA = ("k", "b", "backlash", "smoothing", "fv", "fc", "fs", "ws", "eps", "motor",
-                  "R", "Kt", "Ke", "imax", "vmax", "ratio", "cog_A", "cog_N", "cog_phase",
-                  "ss_on", "ss_fv", "ss_fc", "ss_fs", "ss_ws", "ss_k", "ss_d", "ss_frac")
+    #: columns of joint_data (inputs.JOINT_DATA, by name inputs.JD_K ...)
+    JOINT_DATA = JOINT_DATA
 
     def _apply_effects(self) -> None:
         """Fold the arm's effects (flex_model.effects) into the model's constant data."""
@@ -454,7 +452,7 @@ class FlexArmModel:
 
     @property
     def total_mass(self) -> float:
-        return float(np.sum(self._P[4]))
+        return float(np.sum(self._P[kernels.P_MTOT]))
 
     # ----------------------------------------------------------------- dynamics
     def mass_matrix(self, q) -> np.ndarray:
@@ -534,30 +532,29 @@ class FlexArmModel:
         """Torques (N m, n_links) of the stick-slip friction on the actuator coordinates
         at velocities v and bristle deflections z (zero at joints without the effect)."""
         from .effects.stick_slip import friction_magnitude
-        from .integrators import SS
         tau = np.zeros(self.n_links)
         for k, i in enumerate(self.stick_slip_joints):
             tau[i] = -friction_magnitude(float(z[k]), float(self.Ga[i] @ v),
-                                         self.joint_data[i, SS:])
+                                         self.joint_data[i, JD_SS:])
         return tau
 
     def bristle_energy(self, z) -> float:
         """Energy stored in the bristles of the stick-slip joints, sum sigma_0 z^2 / 2 (J)."""
-        from .integrators import SS
-        return float(sum(0.5 * self.joint_data[i, SS + 5] * float(z[k]) ** 2
+        from .effects.stick_slip import SS_K
+        return float(sum(0.5 * self.joint_data[i, JD_SS + SS_K] * float(z[k]) ** 2
                          for k, i in enumerate(self.stick_slip_joints)))
 
     def contact_force(self, q, v=None) -> np.ndarray:
         """Force (N, base frame) of the contact surface on the tip (zero without one)."""
         ct = self.contact
-        if ct[0] <= 0:
+        if ct[CT_ON] <= 0:
             return np.zeros(2)
         q = np.asarray(q, float)
         tip = self.link_origins(q)[-1]
-        n = ct[3:5]
-        pen = -n @ (tip - ct[1:3])
+        n = ct[CT_NX:CT_NY + 1]
+        pen = -n @ (tip - ct[CT_X:CT_Y + 1])
         vn = 0.0 if v is None else n @ (self.tip_jacobian(q) @ np.asarray(v, float))
-        return max(0.0, ct[5] * pen - ct[6] * vn) * n if pen > 0 else np.zeros(2)
+        return max(0.0, ct[CT_K] * pen - ct[CT_C] * vn) * n if pen > 0 else np.zeros(2)
 
     def acceleration(self, q, v, Q) -> np.ndarray:
         """a = B^-1 (Q - c - K q - D v) for a generalized applied force Q."""
@@ -673,13 +670,13 @@ class FlexArmModel:
         jd = self.joint_data
         u = 0.0
         for i in range(self.n_links):
-            k, b, s = jd[i, 0], jd[i, 2], jd[i, 3]
+            k, b, s = jd[i, JD_K], jd[i, JD_BACKLASH], jd[i, JD_SMOOTHING]
             if np.isfinite(k):
                 x = (self.Ga[i] - self.G[i]) @ q
                 u += k * (dead_zone_energy(x, b, s) if b > 0 else 0.5 * x * x)
-            amp, n_per, phase = jd[i, 16], jd[i, 17], jd[i, 18]
+            amp, n_per, phase = jd[i, JD_COG_A], jd[i, JD_COG_N], jd[i, JD_COG_PHASE]
             if amp:
-                wn = n_per * jd[i, 15]
+                wn = n_per * jd[i, JD_RATIO]
                 u += amp / wn * np.cos(wn * (self.Ga[i] @ q) + phase)
         return float(u)
 

@@ -30,8 +30,9 @@ interval ends (``inner`` points per piece, default 8: exact to degree 15); the m
 the Lagrangian of these discrete positions, so it conserves energy exactly. Cost per
 evaluation: one compiled sweep (:func:`terms`, ~20 us for 8 variables), linear in the
 mass points and quadratic in the variables; flex_model.simulate integrates it in both
-modes (:func:`derivative`, :func:`generalized_alpha`); the kernels of kernels.py and
-integrators.py, and so the Stepper, the control loop and the replays, do not take it.
+modes (:func:`derivative`; solvers.loop.fixed_step on :class:`ExactModel`, full Newton,
+no bristle states); the kernels of kernels.py and integrators.py, and so the Stepper, the
+control loop and the replays, do not take it.
 
 Axial extensibility (``axial_vars: m``, m variables per link after the arm's and the
 motors' coordinates): the axial strain eps(s) = sum_k u_k P_k(2 s / L - 1) (Legendre
@@ -50,10 +51,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from .effects.contact import CT_ON
 from .integrators import joint_passive_forces, joint_tangent, joint_torques
 from .solvers.galpha import galpha_coefficients, galpha_state, restart_choice
-from .solvers.loop import fixed_step, implements, residual, tangent
-from .solvers.status import newton_settings
+from .solvers.loop import implements, residual, tangent
 from .kernels import cholesky, solve_spd
 from .sections import area_and_inertia
 
@@ -156,7 +157,7 @@ class ExactKinematics:
                     f"discretization: {lk.discretization}"
                     + (" and a timoshenko effect" if tim is not None and not tim.is_off
                        else ""))
-        if arm.effect("contact_surface") is not None or model.contact[0] > 0:
+        if arm.effect("contact_surface") is not None or model.contact[CT_ON] > 0:
             raise ExactKinematicsUnsupported(f"{arm.source}: kinematics: exact does not "
                                              "take a contact_surface effect yet")
         self.model = model
@@ -580,8 +581,9 @@ def balance(t, q, v, X, E):
     """B(q) and Q - c(q, v) with exact kinematics: the forces of
     integrators.applied_force (joint torques and effects, K q, D v, tip pulses; no
     contact, no stick-slip: refused) with the exact tip Jacobian. E: inputs.input_data."""
-    B, c, Jt = terms(q, v, E[3], E[4], X)
-    K, D, pt0, pt1, pF, pC, Ga = E[0], E[1], E[9], E[10], E[12], E[13], E[16]
+    B, c, Jt = terms(q, v, E.gx, E.gy, X)
+    K, D, pt0, pt1, pF, pC = E.K, E.D, E.pulse_t0, E.pulse_t1, E.pulse_force, E.pulse_torque
+    Ga = E.Ga
     Q = Ga.T @ joint_torques(t, q, v, E) - K @ q - D @ v + joint_passive_forces(q, v, E) - c
     fx = 0.0
     fy = 0.0
@@ -604,7 +606,7 @@ def balance(t, q, v, X, E):
 @njit(cache=_CACHE)
 def derivative(t, x, X, E):
     """dx/dt = [v; B(q)^-1 (Q - c)] for x = [q; v] with exact kinematics."""
-    n = E[0].shape[0]
+    n = E.K.shape[0]
     B, rhs = balance(t, x[:n], x[n:2 * n], X, E)
     out = np.empty(2 * n)
     out[:n] = x[n:2 * n]
@@ -616,12 +618,12 @@ def derivative(t, x, X, E):
 def iteration_matrix(x, h, rho_inf, X, E):
     """(S, G): the fixed step's iteration matrix S = B + gamma' (D + C_j) + beta' (K + K_j)
     at state x and its damping part G = gamma' (D + C_j) (Arnold-Bruls form)."""
-    n = E[0].shape[0]
+    n = E.K.shape[0]
     B = terms(x[:n], x[n:2 * n], 0.0, 0.0, X)[0]
     c = galpha_coefficients(rho_inf, h)
     Kj, Cj = joint_tangent(x[n:2 * n], E)
-    G = c.gp * (E[1] + Cj)
-    return B + G + c.bp * (E[0] + Kj), G
+    G = c.gp * (E.D + Cj)
+    return B + G + c.bp * (E.K + Kj), G
 
 
 @njit(cache=_CACHE)
@@ -636,7 +638,7 @@ def restart_acceleration(t, x, a, h, rho_inf, X, E):
     consistent one converges (as h^2) to the same limit but with a constant ~ kd / J_root
     (issue 47, hub-less arm, 16 variables, 0.3 s: 0.110 / 0.028 mm at the end of link 2
     at 1/32 / 1/64 ms, filtered 0.006 / 0.003 mm; bench_hubless_floor --own-convergence)."""
-    n = E[0].shape[0]
+    n = E.K.shape[0]
     B, rhs = balance(t, x[:n], x[n:2 * n], X, E)
     ac = solve_spd(B, rhs)
     S = iteration_matrix(x, h, rho_inf, X, E)[0]
@@ -665,20 +667,11 @@ def _tangent(md, ctx, st, c):
     """Cholesky factor of B(q1) + gamma' (D + C_joints) + beta' (K + K_joints)."""
     B, v1 = ctx[0], ctx[1]
     Kj, Cj = joint_tangent(v1, md.E)
-    return cholesky(B + c.gp * (md.E[1] + Cj) + c.bp * (md.E[0] + Kj))
+    return cholesky(B + c.gp * (md.E.D + Cj) + c.bp * (md.E.K + Kj))
 
 
 implements(residual, ExactModel, _residual)
 implements(tangent, ExactModel, _tangent)
-
-
-@njit(cache=_CACHE)
-def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, X, E):
-    """Fixed-step generalized-alpha with exact kinematics: solvers.loop.fixed_step (the
-    planar arm's loop: full Newton, pulses at mid-step) on :func:`balance`; no bristle
-    states. The returns of integrators.generalized_alpha."""
-    return fixed_step(ExactModel(X, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit), None)
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled

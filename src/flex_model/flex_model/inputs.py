@@ -5,8 +5,49 @@ diagnosis replay)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
+
+#: the columns of the joint data (FlexArmModel.joint_data, InputData.joint_data), one row a
+#: joint: spring (k, b, backlash, smoothing), friction (F_v, F_c, F_s, w_s, eps), DC motor
+#: (on, R, K_t, K_e, i_max, V_max), gear ratio n, cogging (A, N, phase), stick-slip friction
+#: (from JD_SS on, flex_model.effects.stick_slip.COLUMNS). The compiled kernels read them
+#: by the JD_ constants below (numba takes module constants as literals).
+JOINT_DATA = ("k", "b", "backlash", "smoothing", "fv", "fc", "fs", "ws", "eps", "motor",
+              "R", "Kt", "Ke", "imax", "vmax", "ratio", "cog_A", "cog_N", "cog_phase",
+              "ss_on", "ss_fv", "ss_fc", "ss_fs", "ss_ws", "ss_k", "ss_d", "ss_frac")
+(JD_K, JD_B, JD_BACKLASH, JD_SMOOTHING, JD_FV, JD_FC, JD_FS, JD_WS, JD_EPS, JD_MOTOR, JD_R,
+ JD_KT, JD_KE, JD_IMAX, JD_VMAX, JD_RATIO, JD_COG_A, JD_COG_N, JD_COG_PHASE,
+ JD_SS) = range(20)
+
+
+class InputData(NamedTuple):
+    """The input data ``E`` of the compiled planar kernels (flex_model.integrators, the
+    exact kinematics, the control kernel, the replays): the model's stiffness K and
+    damping D, the joint map G (theta = G q) and the actuator map Ga, gravity (gx, gy),
+    the built-in joint PD (kp, kd, theta_set), the held input u (written in place by the
+    callers), the pulses (pulse_t0, pulse_t1, pulse_tau, pulse_force, pulse_torque),
+    torque_limit, the contact surface (effects.contact_surface.kernel_data) and the joint
+    data (columns JD_ above)."""
+    K: np.ndarray
+    D: np.ndarray
+    G: np.ndarray
+    gx: float
+    gy: float
+    kp: np.ndarray
+    kd: np.ndarray
+    theta_set: np.ndarray
+    u: np.ndarray
+    pulse_t0: np.ndarray
+    pulse_t1: np.ndarray
+    pulse_tau: np.ndarray
+    pulse_force: np.ndarray
+    pulse_torque: np.ndarray
+    torque_limit: np.ndarray
+    contact: np.ndarray
+    Ga: np.ndarray
+    joint_data: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -41,8 +82,8 @@ class Pulse:
     tip_torque: float = 0.0
 
 
-def input_data(model, pd: JointPD | None, pulses, u) -> tuple:
-    """The input data ``E`` of the compiled integrators (:mod:`flex_model.integrators`) for
+def input_data(model, pd: JointPD | None, pulses, u) -> InputData:
+    """The input data ``E`` (:class:`InputData`) of the compiled integrators for
     ``model``: its matrices, gravity, the built-in joint PD, the held command ``u`` and the
     pulses."""
     nl = model.n_links
@@ -64,6 +105,6 @@ def input_data(model, pd: JointPD | None, pulses, u) -> tuple:
             ptau[k] = p.joint_torques
         pf[k] = p.tip_force
         pc[k] = p.tip_torque
-    return (model.K, model.D, model.G, float(model.gravity[0]), float(model.gravity[1]),
-            kp, kd, sp, u, t0, t1, ptau, pf, pc, model.torque_limit, model.contact,
-            model.Ga, model.joint_data)
+    return InputData(model.K, model.D, model.G, float(model.gravity[0]),
+                     float(model.gravity[1]), kp, kd, sp, u, t0, t1, ptau, pf, pc,
+                     model.torque_limit, model.contact, model.Ga, model.joint_data)

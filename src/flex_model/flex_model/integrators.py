@@ -9,22 +9,25 @@ with joint angles ``theta = G q`` (relative angle between the tip tangent of lin
 the root tangent of link i, so ``H_c = G^T``), a held input torque ``u`` (set by a policy
 between calls) and torque/force pulses on time windows.
 
-The input data ``E`` is the tuple built by :mod:`flex_model.simulate`:
-``(K, D, G, gx, gy, kp, kd, theta_set, u, pulse_t0, pulse_t1, pulse_tau, pulse_force,
-pulse_torque, torque_limit, contact, Ga, joint_data)``; the joint torques are clipped to
-``torque_limit`` (actuator saturation), ``contact`` = (on, x, y, nx, ny, k, c) is a
-one-sided spring-damper surface at the tip (flex_model.effects.contact), ``Ga`` maps q to
-the actuator coordinates (the joint angle, or the motor angle of an elastic joint) and
-``joint_data`` holds the joint effects (FlexArmModel.JOINT_DATA: springs with backlash,
-friction, DC motor, gear ratio, cogging).
+The input data ``E`` is :class:`flex_model.inputs.InputData` (inputs.input_data), read by
+name: the joint torques are clipped to ``E.torque_limit`` (actuator saturation),
+``E.contact`` = (on, x, y, nx, ny, k, c) is a one-sided spring-damper surface at the tip
+(flex_model.effects.contact), ``E.Ga`` maps q to the actuator coordinates (the joint
+angle, or the motor angle of an elastic joint) and ``E.joint_data`` holds the joint
+effects (columns inputs.JD_K ...: springs with backlash, friction, DC motor, gear ratio,
+cogging, stick-slip friction).
 
 Schemes
 -------
 - ``dopri5``: Dormand-Prince 5(4), error per step controlled in the weighted RMS norm
   ``|err_i| / (atol_i + rtol |x_i|)``; lands exactly on the output times.
-- ``generalized_alpha``: fixed step, implicit, second order, unconditionally stable for
+- generalized-alpha: fixed step, implicit, second order, unconditionally stable for
   the linear part; it steps over the stiff flexible modes (damping the unresolved ones)
-  at a cost of a few equation evaluations per step: the real-time mode.
+  at a cost of a few equation evaluations per step: the real-time mode. The loop is
+  solvers.loop.fixed_step on :class:`PlanarModel` (its hooks below), called as
+  ``fixed_step(PlanarModel(P, E), n, t0, x0, a0, abar0, h, n_steps, every,
+  newton_settings(rho_inf, tol, limit), F0)``: F0 None for full Newton (backtracking),
+  ``empty_factor()`` for simplified Newton (solvers.loop.simplified_newton).
 """
 from __future__ import annotations
 
@@ -33,28 +36,27 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from .effects.contact import CT_C, CT_K, CT_NX, CT_NY, CT_ON, CT_X, CT_Y
 from .effects.friction import friction_law_compiled
-from .effects.stick_slip import bristle_rate, bristle_step
-from .iteration_matrix import empty_factor, structured_factor
+from .effects.stick_slip import SS_D, SS_FV, SS_K, bristle_rate, bristle_step
+from .iteration_matrix import structured_factor
 from .solvers.galpha import finite_within, galpha_parameters, galpha_state, restart_choice
-from .solvers.loop import (fixed_step, id_residual, implements, iteration_factor, residual,
-                           tangent)
-from .solvers.status import Settings, newton_settings
-from .kernels import (band_matvec, cholesky, inverse_dynamics, link_origins, mass_matrix,
-                      solve_spd, tip_jacobian)
+from .solvers.loop import id_residual, implements, iteration_factor, residual, tangent
+from .kernels import (P_BAND, P_LAM, P_MODE, P_NF, P_OFF, P_V, band_matvec, cholesky,
+                      inverse_dynamics, link_origins, mass_matrix, solve_spd, tip_jacobian)
+from .inputs import (JD_B, JD_BACKLASH, JD_COG_A, JD_COG_N, JD_COG_PHASE, JD_EPS, JD_FC, JD_FS,
+                     JD_FV, JD_IMAX, JD_K, JD_KE, JD_KT, JD_MOTOR, JD_R, JD_RATIO, JD_SMOOTHING,
+                     JD_SS, JD_VMAX, JD_WS)
 
 _CACHE = True
-
-#: first column of the stick_slip_friction data in joint_data (FlexArmModel.JOINT_DATA)
-SS = 19
 
 
 @njit(cache=_CACHE)
 def joint_torques(t, q, v, E):
     """Actuator torques (nl) at time t: PD + held input (a voltage for a DC motor joint),
     through the motor model, clipped to the torque limit, plus torque pulses."""
-    kp, kd, theta_set, u, pt0, pt1, ptau, lim, Ga, jd = E[5], E[6], E[7], E[8], E[9], \
-        E[10], E[11], E[14], E[16], E[17]
+    kp, kd, theta_set, u, pt0, pt1, ptau, lim, Ga, jd = E.kp, E.kd, E.theta_set, E.u, E.pulse_t0, \
+        E.pulse_t1, E.pulse_tau, E.torque_limit, E.Ga, E.joint_data
     nl = Ga.shape[0]
     th = np.zeros(nl)
     dth = np.zeros(nl)
@@ -64,12 +66,12 @@ def joint_torques(t, q, v, E):
             dth[i] += Ga[i, j] * v[j]
     tau = kp * (theta_set - th) - kd * dth + u
     for i in range(tau.shape[0]):
-        if jd[i, 9] > 0.0:  # DC motor: tau is the voltage (seed 003 Eq. 48, L neglected)
-            n = jd[i, 15]
-            volt = min(max(tau[i], -jd[i, 14]), jd[i, 14])
-            cur = (volt - jd[i, 12] * n * dth[i]) / jd[i, 10]
-            cur = min(max(cur, -jd[i, 13]), jd[i, 13])
-            tau[i] = n * jd[i, 11] * cur
+        if jd[i, JD_MOTOR] > 0.0:  # DC motor: tau is the voltage (seed 003 Eq. 48, L neglected)
+            n = jd[i, JD_RATIO]
+            volt = min(max(tau[i], -jd[i, JD_VMAX]), jd[i, JD_VMAX])
+            cur = (volt - jd[i, JD_KE] * n * dth[i]) / jd[i, JD_R]
+            cur = min(max(cur, -jd[i, JD_IMAX]), jd[i, JD_IMAX])
+            tau[i] = n * jd[i, JD_KT] * cur
     tau = np.minimum(np.maximum(tau, -lim), lim)
     for p in range(pt0.shape[0]):
         if pt0[p] <= t < pt1[p]:
@@ -82,8 +84,8 @@ def sampled_joint_torques(t, X, U, E):
     """:func:`joint_torques` at every sample t[j] of a run (X[j] = [q, v, ...], the held
     inputs U[j] written into E's input u), in one compiled loop (a Python loop of
     single calls cost about a sixth of a fast run: unboxing E per call)."""
-    n = E[0].shape[0]
-    u = E[8]
+    n = E.K.shape[0]
+    u = E.u
     out = np.empty((t.shape[0], u.shape[0]))
     for j in range(t.shape[0]):
         u[:] = U[j]
@@ -128,30 +130,31 @@ def _dead_zone_prim(z, s, sign):
 @njit(cache=_CACHE)
 def joint_passive_forces(q, v, E):
     """Generalized forces of the joint springs (with backlash), friction and cogging."""
-    G, Ga, jd = E[2], E[16], E[17]
+    G, Ga, jd = E.G, E.Ga, E.joint_data
     Q = np.zeros(q.shape[0])
     for i in range(jd.shape[0]):
-        if np.isfinite(jd[i, 0]):  # elastic joint: spring between motor and link side
+        if np.isfinite(jd[i, JD_K]):  # elastic joint: spring between motor and link side
             x = 0.0
             xd = 0.0
             for j in range(q.shape[0]):
                 d = Ga[i, j] - G[i, j]
                 x += d * q[j]
                 xd += d * v[j]
-            if jd[i, 2] > 0.0:
-                dz, slope = dead_zone(x, jd[i, 2], jd[i, 3])
-                ts = jd[i, 0] * dz + jd[i, 1] * slope * xd
+            if jd[i, JD_BACKLASH] > 0.0:
+                dz, slope = dead_zone(x, jd[i, JD_BACKLASH], jd[i, JD_SMOOTHING])
+                ts = jd[i, JD_K] * dz + jd[i, JD_B] * slope * xd
             else:
-                ts = jd[i, 0] * x + jd[i, 1] * xd
+                ts = jd[i, JD_K] * x + jd[i, JD_B] * xd
             for j in range(q.shape[0]):
                 Q[j] -= (Ga[i, j] - G[i, j]) * ts
         tf = 0.0
-        if jd[i, 4] > 0.0 or jd[i, 5] > 0.0 or jd[i, 6] > 0.0:
+        if jd[i, JD_FV] > 0.0 or jd[i, JD_FC] > 0.0 or jd[i, JD_FS] > 0.0:
             w = Ga[i] @ v
-            tf += friction_law_compiled(w, jd[i, 4], jd[i, 5], jd[i, 6], jd[i, 7], jd[i, 8])[0]
-        if jd[i, 16] != 0.0:
-            wn = jd[i, 17] * jd[i, 15]
-            tf += jd[i, 16] * np.sin(wn * (Ga[i] @ q) + jd[i, 18])
+            tf += friction_law_compiled(w, jd[i, JD_FV], jd[i, JD_FC], jd[i, JD_FS],
+                                        jd[i, JD_WS], jd[i, JD_EPS])[0]
+        if jd[i, JD_COG_A] != 0.0:
+            wn = jd[i, JD_COG_N] * jd[i, JD_RATIO]
+            tf += jd[i, JD_COG_A] * np.sin(wn * (Ga[i] @ q) + jd[i, JD_COG_PHASE])
         if tf != 0.0:
             for j in range(q.shape[0]):
                 Q[j] += Ga[i, j] * tf
@@ -161,17 +164,17 @@ def joint_passive_forces(q, v, E):
 @njit(cache=_CACHE)
 def bristle_count(E):
     """Number of bristle states z: one per joint with a stick_slip_friction effect."""
-    jd = E[17]
+    jd = E.joint_data
     n = 0
     for i in range(jd.shape[0]):
-        if jd[i, SS] > 0.0:
+        if jd[i, JD_SS] > 0.0:
             n += 1
     return n
 
 
 @njit(cache=_CACHE)
 def _check_state(x, E):
-    if x.shape[0] != 2 * E[0].shape[0] + bristle_count(E):
+    if x.shape[0] != 2 * E.K.shape[0] + bristle_count(E):
         raise ValueError("state: expected [q, v, z], z one bristle deflection per joint "
                          "with a stick_slip_friction effect (flex_model.effects.stick_slip)")
 
@@ -181,16 +184,16 @@ def stick_slip_forces(q, v, z, zd, E):
     """Generalized forces of the stick_slip_friction joints at bristle deflections z and
     rates zd: F = sigma_0 z + sigma_1 zd + sigma_2 w, the damping only while zd w > 0
     (flex_model.effects.stick_slip.friction_magnitude for zd = z'(z, w))."""
-    Ga, jd = E[16], E[17]
+    Ga, jd = E.Ga, E.joint_data
     Q = np.zeros(q.shape[0])
     k = 0
     for i in range(jd.shape[0]):
-        if jd[i, SS] > 0.0:
-            p = jd[i, SS:]
+        if jd[i, JD_SS] > 0.0:
+            p = jd[i, JD_SS:]
             w = Ga[i] @ v
-            f = p[5] * z[k] + p[1] * w
+            f = p[SS_K] * z[k] + p[SS_FV] * w
             if zd[k] * w > 0.0:
-                f += p[6] * zd[k]
+                f += p[SS_D] * zd[k]
             for j in range(q.shape[0]):
                 Q[j] -= Ga[i, j] * f
             k += 1
@@ -200,12 +203,12 @@ def stick_slip_forces(q, v, z, zd, E):
 @njit(cache=_CACHE)
 def bristle_rates(v, z, E):
     """z' of the stick_slip_friction joints (Dupont et al. 2002)."""
-    Ga, jd = E[16], E[17]
+    Ga, jd = E.Ga, E.joint_data
     out = np.zeros(z.shape[0])
     k = 0
     for i in range(jd.shape[0]):
-        if jd[i, SS] > 0.0:
-            out[k] = bristle_rate(z[k], Ga[i] @ v, jd[i, SS:])[0]
+        if jd[i, JD_SS] > 0.0:
+            out[k] = bristle_rate(z[k], Ga[i] @ v, jd[i, JD_SS:])[0]
             k += 1
     return out
 
@@ -216,13 +219,13 @@ def bristle_update(h, v0, v1, z0, E):
     (z1 = z0 + h z'(z1, w1)) with the Stribeck level z_m of the step's start speed (a
     steep Stribeck drop, -dF_ss/dw > J / h, would make the step's equations
     non-monotone), and their slopes dz1/d(h w1)."""
-    Ga, jd = E[16], E[17]
+    Ga, jd = E.Ga, E.joint_data
     z1 = np.empty(z0.shape[0])
     g = np.empty(z0.shape[0])
     k = 0
     for i in range(jd.shape[0]):
-        if jd[i, SS] > 0.0:
-            z1[k], g[k] = bristle_step(z0[k], h * (Ga[i] @ v1), Ga[i] @ v0, jd[i, SS:])
+        if jd[i, JD_SS] > 0.0:
+            z1[k], g[k] = bristle_step(z0[k], h * (Ga[i] @ v1), Ga[i] @ v0, jd[i, JD_SS:])
             k += 1
     return z1, g
 
@@ -232,11 +235,13 @@ def applied_force(t, q, v, z, zd, P, E):
     """Generalized applied force Q (joint torques, joint effects, tip loads, contact,
     elastic and damping forces); z, zd: bristle deflections of stick-slip joints and their
     rates."""
-    K, D, pt0, pt1, pF, pC, ct, Ga = E[0], E[1], E[9], E[10], E[12], E[13], E[15], E[16]
+    K, D, pt0, pt1, pF, pC = E.K, E.D, E.pulse_t0, E.pulse_t1, E.pulse_force, E.pulse_torque
+    ct, Ga = E.contact, E.Ga
     tau = joint_torques(t, q, v, E)
-    if P[0] == 1 and P[22][1] == 1:  # banded K, D (dynamics._band_structure): linear
-        Q = (Ga.T @ tau - band_matvec(K, q, P[22][0], P[23], P[24][2])
-             - band_matvec(D, v, P[22][0], P[23], P[24][1]) + joint_passive_forces(q, v, E))
+    if P[P_MODE] == 1 and P[P_BAND][1] == 1:  # banded K, D (dynamics._band_structure): linear
+        Q = (Ga.T @ tau - band_matvec(K, q, P[P_BAND][0], P[P_V], P[P_LAM][2])
+             - band_matvec(D, v, P[P_BAND][0], P[P_V], P[P_LAM][1])
+             + joint_passive_forces(q, v, E))
     else:   # Ga^T tau - K q - D v by loops (BLAS calls cost more at these sizes)
         Q = joint_passive_forces(q, v, E)
         for a in range(q.shape[0]):
@@ -256,16 +261,16 @@ def applied_force(t, q, v, z, zd, P, E):
             fx += pF[p, 0]
             fy += pF[p, 1]
             c += pC[p]
-    if ct[0] > 0.0:
+    if ct[CT_ON] > 0.0:
         org = link_origins(q, P)
         Jt = tip_jacobian(q, P)
-        nx, ny = ct[3], ct[4]
-        pen = -(nx * (org[-1, 0] - ct[1]) + ny * (org[-1, 1] - ct[2]))
+        nx, ny = ct[CT_NX], ct[CT_NY]
+        pen = -(nx * (org[-1, 0] - ct[CT_X]) + ny * (org[-1, 1] - ct[CT_Y]))
         if pen > 0.0:
             vn = 0.0
             for j in range(q.shape[0]):
                 vn += (nx * Jt[0, j] + ny * Jt[1, j]) * v[j]
-            fn = ct[5] * pen - ct[6] * vn
+            fn = ct[CT_K] * pen - ct[CT_C] * vn
             if fn > 0.0:
                 fx += fn * nx
                 fy += fn * ny
@@ -273,7 +278,7 @@ def applied_force(t, q, v, z, zd, P, E):
         Jt = tip_jacobian(q, P)
         Q += Jt[0] * fx + Jt[1] * fy
     if c != 0.0:
-        off, nf = P[1], P[2]
+        off, nf = P[P_OFF], P[P_NF]
         last = off.shape[0] - 1
         Q[off[last]] += c
         Q[off[last] + nf[last]] += c
@@ -283,31 +288,31 @@ def applied_force(t, q, v, z, zd, P, E):
 @njit(cache=_CACHE)
 def joint_tangent(v, E):
     """Stiffness and damping of the joint laws and effects for the Newton matrix."""
-    G, kp, kd, Ga, jd = E[2], E[5], E[6], E[16], E[17]
+    G, kp, kd, Ga, jd = E.G, E.kp, E.kd, E.Ga, E.joint_data
     n = G.shape[1]
     Kj = np.zeros((n, n))
     Cj = np.zeros((n, n))
     for i in range(jd.shape[0]):
         gain = 1.0
         cd = 0.0
-        if jd[i, 9] > 0.0:
-            gain = jd[i, 15] * jd[i, 11] / jd[i, 10]
-            cd = gain * jd[i, 12] * jd[i, 15]
+        if jd[i, JD_MOTOR] > 0.0:
+            gain = jd[i, JD_RATIO] * jd[i, JD_KT] / jd[i, JD_R]
+            cd = gain * jd[i, JD_KE] * jd[i, JD_RATIO]
         w = Ga[i] @ v
-        if jd[i, 5] > 0.0 or jd[i, 6] > 0.0:
-            cd += jd[i, 6] / jd[i, 8] / np.cosh(min(abs(w / jd[i, 8]), 300.0)) ** 2
-        cd += jd[i, 4] + gain * kd[i]
+        if jd[i, JD_FC] > 0.0 or jd[i, JD_FS] > 0.0:
+            cd += jd[i, JD_FS] / jd[i, JD_EPS] / np.cosh(min(abs(w / jd[i, JD_EPS]), 300.0)) ** 2
+        cd += jd[i, JD_FV] + gain * kd[i]
         kk = gain * kp[i]
         for a in range(n):
             for b in range(n):
                 Kj[a, b] += kk * Ga[i, a] * Ga[i, b]
                 Cj[a, b] += cd * Ga[i, a] * Ga[i, b]
-        if np.isfinite(jd[i, 0]):
+        if np.isfinite(jd[i, JD_K]):
             for a in range(n):
                 for b in range(n):
                     dd = (Ga[i, a] - G[i, a]) * (Ga[i, b] - G[i, b])
-                    Kj[a, b] += jd[i, 0] * dd
-                    Cj[a, b] += jd[i, 1] * dd
+                    Kj[a, b] += jd[i, JD_K] * dd
+                    Cj[a, b] += jd[i, JD_B] * dd
     return Kj, Cj
 
 
@@ -315,16 +320,16 @@ def joint_tangent(v, E):
 def _stick_slip_tangent(Kj, Cj, v1, z0, z1, g, h, E):
     """Adds the bristle force's slope to the iteration matrix, on the velocity
     (z1 = z0 + h z'(z1, w1)): sigma_0 dz1/dw1 = sigma_0 h g, sigma_1 g, sigma_2."""
-    Ga, jd = E[16], E[17]
+    Ga, jd = E.Ga, E.joint_data
     n = Kj.shape[0]
     k = 0
     for i in range(jd.shape[0]):
-        if jd[i, SS] > 0.0:
-            p = jd[i, SS:]
+        if jd[i, JD_SS] > 0.0:
+            p = jd[i, JD_SS:]
             kk = 0.0
-            cd = p[5] * h * g[k] + p[1]
+            cd = p[SS_K] * h * g[k] + p[SS_FV]
             if (z1[k] - z0[k]) * (Ga[i] @ v1) > 0.0:
-                cd += p[6] * g[k]
+                cd += p[SS_D] * g[k]
             for a in range(n):
                 for b in range(n):
                     Kj[a, b] += kk * Ga[i, a] * Ga[i, b]
@@ -337,13 +342,13 @@ def _balance(t, q, v, z, zd, P, E):
     """Mass matrix and right-hand side of B(q) a = Q - c(q, v)."""
     n = q.shape[0]
     rhs = applied_force(t, q, v, z, zd, P, E) - \
-        inverse_dynamics(q, v, np.zeros(n), E[3], E[4], P)
+        inverse_dynamics(q, v, np.zeros(n), E.gx, E.gy, P)
     return mass_matrix(q, P), rhs
 
 
 @njit(cache=_CACHE)
 def _derivative(t, x, P, E):
-    n = E[0].shape[0]
+    n = E.K.shape[0]
     z = x[2 * n:]
     zd = z
     if z.shape[0] > 0:
@@ -447,7 +452,7 @@ def dopri5(t0, x0, t_out, rtol, atol, h0, hmax, max_steps, limit, P, E):
 @njit(cache=_CACHE)
 def consistent_acceleration(t, x, P, E):
     _check_state(x, E)
-    n = E[0].shape[0]
+    n = E.K.shape[0]
     return _derivative(t, x, P, E)[n:2 * n]
 
 
@@ -476,14 +481,14 @@ def restart_acceleration(t, x, a, abar, h, rho_inf, P, E):
     commands, arms with hub or rotor inertia, bristle states).
     """
     ac = consistent_acceleration(t, x, P, E)
-    n = E[0].shape[0]
+    n = E.K.shape[0]
     if x.shape[0] > 2 * n:
         return ac, ac.copy(), 0.0, 0.0
     B = mass_matrix(x[:n], P)
     am, af, gam, beta = galpha_parameters(rho_inf)
     ratio = (1.0 - af) / (1.0 - am)
     Kj, Cj = joint_tangent(x[n:2 * n], E)
-    S = B + h * gam * ratio * (E[1] + Cj) + h * h * beta * ratio * (E[0] + Kj)
+    S = B + h * gam * ratio * (E.D + Cj) + h * h * beta * ratio * (E.K + Kj)
     a1, share, overshoot = restart_choice(a, ac, B, S, h, rho_inf)
     return a1, a1.copy(), share, overshoot
 
@@ -522,7 +527,7 @@ def _tangent(md, ctx, st, c):
     Kj, Cj = joint_tangent(v1, E)
     if st.z.shape[0] > 0:
         _stick_slip_tangent(Kj, Cj, v1, st.z, z1, g, c.h, E)
-    return cholesky(B + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj))
+    return cholesky(B + c.gp * (E.D + Cj) + c.bp * (E.K + Kj))
 
 
 @njit(cache=_CACHE)
@@ -532,7 +537,7 @@ def _id_residual(md, a1, st, c):
     P, E = md
     q1, v1, _ = galpha_state(st.q, st.v, st.a, st.abar, a1, c)
     z = np.zeros(0)
-    return (inverse_dynamics(q1, v1, a1, E[3], E[4], P)
+    return (inverse_dynamics(q1, v1, a1, E.gx, E.gy, P)
             - applied_force(st.t, q1, v1, z, z, P, E)), q1, v1
 
 
@@ -543,12 +548,12 @@ def _iteration_factor(md, q1, v1, c):
     from dynamics.STRUCTURED_MIN_VARS variables per link (flex_model.iteration_matrix),
     else dense Cholesky (an empty factor when it is not positive definite)."""
     P, E = md
-    if P[0] == 1 and P[22][1] == 1:
+    if P[P_MODE] == 1 and P[P_BAND][1] == 1:
         F = structured_factor(q1, v1, c.gp, c.bp, P, E)
         if F[0].shape[0] > 0:
             return F
     Kj, Cj = joint_tangent(v1, E)
-    Lc = cholesky(mass_matrix(q1, P) + c.gp * (E[1] + Cj) + c.bp * (E[0] + Kj))
+    Lc = cholesky(mass_matrix(q1, P) + c.gp * (E.D + Cj) + c.bp * (E.K + Kj))
     z2 = np.zeros((0, 0))
     return Lc, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, 0
 
@@ -556,59 +561,6 @@ def _iteration_factor(md, q1, v1, c):
 for _hook, _fn in ((residual, _residual), (tangent, _tangent), (id_residual, _id_residual),
                    (iteration_factor, _iteration_factor)):
     implements(_hook, PlanarModel, _fn)
-
-
-@njit(cache=_CACHE, inline="always")
-def generalized_alpha(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit, P, E):
-    """Fixed-step generalized-alpha (Chung-Hulbert, in the Arnold-Bruls form) on the planar
-    arm: solvers.loop.fixed_step, full Newton (at most 50 iterations, backtracking).
-
-    Second-order accurate, unconditionally stable for linear systems, with numerical
-    damping of the unresolved high modes set by the spectral radius ``rho_inf`` at
-    infinite frequency (1 = none). Each step solves B(q1) a1 = Q - c by Newton's method on
-    the iteration matrix B + gamma' (D + C_joints) + beta' (K + K_joints) (PD gains, joint
-    springs, friction slope and back-EMF at the current speed) until the position
-    correction is below ``tol`` (m or rad). Pulses are evaluated at mid-step. The bristle
-    deflections z of stick-slip joints (x = [q; v; z]) are advanced by backward Euler
-    inside every residual (L-stable; flex_model.effects.stick_slip), their slope and
-    damping enter the iteration matrix.
-
-    Returns ``(X, status, t_end, x_end, a_end, abar_end, iterations)``; X holds every
-    ``every``-th state, X[0] = x0. Status 1 = non-finite or diverging state, 2 = Newton did
-    not converge. Inlined into compiled callers (the control and replay loops): they link
-    the one fixed_step instead of compiling it once more inside this wrapper.
-    """
-    _check_state(x0, E)
-    return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit), None)
-
-
-@njit(cache=_CACHE, inline="always")
-def generalized_alpha_simplified(t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit,
-                                 P, E):
-    """:func:`generalized_alpha` by simplified Newton: same arguments, same results to
-    ``tol``. The factor of the iteration matrix is kept across steps and refreshed when
-    the iterations contract slowly (solvers.loop.simplified_newton), the residual is one
-    inverse-dynamics pass without the mass matrix and the acceleration is extrapolated
-    as the predictor (section E, second order, 1 ms: tip within 0.003 um of fully
-    converged Newton over 10 s, 2.2 iterations per step, about a third of the cost). A
-    step it cannot solve, and arms with bristle states, take full Newton."""
-    _check_state(x0, E)
-    return fixed_step(PlanarModel(P, E), E[0].shape[0], t0, x0, a0, abar0, h, n_steps,
-                      every, newton_settings(rho_inf, tol, limit), empty_factor())
-
-
-def fixed_step_full_newton(md, t0, x0, a0, abar0, h, n_steps, every, rho_inf, tol, limit):
-    """:func:`generalized_alpha` called from Python on the model data ``md``
-    (``PlanarModel(P, E)``, exact_kinematics.ExactModel): solvers.loop.fixed_step by full
-    Newton itself, with the same returns and the same machine code as the compiled callers
-    link. numba emits a compiled function's machine code with all that it calls linked in,
-    so a compiled wrapper around the loop compiles the loop once more (the compiled callers
-    inline the wrappers: inline="always"). The state's size is the caller's to get
-    right (simulate, stepper)."""
-    return fixed_step(md, md.E[0].shape[0], float(t0), x0, a0, abar0, float(h), int(n_steps),
-                      int(every), Settings(float(rho_inf), float(tol), limit=float(limit)),
-                      None)
 
 
 # numba re-compiles a cached function when its own file changes, not when a compiled

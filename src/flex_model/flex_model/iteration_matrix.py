@@ -35,6 +35,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .inputs import (JD_B, JD_EPS, JD_FC, JD_FS, JD_FV, JD_K, JD_KE, JD_KT, JD_MOTOR, JD_R,
+                     JD_RATIO)
 from .kernels import (P_BAND, P_BC, P_BP, P_DS, P_JPLUS, P_JRIG, P_L, P_LAM, P_LO, P_MU,
                       P_NF, P_OFF, P_V, P_WL, P_WN, P_ZQ, solve_chol)
 
@@ -135,20 +137,20 @@ def empty_factor():
 def joint_coefficients(v, E):
     """Stiffness and damping of each joint's law along its actuator row Ga_i (PD gains,
     DC motor gain and back-EMF, friction slope), as in integrators.joint_tangent."""
-    kp, kd, Ga, jd = E[5], E[6], E[16], E[17]
+    kp, kd, Ga, jd = E.kp, E.kd, E.Ga, E.joint_data
     nl = jd.shape[0]
     kk = np.zeros(nl)
     cd = np.zeros(nl)
     for i in range(nl):
         gain = 1.0
         c = 0.0
-        if jd[i, 9] > 0.0:
-            gain = jd[i, 15] * jd[i, 11] / jd[i, 10]
-            c = gain * jd[i, 12] * jd[i, 15]
+        if jd[i, JD_MOTOR] > 0.0:
+            gain = jd[i, JD_RATIO] * jd[i, JD_KT] / jd[i, JD_R]
+            c = gain * jd[i, JD_KE] * jd[i, JD_RATIO]
         w = Ga[i] @ v
-        if jd[i, 5] > 0.0 or jd[i, 6] > 0.0:
-            c += jd[i, 6] / jd[i, 8] / np.cosh(min(abs(w / jd[i, 8]), 300.0)) ** 2
-        cd[i] = c + jd[i, 4] + gain * kd[i]
+        if jd[i, JD_FC] > 0.0 or jd[i, JD_FS] > 0.0:
+            c += jd[i, JD_FS] / jd[i, JD_EPS] / np.cosh(min(abs(w / jd[i, JD_EPS]), 300.0)) ** 2
+        cd[i] = c + jd[i, JD_FV] + gain * kd[i]
         kk[i] = gain * kp[i]
     return kk, cd
 
@@ -158,7 +160,7 @@ def _banded_part(gp, bp, bw, P, E):
     """A's bands (module docstring): the deformation inertia Bp (thesis Eq. 9), the
     constant inertia Bc and gamma' D + beta' K, lower bands stored as Ab[i, j] =
     A[i, i - j]."""
-    Bp, Bc, K, D = P[P_BP], P[P_BC], E[0], E[1]
+    Bp, Bc, K, D = P[P_BP], P[P_BC], E.K, E.D
     nq = Bp.shape[0]
     Ab = np.zeros((nq, bw + 1))
     for i in range(nq):
@@ -338,16 +340,16 @@ def _joint_columns(v, gp, bp, E, col, U, C):
     """The joints' columns of U from ``col``: per joint its actuator row Ga_i with core
     beta' k + gamma' c (joint_coefficients), per elastic joint Ga_i - G_i with its spring
     and damper. Returns the next free column."""
-    G, Ga, jd = E[2], E[16], E[17]
+    G, Ga, jd = E.G, E.Ga, E.joint_data
     kk, cd = joint_coefficients(v, E)
     for i in range(jd.shape[0]):
         U[:, col] = Ga[i]
         C[col, col] = bp * kk[i] + gp * cd[i]
         col += 1
-        if np.isfinite(jd[i, 0]):
+        if np.isfinite(jd[i, JD_K]):
             for j in range(U.shape[0]):
                 U[j, col] = Ga[i, j] - G[i, j]
-            C[col, col] = bp * jd[i, 0] + gp * jd[i, 1]
+            C[col, col] = bp * jd[i, JD_K] + gp * jd[i, JD_B]
             col += 1
     return col
 
@@ -376,13 +378,13 @@ def structured_factor(q, v, gp, bp, P, E):
     """The factor of M = A + U C U^T (module docstring) at (q, v); an empty factor when A
     is not positive definite."""
     L, V, lam = P[P_L], P[P_V], P[P_LAM]
-    jd = E[17]
+    jd = E.joint_data
     nl = L.shape[0]
     nq = q.shape[0]
     npt = P[P_MU].shape[1]
     ne = 0
     for i in range(nl):
-        if np.isfinite(jd[i, 0]):
+        if np.isfinite(jd[i, JD_K]):
             ne += 1
     r = (2 + AXIAL_RANK) * nl + 4 * (nl - 1) + nl + ne + V.shape[1]
     Ab = _banded_part(gp, bp, P[P_BAND][0], P, E)

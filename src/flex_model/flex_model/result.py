@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .effects.contact import CT_ON
 from .solvers.status import FINISHED, message
 
 
@@ -138,7 +139,7 @@ class SimulationResult:
                 for i, c in enumerate(self.tip_deflections.T)]
         out += [(f"link{i + 1}_tip_rotation", c) for i, c in enumerate(self.tip_rotations.T)]
         out += [(f"qm{i + 1}", c) for i, c in zip(m.elastic_joints, self.motor_angles.T)]
-        if m.contact[0] > 0:
+        if m.contact[CT_ON] > 0:
             out += [(f"contact_f{a}", c) for a, c in zip("xy", self.contact_forces.T)]
         return out
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import Fields
+from .inputs import JD_B, JD_BACKLASH, JD_K, JD_RATIO, JD_SMOOTHING
 from .integrators import derivative
 
 KINDS = ("joint_encoder", "motor_encoder", "joint_torque", "tip_accelerometer",
@@ -76,11 +77,11 @@ def true_signal(sensor: Sensor, result) -> np.ndarray:
         return result.joint_angles[:, [joints.index(sensor.target)]]
     if sensor.kind == "motor_encoder":
         i = joints.index(sensor.target)
-        return (result.q @ model.Ga[i] * model.joint_data[i, 15])[:, None]
+        return (result.q @ model.Ga[i] * model.joint_data[i, JD_RATIO])[:, None]
     if sensor.kind == "joint_torque":
         i = joints.index(sensor.target)
         jd = model.joint_data[i]
-        if np.isfinite(jd[0]):  # elastic: the spring carries the torque to the link
+        if np.isfinite(jd[JD_K]):  # elastic: the spring carries the torque to the link
             return np.array([_spring_torque(model, i, q, v)
                              for q, v in zip(result.q, result.v)])[:, None]
         return result.tau[:, [i]]
@@ -103,10 +104,11 @@ def _spring_torque(model, i, q, v) -> float:
     jd = model.joint_data[i]
     d = model.Ga[i] - model.G[i]
     x, xd = d @ q, d @ v
-    if jd[2] > 0:
-        dz, slope = dead_zone(x, jd[2], jd[3])
-        return jd[0] * dz + jd[1] * slope * xd
-    return jd[0] * x + jd[1] * xd
+    k, b, backlash = jd[JD_K], jd[JD_B], jd[JD_BACKLASH]
+    if backlash > 0:
+        dz, slope = dead_zone(x, backlash, jd[JD_SMOOTHING])
+        return k * dz + b * slope * xd
+    return k * x + b * xd
 
 
 def tip_specific_force(result) -> np.ndarray:
@@ -117,7 +119,7 @@ def tip_specific_force(result) -> np.ndarray:
     if z is None:
         z = np.zeros((len(result.t), model.n_bristles))
     for k, (t, q, v) in enumerate(zip(result.t, result.q, result.v)):
-        E[8][:] = result.u[k]
+        E.u[:] = result.u[k]
         a = derivative(t, np.concatenate([q, v, z[k]]), model.P, E)[model.nq:2 * model.nq]
         out[k] = model.tip_specific_force(q, v, a)
     return out

@@ -18,7 +18,7 @@ Accuracy
   restarts at pulse edges and at policy instants (rounded to the step grid). ``newton``:
   each step's equations are solved to 1e-10 m or rad by full Newton (``'full'``) or by
   simplified Newton (``'simplified'``: the iteration matrix kept across steps, refreshed
-  when the iterations contract slowly; integrators.generalized_alpha_simplified, about a
+  when the iterations contract slowly; solvers.loop.simplified_newton, about a
   third of the cost); the default takes simplified Newton for ``second_order``
   kinematics and full Newton (results as before it existed) for the thesis kinematics.
 
@@ -40,10 +40,13 @@ import numpy as np
 from .dynamics import FlexArmModel
 from .errors import SimulationDivergedError  # noqa: F401 (raised here; public here)
 from .inputs import JointPD, Pulse, input_data  # noqa: F401 (JointPD, Pulse: public here)
-from .integrators import (PlanarModel, consistent_acceleration, dopri5,
-                          fixed_step_full_newton, generalized_alpha_simplified,
-                          restart_acceleration, sampled_joint_torques)
+from .integrators import (PlanarModel, consistent_acceleration, dopri5, restart_acceleration,
+                          sampled_joint_torques)
+from .iteration_matrix import empty_factor
+from .solvers import loop
+from .solvers.status import newton_settings
 from .result import SimulationResult
+from .kernels import P_MODE
 
 #: a state component beyond this magnitude (rad, m, rad/s, m/s) counts as diverged
 DIVERGENCE_LIMIT = 1e6
@@ -107,7 +110,7 @@ def simulate(model: FlexArmModel, q0, v0=None, *, t_final: float, sample_period:
                              "exact; use 'full' or None")
         newton = "full"
     if newton is None:
-        newton = "simplified" if model.P[0] == 1 else "full"
+        newton = "simplified" if model.P[P_MODE] == 1 else "full"
     if not (t_final > 0 and sample_period > 0):
         raise ValueError(f"t_final and sample_period must be > 0 (got {t_final}, "
                          f"{sample_period})")
@@ -314,8 +317,9 @@ def _exact_jump_step(model, t, x, a, h, rho_inf, P, E):
     from .exact_kinematics import iteration_matrix as exact_iteration_matrix
     from .exact_kinematics import restart_acceleration as exact_restart
     a, filtered = exact_restart(t, x, a, h, rho_inf, P, E)
-    _, status, t_stop, x1, a, abar, it = fixed_step_full_newton(
-        ExactModel(P, E), t, x, a, a.copy(), h, 1, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT)
+    _, status, t_stop, x1, a, abar, it = loop.fixed_step(
+        ExactModel(P, E), E.K.shape[0], float(t), x, a, a.copy(), float(h), 1, 1,
+        newton_settings(float(rho_inf), 1e-10, DIVERGENCE_LIMIT), None)
     if status == 1:
         raise diverged(model, t_stop, x1)
     if status == 2:
@@ -388,13 +392,11 @@ def _run_fixed(model, x, E, u, t_samples, policy, control_period, pulses, *, dt,
             abar = a.copy()
         elif step in restarts or policy is not None:
             a, abar, _, _ = restart_acceleration(t, x, a, abar, h, rho_inf, P, E)
-        if newton == "simplified":
-            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha_simplified(
-                t, x, a, abar, h, m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT, P, E)
-        else:
-            Xs, status, t_stop, x_stop, a, abar, it = fixed_step_full_newton(
-                PlanarModel(P, E) if exact is None else ExactModel(P, E), t, x, a, abar, h,
-                m, 1, rho_inf, 1e-10, DIVERGENCE_LIMIT)
+        md = PlanarModel(P, E) if exact is None else ExactModel(P, E)
+        Xs, status, t_stop, x_stop, a, abar, it = loop.fixed_step(
+            md, E.K.shape[0], float(t), x, a, abar, float(h), m, 1,
+            newton_settings(float(rho_inf), 1e-10, DIVERGENCE_LIMIT),
+            empty_factor() if newton == "simplified" else None)
         iters += it
         if status == 1:
             raise diverged(model, t_stop, x_stop)

@@ -15,9 +15,9 @@ import numpy as np
 
 from .dynamics import FlexArmModel
 from .inputs import input_data
-from .integrators import (PlanarModel, consistent_acceleration, fixed_step_full_newton,
-                          joint_torques, restart_acceleration)
-from .solvers.status import REFINEMENTS, refine
+from .integrators import PlanarModel, consistent_acceleration, joint_torques, restart_acceleration
+from .solvers.loop import fixed_step
+from .solvers.status import REFINEMENTS, newton_settings, refine
 from .simulate import (DIVERGENCE_LIMIT, RUNAWAY, SimulationDivergedError,
                        apply_payload_change, diverged, newton_failed)
 
@@ -78,9 +78,10 @@ class Stepper:
             return
         n = max(1, int(np.ceil(duration / self.max_step - 1e-9)))
         h = duration / n
-        X, status, t_end, x_end, a, abar, _ = fixed_step_full_newton(
-            PlanarModel(self.model.P, self.E), self.t, self.x, self.a, self.abar, h, n, n,
-            self.rho_inf, 1e-10, DIVERGENCE_LIMIT)
+        X, status, t_end, x_end, a, abar, _ = fixed_step(
+            PlanarModel(self.model.P, self.E), self.E.K.shape[0], float(self.t), self.x,
+            self.a, self.abar, float(h), n, n,
+            newton_settings(float(self.rho_inf), 1e-10, DIVERGENCE_LIMIT), None)
         if status == 1:
             raise diverged(self.model, t_end, x_end)
         if status == 2:

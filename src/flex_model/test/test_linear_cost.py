@@ -56,8 +56,9 @@ def _structured(model):
     """The model with the structured iteration matrix on (by default it is from
     dynamics.STRUCTURED_MIN_VARS variables per link)."""
     m = copy.copy(model)
-    m.P = model.P[:22] + model._band_structure(model.P[8], 1, force=True)
-    assert m.P[22][1] == 1
+    m.P = model.P[:kernels.P_BAND] + model._band_structure(model.P[kernels.P_BP], 1,
+                                                           force=True)
+    assert m.P[kernels.P_BAND][1] == 1
     return m
 
 

@@ -7,11 +7,13 @@ import numpy as np
 import pytest
 
 from flex_model.inputs import input_data
-from flex_model.integrators import (consistent_acceleration, generalized_alpha_simplified,
-                                    restart_acceleration)
+from flex_model.integrators import PlanarModel, consistent_acceleration, restart_acceleration
+from flex_model.iteration_matrix import empty_factor
 from flex_model.scenario import scenario_from_dict
 from flex_model.solvers.galpha import RESTART_OVERSHOOT, RESTART_SHARE
 from flex_model.simulate import DIVERGENCE_LIMIT
+from flex_model.solvers.loop import fixed_step
+from flex_model.solvers.status import newton_settings
 
 T_JUMP = 0.02
 T_END = 0.1
@@ -39,16 +41,17 @@ def _run(model, x0, E, h, restart: str):
     jump = int(round(T_JUMP / h))
     n = int(round(T_END / h))
     a = consistent_acceleration(0.0, x0, model.P, E)
-    Xs0, st0, _, x, a, abar, _ = generalized_alpha_simplified(
-        0.0, x0, a, a.copy(), h, jump, per, 0.9, 1e-10, DIVERGENCE_LIMIT, model.P, E)
+    md, s = PlanarModel(model.P, E), newton_settings(0.9, 1e-10, DIVERGENCE_LIMIT)
+    Xs0, st0, _, x, a, abar, _ = fixed_step(md, model.nq, 0.0, x0, a, a.copy(), h, jump, per,
+                                            s, empty_factor())
     if restart == "consistent":
         a = consistent_acceleration(T_JUMP, x, model.P, E)
         abar = a.copy()
         share = None
     else:
         a, abar, share, _ = restart_acceleration(T_JUMP, x, a, abar, h, 0.9, model.P, E)
-    Xs1, st1, *_ = generalized_alpha_simplified(
-        T_JUMP, x, a, abar, h, n - jump, per, 0.9, 1e-10, DIVERGENCE_LIMIT, model.P, E)
+    Xs1, st1, *_ = fixed_step(md, model.nq, T_JUMP, x, a, abar, h, n - jump, per, s,
+                              empty_factor())
     tips = [model.tip_deflection_index(i) for i in range(model.n_links)]
     return np.vstack([Xs0, Xs1[1:]])[:, tips], max(st0, st1), share
 

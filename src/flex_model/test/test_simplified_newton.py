@@ -1,4 +1,4 @@
-"""Simplified Newton in the fixed-step mode (integrators.generalized_alpha_simplified):
+"""Simplified Newton in the fixed-step mode (solvers.loop.simplified_newton):
 the same solution as full Newton to the step tolerance, at a fraction of the cost."""
 import numpy as np
 

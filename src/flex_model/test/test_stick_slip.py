@@ -9,6 +9,8 @@ from flex_model.config import ConfigError
 from flex_model.dynamics import FlexArmModel
 from flex_model.effects import (JointElasticity, JointFriction, StickSlipFriction,
                                 StructuralDamping)
+from flex_model.effects.stick_slip import COLUMNS
+from flex_model.inputs import JD_SS
 from flex_model.simulate import JointPD, Pulse, simulate
 from flex_model.stepper import Stepper
 
@@ -301,7 +303,7 @@ def test_parsed_effect_and_no_second_friction_model():
     assert (e["coulomb"], e["static"], e["stiffness"], e["elastic_fraction"]) == \
         (0.2, 0.3, 500.0, 0.5)
     assert "joint_friction" in StickSlipFriction.EQUIVALENT
-    assert FlexArmModel.JOINT_DATA.index("ss_on") == 19   # integrators.SS
+    assert FlexArmModel.JOINT_DATA[JD_SS:] == COLUMNS   # inputs.JD_SS: stick_slip's columns
     data["effects"].append({"type": "joint_friction", "joint": "joint1", "coulomb": 0.2,
                             "static": 0.2})
     with pytest.raises(ConfigError, match="no joint_friction effect on joint1"):

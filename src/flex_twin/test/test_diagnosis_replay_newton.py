@@ -20,19 +20,20 @@ from flex_model.dynamics import FlexArmModel
 from flex_model.inputs import JointPD, input_data
 from flex_model.integrators import consistent_acceleration
 from flex_twin.diagnosis import replay
+from flex_model.kernels import P_MODE
 
 GARBAGE = 1e9
 
 
 class FailingOnce:
-    """generalized_alpha's signature: the first call returns status 2 (Newton failed)
+    """solvers.loop.fixed_step's signature: the first call returns status 2 (Newton failed)
     with a garbage acceleration; every call is recorded and, after the first, steps
     nothing (the state held: enough for the loops' bookkeeping)."""
 
     def __init__(self):
         self.calls = []
 
-    def __call__(self, t, x, a, abar, h, n_steps, every, rho_inf, tol, limit, P, E):
+    def __call__(self, md, n, t, x, a, abar, h, n_steps, every, s, F0):
         self.calls.append((t, x.copy(), a.copy(), abar.copy(), h))
         X = np.tile(x, (n_steps // int(every) + 1, 1))
         bad = np.full_like(a, GARBAGE)
@@ -51,7 +52,7 @@ def arm():
 def test_sampled_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
     m, x0 = arm
     fake = FailingOnce()
-    monkeypatch.setattr(replay, "generalized_alpha", fake)
+    monkeypatch.setattr(replay, "fixed_step", fake)
     E = input_data(m, None, (), np.zeros(2))
     nc = 2
     C = np.zeros((nc, len(x0) // 2))
@@ -71,7 +72,7 @@ def test_sampled_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
 def test_continuous_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
     m, x0 = arm
     fake = FailingOnce()
-    monkeypatch.setattr(replay, "generalized_alpha", fake)
+    monkeypatch.setattr(replay, "fixed_step", fake)
     monkeypatch.setattr(replay, "_continuous_periods", replay._continuous_periods.py_func)
     E = input_data(m, JointPD(np.full(2, 625.0), np.full(2, 176.8), np.zeros(2)), (),
                    np.zeros(2))
@@ -80,7 +81,7 @@ def test_continuous_loop_retry_starts_from_the_accepted_state(arm, monkeypatch):
                                                    False)
     assert status == 0
     t, x, a, abar, h = fake.calls[1]
-    E[8][:] = U[0]
+    E.u[:] = U[0]
     a0 = consistent_acceleration(0.0, x0, m.P, E)
     assert h == pytest.approx(1e-3 / replay.SUBSTEPS)
     np.testing.assert_array_equal(x, x0)
@@ -94,7 +95,7 @@ def second_order():
     PD, a set-point step at 0.3 s: what the replay of a hub-less run takes after its floor."""
     m = FlexArmModel(dataclasses.replace(load_arm("thesis_example1"),
                                          kinematics="second_order"))
-    assert m.P[0] == 1
+    assert m.P[P_MODE] == 1
     E = input_data(m, JointPD(np.full(2, 625.0), np.full(2, 176.8), np.zeros(2)), (),
                    np.zeros(2))
     x0 = replay.initial_state(m, np.array([-1.2, 0.3]))
@@ -121,9 +122,10 @@ def test_a_stretch_simplified_newton_does_not_finish_is_replayed_by_full_newton(
     m, E, x0, U = second_order
     X_full, _, _ = replay._continuous_loop(x0, m.P, E, 1e-3, 2, len(U), 0.9, U, 2, False)
 
-    def stalls(t, x, a, abar, h, n_steps, every, rho_inf, tol, limit, P, E):
+    def stalls(md, n, t, x, a, abar, h, n_steps, every, s, F0):
+        assert F0 is not None   # simplified Newton: its full Newton is _continuous_periods'
         return np.full((n_steps + 1, x.shape[0]), np.nan), 2, t + h, x, a, abar, 0
-    monkeypatch.setattr(replay, "generalized_alpha_simplified", stalls)
+    monkeypatch.setattr(replay, "fixed_step", stalls)
     X, status, _ = replay._continuous_loop.py_func(x0, m.P, E, 1e-3, 2, len(U), 0.9, U, 2,
                                                    True)
     assert status == 0

@@ -8,6 +8,10 @@ import numpy as np
 from ..config import check_number
 from .base import Effect, Parameter
 
+#: the planar kernels' contact data (:meth:`ContactSurface.kernel_data`, inputs.InputData.
+#: contact) by name: on, the plane's point (x, y), its normal (nx, ny), stiffness, damping
+CT_ON, CT_X, CT_Y, CT_NX, CT_NY, CT_K, CT_C = range(7)
+
 
 @dataclass(frozen=True)
 class ContactSurface(Effect):

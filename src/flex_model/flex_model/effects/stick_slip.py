@@ -63,6 +63,9 @@ _CACHE = True
 
 #: offset of the effect's columns in FlexArmModel.joint_data: on, then PARAMETERS order
 COLUMNS = ("ss_on", "ss_fv", "ss_fc", "ss_fs", "ss_ws", "ss_k", "ss_d", "ss_frac")
+#: the columns by name, from inputs.JD_SS on: on, sigma_2, F_c, F_s, w_s, sigma_0, sigma_1,
+#: elastic fraction (the kernels' p below)
+SS_ON, SS_FV, SS_FC, SS_FS, SS_WS, SS_K, SS_D, SS_FRAC = range(8)
 
 
 class StickSlipFriction(Effect):

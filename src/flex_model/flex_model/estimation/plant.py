@@ -24,7 +24,7 @@ import copy
 
 import numpy as np
 
-from ..inputs import input_data
+from ..inputs import JD_EPS, JD_FC, JD_FS, JD_FV, input_data
 from ..integrators import derivative
 
 PARAMETER_KINDS = ("coulomb_friction", "viscous_friction", "payload_mass", "link_stiffness")
@@ -71,13 +71,13 @@ class PlanarPlant:
         self.param_names = list(adapt)
         self.smoothing = friction_smoothing
         self._u = np.zeros(self.n_joints)
-        self._E = list(input_data(self.model, None, (), self._u))
+        self._E = input_data(self.model, None, (), self._u)
         self._cached = (None, None, None)
         self._K0 = self.model.K.copy()
         self._jd0 = self.model.joint_data.copy()
-        rubbing = self._jd0[:, 4:7].any(axis=1)   # the filter's friction: tanh over at
-        self._jd0[rubbing, 8] = np.maximum(self._jd0[rubbing, 8], friction_smoothing)
-        self._E[17] = self._jd0                   # least friction_smoothing (rad/s)
+        rubbing = self._jd0[:, JD_FV:JD_FS + 1].any(axis=1)   # the filter's friction: tanh
+        self._jd0[rubbing, JD_EPS] = np.maximum(self._jd0[rubbing, JD_EPS], friction_smoothing)
+        self._E = self._E._replace(joint_data=self._jd0)   # over at least friction_smoothing
         self._payload = self.model.payload
         self._P_cache = (self._payload[0], self.model.P)
 
@@ -85,8 +85,8 @@ class PlanarPlant:
         """The model's own values of the adapted parameters."""
         out = []
         for kind, i in self.params:
-            out.append({"coulomb_friction": lambda: self._jd0[i, 5],
-                        "viscous_friction": lambda: self._jd0[i, 4],
+            out.append({"coulomb_friction": lambda: self._jd0[i, JD_FC],
+                        "viscous_friction": lambda: self._jd0[i, JD_FV],
                         "payload_mass": lambda: self._payload[0],
                         "link_stiffness": lambda: 1.0}[kind]())
         return np.array(out, float)
@@ -96,7 +96,6 @@ class PlanarPlant:
         E = self._E
         if not self.params:
             return self.model.P, E
-        E = list(E)
         K, jd, mass = self._K0, self._jd0, None
         for (kind, i), val in zip(self.params, p):
             if kind == "link_stiffness":
@@ -108,13 +107,13 @@ class PlanarPlant:
             else:
                 jd = jd.copy() if jd is self._jd0 else jd
                 if kind == "coulomb_friction":  # keep the Stribeck excess F_s - F_c
-                    jd[i, 6] = jd[i, 6] - jd[i, 5] + val
-                    jd[i, 5] = val
-                    declared = self._jd0[i, 4:7].any()   # (its eps is floored already)
-                    jd[i, 8] = jd[i, 8] if declared else self.smoothing
+                    jd[i, JD_FS] = jd[i, JD_FS] - jd[i, JD_FC] + val
+                    jd[i, JD_FC] = val
+                    declared = self._jd0[i, JD_FV:JD_FS + 1].any()   # (its eps is floored)
+                    jd[i, JD_EPS] = jd[i, JD_EPS] if declared else self.smoothing
                 else:
-                    jd[i, 4] = val
-        E[0], E[17] = K, jd
+                    jd[i, JD_FV] = val
+        E = E._replace(K=K, joint_data=jd)
         return self._payload_P(mass), E
 
     def _payload_P(self, mass):
@@ -133,8 +132,8 @@ class PlanarPlant:
         key = tuple(x[2 * nq:])
         if self._cached[0] != key:   # (P, E) for these parameter values
             P, E = self._data(x[2 * nq:])
-            self._cached = (key, P, tuple(E))
-        self._u[:] = u               # E[8], the held input, shared by every E
+            self._cached = (key, P, E)
+        self._u[:] = u               # E.u, the held input, shared by every E
         out = np.zeros(len(x))
         out[:2 * nq] = derivative(0.0, np.ascontiguousarray(x[:2 * nq]), self._cached[1],
                                   self._cached[2])

@@ -1,7 +1,7 @@
 """Newton's method for an implicit step (issue 43): the backtracking line search of the
-planar full Newton (integrators and exact_kinematics.generalized_alpha) and the
+planar full Newton (integrators.PlanarModel and exact_kinematics.ExactModel) and the
 convergence test of the spatial one (a correction relative to the accelerations, the
-stagnation at their round-off floor; spatial.compiled.galpha_loop).
+stagnation at their round-off floor; spatial.compiled.SpatialModel).
 
 solvers.loop holds the one Newton loop, generic over the model through hooks chosen by the
 type of the model's data (numba.extending.overload): numba (0.68) does not cache a function

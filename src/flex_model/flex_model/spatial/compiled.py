@@ -37,8 +37,7 @@ from ..integrators import dead_zone
 from ..kernels import cholesky, solve_chol
 from ..solvers import galpha, loop, newton, status
 from ..solvers.galpha import galpha_coefficients, galpha_state, restart_choice
-from ..solvers.loop import fixed_step, implements, residual, tangent
-from ..solvers.status import FINISHED, NO_CONVERGENCE, Settings
+from ..solvers.loop import implements, residual, tangent
 from .dynamics import SpatialArmModel
 from .exact import curvature_energy, link_sums, point_row, shape_sums
 
@@ -1419,10 +1418,14 @@ def _hold(S, r, held):
 
 
 class LoopInputs(NamedTuple):
-    """The joint effects and inputs of :func:`galpha_loop` by name (integrate.
+    """The joint effects and inputs of a :class:`SpatialModel` by name (integrate.
     simulate_fixed_compiled builds them): K, D (nq x nq), Q0 the constant generalized
-    force, fric, motors, blash, contact, stops, pdc, tipf (rows as in the functions
-    galpha_loop's docstring names), held (nq, 0/1), H (nq x n_joints), effort (n_joints)."""
+    force, H (nq x n_joints) the joint torques' matrix, fric (friction, _effects),
+    motors (DC motors, _motor_torques), blash (backlash, _backlash), contact (a surface at
+    the tip, _contact), stops (end stops, _stops), pdc (an in-loop PD's clipped torque,
+    _pd_clip; infinite ``effort`` there), tipf empty or (n_steps, 3) tip forces (N, base
+    frame; J_tip^T F at the iterate, no dJ/dq F tangent), held (nq, 0/1: zero
+    acceleration), effort (n_joints: the joint torques' clip)."""
     K: np.ndarray
     D: np.ndarray
     Q0: np.ndarray
@@ -1509,7 +1512,7 @@ def _coupling_add(CF, p, s0, n, du, h, g, Hc, want_h, T):
 
 
 class SpatialWork(NamedTuple):
-    """The hooks' work arrays in a run of :func:`galpha_loop`: the effects' force Qe, slope,
+    """The hooks' work arrays in a run of a :class:`SpatialModel`: the effects' force Qe, slope,
     the clipped torques u, the backlash (kt, sl), stops (skt, sct), PD clip (pact), contact
     (gc, fn) tangent terms; the coupling's tangent Hc, S0 (first iterate), S, its factor L."""
     Qe: np.ndarray
@@ -1529,8 +1532,11 @@ class SpatialWork(NamedTuple):
 
 
 class SpatialModel(NamedTuple):
-    """The spatial arm for solvers.loop.fixed_step: Pm (:func:`pack`), inp
-    (:class:`LoopInputs`), tau (n_steps, n_joints; row k over step k), work
+    """The spatial arm for solvers.loop.fixed_step (the relative Newton, Settings.relative;
+    its line search with nonlinear effects only; :func:`spatial_model` builds it): Pm
+    (:func:`pack`), inp (:class:`LoopInputs`), tau (n_steps, n_joints): joint
+    torques/forces over step k (at t_{k+1}), clipped to +-effort, voltages on motors'
+    joints, work
     (:class:`SpatialWork`), has_k (curvature coupling), nonlinear (friction, motors,
     backlash, contact, stops or a clipped PD: their tangents refreshed every iteration)."""
     Pm: tuple
@@ -1542,7 +1548,7 @@ class SpatialModel(NamedTuple):
 
 
 @njit(cache=_CACHE)
-def _spatial_model(Pm, inp, tau):
+def spatial_model(Pm, inp, tau):
     """:class:`SpatialModel` with its flags and zeroed work arrays."""
     nq, nb, ns = inp.K.shape[0], inp.blash.shape[0], inp.stops.shape[0]
     z = np.zeros
@@ -1559,7 +1565,7 @@ def _spatial_model(Pm, inp, tau):
 def _joint_forces(md, k, q, v):
     """The work's u (row k of tau clipped to +-effort; 0 on motor joints: a voltage) and
     Qe: Q0 + the joint effects and the tip force of row k at (q, v), with their slopes
-    and tangent terms (galpha_loop's docstring)."""
+    and tangent terms (:class:`LoopInputs`)."""
     inp, w, Pm = md.inp, md.work, md.Pm
     cmd = md.tau[k]
     for j in range(cmd.shape[0]):
@@ -1651,8 +1657,9 @@ implements(tangent, SpatialModel, _tangent)
 
 
 @njit(cache=_CACHE)
-def _start(md, q, v, h, acc, start, rho_inf):
-    """(a, abar, ok) the run starts from: acc's when ``start`` is 1, else the consistent
+def start_acceleration(md, q, v, h, acc, start, rho_inf):
+    """(a, abar, ok) a run of fixed_step on md starts from; ``acc`` (2, nq): (a, abar):
+    acc's when ``start`` is 1 (a continued run), else the consistent
     M^-1 (H u + Q_e - c - K q - D v) at (q, v), row 0's inputs (2: solvers.galpha.
     restart_choice from it and acc[0]); ok False when M is not positive definite."""
     if start == 1:
@@ -1678,40 +1685,6 @@ def _start(md, q, v, h, acc, start, rho_inf):
         _hold(S, r, inp.held)
         a = restart_choice(acc[0].copy(), a, M, S, h, rho_inf)[0]
     return a, a.copy(), True
-
-
-@njit(cache=_CACHE)
-def galpha_loop(Pm, inp, q0, v0, h, tau, st, acc, start):
-    """Generalized-alpha (Chung-Hulbert, Arnold-Bruels), the scheme of integrate.
-    simulate_fixed: solvers.loop.fixed_step on :class:`SpatialModel` (``st``: Settings,
-    the relative Newton, its line search with nonlinear effects only). ``tau`` (n_steps,
-    n_joints): joint torques/forces over step n (at t_{n+1}), clipped to +-``effort``,
-    voltages on ``motors``' joints; ``inp``: :class:`LoopInputs`: H tau + Q0 + friction
-    (_effects), DC motors (_motor_torques), backlash (_backlash), a contact surface at the
-    tip (_contact), end stops (_stops), an in-loop PD's clipped torque (_pd_clip; infinite
-    ``effort`` there), ``tipf`` empty or (n_steps, 3) tip forces (N, base frame; J_tip^T F
-    at the iterate, no dJ/dq F tangent), ``held`` coordinates (zero acceleration).
-    ``acc`` (2, nq): (a, abar), the start when ``start`` is 1 (a continued run), the
-    acceleration before an input jump when 2 (solvers.galpha.restart_choice), else unused
-    (0: consistent); overwritten with the last step's. Returns (q, v) at every step done
-    (n + 1, nq), the Newton iterations and the status (solvers.status; not FINISHED: that
-    of step n + 1)."""
-    nq = q0.shape[0]
-    md = _spatial_model(Pm, inp, tau)
-    a, abar, ok = _start(md, q0, v0, h, acc, start, st.rho_inf)
-    if not ok:
-        return q0.copy().reshape((1, nq)), v0.copy().reshape((1, nq)), 0, NO_CONVERGENCE
-    s = Settings(st.rho_inf, st.tol, st.max_iter, st.backtrack, True, st.line_search_from,
-                 st.halvings if md.nonlinear else 0, st.stagnation, st.limit, st.refinements)
-    X, code, t, x, a, abar, iters = fixed_step(md, nq, 0.0, np.concatenate((q0, v0)), a,
-                                               abar, h, tau.shape[0], 1, s, None)
-    rows = X.shape[0]
-    if code == FINISHED:
-        acc[0] = a
-        acc[1] = abar
-    else:
-        rows = int(np.rint(t / h))     # the steps before the failed one
-    return X[:rows, :nq].copy(), X[:rows, nq:].copy(), iters, code
 
 
 class CompiledSpatialModel:

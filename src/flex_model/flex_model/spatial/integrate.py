@@ -6,8 +6,8 @@
   accelerations), fixed step, Newton on the accelerations with the iteration matrix
   M + beta' h^2 K frozen per step. rho_inf = 1 is the trapezoidal rule (no numerical
   dissipation), rho_inf < 1 damps the unresolved high modes like the planar ``fixed`` mode.
-- ``simulate_fixed_compiled``: the same scheme compiled (compiled.galpha_loop: the planar
-  arms' solvers.loop.fixed_step on compiled.SpatialModel; analytic velocity terms), joint
+- ``simulate_fixed_compiled``: the same scheme compiled (the planar arms'
+  solvers.loop.fixed_step on compiled.SpatialModel; analytic velocity terms), joint
   torques as an array, clipped to the URDF effort limits.
 
 ``force(t, q, v)`` returns the generalized applied force Q (nq), e.g. ``H tau`` with
@@ -242,7 +242,8 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
     (q0, v0): the restart then takes the part of the jump the step can follow where the rest
     would kick modes it cannot (integrators.restart_choice, as the planar fixed step), instead
     of the consistent acceleration."""
-    from .compiled import LoopInputs, galpha_loop, pack
+    from ..solvers.loop import fixed_step
+    from .compiled import LoopInputs, pack, spatial_model, start_acceleration
     from .limits import joint_limits
     data = getattr(model, "_compiled_data", None)
     if data is None:
@@ -283,10 +284,23 @@ def simulate_fixed_compiled(model: SpatialArmModel, q0, v0, h: float, n_steps: i
                         limit=np.inf)     # no bound (motor angles wind up): only non-finite
 
     def loop(q, v, hh, rows, acc, warm, forces):
+        """(q, v) at every step done, the Newton iterations and the status (not
+        FINISHED: that of the failed step) of len(rows) steps of hh from (q, v); acc
+        overwritten with the last step's (a, abar) when FINISHED."""
         inputs = LoopInputs(K, np.ascontiguousarray(D), model.Q_const.copy(), fric, motors,
                             blash, contact, stops, pdc, forces, held, H, effort)
-        return galpha_loop(data, inputs, np.asarray(q, float).copy(),
-                           np.asarray(v, float).copy(), float(hh), rows, settings, acc, warm)
+        q, v, nq = np.asarray(q, float).copy(), np.asarray(v, float).copy(), model.nq
+        md = spatial_model(data, inputs, rows)
+        a, abar, ok = start_acceleration(md, q, v, float(hh), acc, warm, settings.rho_inf)
+        if not ok:
+            return q.reshape((1, nq)), v.reshape((1, nq)), 0, NO_CONVERGENCE
+        s = settings._replace(relative=True, halvings=settings.halvings if md.nonlinear else 0)
+        X, code, t, _, a, abar, iters = fixed_step(md, nq, 0.0, np.concatenate((q, v)), a,
+                                                   abar, float(hh), len(rows), 1, s, None)
+        if code == FINISHED:
+            acc[0], acc[1] = a, abar
+        done = len(X) if code == FINISHED else int(np.rint(t / hh))   # the steps before
+        return X[:done, :nq].copy(), X[:done, nq:].copy(), iters, code
 
     def forces(a, b, repeat=1):
         return tipf if not len(tipf) else np.array(np.repeat(tipf[a:b], repeat, axis=0),

@@ -1,6 +1,6 @@
 """Joint limits of a spatial arm (URDF ``<limit>``): arrays, effort clipping, violations.
 
-Effort limits are honoured by the compiled fixed-step loop (compiled.galpha_loop clips the
+Effort limits are honoured by the compiled fixed-step loop (compiled.SpatialModel clips the
 joint torques inline, and with an in-loop PD its whole torque: integrate's ``pd_clip``;
 :func:`clip_efforts` is the same clip for Python callers); position limits become end
 stops with the arm file's ``joint_stops`` (description.JointStops), else they are, like

@@ -7,20 +7,21 @@ twin's measured channels, its output (the recorded command ``tau<i>``) is held
 ``actuator_delay`` effect on joint j, applied d_j = ceil(delay_j / period) periods later
 (0 before the first command is old enough), exactly as :func:`flex_model.simulate.simulate`
 with a ``policy`` and ``method='fixed'`` does. The whole loop is compiled (numba), calling
-the generalized-alpha integrator of :mod:`flex_model.integrators` between control
-instants, so a 20 s run costs a fraction of a second. A control period whose Newton
-iterations stall (the rounded corners of a backlash or of friction crossed within one
-step) is integrated again with :data:`SUBSTEPS` steps per step. Open-loop replay of
-measured torques through the rigid-body modes drifts and is not offered. Joints with
+the generalized-alpha loop (flex_model.solvers.loop.fixed_step on
+flex_model.integrators.PlanarModel) between control instants, so a 20 s run costs a
+fraction of a second. A control period whose Newton iterations stall (the rounded
+corners of a backlash or of friction crossed within one step) is integrated again with
+:data:`SUBSTEPS` steps per step. Open-loop replay of measured torques through the
+rigid-body modes drifts and is not offered. Joints with
 ``stick_slip_friction`` carry their bristle deflections z in the state, x = [q; v; z]
 (the integrator advances them, flex_model.effects.stick_slip); a replay starts with them
 unloaded.
 
 A continuous law (``timing: continuous``, :mod:`.controller`) is the compiled joint PD of
-:mod:`flex_model.integrators` (E[5], E[6]: its stiffness and damping are in the
+:mod:`flex_model.integrators` (E.kp, E.kd: its stiffness and damping are in the
 generalized-alpha Newton matrix, so a D term on an arm without hub inertia is implicit and
 stable at the replay's step); the part of the law that depends on time only,
-ff + kp (qset - encoder bias), is the held input E[8], updated at the recording's samples
+ff + kp (qset - encoder bias), is the held input E.u, updated at the recording's samples
 (:func:`_continuous_loop`; the integrator restarts with a consistent acceleration only
 where that input changes). Its recorded command is the law at the sampled state.
 """
@@ -32,22 +33,24 @@ import numpy as np
 from numba import njit
 
 from flex_model.dynamics import FlexArmModel
-from flex_model.integrators import (consistent_acceleration, generalized_alpha,
-                                    generalized_alpha_simplified)
+from flex_model.integrators import PlanarModel, consistent_acceleration
+from flex_model.iteration_matrix import empty_factor
 from flex_model.kernels import link_origins
 from flex_model.inputs import JointPD, input_data
 from flex_model.simulate import SimulationDivergedError
-from flex_model.solvers.status import REFINEMENTS
+from flex_model.solvers.loop import fixed_step
+from flex_model.solvers.status import REFINEMENTS, newton_settings
 from flex_model.statics import StaticConvergenceError, static_equilibrium
 from .controller import ControllerDescription
+from flex_model.kernels import P_MODE
 
 DEFAULT_STEP = 1e-3
 #: steps per step of a control period retried after a Newton failure (the first refinement)
 SUBSTEPS = REFINEMENTS[0]
 #: replays on second-order kinematics by simplified Newton (_closed_loop, _continuous_loop)
 SIMPLIFIED = True
-# (the compiled loops pass their integer constants to the integrator as np.int64: a bare
-# literal is its own numba type, and each one compiled generalized_alpha once more)
+# (the compiled loops pass their integer constants to the loop as np.int64: a bare
+# literal is its own numba type, and each one compiled fixed_step once more)
 
 
 @njit(cache=True)
@@ -57,10 +60,11 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
     out_stride steps, the commands at the n_periods + 1 instants (the last one at the
     final state) and a status (0 ok, 1 diverged, 2 Newton failed). ``simplified``
     (second-order kinematics): each period's first attempt by simplified Newton
-    (:func:`flex_model.integrators.generalized_alpha_simplified`, the same results to the
-    Newton tolerance), the retry of a stalled period by full Newton."""
+    (flex_model.solvers.loop.simplified_newton, the same results to the Newton tolerance),
+    the retry of a stalled period by full Newton."""
     nx = x0.shape[0]
-    n = E[0].shape[0]   # x = [q; v; z]: z the bristle deflections of stick-slip joints
+    n = E.K.shape[0]   # x = [q; v; z]: z the bristle deflections of stick-slip joints
+    md, opts = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6)
     nj = Kp.shape[0]
     nc = C.shape[0]
     n_steps = n_periods * per_period
@@ -69,7 +73,7 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
     cmd = np.zeros((n_periods + 1, nj))
     Y = np.zeros((n_periods + 1, nc))
     YD = np.zeros((n_periods + 1, nc))
-    u = E[8]
+    u = E.u
     x = x0.copy()
     X[0] = x
     for k in range(n_periods + 1):
@@ -90,18 +94,18 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
         t = k * per_period * h
         a0 = consistent_acceleration(t, x, P, E)
         if simplified:
-            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha_simplified(
-                t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a, abar, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h, per_period, np.int64(1), opts, empty_factor())
         else:
-            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-                t, x, a0, a0.copy(), h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a, abar, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h, per_period, np.int64(1), opts, None)
         if status == 2:   # Newton stalled (a sharp corner: backlash, friction): the period
             # again in SUBSTEPS steps per step from the last accepted state x and its
             # consistent acceleration a0, not the failed attempt's (bit-identical runs
             # where it converges)
-            Xs, status, t_stop, x_stop, a, abar, it = generalized_alpha(
-                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
-                rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a, abar, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS,
+                np.int64(SUBSTEPS), opts, None)
         if status != 0:
             return X, cmd, status, t_stop
         for s in range(1, per_period + 1):
@@ -115,10 +119,11 @@ def _closed_loop(x0, P, E, h, per_period, n_periods, rho_inf, C, Kp, Kd, ref, ff
 @njit(cache=True)
 def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_stride, X):
     """Periods k .. k + m - 1 of :func:`_continuous_loop` one by one by full Newton (the
-    held input E[8] = U[k] on period k; a period whose Newton iterations stall again in
+    held input E.u = U[k] on period k; a period whose Newton iterations stall again in
     SUBSTEPS steps per step, from the last accepted state and its consistent acceleration).
     Writes the states into X; returns (status, time reached, x, a, abar)."""
-    u = E[8]
+    u = E.u
+    md, opts, n = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6), E.K.shape[0]
     for kk in range(k, k + m):
         t = kk * per_period * h
         restart = kk == 0
@@ -129,13 +134,13 @@ def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_s
         if restart:
             a = consistent_acceleration(t, x, P, E)
             abar = a.copy()
-        Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
-            t, x, a, abar, h, per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+        Xs, status, t_stop, x_stop, a1, abar1, it = fixed_step(
+            md, n, t, x, a, abar, h, per_period, np.int64(1), opts, None)
         if status == 2:   # Newton stalled on a sharp corner: the period in substeps
             a0 = consistent_acceleration(t, x, P, E)
-            Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha(
-                t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS, np.int64(SUBSTEPS),
-                rho_inf, 1e-10, 1e6, P, E)
+            Xs, status, t_stop, x_stop, a1, abar1, it = fixed_step(
+                md, n, t, x, a0, a0.copy(), h / SUBSTEPS, per_period * SUBSTEPS,
+                np.int64(SUBSTEPS), opts, None)
         if status != 0:
             return status, t_stop, x, a, abar
         a = a1
@@ -152,13 +157,13 @@ def _continuous_periods(x, a, abar, k, m, P, E, h, per_period, rho_inf, U, out_s
 def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
                      simplified):
     """Run n_periods sample periods of per_period steps under the compiled joint PD of E
-    with the held input E[8] = U[k] on period k; return the states every out_stride steps,
+    with the held input E.u = U[k] on period k; return the states every out_stride steps,
     a status (0 ok, 1 diverged, 2 Newton failed) and the time reached. The method runs on
     through the periods (bit-identical to one call) and restarts with a consistent
     acceleration where the held input changes (a set-point step).
 
     ``simplified`` (second-order kinematics): each stretch of periods with one held input
-    is one call of simplified Newton (:func:`flex_model.integrators.generalized_alpha_simplified`:
+    is one call of simplified Newton (flex_model.solvers.loop.simplified_newton:
     its iteration matrix kept across the stretch, the same results to the Newton
     tolerance, a fraction of the cost); a stretch it does not finish is integrated again
     period by period by full Newton (:func:`_continuous_periods`), as without it."""
@@ -166,16 +171,17 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
     n_steps = n_periods * per_period
     n_out = n_steps // out_stride + 1
     X = np.full((n_out, nx), np.nan)
-    u = E[8]
+    u = E.u
     x = x0.copy()
     X[0] = x
-    a = np.zeros(E[0].shape[0])
+    a = np.zeros(E.K.shape[0])
     abar = a.copy()
     if not simplified:
         status, t_stop, x, a, abar = _continuous_periods(
             x, a, abar, 0, n_periods, P, E, h, per_period, rho_inf, U, out_stride, X)
         return X, status, t_stop
     k = 0
+    md, opts, n = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6), a.shape[0]
     while k < n_periods:
         m = 1   # the stretch of periods with the held input of period k
         while k + m < n_periods and np.all(U[k + m] == U[k]):
@@ -184,15 +190,15 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
         u[:] = U[k]
         a = consistent_acceleration(t, x, P, E)
         abar = a.copy()
-        Xs, status, t_stop, x_stop, a1, abar1, it = generalized_alpha_simplified(
-            t, x, a, abar, h, m * per_period, np.int64(1), rho_inf, 1e-10, 1e6, P, E)
+        Xs, status, t_stop, x_stop, a1, abar1, it = fixed_step(
+            md, n, t, x, a, abar, h, m * per_period, np.int64(1), opts, empty_factor())
         if status == 0:
             for s in range(1, m * per_period + 1):
                 g = k * per_period + s
                 if g % out_stride == 0:
                     X[g // out_stride] = Xs[s]
             x = x_stop
-        else:   # period by period, by full Newton (E[8] as before this stretch)
+        else:   # period by period, by full Newton (E.u as before this stretch)
             if k > 0:
                 u[:] = U[k - 1]
             status, t_stop, x, a1, abar1 = _continuous_periods(
@@ -343,7 +349,7 @@ def simulate_closed_loop(model: FlexArmModel, controller: ControllerDescription,
         np.ascontiguousarray(controller.gains), np.ascontiguousarray(controller.rate_gains),
         np.ascontiguousarray(ref), np.ascontiguousarray(ff_at_instants[:n_periods + 1]),
         bias, _delay_periods(model, period), sdelay, stride,
-        bool(SIMPLIFIED and model.P[0] == 1))
+        bool(SIMPLIFIED and model.P[P_MODE] == 1))
     if status != 0:
         raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
                                       f"(status {status}: diverged or Newton failed)")
@@ -374,7 +380,7 @@ def _continuous_closed_loop(model, controller, x0, t_final, qset_at_instants,
     U = np.ascontiguousarray(ff + (ref - bias) @ controller.gains.T)
     X, status, t_stop = _continuous_loop(np.asarray(x0, float), model.P, E, h, per_period,
                                          n_periods, rho_inf, U, per_period,
-                                         bool(SIMPLIFIED and model.P[0] == 1))
+                                         bool(SIMPLIFIED and model.P[P_MODE] == 1))
     if status != 0:
         raise SimulationDivergedError(f"closed-loop replay failed at t = {t_stop:.6g} s "
                                       f"(status {status}: diverged or Newton failed)")
@@ -451,7 +457,7 @@ def _guard_caches():
     from flex_model import integrators, iteration_matrix, kernels, numba_cache
     from flex_model.effects import friction, stick_slip
     from flex_model.solvers import galpha, loop, newton, status
-    numba_cache.guard([_closed_loop, _continuous_loop, _tips],
+    numba_cache.guard([_closed_loop, _continuous_periods, _continuous_loop, _tips],
                       [integrators.__file__, kernels.__file__, stick_slip.__file__,
                        friction.__file__, iteration_matrix.__file__, galpha.__file__,
                        loop.__file__, newton.__file__, status.__file__])
