@@ -5,7 +5,7 @@
 Replays the nominal spatial twin with the hidden effects of the case's truth.yaml at their
 true values (joint friction viscous and Coulomb, a plane's bending or the torsion
 stiffness, the payload), the friction's Coulomb transition at each width eps (rad/s) of
-the friction hypothesis (spatial_loop._friction), and prints J on the fit part and the
+the friction hypothesis (hypotheses.joint_friction), and prints J on the fit part and the
 held-out part (the last 40 %, as the diagnosis splits a run) in noise units, and each
 effect alone. The generator's law is tanh(w / 0.02 rad/s): docs/diagnosis.md, "Joint
 friction: the width of its Coulomb transition".
@@ -23,7 +23,7 @@ from flex_twin.diagnosis.baseline import baseline_parameters
 from flex_twin.diagnosis.batch import RunSpec, load_any_arm
 from flex_twin.diagnosis.controller import load_controller
 from flex_twin.diagnosis.evaluation import Context, cost, evaluate
-from flex_twin.diagnosis.hypotheses import FRICTION_EPS, library_hypotheses
+from flex_twin.diagnosis.hypotheses import FRICTION_EPS, FRICTION_WIDTH, library_hypotheses
 from flex_twin.diagnosis.sources import load_recording
 
 
@@ -35,7 +35,7 @@ def true_effects(case: Path, hyps: dict, eps: float) -> list:
         if e["kind"] == "joint_friction":
             h = hyps["joint_friction@" + e["target"]]
             x = [p["viscous"] / h.scale[0], p["coulomb"] / h.scale[1], 0.0,
-                 (eps - FRICTION_EPS) / spatial_loop.FRICTION_WIDTH]
+                 (eps - FRICTION_EPS) / FRICTION_WIDTH]
         elif e["kind"] in ("bending_stiffness", "torsion_stiffness"):
             kind = e["kind"] if "plane" not in p else "bending_stiffness_" + p["plane"]
             h = hyps[f"{kind}@{e['target']}"]

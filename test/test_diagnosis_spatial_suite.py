@@ -20,7 +20,7 @@ from flex_twin.diagnosis.baseline import baseline_parameters
 from flex_twin.diagnosis.controller import load_controller
 from flex_twin.diagnosis.engine import DEFAULT_GATE
 from flex_twin.diagnosis.evaluation import Context, cost, residual_vector
-from flex_twin.diagnosis.hypotheses import library_hypotheses
+from flex_twin.diagnosis.hypotheses import FRICTION_WIDTH, library_hypotheses
 from flex_twin.diagnosis.recording import load_csv
 
 DATA = Path(__file__).resolve().parent / "data" / "spatial_suite"
@@ -86,7 +86,7 @@ def test_the_friction_hypothesis_carries_the_width_of_its_coulomb_transition():
     (viscous 0.2 N m s/rad, Coulomb 0.08 N m). At those levels the friction hypothesis
     with the planar law's fixed width (1 mrad/s, x = 0) leaves the run above the gate
     (J 1.66 measured), with the width fitted at 0.02 rad/s within it (1.17): the width is
-    the joint's, a parameter of the hypothesis (spatial_loop._friction), reported."""
+    the joint's, a parameter of the hypothesis (hypotheses.joint_friction), reported."""
     arm, ctx = _context(FRICTION, dt=spatial_loop.MAX_STEP)
     truth = yaml.safe_load((FRICTION / "truth.yaml").read_text())["hidden"][0]["parameters"]
     hyp = {h.label: h for h in library_hypotheses(arm, ctx.rec, ctx.controller)}[
@@ -95,7 +95,7 @@ def test_the_friction_hypothesis_carries_the_width_of_its_coulomb_transition():
 
     def J(eps):
         x = [truth["viscous"] / hyp.scale[0], truth["coulomb"] / hyp.scale[1], 0.0,
-             (eps - 1e-3) / spatial_loop.FRICTION_WIDTH]
+             (eps - 1e-3) / FRICTION_WIDTH]
         twin = hyp.apply(arm, x)[0]
         names, values, _ = hyp.physical(hyp.values(x), [0.0] * 4, twin)
         assert dict(zip(names, values))["regularization"] == pytest.approx(eps)

@@ -119,7 +119,7 @@ def test_updated_arm_yaml_loads_with_the_named_effects(tmp_path):
     rec = validate(t, ch, 2, "mem")
     hyps = {h.label: h for h in library_hypotheses(nominal, rec, controller_from_dict(PD))}
     picks = [("joint_elasticity@joint2", [0.5, 2.0]), ("sensor_bias@joint1", [5.0]),
-             ("stiffness@link1", [1.5]), ("joint_friction@joint1", [1.0, 1.0, 0.3])]
+             ("stiffness@link1", [1.5]), ("joint_friction@joint1", [1.0, 1.0, 0.3, 0.0])]
     effects = [(hyps[lab], np.array(x)) for lab, x in picks]
     accepted = [types.SimpleNamespace(label=h.label, kind=h.kind, names=h.names,
                                       values=list(h.values(x)), ci=[0.0] * len(x), share=1.0)

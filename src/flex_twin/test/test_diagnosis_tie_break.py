@@ -111,6 +111,28 @@ def test_a_rival_of_the_same_class_is_not_fitted(monkeypatch):
     assert kept == "joint_friction@joint1" and fitted == []
 
 
+def test_the_width_of_the_friction_law_is_not_counted_against_the_stick_slip_law():
+    """The two laws of a joint's friction within TIE (A-cont-joint_friction-m1-s1:
+    the regularized law with its width, 4 parameters, shared 1.193, the stick-slip law,
+    3, 1.162): the width is the law's shape, not a further level, so the larger share is
+    named; a richer law of another class still loses the near-tie on parameters."""
+    fric = engine.Candidate(
+        label="joint_friction@joint1", kind="joint_friction", target="joint1",
+        names=("viscous", "coulomb", "static", "regularization"), values=[], ci=[], x=[],
+        screen=0.0, J_fit=2.0, J_holdout=2.0, share=1.193, delta_bic=-10.0, cond=1.0,
+        identifiable=True, n_params=4, share_fit=1.193)
+    slip = engine.Candidate(
+        label="stick_slip_friction@joint1", kind="stick_slip_friction", target="joint1",
+        names=("viscous", "coulomb", "static"), values=[], ci=[], x=[], screen=0.0,
+        J_fit=2.0, J_holdout=2.0, share=1.162, delta_bic=-10.0, cond=1.0,
+        identifiable=True, n_params=3, share_fit=1.162)
+    assert engine._pick([fric, slip], engine.MIN_SHARE).label == "joint_friction@joint1"
+    other = _cand("joint_elasticity@joint1", 1.17, 3)
+    assert engine._pick([fric, slip, other], engine.MIN_SHARE).label == other.label
+    slip2 = _cand("stick_slip_friction@joint2", 1.162, 3)   # another joint: parameters
+    assert engine._pick([fric, slip2], engine.MIN_SHARE).label == slip2.label
+
+
 def test_a_rival_not_resolved_better_does_not_replace_the_pick(monkeypatch):
     """The suite's B-cont-sensor_bias-m0-s1 (bias 5 mrad at joint 2): the bias at joint 2
     (5.0 mrad) and at joint 1 (2.6 mrad: the tip moves alike) held out 0.2766 and

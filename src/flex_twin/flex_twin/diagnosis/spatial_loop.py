@@ -22,7 +22,7 @@ through five small dispatches, each calling this module where the arm is spatial
   of the section's stiffnesses (EI_y, EI_z, GJ: the material's E and G) and one of its
   mass (rhoA, rhoJ), within the planar baseline's tolerances.
 - :func:`hypotheses` (hypotheses.library_hypotheses): per joint friction (with the width
-  of its Coulomb transition, :func:`_friction`) and the elastic
+  of its Coulomb transition: hypotheses.joint_friction, the planar arms' too) and the elastic
   gear (seed 003's joint type AE_xi: stiffness, damping and the motor-side inertia fitted
   together); per flexible link the bending stiffness **per plane** (``bending_stiffness_z``
   in-plane, ``bending_stiffness_y`` out of plane) and the torsion stiffness; the payload.
@@ -47,9 +47,6 @@ MAX_STEP = 1e-3
 #: the sampled law's periods restart at each command jump (False: carry the acceleration
 #: history across it, as before 2026-12-07; bench/bench_spatial_sampled_replay.py)
 SAMPLED_RESTART = True
-#: the friction hypothesis's regularization eps (rad/s) per unit of its x: eps =
-#: hypotheses.FRICTION_EPS (the planar hypothesis's fixed value) + FRICTION_WIDTH x
-FRICTION_WIDTH = 0.01
 #: the spatial hypotheses' kinds: link stiffness per plane and torsion (relative change)
 PLANE_KINDS = {"bending_stiffness_z": "bend_v", "bending_stiffness_y": "bend_w",
                "torsion_stiffness": "torsion"}
@@ -114,9 +111,10 @@ def apply_scales(arm, params, scales):
 
 # ------------------------------------------------------------------ hypotheses
 
-def hypotheses(arm, rec, make, motor) -> list:
+def hypotheses(arm, rec, make, motor, friction) -> list:
     """The spatial hypotheses (module docstring); ``make``: hypotheses._h, ``motor``: the
-    motor-side inertia's unit, range and probe (hypotheses.MOTOR_*). Scales from the
+    motor-side inertia's unit, range and probe (hypotheses.MOTOR_*), ``friction``: the
+    joint friction hypothesis of a joint (hypotheses.joint_friction). Scales from the
     recording's torque and rate levels, as the planar library's."""
     MOTOR_INERTIA, MOTOR_RANGE, MOTOR_PROBE = motor
     taus, rates = rec.stack("tau"), rec.stack("v")
@@ -125,7 +123,7 @@ def hypotheses(arm, rec, make, motor) -> list:
         trms = max(float(np.sqrt(np.mean(taus[:, j] ** 2))), 1e-3)
         wrms = max(float(np.sqrt(np.mean(rates[:, j] ** 2))), 1e-3)
         k_ref = trms / 5e-3            # 5 mrad of twist at the rms torque
-        out.append(_friction(make, name, trms, wrms))
+        out.append(friction(name, trms, wrms))
         out.append(make("joint_elasticity", name, ("stiffness", "damping", "motor_inertia"),
                         (k_ref, k_ref * 5e-3, MOTOR_INERTIA), (0, 0, 1),
                         (1e3, 100, MOTOR_RANGE),
@@ -145,31 +143,11 @@ def hypotheses(arm, rec, make, motor) -> list:
     return out
 
 
-def _friction(make, joint, trms, wrms):
-    """Joint friction with the width of its Coulomb transition: viscous, Coulomb, the
-    Stribeck excess and the regularization eps of tanh(w / eps)
-    (flex_model.effects.friction_law), eps from the planar hypothesis's fixed value
-    (x = 0) up by FRICTION_WIDTH per unit of x. The speed over which a joint's Coulomb
-    torque builds up (pre-sliding, lubrication) is the joint's, not known beforehand. Held
-    at 1 mrad/s against a joint whose Coulomb torque builds up over 0.02 rad/s (the
-    spatial suite's), the law is mis-shaped at the low speeds every set-point step passes
-    through: S-samp500-two-bending-link2-z+joint_friction2-s2 at the true levels and both
-    true effects leaves held-out J 1.65 (fit 2.07) at 1 mrad/s, 1.00 (1.36) at 0.02 rad/s;
-    the fitted friction went 16 % too viscous, 29 % too little Coulomb, and what it left
-    outweighed link 2's softer EI_z beside it, which stayed unnamed."""
-    return make("joint_friction", joint, ("viscous", "coulomb", "static_excess",
-                                          "regularization"),
-                (0.1 * trms / wrms, 0.1 * trms, 0.1 * trms, FRICTION_WIDTH), (0, 0, 0, 0),
-                (50, 20, 20, 10), [(1.0, 1.0, 0.3, 1.0)],
-                probes=[(1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0),
-                        (0.0, 1.0, 0.0, 2.0)])
-
-
 def apply(hyp, arm, v, friction):
     """(arm with the hypothesis ``hyp`` at its values ``v``, None); ``friction``: the
-    Stribeck velocity and regularization of the friction hypothesis."""
+    joint_friction effect's parameters of a friction hypothesis
+    (hypotheses.friction_values)."""
     from flex_model.effects import EFFECT_TYPES as E
-    STRIBECK_VELOCITY, FRICTION_EPS = friction
     k = hyp.kind
     if k == "payload":
         return dataclasses.replace(arm, payload=dataclasses.replace(
@@ -180,9 +158,7 @@ def apply(hyp, arm, v, friction):
         prof = getattr(arm.links[i].flexible, field)
         return _with_beam(arm, i, **{field: _scaled(prof, 1.0 + float(v[0]))}), None
     if k == "joint_friction":
-        eps = FRICTION_EPS + float(v[3]) if len(v) > 3 else FRICTION_EPS
-        return with_effects(arm, E[k](hyp.target, (v[0], v[1], v[1] + v[2],
-                                                   STRIBECK_VELOCITY, eps))), None
+        return with_effects(arm, E[k](hyp.target, friction)), None
     if k == "joint_elasticity":
         if not np.isfinite(v[0]):
             return arm, None
@@ -190,15 +166,9 @@ def apply(hyp, arm, v, friction):
     raise ValueError(f"hypothesis {k} is not defined for spatial arms")
 
 
-def physical(hyp, v, w, twin, friction_eps):
+def physical(hyp, v, w, twin):
     """(names, values, half-widths) of a plane hypothesis: the section value it states
-    (EI_y, EI_z or GJ at the link's root); of the friction with its width: viscous,
-    coulomb, static (coulomb + excess) and the regularization (rad/s: ``friction_eps``,
-    the least width, plus the fitted excess); else None."""
-    if hyp.kind == "joint_friction" and len(hyp.names) == 4:
-        return ("viscous", "coulomb", "static", "regularization"), \
-            [v[0], v[1], v[1] + v[2], friction_eps + v[3]], \
-            [w[0], w[1], float(np.hypot(w[1], w[2])), w[3]]
+    (EI_y, EI_z or GJ at the link's root); else None."""
     if hyp.kind not in PLANE_KINDS:
         return None
     lk = next(lk for lk in twin.links if lk.name == hyp.target)
