@@ -44,6 +44,38 @@ if "NUMBA_OPT" not in os.environ:
     os.environ.setdefault("NUMBA_CACHE_DIR",
                           str(Path(__file__).resolve().parent / ".numba_test_cache"))
 
+
+def _log_compiles(folder: str) -> None:
+    """FLEX_TWIN_COMPILE_LOG=folder: each test process appends one line per numba compile
+    (pid, worker, wall start and end, own and inclusive CPU s, function, signature) to
+    folder/<pid>.tsv; ``python bench/bench_compile.py --log folder`` sums them up."""
+    import time
+
+    from numba.core import event
+    out = open(Path(folder) / f"{os.getpid()}.tsv", "a", buffering=1)  # noqa: SIM115
+    stack = []
+
+    class Log(event.Listener):
+        def on_start(self, ev):
+            stack.append([time.time(), time.process_time(), 0.0])
+
+        def on_end(self, ev):
+            w0, c0, inner = stack.pop()
+            dt = time.process_time() - c0
+            if stack:
+                stack[-1][2] += dt
+            f = ev.data["dispatcher"].py_func
+            sig = ",".join(str(a) for a in ev.data["args"]).replace("\t", " ")
+            out.write(f"{os.getpid()}\t{XDIST_WORKER}\t{w0:.3f}\t{time.time():.3f}\t"
+                      f"{dt - inner:.3f}\t{dt:.3f}\t{f.__module__}.{f.__qualname__}\t"
+                      f"{sig[:3000]}\n")
+
+    event.register("numba:compile", Log())
+
+
+if os.environ.get("FLEX_TWIN_COMPILE_LOG"):
+    _log_compiles(os.environ["FLEX_TWIN_COMPILE_LOG"])
+
 if "rclpy" in sys.modules:  # e.g. a pytest plugin imported it before this conftest
     warnings.warn("rclpy was imported before conftest.py set the ROS environment",
                   RuntimeWarning, stacklevel=1)

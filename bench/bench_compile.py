@@ -12,6 +12,9 @@ types), from numba's ``numba:compile`` events.
         # (fixed: a fixed-step simulate, full Newton; simplified: second order, simplified
         # Newton; exact: exact kinematics; replay: the diagnosis replay loops; planner:
         # the planner's loop; spatial: the spatial loop; several: --entry fixed,exact)
+    FLEX_TWIN_COMPILE_LOG=/tmp/log make test   # (an empty folder) then:
+    python bench/bench_compile.py --log /tmp/log   # the suite's compiles, per process, and
+        # what more than one process compiled (the same function and numba types)
 """
 from __future__ import annotations
 
@@ -126,6 +129,29 @@ def _run(demo: bool, entries=("compile_ahead",)) -> None:
         ros_twin_demo.run(os.path.join(out, "demo"))
 
 
+def summarize(folder: str, top: int) -> None:
+    """Print the compile CPU of a test session's processes (FLEX_TWIN_COMPILE_LOG, conftest.py)
+    and the compilations done by more than one of them (same function, same numba types)."""
+    from pathlib import Path
+    rows = [line.rstrip("\n").split("\t") for f in sorted(Path(folder).glob("*.tsv"))
+            for line in f.open()]
+    per_pid, seen = Counter(), {}
+    for pid, worker, w0, w1, own, incl, name, sig in rows:
+        per_pid[f"{pid} (worker {worker})"] += float(own)
+        seen.setdefault((name, sig), []).append((pid, float(own), float(w0), float(w1)))
+    print(f"{len(rows)} compilations, {sum(per_pid.values()):.1f} CPU-s compiling")
+    for who, cpu in per_pid.most_common():
+        print(f"  process {who}: {cpu:.1f} CPU-s")
+    dup = [(sum(o for _, o, _, _ in v) - max(o for _, o, _, _ in v), k, v)
+           for k, v in seen.items() if len({p for p, *_ in v}) > 1]
+    print(f"compiled by more than one process: {len(dup)} (function, types), "
+          f"{sum(d[0] for d in dup):.1f} CPU-s beyond the first")
+    for extra, (name, _), v in sorted(dup, reverse=True)[:top]:
+        overlap = "overlapping" if max(w0 for *_, w0, _ in v) < min(w1 for *_, w1 in v) \
+            else "one after the other"
+        print(f"{extra:10.2f}  {name} x{len(v)} ({overlap})")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--opt", type=int, choices=(0, 1, 2, 3), default=3,
@@ -134,7 +160,12 @@ def main(argv=None) -> int:
     p.add_argument("--entry", default="compile_ahead",
                    help=f"entry points, comma-separated: {', '.join(ENTRIES)}")
     p.add_argument("--top", type=int, default=25, help="functions to list")
+    p.add_argument("--log", metavar="FOLDER",
+                   help="sum up a test session's FLEX_TWIN_COMPILE_LOG folder instead")
     args = p.parse_args(argv)
+    if args.log:
+        summarize(args.log, args.top)
+        return 0
     entries = args.entry.split(",")
     for name in entries:
         if name not in ENTRIES:

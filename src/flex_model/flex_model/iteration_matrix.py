@@ -128,9 +128,10 @@ def _lu_solve(LU, piv, b):
 
 @njit(cache=_CACHE)
 def empty_factor():
-    """The factor tuple holding no factor."""
+    """The factor tuple holding no factor (its flag an int64: a literal 0 in the tuple's
+    type would compile solvers.loop._simplified once more when the flag becomes int64)."""
     z2 = np.zeros((0, 0))
-    return z2, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, 0
+    return z2, z2, z2, z2, np.zeros(0, dtype=np.int64), z2, np.int64(0)
 
 
 @njit(cache=_CACHE)

@@ -178,7 +178,7 @@ def _continuous_loop(x0, P, E, h, per_period, n_periods, rho_inf, U, out_stride,
     abar = a.copy()
     if not simplified:
         status, t_stop, x, a, abar = _continuous_periods(
-            x, a, abar, 0, n_periods, P, E, h, per_period, rho_inf, U, out_stride, X)
+            x, a, abar, np.int64(0), n_periods, P, E, h, per_period, rho_inf, U, out_stride, X)
         return X, status, t_stop
     k = 0
     md, opts, n = PlanarModel(P, E), newton_settings(rho_inf, 1e-10, 1e6), a.shape[0]
