@@ -500,14 +500,13 @@ def _window_sums(q, v, a, Wl, dS, i, k, b, w, u, ud, vSv, qSa):
 
 
 @njit(cache=_CACHE)
-def _link_forces_2(i, q, v, a, aox, aoy, P, f, cpt, tja):
+def _link_forces_2(i, q, v, a, aox, aoy, off, zq, mu, lo, wn, Wl, dS, f, cpt, tja):
     """Mode 1, the forward sweep over link i's points (d'Alembert, thesis Eq. 27): the
     point accelerations p'' = a_o + J_alpha alpha'' - t1 e1 - t2 e2 from the origin's
     (aox, aoy), the deformation forces W^T mu e2 . p'' into f, c_k = mu_k e1 . p'' into
     cpt, the tip's alpha column into tja; returns the link's resultant (Fx, Fy), its
-    alpha force Fa and the tip's acceleration (the next origin's)."""
-    off, zq, mu = P[P_OFF], P[P_ZQ], P[P_MU]
-    lo, wn, Wl = P[P_LO], P[P_WN], P[P_WL]
+    alpha force Fa and the tip's acceleration (the next origin's). P's arrays passed one by
+    one: a call reference-counts each array of a tuple passed."""
     npt = mu.shape[1]
     o = off[i] + 1  # first deformation variable
     c = np.cos(q[o - 1])
@@ -525,7 +524,7 @@ def _link_forces_2(i, q, v, a, aox, aoy, P, f, cpt, tja):
     for k in range(npt):
         b = o + lo[i, k]
         w = wn[i, k]
-        d, dd, da, u, ud, vSv, qSa = _window_sums(q, v, a, Wl, P[P_DS], i, k, b, w,
+        d, dd, da, u, ud, vSv, qSa = _window_sums(q, v, a, Wl, dS, i, k, b, w,
                                                   u, ud, vSv, qSa)
         m = mu[i, k]
         tip = k == npt - 1
@@ -560,12 +559,10 @@ def _link_forces_2(i, q, v, a, aox, aoy, P, f, cpt, tja):
 
 
 @njit(cache=_CACHE)
-def _outboard_forces_2(i, q, rx, ry, P, f, cpt, tja):
+def _outboard_forces_2(i, q, rx, ry, off, lo, wn, dS, Wl, npt, f, cpt, tja):
     """Mode 1, link i in the backward sweep: the outboard links' resultant (rx, ry)
     through the tip (alpha column, W(L) e2 - S(L) q_f e1; thesis Eqs. 20-22) and the
     shortening's generalized force -sum_k dS_k q_f (suffix sum of c_k) into f."""
-    off, lo, wn, dS, Wl = P[P_OFF], P[P_LO], P[P_WN], P[P_DS], P[P_WL]
-    npt = P[P_MU].shape[1]
     o = off[i] + 1
     c = np.cos(q[o - 1])
     s = np.sin(q[o - 1])
@@ -598,8 +595,9 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
     c_k."""
     off, nf, L = P[P_OFF], P[P_NF], P[P_L]
     jplus, jrig = P[P_JPLUS], P[P_JRIG]
+    zq, mu, lo, wn, Wl, dS = P[P_ZQ], P[P_MU], P[P_LO], P[P_WN], P[P_WL], P[P_DS]
     nl = L.shape[0]
-    npt = P[P_MU].shape[1]
+    npt = mu.shape[1]
     f = np.zeros(q.shape[0])
     aox = -gx
     aoy = -gy
@@ -610,7 +608,8 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
     for i in range(nl):
         o = off[i] + 1
         ad = a[o - 1]
-        Fx, Fy, Fa, aox, aoy = _link_forces_2(i, q, v, a, aox, aoy, P, f, cpt, tja)
+        Fx, Fy, Fa, aox, aoy = _link_forces_2(i, q, v, a, aox, aoy, off, zq, mu, lo, wn, Wl,
+                                              dS, f, cpt, tja)
         g = o - 1 + nf[i]
         f[o - 1] += Fa + jrig[i] * ad + jplus[i] * a[g]
         f[g] += jplus[i] * (ad + a[g])
@@ -619,7 +618,7 @@ def _inverse_dynamics_2(q, v, a, gx, gy, P):
     rx = 0.0
     ry = 0.0
     for i in range(nl - 1, -1, -1):
-        _outboard_forces_2(i, q, rx, ry, P, f, cpt, tja)
+        _outboard_forces_2(i, q, rx, ry, off, lo, wn, dS, Wl, npt, f, cpt, tja)
         rx += fox[i]
         ry += foy[i]
     return f

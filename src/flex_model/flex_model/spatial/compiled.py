@@ -676,31 +676,31 @@ def _rigid_end(i, Pm, G, R, o, Jo, Jw, w, ao, al, rv, acc, W, o_root, ao_root, J
         _fixed(R, o, Jo, Jw, w, ao, al, T[i, 3], ncols, W)
 
 
-@njit(cache=_CACHE)
-def _point_shapes(p, Pm, nv, fv, fw, gv, gw, hv, hw):
+@njit(cache=_CACHE, inline="always")   # per point: no call's reference counts
+def _point_shapes(p, Wv, Ww, dWv, dWw, nv, fv, fw, gv, gw, hv, hw):
     """At Gauss point p: the deflections v, w (shapes W q_f) and their slopes v', w', their
-    rates and their accelerations."""
-    yv, sv, av_ = shape_sums(Pm.Wv, p, nv, fv, gv, hv)
-    yw, sw, aw_ = shape_sums(Pm.Ww, p, nv, fw, gw, hw)
-    ydv, sdv, adv = shape_sums(Pm.dWv, p, nv, fv, gv, hv)
-    ydw, sdw, adw = shape_sums(Pm.dWw, p, nv, fw, gw, hw)
+    rates and their accelerations (Pm's arrays: see _beam_points)."""
+    yv, sv, av_ = shape_sums(Wv, p, nv, fv, gv, hv)
+    yw, sw, aw_ = shape_sums(Ww, p, nv, fw, gw, hw)
+    ydv, sdv, adv = shape_sums(dWv, p, nv, fv, gv, hv)
+    ydw, sdw, adw = shape_sums(dWw, p, nv, fw, gw, hw)
     return yv, yw, ydv, ydw, sv, sw, sdv, sdw, av_, aw_, adv, adw
 
 
-@njit(cache=_CACHE)
-def _point_offset(p, Pm, nv, y, fv, fw, gv, gw, hv, hw, Rb, bx, by, bz, Xn, Pre, xrow, xdir,
-                  sva, swa):
+@njit(cache=_CACHE, inline="always")   # per point: no call's reference counts
+def _point_offset(p, zs, Sv, Sw, XR, so, ex, nv, y, fv, fw, gv, gw, hv, hw, Rb, bx, by, bz,
+                  Xn, Pre, xrow, xdir, sva, swa):
     """Gauss point p from the beam frame's origin (base axes), its rate and its
     acceleration relative to the beam frame: (z, v, w) with small deflections (thesis
     Eq. 1), (z - u, v, w) with second_order (u the shortening) or r = int t ds
     exact (exact.py, its own columns into xdir); y = _point_shapes(...)."""
     yv, yw, ydv, ydw, sv, sw, sdv, sdw, av_, aw_, adv, adw = y
-    zp = Pm.zs[p]
+    zp = zs[p]
     ush = 0.0           # second_order: shortening u, its rate and acceleration
     dsh = 0.0
     ash = 0.0
-    if Pm.so:
-        ush, dsh, ash = _shortening(Pm.Sv[p], Pm.Sw[p], fv, fw, gv, gw, hv, hw, sva, swa)
+    if so:
+        ush, dsh, ash = _shortening(Sv[p], Sw[p], fv, fw, gv, gw, hv, hw, sva, swa)
         zp = zp - ush
     r0 = zp * bx[0] + yv * by[0] + yw * bz[0]
     r1 = zp * bx[1] + yv * by[1] + yw * bz[1]
@@ -711,8 +711,7 @@ def _point_offset(p, Pm, nv, y, fv, fw, gv, gw, hv, hw, Rb, bx, by, bz, Xn, Pre,
     ex0 = av_ * by[0] + aw_ * bz[0] - ash * bx[0]
     ex1 = av_ * by[1] + aw_ * bz[1] - ash * bx[1]
     ex2 = av_ * by[2] + aw_ * bz[2] - ash * bx[2]
-    if Pm.ex:      # r = int t ds, its rate and acceleration, own columns (exact.py)
-        XR = Pm.XR
+    if ex:      # r = int t ds, its rate and acceleration, own columns (exact.py)
         point_row(Xn, Pre, XR[p, 0], XR[p, 1], XR[p, 2], xrow)
         r0, r1, r2 = _beam_vector(Rb, xrow, 0)
         d0, d1, d2 = _beam_vector(Rb, xrow, 3)
@@ -767,10 +766,9 @@ def _shortening_columns(s0, nv, mp, rv, bx, acc, sva, swa, C6, M, c, want_m):
 
 
 @njit(cache=_CACHE)
-def _bending_columns(p, Pm, s0, nv, mp, rv, by, bz, acc, C6, M, c, want_m):
+def _bending_columns(p, Wv, Ww, s0, nv, mp, rv, by, bz, acc, C6, M, c, want_m):
     """The point mass's own bending columns b_y Wv_j (v) and b_z Ww_j (w): c, their
     force and moment columns into C6 and the own block of M (upper triangle)."""
-    Wv, Ww = Pm.Wv, Pm.Ww
     r0, r1, r2 = rv[0], rv[1], rv[2]
     ay = by[0] * acc[0] + by[1] * acc[1] + by[2] * acc[2]
     az = bz[0] * acc[0] + bz[1] * acc[1] + bz[2] * acc[2]
@@ -797,14 +795,13 @@ def _bending_columns(p, Pm, s0, nv, mp, rv, by, bz, acc, C6, M, c, want_m):
 
 
 @njit(cache=_CACHE)
-def _section_axes(p, Pm, nt, ft, gt, ht, y, Rb, ek, S):
+def _section_axes(p, Pt, nt, ft, gt, ht, y, Rb, ek, S):
     """The section rotation Rs = Ry(-w') Rz(v') Rx(phi) at Gauss point p (seed 000
     Eq. 19; y = _point_shapes(...)): its axes in base axes into the rows of ek (x = a_t,
     the tangent; y, z) and, in base axes, into the rows of S: the relative angular
     velocity w_rel = a_t phi' + a_w dw' + a_v dv', its bias acceleration plus the second
     derivatives' terms, and the axes a_v, a_w, a_t."""
     ydv, ydw, sdv, sdw, adv, adw = y[2], y[3], y[6], y[7], y[10], y[11]
-    Pt = Pm.Pt
     phi = 0.0
     sphi = 0.0
     for j in range(nt):
@@ -853,13 +850,13 @@ def _section_axes(p, Pm, nt, ft, gt, ht, y, Rb, ek, S):
 
 
 @njit(cache=_CACHE)
-def _section_inertia(p, Pm, s0, nv, nt, nk, w, al, ek, S, tau, G, C6, M, c, sown, want_m):
+def _section_inertia(p, pw, dWv, dWw, Pt, s0, nv, nt, nk, w, al, ek, S, tau, G, C6, M, c, sown,
+                     want_m):
     """The section's rotary inertia at Gauss point p, pw[p, k] e_k e_k^T (rhoJ about x;
     with rotary inertia rho I_y, rho I_z about y, z; ek, S of :func:`_section_axes`),
     turning at w_p = w + w_rel, alpha_p = alpha + w x w_rel + (bias): its torque
     tau = sum_k pw_k (e_k (e_k . alpha_p) + (e_k . w_p) w_p x e_k) into G and, along the
     own rotation columns a_v dWv_j, a_w dWw_j, a_t Pt_j, into c, C6 and M."""
-    pw, dWv, dWw, Pt = Pm.pw, Pm.dWv, Pm.dWw, Pm.Pt
     wb0, wb1, wb2 = S[0, 0], S[0, 1], S[0, 2]
     ab0, ab1, ab2 = S[1, 0], S[1, 1], S[1, 2]
     avb0, avb1, avb2 = S[2, 0], S[2, 1], S[2, 2]
@@ -916,31 +913,35 @@ def _section_inertia(p, Pm, s0, nv, nt, nk, w, al, ek, S, tau, G, C6, M, c, sown
 
 
 @njit(cache=_CACHE)
-def _beam_point(p, Pm, s0, nv, nt, nk, f, Rb, bx, by, bz, w, ao, al, G, C6, M, c, Xn, Pre,
-                xrow, xdir, sva, swa, sown, rv, acc, ek, S, tau, want_m):
-    """Gauss point p of a beam (f = the beam's q, v, qdd slices fv, fw, ft, gv, ..., ht):
-    its mass into the group G, its own columns (bending, shortening or exact) and its
-    section's rotary inertia (torsion or rotary inertia: nt > 0 or nk == 3)."""
+def _beam_points(i, Pm, s0, nv, nt, nk, f, Rb, bx, by, bz, w, ao, al, G, C6, M, c, Xn, Pre,
+                 xrow, xdir, sva, swa, sown, rv, acc, ek, S, tau, want_m):
+    """The Gauss points p of beam i (f = the beam's q, v, qdd slices fv, fw, ft, gv, ...,
+    ht): each one's mass into the group G, its own columns (bending, shortening or exact)
+    and its section's rotary inertia (torsion or rotary inertia: nt > 0 or nk == 3). One
+    call for all points: a call costs a reference count of each array passed."""
     fv, fw, ft, gv, gw, gt, hv, hw, ht = f
-    y = _point_shapes(p, Pm, nv, fv, fw, gv, gw, hv, hw)
-    mp = Pm.mw[p]
-    x = _point_offset(p, Pm, nv, y, fv, fw, gv, gw, hv, hw, Rb, bx, by, bz, Xn, Pre, xrow,
-                      xdir, sva, swa)
-    _point_acceleration(w, ao, al, Pm.g, x, acc)
-    rv[0] = x[0]
-    rv[1] = x[1]
-    rv[2] = x[2]
-    _group_point(G, mp, rv, acc)
-    if Pm.ex:
-        _own_columns(xdir, s0, mp, rv, acc, C6, M, c, want_m)
-    if Pm.so:      # own columns b_y Wv_j - b_x (Sv f_v)_j, b_z Ww_j - b_x (Sw f_w)_j
-        _shortening_columns(s0, nv, mp, rv, bx, acc, sva, swa, C6, M, c, want_m)
-    if not Pm.ex:
-        _bending_columns(p, Pm, s0, nv, mp, rv, by, bz, acc, C6, M, c, want_m)
-    if nt or nk == 3:
-        _section_axes(p, Pm, nt, ft, gt, ht, y, Rb, ek, S)
-        _section_inertia(p, Pm, s0, nv, nt, nk, w, al, ek, S, tau, G, C6, M, c, sown,
-                         want_m)
+    Wv, Ww, dWv, dWw, Pt, mw, g = Pm.Wv, Pm.Ww, Pm.dWv, Pm.dWw, Pm.Pt, Pm.mw, Pm.g
+    so, ex = Pm.so, Pm.ex
+    for p in range(Pm.pstart[i], Pm.pstart[i + 1]):
+        y = _point_shapes(p, Wv, Ww, dWv, dWw, nv, fv, fw, gv, gw, hv, hw)
+        mp = mw[p]
+        x = _point_offset(p, Pm.zs, Pm.Sv, Pm.Sw, Pm.XR, so, ex, nv, y, fv, fw, gv, gw, hv,
+                          hw, Rb, bx, by, bz, Xn, Pre, xrow, xdir, sva, swa)
+        _point_acceleration(w, ao, al, g, x, acc)
+        rv[0] = x[0]
+        rv[1] = x[1]
+        rv[2] = x[2]
+        _group_point(G, mp, rv, acc)
+        if ex:
+            _own_columns(xdir, s0, mp, rv, acc, C6, M, c, want_m)
+        if so:      # own columns b_y Wv_j - b_x (Sv f_v)_j, b_z Ww_j - b_x (Sw f_w)_j
+            _shortening_columns(s0, nv, mp, rv, bx, acc, sva, swa, C6, M, c, want_m)
+        if not ex:
+            _bending_columns(p, Wv, Ww, s0, nv, mp, rv, by, bz, acc, C6, M, c, want_m)
+        if nt or nk == 3:
+            _section_axes(p, Pt, nt, ft, gt, ht, y, Rb, ek, S)
+            _section_inertia(p, Pm.pw, dWv, dWw, Pt, s0, nv, nt, nk, w, al, ek, S, tau, G, C6,
+                             M, c, sown, want_m)
 
 
 @njit(cache=_CACHE)
@@ -1072,9 +1073,8 @@ def _beam(i, Pm, q, v, qdd, R, o, Jo, Jw, w, ao, al, G, C6, X6, M, c, Rb, ek, S,
     xrow = np.zeros(9 + 6 * nv)
     xdir = np.zeros((2 * nv, 3))
     rv, xv, acc, tmp, tau = V3[0], V3[1], V3[2], V3[3], V3[4]
-    for p in range(pstart[i], pstart[i + 1]):
-        _beam_point(p, Pm, s0, nv, nt, nk, f, Rb, bx, by, bz, w, ao, al, G, C6, M, c, Xn,
-                    Pre, xrow, xdir, sva, swa, sown, rv, acc, ek, S, tau, want_m)
+    _beam_points(i, Pm, s0, nv, nt, nk, f, Rb, bx, by, bz, w, ao, al, G, C6, M, c, Xn, Pre,
+                 xrow, xdir, sva, swa, sown, rv, acc, ek, S, tau, want_m)
     _flush(G, C6, s0, s1, Jo, Jw, Pm.koff[i] + 1, M, c, X6, want_m)
     _tip_translation(i, Pm, s0, nv, f, Rb, bx, by, bz, o, Jo, Jw, w, ao, al, Xn, Pre, xrow,
                      sva, swa, rv, xv, tmp, V3[5], V3[6], V3[7], tau)
