@@ -33,7 +33,8 @@
    :func:`_stop_reason`; a later round fits only the candidates whose linearized
    screening score reaches ``SCREEN_MARGIN`` of that). After each named effect the
    baseline and the named effects are re-fitted alone (:func:`_refit_named`: what that
-   gains is no further effect's), and once, with the first named effect, the model-form
+   gains is no further effect's; the linearization re-taken at the named twin,
+   :func:`_relinearized`), and once, with the first named effect, the model-form
    floor is measured again (:func:`.floor.model_form_with`: the data's residual along
    the twins' difference); a further effect must explain more than that model form's
    share on both recordings (:func:`_model_form_need`), which the gate also counts. A
@@ -888,6 +889,19 @@ def _fmt2(d) -> str:
     return "-" if d is None else " / ".join(f"{v:.3g}" for v in d.values())
 
 
+def _relinearized(executor, ctx, current):
+    """The linearization at the twin a later round screens from: the baseline Jacobian
+    replayed at its scales and effects after the fine fit (:func:`_fine_fit` returns the
+    one of its baseline step, taken with the effect at its screening value). Independent
+    suite, B-cont-two-sensor_bias+stiffness-s2: with link 1's E fine-fitted from 54.7 to
+    52.3 GPa, that stale Jacobian screened both joints' biases under 0.11 (need 3.8) and
+    round 2 fitted nothing; the fresh one screens joint 2's at 14.7, fitted -15.5 mrad
+    (truth -15), J_ho 31.3 -> 15.3."""
+    return linearize(executor, ctx, current.scales, current.effects,
+                     baseline_jacobian(executor, ctx, current.scales, current.effects,
+                                       current.r))
+
+
 def _refit_named(executor, ctx, ctx_ho, current, cur_ho, lin):
     """The baseline and the named effects re-fitted alone, as every later candidate's fit
     re-fits them (the bounded linearized step of :class:`.fitting.Linearization` from the
@@ -1155,6 +1169,7 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
                                            min_share, later, need)
                     rounds[-1]["picked"] = pick.label
             current, cur_ho, lin, (hyp, x) = new
+            lin = _relinearized(executor, ctx, current)
             twin = twin_arm(ctx, current.scales, current.effects)
             _restate(accepted, current.effects, twin)
             named_now = _split(pick, hyp, x, twin, _fine_halfwidths(ctx, current, x))
