@@ -1,6 +1,6 @@
-"""engine._relinearized: after a named effect's fine fit, the linearization a later round
-screens from is taken at that twin (its scales, effects and residuals), never the one of
-the fine fit's baseline step (taken with the effect at its screening value). Independent
+"""engine._relinearized: a later round that screens nothing in screens again from the
+linearization at the named twin (its scales, effects and residuals), not the one of the
+fine fit's baseline step (taken with the effect at its screening value). Independent
 suite, B-cont-two-sensor_bias+stiffness-s2: with the stale one the joint-2 bias screened
 under 0.1 (need 3.9) and round 2 fitted nothing; at the twin, 14.7 (docs/diagnosis.md).
 The replays are replaced by a linear residual model (the rule alone, no twin)."""
