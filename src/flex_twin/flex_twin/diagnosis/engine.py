@@ -33,12 +33,14 @@
    :func:`_stop_reason`; a later round fits only the candidates whose linearized
    screening score reaches ``SCREEN_MARGIN`` of that). After each named effect the
    baseline and the named effects are re-fitted alone (:func:`_refit_named`: what that
-   gains is no further effect's), and once, with the first named effect, the model-form
-   floor is measured again (:func:`.floor.model_form_with`: the data's residual along
-   the twins' difference); a further effect must explain more than that model form's
-   share on both recordings (:func:`_model_form_need`), which the gate also counts. A
-   target never holds two effects of one class (:data:`SAME_CLASS`: no such pair, no
-   such later addition). An accepted joint elasticity
+   gains is no further effect's; a later round that screens nothing in screens again
+   from the linearization at the named twin, :func:`_relinearized`), and once, with the
+   first named effect, the model-form floor is measured again
+   (:func:`.floor.model_form_with`: the data's residual along the twins' difference); a
+   further effect must explain more than that model form's share on both recordings
+   (:func:`_model_form_need`), which the gate also counts. A target never holds two
+   effects of one class (:data:`SAME_CLASS`: no such pair, no such later addition). An
+   accepted joint elasticity
    that leaves a material excess is refitted as a backlash of its joint, the richer
    effect of its class (:func:`_refine`); a backlash whose play the reported interval
    does not resolve from zero is named as the joint elasticity of its spring
@@ -888,6 +890,33 @@ def _fmt2(d) -> str:
     return "-" if d is None else " / ".join(f"{v:.3g}" for v in d.values())
 
 
+def _ranked(executor, ctx, hyps, current, lin, top, need):
+    """The screening (:func:`_screen`) and the hypotheses fitted: the ``top`` scores
+    above 0.1 of the best, and with ``need`` (a later round) the linearly screened ones
+    reaching it. Returns (scores, starts, pair scores, ranked)."""
+    scores, starts, pair_scores = _screen(executor, ctx, hyps, current, lin)
+    ranked = sorted(hyps, key=lambda h: -scores[h.label])[:top]
+    ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
+    if need is not None:
+        ranked = [h for h in ranked if not h.linear or h.discrete or scores[h.label] >= need]
+    return scores, starts, pair_scores, ranked
+
+
+def _relinearized(executor, ctx, current):
+    """The linearization at the twin a later round screens from: the baseline Jacobian
+    replayed at its scales and effects after the fine fit (:func:`_fine_fit` returns the
+    one of its baseline step, taken with the effect at its screening value), when the
+    screening from that one fits nothing. Always re-taken, B-samp500-stiffness-m1-s1
+    screened a pair in and named link 2's damping beside the stiffness. Independent
+    suite, B-cont-two-sensor_bias+stiffness-s2: with link 1's E fine-fitted from 54.7 to
+    52.3 GPa, that stale Jacobian screened both joints' biases under 0.11 (need 3.8) and
+    round 2 fitted nothing; the fresh one screens joint 2's at 14.7, fitted -15.5 mrad
+    (truth -15), J_ho 31.3 -> 15.3."""
+    return linearize(executor, ctx, current.scales, current.effects,
+                     baseline_jacobian(executor, ctx, current.scales, current.effects,
+                                       current.r))
+
+
 def _refit_named(executor, ctx, ctx_ho, current, cur_ho, lin):
     """The baseline and the named effects re-fitted alone, as every later candidate's fit
     re-fits them (the bounded linearized step of :class:`.fitting.Linearization` from the
@@ -1079,16 +1108,17 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             hyps = _not_named_again(library_hypotheses(
                 nominal, fit_rec, controller, exclude=[c.label for c in accepted],
                 twin_peaks=_twin_peaks(ctx, current.r)), accepted)
-            scores, starts, pair_scores = _screen(executor, ctx, hyps, current, lin)
-            ranked = sorted(hyps, key=lambda h: -scores[h.label])[:top]
-            ranked = [h for h in ranked if scores[h.label] > 0.1 * scores[ranked[0].label]]
-            if accepted:
-                # a further effect must explain min_share of the fit recording's excess;
-                # a linearized screening score predicts that reduction (continuous
-                # parameters), so those far under it are not fitted
-                need = SCREEN_MARGIN * min_share * max(current.J - 1.0, gate)
-                ranked = [h for h in ranked if not h.linear or h.discrete
-                          or scores[h.label] >= need]
+            # a further effect must explain min_share of the fit recording's excess; a
+            # linearized screening score predicts that reduction (continuous parameters),
+            # so those far under it are not fitted
+            need = SCREEN_MARGIN * min_share * max(current.J - 1.0, gate) if accepted \
+                else None
+            scores, starts, pair_scores, ranked = _ranked(executor, ctx, hyps, current, lin,
+                                                          top, need)
+            if accepted and not ranked:   # once more from the named twin's linearization
+                lin = _relinearized(executor, ctx, current)
+                scores, starts, pair_scores, ranked = _ranked(executor, ctx, hyps, current,
+                                                              lin, top, need)
             extra = _screened_pairs(ranked, scores, pair_scores)
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked)
