@@ -35,3 +35,24 @@ def test_relinearized_at_the_current_twin(monkeypatch):
     np.testing.assert_array_equal(seen["jacobian_at"][2], current.r)
     np.testing.assert_array_equal(seen["linearized_at"][0], s_star)
     np.testing.assert_allclose(lin.J, A)   # the Jacobian at the twin, not elsewhere
+
+
+def test_a_later_round_screens_again_only_when_nothing_screened_in(monkeypatch):
+    calls = []
+
+    def ranked(executor, ctx, hyps, current, lin, top, need):
+        calls.append(lin)
+        return {}, {}, {}, (["h"] if lin == "fresh" else [])
+
+    monkeypatch.setattr(engine, "_ranked", ranked)
+    monkeypatch.setattr(engine, "_relinearized", lambda executor, ctx, current: "fresh")
+    # the first round (need None) keeps its linearization even when nothing screens in
+    assert engine._screened_round(None, None, [], None, "stale", 4, None)[0] == "stale"
+    assert calls == ["stale"]
+    calls.clear()
+    lin, out = engine._screened_round(None, None, [], None, "stale", 4, 3.8)
+    assert (lin, out[3], calls) == ("fresh", ["h"], ["stale", "fresh"])
+    calls.clear()   # a later round that screens something in: no second screening
+    monkeypatch.setattr(engine, "_relinearized", lambda *a: "unused")
+    assert engine._screened_round(None, None, [], None, "fresh", 4, 3.8)[0] == "fresh"
+    assert calls == ["fresh"]

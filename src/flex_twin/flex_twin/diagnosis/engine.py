@@ -902,12 +902,24 @@ def _ranked(executor, ctx, hyps, current, lin, top, need):
     return scores, starts, pair_scores, ranked
 
 
+def _screened_round(executor, ctx, hyps, current, lin, top, need):
+    """A round's screening (:func:`_ranked`) from ``lin``; a later round (``need`` given)
+    that screens nothing in screens once more from the named twin's linearization
+    (:func:`_relinearized`). Returns (the linearization used, :func:`_ranked`'s tuple)."""
+    out = _ranked(executor, ctx, hyps, current, lin, top, need)
+    if need is None or out[3]:
+        return lin, out
+    lin = _relinearized(executor, ctx, current)
+    return lin, _ranked(executor, ctx, hyps, current, lin, top, need)
+
+
 def _relinearized(executor, ctx, current):
     """The linearization at the twin a later round screens from: the baseline Jacobian
     replayed at its scales and effects after the fine fit (:func:`_fine_fit` returns the
     one of its baseline step, taken with the effect at its screening value), when the
-    screening from that one fits nothing. Always re-taken, B-samp500-stiffness-m1-s1
-    screened a pair in and named link 2's damping beside the stiffness. Independent
+    screening from that one fits nothing. Re-taken after every named effect instead, it
+    screened a pair in on B-samp500-stiffness-m1-s1 and named link 2's damping (wrong)
+    beside the stiffness. Independent
     suite, B-cont-two-sensor_bias+stiffness-s2: with link 1's E fine-fitted from 54.7 to
     52.3 GPa, that stale Jacobian screened both joints' biases under 0.11 (need 3.8) and
     round 2 fitted nothing; the fresh one screens joint 2's at 14.7, fitted -15.5 mrad
@@ -1113,12 +1125,8 @@ def diagnose(nominal, controller, fit_rec, holdout_rec=None, *, executor=None,
             # so those far under it are not fitted
             need = SCREEN_MARGIN * min_share * max(current.J - 1.0, gate) if accepted \
                 else None
-            scores, starts, pair_scores, ranked = _ranked(executor, ctx, hyps, current, lin,
-                                                          top, need)
-            if accepted and not ranked:   # once more from the named twin's linearization
-                lin = _relinearized(executor, ctx, current)
-                scores, starts, pair_scores, ranked = _ranked(executor, ctx, hyps, current,
-                                                              lin, top, need)
+            lin, (scores, starts, pair_scores, ranked) = _screened_round(
+                executor, ctx, hyps, current, lin, top, need)
             extra = _screened_pairs(ranked, scores, pair_scores)
             _progress("screening: " + ", ".join(f"{h.label} {scores[h.label]:.3g}"
                                                 for h in ranked)
